@@ -1,0 +1,233 @@
+//! The block abstraction: a model with states, parameters and named ports wired to signals.
+//!
+//! A unit (see [`crate::unit`]) is a set of blocks connected through named **signals** on a
+//! shared bus (`efd`, `pm`, `speed`, `pe`, `vs`, …). Each block declares its ports; by default a
+//! port is wired to the signal of the same name, and a unit model may rewire any port. Adding a
+//! block (a two-mass shaft, a limiter, a measurement filter, a user-defined control diagram)
+//! therefore never touches the machine code: it reads and writes signals.
+//!
+//! Evaluation of the right-hand side has two phases: [`Block::outputs`] for every block in an
+//! order where the driver of every *feed-through* input comes first, then
+//! [`Block::derivatives`] for every block with the whole bus known.
+//!
+//! Initialisation runs backwards from the measured operating point: the machine computes its
+//! states and *gives* the values its inputs must have (`efd`, `pm`); each controller then
+//! *needs* those values as targets for its own output and solves for its states and internal
+//! references. [`PortInit`] says, per port, which side of that exchange the block is on.
+
+use crate::params::ParamSet;
+
+/// Direction of a port at run time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dir {
+    /// Read from the bus.
+    In,
+    /// Written to the bus by [`Block::outputs`]; each signal has at most one writer.
+    Out,
+}
+
+/// Role of a port during initialisation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PortInit {
+    /// The value must be known before this block initialises (an input, or a target for an
+    /// output that another block has fixed).
+    Needs,
+    /// This block's initialisation sets the value.
+    Gives,
+}
+
+/// A named port.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Port {
+    /// Port name; also the default signal name.
+    pub name: &'static str,
+    pub dir: Dir,
+    pub init: PortInit,
+    /// For inputs: does the value reach an output in the same instant (algebraic path)?
+    pub feedthrough: bool,
+    /// Meaning and unit, for documentation.
+    pub doc: &'static str,
+}
+
+impl Port {
+    pub const fn input(name: &'static str, init: PortInit, doc: &'static str) -> Self {
+        Self { name, dir: Dir::In, init, feedthrough: false, doc }
+    }
+    pub const fn input_ft(name: &'static str, init: PortInit, doc: &'static str) -> Self {
+        Self { name, dir: Dir::In, init, feedthrough: true, doc }
+    }
+    pub const fn output(name: &'static str, init: PortInit, doc: &'static str) -> Self {
+        Self { name, dir: Dir::Out, init, feedthrough: false, doc }
+    }
+}
+
+/// A block's view of the bus: port `i` reads or writes signal `map[i]`.
+pub struct Io<'a> {
+    bus: &'a mut [f64],
+    map: &'a [usize],
+}
+
+impl<'a> Io<'a> {
+    pub fn new(bus: &'a mut [f64], map: &'a [usize]) -> Self {
+        Self { bus, map }
+    }
+    /// Value on port `port`.
+    #[inline(always)]
+    pub fn get(&self, port: usize) -> f64 {
+        self.bus[self.map[port]]
+    }
+    /// Writes port `port`.
+    #[inline(always)]
+    pub fn set(&mut self, port: usize, value: f64) {
+        self.bus[self.map[port]] = value;
+    }
+}
+
+/// Operating point the machine initialises from, on the **machine base**.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InitPoint {
+    /// Terminal voltage magnitude [pu].
+    pub v_mag: f64,
+    /// Terminal voltage angle [rad] in the nominal-frequency frame.
+    pub v_ang: f64,
+    /// Active power delivered [pu on machine base].
+    pub p: f64,
+    /// Reactive power delivered [pu on machine base].
+    pub q: f64,
+    /// Initial speed deviation Δω0 = (f0 − f_n)/f_n [pu].
+    pub speed_dev: f64,
+}
+
+/// Why a block could not initialise or its parameters are invalid.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    /// A parameter violates a guard (field names the parameter).
+    #[error("parameter {param}: {msg}")]
+    BadParam { param: String, msg: String },
+    /// Parameters are valid one by one but the model cannot start at the operating point.
+    #[error("cannot initialise: {0}")]
+    Init(String),
+}
+
+impl ModelError {
+    pub fn param(param: &str, msg: impl Into<String>) -> Self {
+        ModelError::BadParam { param: param.to_string(), msg: msg.into() }
+    }
+}
+
+/// A dynamic model with named ports. See the module documentation.
+pub trait Block: Send + Sync {
+    /// Model name as written in unit files, e.g. `GENSAE`, `SEXS`.
+    fn model(&self) -> &'static str;
+    /// Ports in index order.
+    fn ports(&self) -> &'static [Port];
+    /// State names in the order of the state slice.
+    fn state_names(&self) -> &'static [&'static str];
+    fn params(&self) -> &dyn ParamSet;
+    fn params_mut(&mut self) -> &mut dyn ParamSet;
+    /// Checks parameter guards (positive time constants, reactance ordering, …).
+    fn validate(&self) -> Result<(), ModelError>;
+
+    /// Sets the states `x` for steady state. Ports with [`PortInit::Needs`] hold known values;
+    /// the block writes every [`PortInit::Gives`] port. `op` is the measured operating point
+    /// (used by the machine; controllers ignore it).
+    fn init(&mut self, op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError>;
+
+    /// Writes the output ports from the states and (feed-through) inputs at time `t`.
+    fn outputs(&self, t: f64, x: &[f64], io: &mut Io);
+
+    /// Writes `dx/dt`. All signals on the bus are current.
+    fn derivatives(&self, t: f64, x: &[f64], io: &Io, dx: &mut [f64]);
+
+    /// Number of event functions (limiter guards) of this block.
+    fn n_events(&self) -> usize {
+        0
+    }
+    /// Event functions, positive while the current mode stays valid (see [`crate::integrate`]).
+    fn events(&self, _x: &[f64], _io: &Io, _g: &mut [f64]) {}
+    /// Re-evaluates discrete modes at the current point; may project `x`. Returns `true` when
+    /// anything changed.
+    fn update_modes(&mut self, _x: &mut [f64], _io: &Io) -> bool {
+        false
+    }
+
+    /// Sets the nominal frequency [Hz] (machines use ω_b = 2π f_n). Default: ignored.
+    fn set_nominal_frequency(&mut self, _hz: f64) {}
+
+    /// Model options that are words, not numbers (e.g. the machine's `swing` convention).
+    /// Returns the accepted option names when `key` is unknown.
+    fn set_option(&mut self, key: &str, _value: &str) -> Result<(), ModelError> {
+        Err(ModelError::param(key, "unknown option"))
+    }
+    /// Current options as `(key, value)` pairs (written back to unit files).
+    fn options(&self) -> Vec<(&'static str, String)> {
+        vec![]
+    }
+
+    fn clone_box(&self) -> Box<dyn Block>;
+}
+
+impl Clone for Box<dyn Block> {
+    fn clone(&self) -> Self {
+        self.clone_box()
+    }
+}
+
+/// Implements the boilerplate `params`, `params_mut`, `clone_box` for a block whose parameter
+/// struct is in field `p`.
+#[macro_export]
+macro_rules! block_common {
+    () => {
+        fn params(&self) -> &dyn $crate::params::ParamSet {
+            &self.p
+        }
+        fn params_mut(&mut self) -> &mut dyn $crate::params::ParamSet {
+            &mut self.p
+        }
+        fn clone_box(&self) -> Box<dyn $crate::block::Block> {
+            Box::new(self.clone())
+        }
+    };
+}
+
+/// Guard helpers used by `validate` implementations.
+pub mod guard {
+    use super::ModelError;
+
+    pub fn positive(name: &str, v: f64) -> Result<(), ModelError> {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(ModelError::param(name, format!("must be > 0 (got {v})")))
+        }
+    }
+    pub fn non_negative(name: &str, v: f64) -> Result<(), ModelError> {
+        if v.is_finite() && v >= 0.0 {
+            Ok(())
+        } else {
+            Err(ModelError::param(name, format!("must be >= 0 (got {v})")))
+        }
+    }
+    pub fn finite(name: &str, v: f64) -> Result<(), ModelError> {
+        if v.is_finite() {
+            Ok(())
+        } else {
+            Err(ModelError::param(name, format!("must be finite (got {v})")))
+        }
+    }
+    /// `a > b` with a message naming both.
+    pub fn greater(a_name: &str, a: f64, b_name: &str, b: f64) -> Result<(), ModelError> {
+        if a > b {
+            Ok(())
+        } else {
+            Err(ModelError::param(a_name, format!("must exceed {b_name} ({a} <= {b})")))
+        }
+    }
+    pub fn greater_eq(a_name: &str, a: f64, b_name: &str, b: f64) -> Result<(), ModelError> {
+        if a >= b {
+            Ok(())
+        } else {
+            Err(ModelError::param(a_name, format!("must be >= {b_name} ({a} < {b})")))
+        }
+    }
+}

@@ -1,0 +1,31 @@
+//! # itaipu-dynamics
+//!
+//! Playback simulation of a generating unit (synchronous machine, exciter, stabiliser,
+//! turbine-governor) driven by a measured terminal-voltage phasor, as used for PMU-based model
+//! validation and calibration (NERC MOD-026/027 style).
+//!
+//! * [`models`]: the model library, equations in each file's documentation, following
+//!   `shared/reference/models.md` (PSS/E and OpenIPSL conventions, per unit on the machine base).
+//! * [`unit`]: blocks wired by named signals into one explicit ODE; the playback source.
+//! * [`integrate`]: fixed-step RK4 and adaptive Dormand-Prince 5(4) with dense output and
+//!   event location for limiter switches.
+//! * [`event`]: measured events (TOML + CSV), validation, pre-event operating point.
+//! * [`unit_file`]: unit model files (TOML).
+//! * [`simulate`]: the playback simulation and its traces.
+
+pub mod block;
+pub mod event;
+pub mod integrate;
+pub mod models;
+pub mod params;
+pub mod registry;
+pub mod simulate;
+pub mod unit;
+pub mod unit_file;
+
+pub use block::{Block, InitPoint, ModelError};
+pub use event::{Event, EventError};
+pub use integrate::{Dopri5Options, Method};
+pub use simulate::{simulate, SimError, SimOptions, Traces};
+pub use unit::{Unit, UnitError};
+pub use unit_file::{read_unit, UnitFileError};

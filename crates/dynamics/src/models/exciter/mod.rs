@@ -1,0 +1,2 @@
+//! Excitation systems (AVRs).
+pub mod sexs;

@@ -1,0 +1,162 @@
+//! HYGOV: hydro turbine-governor (`models.md` §9.3.1; OpenIPSL `TG/HYGOV.mo`).
+//!
+//! States: filter output `e`, desired gate `c` (non-windup in [G_MIN, G_MAX], rate-limited by
+//! VELM), gate `g`, turbine flow `q`.
+//!
+//! ```text
+//! T_f de/dt = n_ref + Δn_ref − Δω − R c − e
+//! v = e/(r T_r) + (1/r) de/dt                        ((1 + sT_r)/(r T_r) acting on e)
+//! dc/dt = clamp(v, −VELM, +VELM)                     (frozen at a gate limit while pushing outwards)
+//! T_g dg/dt = c − g
+//! h = (q/g)²,   T_w dq/dt = 1 − h                    (static head h0 = 1, as in PSS/E)
+//! P_m = A_t h (q − q_NL) − D_turb g Δω
+//! ```
+//!
+//! Initialisation at `Δω0` (§10.2): `q0 = (P_m0 + A_t q_NL)/(A_t − D_turb Δω0)`, `g0 = c0 = q0`,
+//! `e0 = 0`, `n_ref = R c0 + Δω0`; infeasible when `g0 ∉ [G_MIN, G_MAX]`. The droop feeds back
+//! the desired gate `c`, not the servo output `g`. `g` is floored at 1e-6 inside `h` so that a
+//! wild calibration candidate produces a large but finite head rather than a division by zero.
+
+use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
+use crate::models::limiter::{clamp, NonWindup};
+use crate::{block_common, param_set};
+
+param_set! {
+    /// HYGOV parameters (machine base).
+    pub struct HygovParams {
+        r_perm: ("R", "pu", 0.05, (0.03, 0.06), "permanent droop"),
+        r_temp: ("r", "pu", 0.3, (0.2, 0.8), "temporary droop"),
+        t_r: ("T_r", "s", 5.0, (3.0, 10.0), "governor (dashpot reset) time constant"),
+        t_f: ("T_f", "s", 0.05, (0.03, 0.1), "filter time constant"),
+        t_g: ("T_g", "s", 0.5, (0.2, 0.5), "gate servo time constant"),
+        velm: ("VELM", "pu/s", 0.2, (0.05, 0.2), "gate velocity limit"),
+        g_max: ("G_MAX", "pu", 1.0, (0.9, 1.0), "maximum gate opening"),
+        g_min: ("G_MIN", "pu", 0.0, (0.0, 0.1), "minimum gate opening"),
+        t_w: ("T_w", "s", 1.2, (0.8, 3.0), "water inertia time constant at rated flow"),
+        a_t: ("A_t", "-", 1.2, (1.1, 1.3), "turbine gain 1/(g_FL − g_NL)"),
+        d_turb: ("D_turb", "pu", 0.5, (0.0, 0.5), "turbine damping"),
+        q_nl: ("q_NL", "pu", 0.08, (0.05, 0.15), "no-load flow"),
+        n_ref_offset: ("dnref", "pu", 0.0, (-0.005, 0.005), "speed reference offset added after initialisation (nuisance)"),
+    }
+}
+
+mod port {
+    pub const SPEED: usize = 0;
+    pub const PM: usize = 1;
+}
+
+const PORTS: &[Port] = &[
+    Port::input_ft("speed", PortInit::Needs, "speed deviation Δω [pu]"),
+    Port::output("pm", PortInit::Needs, "mechanical power P_m [pu machine base]"),
+];
+
+/// HYGOV block.
+#[derive(Debug, Clone, Default)]
+pub struct Hygov {
+    pub p: HygovParams,
+    n_ref: f64,
+    gate_limit: NonWindup,
+}
+
+impl Hygov {
+    pub fn new(p: HygovParams) -> Self {
+        Self { p, ..Default::default() }
+    }
+
+    /// `(de/dt, rate-limited dc/dt before the gate limit)`.
+    #[inline(always)]
+    fn rates(&self, x: &[f64], speed: f64) -> (f64, f64) {
+        let p = &self.p;
+        let de = (self.n_ref + p.n_ref_offset - speed - p.r_perm * x[1] - x[0]) / p.t_f;
+        let v = x[0] / (p.r_temp * p.t_r) + de / p.r_temp;
+        (de, clamp(v, -p.velm, p.velm))
+    }
+
+    /// Turbine head for flow `q` and gate `g`.
+    #[inline(always)]
+    fn head(q: f64, g: f64) -> f64 {
+        let r = q / g.max(1e-6);
+        r * r
+    }
+}
+
+impl Block for Hygov {
+    block_common!();
+
+    fn model(&self) -> &'static str {
+        "HYGOV"
+    }
+    fn ports(&self) -> &'static [Port] {
+        PORTS
+    }
+    fn state_names(&self) -> &'static [&'static str] {
+        &["e", "c", "g", "q"]
+    }
+    fn validate(&self) -> Result<(), ModelError> {
+        let p = &self.p;
+        guard::non_negative("r_perm", p.r_perm)?;
+        guard::positive("r_temp", p.r_temp)?;
+        guard::positive("t_r", p.t_r)?;
+        guard::positive("t_f", p.t_f)?;
+        guard::positive("t_g", p.t_g)?;
+        guard::positive("velm", p.velm)?;
+        guard::positive("t_w", p.t_w)?;
+        guard::positive("a_t", p.a_t)?;
+        guard::non_negative("d_turb", p.d_turb)?;
+        guard::non_negative("q_nl", p.q_nl)?;
+        guard::finite("n_ref_offset", p.n_ref_offset)?;
+        guard::greater("g_max", p.g_max, "g_min", p.g_min)
+    }
+
+    fn init(&mut self, op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
+        self.validate()?;
+        let p = &self.p;
+        let pm0 = io.get(port::PM);
+        let w0 = io.get(port::SPEED);
+        let _ = op;
+        let q0 = (pm0 + p.a_t * p.q_nl) / (p.a_t - p.d_turb * w0);
+        if !(q0 > 0.0 && q0 >= p.g_min && q0 <= p.g_max) {
+            return Err(ModelError::Init(format!(
+                "HYGOV: initial gate g0 = {q0:.4} pu (for P_m0 = {pm0:.4} pu) lies outside [G_MIN, G_MAX] = [{}, {}]",
+                p.g_min, p.g_max
+            )));
+        }
+        x[0] = 0.0;
+        x[1] = q0;
+        x[2] = q0;
+        x[3] = q0;
+        self.n_ref = p.r_perm * q0 + w0;
+        self.gate_limit = NonWindup::default();
+        Ok(())
+    }
+
+    #[inline]
+    fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
+        let p = &self.p;
+        let h = Self::head(x[3], x[2]);
+        io.set(port::PM, p.a_t * h * (x[3] - p.q_nl) - p.d_turb * x[2] * io.get(port::SPEED));
+    }
+
+    #[inline]
+    fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
+        let p = &self.p;
+        let (de, dc) = self.rates(x, io.get(port::SPEED));
+        dx[0] = de;
+        dx[1] = self.gate_limit.derivative(dc);
+        dx[2] = (x[1] - x[2]) / p.t_g;
+        dx[3] = (1.0 - Self::head(x[3], x[2])) / p.t_w;
+    }
+
+    fn n_events(&self) -> usize {
+        2
+    }
+    fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
+        let (_, dc) = self.rates(x, io.get(port::SPEED));
+        self.gate_limit.events(x[1], dc, self.p.g_min, self.p.g_max, g);
+    }
+    fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {
+        let (_, dc) = self.rates(x, io.get(port::SPEED));
+        let (lo, hi) = (self.p.g_min, self.p.g_max);
+        self.gate_limit.update(&mut x[1], dc, lo, hi)
+    }
+}

@@ -1,0 +1,3 @@
+//! Turbine-governors.
+pub mod constant_pm;
+pub mod hygov;

@@ -1,0 +1,344 @@
+//! Synchronous machines (PSS/E GENSAE, GENSAL, GENROU, GENCLS as implemented by OpenIPSL).
+//!
+//! What all machines share lives here, once: the ports, the Park transform, the stator
+//! algebraic solve and the swing equation. Each model file (`gensae.rs`, …) holds only its
+//! electrical (rotor circuit) equations, behind the [`Electrical`] trait.
+//!
+//! Conventions (reference `models.md` §0–§3): per unit on the machine base, generator sign,
+//! `Δω` per-unit speed deviation, `δ` in electrical radians in the PMU's nominal-frequency frame,
+//! q-axis along δ, d-axis lagging by 90°:
+//!
+//! ```text
+//! v_d = |V| sin(δ − θ),   v_q = |V| cos(δ − θ)
+//! v_d = E''_d + X''_q i_q − R_a i_d,   v_q = E''_q − X''_d i_d − R_a i_q        (ω = 1 in the stator)
+//! ψ_d = E''_q − X''_d i_d,   ψ_q = −E''_d − X''_q i_q,   T_e = ψ_d i_q − ψ_q i_d
+//! P = v_d i_d + v_q i_q,   Q = v_q i_d − v_d i_q
+//! 2H dΔω/dt = (P_m − D Δω)/(1 + Δω) − T_e        (PSS/E / OpenIPSL; `swing = "pm_over_speed"`)
+//! 2H dΔω/dt = P_m − D Δω − T_e                    (ANDES; `swing = "pm_is_torque"`)
+//! dδ/dt = ω_b Δω
+//! ```
+
+pub mod gencls;
+pub mod genrou;
+pub mod gensae;
+pub mod gensal;
+pub mod saturation;
+
+use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
+use crate::params::ParamSet;
+
+/// Minimal complex number for the phasor algebra of initialisation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Phasor {
+    pub re: f64,
+    pub im: f64,
+}
+
+impl Phasor {
+    pub fn new(re: f64, im: f64) -> Self {
+        Self { re, im }
+    }
+    pub fn polar(mag: f64, ang: f64) -> Self {
+        Self { re: mag * ang.cos(), im: mag * ang.sin() }
+    }
+    pub fn abs(self) -> f64 {
+        self.re.hypot(self.im)
+    }
+    pub fn arg(self) -> f64 {
+        self.im.atan2(self.re)
+    }
+    pub fn conj(self) -> Self {
+        Self { re: self.re, im: -self.im }
+    }
+    pub fn mul(self, o: Self) -> Self {
+        Self { re: self.re * o.re - self.im * o.im, im: self.re * o.im + self.im * o.re }
+    }
+    pub fn div(self, o: Self) -> Self {
+        let d = o.re * o.re + o.im * o.im;
+        Self { re: (self.re * o.re + self.im * o.im) / d, im: (self.im * o.re - self.re * o.im) / d }
+    }
+    pub fn add(self, o: Self) -> Self {
+        Self { re: self.re + o.re, im: self.im + o.im }
+    }
+    /// Park transform at rotor angle δ: returns `(d, q)` components.
+    pub fn to_dq(self, delta: f64) -> (f64, f64) {
+        let (s, c) = delta.sin_cos();
+        (self.re * s - self.im * c, self.re * c + self.im * s)
+    }
+}
+
+/// Stator quantities in the dq frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Stator {
+    pub vd: f64,
+    pub vq: f64,
+    pub id: f64,
+    pub iq: f64,
+    pub psi_d: f64,
+    pub psi_q: f64,
+}
+
+impl Stator {
+    /// Solves the stator algebraic equations (§1.2) for the currents given the subtransient
+    /// voltages `E''_d`, `E''_q` and the terminal voltage in dq:
+    /// `Δ = R_a² + X''_d X''_q`,
+    /// `i_d = [R_a (E''_d − v_d) + X''_q (E''_q − v_q)]/Δ`,
+    /// `i_q = [X''_d (v_d − E''_d) + R_a (E''_q − v_q)]/Δ`.
+    #[inline(always)]
+    pub fn solve(e_d_pp: f64, e_q_pp: f64, vd: f64, vq: f64, r_a: f64, x_d_pp: f64, x_q_pp: f64) -> Self {
+        let det = r_a * r_a + x_d_pp * x_q_pp;
+        let dd = e_d_pp - vd;
+        let dq = e_q_pp - vq;
+        let id = (r_a * dd + x_q_pp * dq) / det;
+        let iq = (-x_d_pp * dd + r_a * dq) / det;
+        Self { vd, vq, id, iq, psi_d: e_q_pp - x_d_pp * id, psi_q: -e_d_pp - x_q_pp * iq }
+    }
+    #[inline(always)]
+    pub fn torque(&self) -> f64 {
+        self.psi_d * self.iq - self.psi_q * self.id
+    }
+    #[inline(always)]
+    pub fn p(&self) -> f64 {
+        self.vd * self.id + self.vq * self.iq
+    }
+    #[inline(always)]
+    pub fn q(&self) -> f64 {
+        self.vq * self.id - self.vd * self.iq
+    }
+}
+
+/// Steady-state electrical quantities found by [`Electrical::init_electrical`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElectricalInit {
+    /// Rotor angle δ0 [rad].
+    pub delta: f64,
+    /// Field voltage that holds the steady state, E_fd0 [pu].
+    pub efd: f64,
+}
+
+/// The rotor-circuit part of a machine model. States after `δ` and `Δω`.
+pub trait Electrical: Clone + Send + Sync + 'static {
+    const MODEL: &'static str;
+    /// All state names, starting with `delta`, `speed`.
+    const STATE_NAMES: &'static [&'static str];
+    fn params(&self) -> &dyn ParamSet;
+    fn params_mut(&mut self) -> &mut dyn ParamSet;
+    /// Inertia constant H [s] and damping D [pu P / pu speed].
+    fn inertia_damping(&self) -> (f64, f64);
+    fn armature_resistance(&self) -> f64;
+    fn validate(&self) -> Result<(), ModelError>;
+    /// Recomputes derived constants from the parameters (called before every initialisation).
+    fn prepare(&mut self) -> Result<(), ModelError>;
+    /// Steady state for terminal voltage `v` and current `i` (system frame, machine base):
+    /// writes the electrical states `x_el` and returns δ0 and E_fd0.
+    fn init_electrical(&mut self, v: Phasor, i: Phasor, x_el: &mut [f64]) -> Result<ElectricalInit, ModelError>;
+    /// Stator solution for electrical states `x_el` and terminal voltage `(v_d, v_q)`.
+    fn stator(&self, x_el: &[f64], vd: f64, vq: f64) -> Stator;
+    /// Field current X_ad I_fd [pu, non-reciprocal].
+    fn xadifd(&self, x_el: &[f64], st: &Stator) -> f64;
+    /// Electrical state derivatives; `xadifd` is the value [`Electrical::xadifd`] returned at
+    /// this point (read back from the bus to avoid computing it twice).
+    fn derivatives(&self, x_el: &[f64], efd: f64, xadifd: f64, st: &Stator, dx_el: &mut [f64]);
+}
+
+/// Which mechanical-torque convention the swing equation uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Swing {
+    /// `T_m = (P_m − D Δω)/(1 + Δω)` (PSS/E, OpenIPSL). Default.
+    #[default]
+    PmOverSpeed,
+    /// `T_m = P_m − D Δω` (ANDES: no division by speed).
+    PmIsTorque,
+}
+
+/// Port indices shared by all machines.
+pub mod port {
+    pub const V_TERM: usize = 0;
+    pub const THETA_TERM: usize = 1;
+    pub const EFD: usize = 2;
+    pub const PM: usize = 3;
+    pub const DELTA: usize = 4;
+    pub const SPEED: usize = 5;
+    pub const PE: usize = 6;
+    pub const QE: usize = 7;
+    pub const TE: usize = 8;
+    pub const XADIFD: usize = 9;
+    pub const ID: usize = 10;
+    pub const IQ: usize = 11;
+}
+
+const PORTS: &[Port] = &[
+    Port::input_ft("v_term", PortInit::Needs, "terminal voltage magnitude |V| [pu], from playback"),
+    Port::input_ft("theta_term", PortInit::Needs, "terminal voltage angle θ [rad], from playback"),
+    Port::input("efd", PortInit::Gives, "field voltage E_fd [pu]"),
+    Port::input("pm", PortInit::Gives, "mechanical power P_m [pu machine base]"),
+    Port::output("delta", PortInit::Gives, "rotor angle δ [rad]"),
+    Port::output("speed", PortInit::Gives, "speed deviation Δω [pu]"),
+    Port::output("pe", PortInit::Gives, "terminal active power P [pu machine base]"),
+    Port::output("qe", PortInit::Gives, "terminal reactive power Q [pu machine base]"),
+    Port::output("te", PortInit::Gives, "air-gap torque T_e [pu]"),
+    Port::output("xadifd", PortInit::Gives, "field current X_ad I_fd [pu]"),
+    Port::output("id", PortInit::Gives, "d-axis stator current [pu]"),
+    Port::output("iq", PortInit::Gives, "q-axis stator current [pu]"),
+];
+
+/// A machine block: swing equation + stator + the electrical model `E`.
+#[derive(Debug, Clone)]
+pub struct Machine<E: Electrical> {
+    pub el: E,
+    pub swing: Swing,
+    /// Base angular frequency ω_b = 2π f_n [rad/s] (set by the unit).
+    pub omega_b: f64,
+}
+
+impl<E: Electrical> Machine<E> {
+    pub fn new(el: E) -> Self {
+        Self { el, swing: Swing::default(), omega_b: 2.0 * std::f64::consts::PI * 60.0 }
+    }
+
+    #[inline(always)]
+    fn stator_at(&self, x: &[f64], io: &Io) -> Stator {
+        let (s, c) = (x[0] - io.get(port::THETA_TERM)).sin_cos();
+        let v = io.get(port::V_TERM);
+        self.el.stator(&x[2..], v * s, v * c)
+    }
+}
+
+impl<E: Electrical> Block for Machine<E> {
+    fn model(&self) -> &'static str {
+        E::MODEL
+    }
+    fn ports(&self) -> &'static [Port] {
+        PORTS
+    }
+    fn state_names(&self) -> &'static [&'static str] {
+        E::STATE_NAMES
+    }
+    fn params(&self) -> &dyn ParamSet {
+        self.el.params()
+    }
+    fn params_mut(&mut self) -> &mut dyn ParamSet {
+        self.el.params_mut()
+    }
+    fn validate(&self) -> Result<(), ModelError> {
+        let (h, d) = self.el.inertia_damping();
+        guard::positive("h", h)?;
+        guard::non_negative("d", d)?;
+        guard::non_negative("r_a", self.el.armature_resistance())?;
+        self.el.validate()
+    }
+
+    fn init(&mut self, op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
+        self.validate()?;
+        self.el.prepare()?;
+        if !(op.v_mag > 0.0) || !op.p.is_finite() || !op.q.is_finite() {
+            return Err(ModelError::Init(format!(
+                "operating point is not usable (|V| = {}, P = {}, Q = {})",
+                op.v_mag, op.p, op.q
+            )));
+        }
+        let v = Phasor::polar(op.v_mag, op.v_ang);
+        let i = Phasor::new(op.p, op.q).div(v).conj();
+        let ei = self.el.init_electrical(v, i, &mut x[2..])?;
+        x[0] = ei.delta;
+        x[1] = op.speed_dev;
+        let (vd, vq) = v.to_dq(ei.delta);
+        let st = self.el.stator(&x[2..], vd, vq);
+        // Self-check: the electrical steady state must reproduce the measured P and Q.
+        let (dp, dq) = (st.p() - op.p, st.q() - op.q);
+        if !(dp.abs() < 1e-8 && dq.abs() < 1e-8) {
+            return Err(ModelError::Init(format!(
+                "{} steady state does not reproduce P, Q (errors {dp:.3e}, {dq:.3e}); check the reactances",
+                E::MODEL
+            )));
+        }
+        let (_, d) = self.el.inertia_damping();
+        let te = st.torque();
+        let w0 = op.speed_dev;
+        let pm = match self.swing {
+            Swing::PmOverSpeed => (1.0 + w0) * te + d * w0,
+            Swing::PmIsTorque => te + d * w0,
+        };
+        io.set(port::EFD, ei.efd);
+        io.set(port::PM, pm);
+        self.write_outputs(x, &st, io);
+        if !ei.efd.is_finite() || !pm.is_finite() || x.iter().any(|v| !v.is_finite()) {
+            return Err(ModelError::Init(format!("{} initial state is not finite", E::MODEL)));
+        }
+        Ok(())
+    }
+
+    #[inline]
+    fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
+        let st = self.stator_at(x, io);
+        self.write_outputs(x, &st, io);
+    }
+
+    #[inline]
+    fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
+        // `outputs` has just solved the stator at this (t, x): reuse its currents and torque.
+        let st = Stator { id: io.get(port::ID), iq: io.get(port::IQ), ..Stator::default() };
+        let (h, d) = self.el.inertia_damping();
+        let w = x[1];
+        let pm = io.get(port::PM);
+        let tm = match self.swing {
+            Swing::PmOverSpeed => (pm - d * w) / (1.0 + w),
+            Swing::PmIsTorque => pm - d * w,
+        };
+        dx[0] = self.omega_b * w;
+        dx[1] = (tm - io.get(port::TE)) / (2.0 * h);
+        self.el.derivatives(&x[2..], io.get(port::EFD), io.get(port::XADIFD), &st, &mut dx[2..]);
+    }
+
+    fn set_nominal_frequency(&mut self, hz: f64) {
+        self.omega_b = 2.0 * std::f64::consts::PI * hz;
+    }
+
+    fn set_option(&mut self, key: &str, value: &str) -> Result<(), ModelError> {
+        match (key, value) {
+            ("swing", "pm_over_speed") => self.swing = Swing::PmOverSpeed,
+            ("swing", "pm_is_torque") => self.swing = Swing::PmIsTorque,
+            ("swing", v) => {
+                return Err(ModelError::param("swing", format!("'{v}' is not one of: pm_over_speed, pm_is_torque")))
+            }
+            (k, _) => return Err(ModelError::param(k, "unknown option (machines accept: swing)")),
+        }
+        Ok(())
+    }
+
+    fn options(&self) -> Vec<(&'static str, String)> {
+        let s = match self.swing {
+            Swing::PmOverSpeed => "pm_over_speed",
+            Swing::PmIsTorque => "pm_is_torque",
+        };
+        vec![("swing", s.to_string())]
+    }
+
+    fn clone_box(&self) -> Box<dyn Block> {
+        Box::new(self.clone())
+    }
+}
+
+impl<E: Electrical> Machine<E> {
+    #[inline(always)]
+    fn write_outputs(&self, x: &[f64], st: &Stator, io: &mut Io) {
+        io.set(port::DELTA, x[0]);
+        io.set(port::SPEED, x[1]);
+        io.set(port::PE, st.p());
+        io.set(port::QE, st.q());
+        io.set(port::TE, st.torque());
+        io.set(port::XADIFD, self.el.xadifd(&x[2..], st));
+        io.set(port::ID, st.id);
+        io.set(port::IQ, st.iq);
+    }
+}
+
+/// Common reactance guards of the salient-pole and round-rotor models:
+/// `X_d > X'_d > X''_d > X_l > 0`, `X_q > X''_q > X_l`, `X_d >= X_q` is *not* enforced (a
+/// round rotor may have X_q close to X_d), all time constants > 0.
+pub(crate) fn check_d_axis(x_d: f64, x_d_p: f64, x_d_pp: f64, x_l: f64) -> Result<(), ModelError> {
+    guard::positive("x_l", x_l)?;
+    guard::greater("x_d_pp", x_d_pp, "x_l", x_l)?;
+    guard::greater("x_d_prime", x_d_p, "x_d_pp", x_d_pp)?;
+    guard::greater("x_d", x_d, "x_d_prime", x_d_p)
+}

@@ -1,0 +1,110 @@
+//! Saturation functions of the PSS/E machines (reference `models.md` §2).
+//!
+//! Both return the saturation **factor** `Se(ψ)`; the extra field current is `Se·ψ`-like (see
+//! each machine). Saturation points are E1 = 1.0 pu and E2 = 1.2 pu, with `Se(1.0) = S10` and
+//! `Se(1.2) = S12`.
+
+use crate::block::ModelError;
+
+/// Quadratic saturation (GENSAL, GENROU; OpenIPSL `SE.mo`):
+///
+/// ```text
+/// a = sqrt(S10 / (1.2 S12)),  A = 1.2 + 0.2/(a − 1),  B = 1.2 S12 (a − 1)² / 0.04
+/// Se(ψ) = B (ψ − A)² / ψ  for ψ > A,   0 otherwise (and 0 when S10 = 0 or S12 = 0)
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct QuadraticSaturation {
+    knee: f64,
+    b: f64,
+    active: bool,
+}
+
+impl QuadraticSaturation {
+    pub fn new(s10: f64, s12: f64) -> Result<Self, ModelError> {
+        if s10 < 0.0 || s12 < 0.0 || !s10.is_finite() || !s12.is_finite() {
+            return Err(ModelError::param("s10", format!("S10 = {s10} and S12 = {s12} must be finite and >= 0")));
+        }
+        if s10 == 0.0 || s12 == 0.0 {
+            return Ok(Self { knee: 0.0, b: 0.0, active: false });
+        }
+        // A sensible curve needs S12 > S10/1.2 (then a < 1 and the knee lies below 1 pu).
+        if 1.2 * s12 <= s10 {
+            return Err(ModelError::param(
+                "s12",
+                format!("quadratic saturation needs S12 > S10/1.2 (S10 = {s10}, S12 = {s12})"),
+            ));
+        }
+        let a = (s10 / (1.2 * s12)).sqrt();
+        let knee = 1.2 + 0.2 / (a - 1.0);
+        let b = 1.2 * s12 * (a - 1.0).powi(2) / 0.04;
+        Ok(Self { knee, b, active: true })
+    }
+
+    #[inline]
+    pub fn eval(&self, psi: f64) -> f64 {
+        if !self.active || psi <= 0.0 || psi <= self.knee {
+            0.0
+        } else {
+            self.b * (psi - self.knee).powi(2) / psi
+        }
+    }
+}
+
+/// Exponential saturation (GENSAE, GENROE; OpenIPSL `SE_exp.mo`):
+///
+/// ```text
+/// n = ln(S12/S10) / ln(1.2),   Se(ψ) = S10 · ψⁿ      (0 when ψ <= 0 or S10 = 0)
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ExponentialSaturation {
+    s10: f64,
+    n: f64,
+}
+
+impl ExponentialSaturation {
+    pub fn new(s10: f64, s12: f64) -> Result<Self, ModelError> {
+        if s10 < 0.0 || s12 < 0.0 || !s10.is_finite() || !s12.is_finite() {
+            return Err(ModelError::param("s10", format!("S10 = {s10} and S12 = {s12} must be finite and >= 0")));
+        }
+        if s10 == 0.0 {
+            return Ok(Self { s10: 0.0, n: 0.0 });
+        }
+        if s12 == 0.0 {
+            return Err(ModelError::param("s12", "exponential saturation needs S12 > 0 when S10 > 0"));
+        }
+        Ok(Self { s10, n: (s12 / s10).ln() / 1.2f64.ln() })
+    }
+
+    #[inline]
+    pub fn eval(&self, psi: f64) -> f64 {
+        if self.s10 == 0.0 || psi <= 0.0 {
+            0.0
+        } else {
+            self.s10 * psi.powf(self.n)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quadratic_hits_both_points() {
+        let s = QuadraticSaturation::new(0.1, 0.3).unwrap();
+        assert!((s.eval(1.0) - 0.1).abs() < 1e-12);
+        assert!((s.eval(1.2) - 0.3).abs() < 1e-12);
+        assert_eq!(s.eval(0.5), 0.0);
+        assert!(QuadraticSaturation::new(0.36, 0.3).is_err());
+        assert_eq!(QuadraticSaturation::new(0.0, 1.0).unwrap().eval(1.3), 0.0);
+    }
+
+    #[test]
+    fn exponential_hits_both_points() {
+        let s = ExponentialSaturation::new(0.1, 0.3).unwrap();
+        assert!((s.eval(1.0) - 0.1).abs() < 1e-12);
+        assert!((s.eval(1.2) - 0.3).abs() < 1e-12);
+        assert_eq!(s.eval(0.0), 0.0);
+        assert!(ExponentialSaturation::new(0.1, 0.0).is_err());
+    }
+}

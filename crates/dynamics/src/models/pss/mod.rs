@@ -1,0 +1,3 @@
+//! Power system stabilisers.
+pub mod ieeest;
+pub mod stab3;

@@ -1,0 +1,101 @@
+//! STAB3: power-sensitive stabiliser (`models.md` §9.2.1; OpenIPSL `PSS/STAB3.mo`).
+//!
+//! States: transducer `P_f`, low-pass `x2`, washout `x3`. `P_REF` is frozen at the initial
+//! electrical power (as in OpenIPSL and OPAL-RT).
+//!
+//! ```text
+//! T_t dP_f/dt = P_e − P_f                 (P_f = P_e algebraically when T_t = 0)
+//! T_X1 dx2/dt = (P_f − P_REF) − x2
+//! T_X2 dx3/dt = x2 − x3
+//! V_S = clamp(−(K_X/T_X2)(x2 − x3), −V_LIM, +V_LIM)       (−K_X s/(1 + s T_X2) on the low-passed ΔP)
+//! ```
+
+use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
+use crate::models::limiter::clamp;
+use crate::{block_common, param_set};
+
+param_set! {
+    /// STAB3 parameters.
+    pub struct Stab3Params {
+        t_t: ("T_t", "s", 0.1, (0.0, 0.2), "power transducer time constant (0 = none)"),
+        t_x1: ("T_X1", "s", 0.04, (0.03, 0.05), "low-pass time constant"),
+        t_x2: ("T_X2", "s", 3.0, (1.0, 5.0), "washout time constant"),
+        k_x: ("K_X", "s", 1.0, (1.0, 3.0), "derivative gain (washout numerator time constant)"),
+        v_lim: ("V_LIM", "pu", 0.1, (0.05, 0.1), "symmetric output limit"),
+    }
+}
+
+mod port {
+    pub const PE: usize = 0;
+    pub const VS: usize = 1;
+}
+
+const PORTS: &[Port] = &[
+    Port::input("pe", PortInit::Needs, "electrical power P_e [pu machine base]"),
+    Port::output("vs", PortInit::Gives, "stabiliser output V_S [pu]"),
+];
+
+/// Below this a transducer time constant counts as absent.
+const T_MIN: f64 = 1e-9;
+
+/// STAB3 block.
+#[derive(Debug, Clone, Default)]
+pub struct Stab3 {
+    pub p: Stab3Params,
+    p_ref: f64,
+}
+
+impl Stab3 {
+    pub fn new(p: Stab3Params) -> Self {
+        Self { p, p_ref: 0.0 }
+    }
+}
+
+impl Block for Stab3 {
+    block_common!();
+
+    fn model(&self) -> &'static str {
+        "STAB3"
+    }
+    fn ports(&self) -> &'static [Port] {
+        PORTS
+    }
+    fn state_names(&self) -> &'static [&'static str] {
+        &["p_f", "x_lowpass", "x_washout"]
+    }
+    fn validate(&self) -> Result<(), ModelError> {
+        guard::non_negative("t_t", self.p.t_t)?;
+        guard::positive("t_x1", self.p.t_x1)?;
+        guard::positive("t_x2", self.p.t_x2)?;
+        guard::finite("k_x", self.p.k_x)?;
+        guard::positive("v_lim", self.p.v_lim)
+    }
+    fn init(&mut self, _op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
+        self.validate()?;
+        let pe0 = io.get(port::PE);
+        self.p_ref = pe0;
+        x[0] = pe0;
+        x[1] = 0.0;
+        x[2] = 0.0;
+        io.set(port::VS, 0.0);
+        Ok(())
+    }
+    #[inline]
+    fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
+        let vs = -(self.p.k_x / self.p.t_x2) * (x[1] - x[2]);
+        io.set(port::VS, clamp(vs, -self.p.v_lim, self.p.v_lim));
+    }
+    #[inline]
+    fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
+        let pe = io.get(port::PE);
+        let p_f = if self.p.t_t > T_MIN {
+            dx[0] = (pe - x[0]) / self.p.t_t;
+            x[0]
+        } else {
+            dx[0] = 0.0;
+            pe
+        };
+        dx[1] = (p_f - self.p_ref - x[1]) / self.p.t_x1;
+        dx[2] = (x[1] - x[2]) / self.p.t_x2;
+    }
+}

@@ -1,0 +1,106 @@
+//! One definition of every model parameter: name, PSS/E alias, unit, meaning, typical range.
+//!
+//! Each model declares its parameters once with [`param_set!`]. That single list is what the
+//! simulator reads (as plain `f64` fields with descriptive names), what the unit-model parser
+//! accepts (by name or PSS/E alias), what the calibrator addresses as `block.name`, and what the
+//! Python module and `itaipu-calib models` print.
+
+/// Static description of one parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParamSpec {
+    /// Canonical name (snake_case), e.g. `t_d0_prime`.
+    pub name: &'static str,
+    /// Name used by PSS/E and OpenIPSL, e.g. `Tpd0`. Accepted case-insensitively.
+    pub alias: &'static str,
+    /// Physical unit, e.g. `s`, `pu`, `pu/s`, `-`.
+    pub unit: &'static str,
+    /// One-line meaning.
+    pub doc: &'static str,
+    /// Typical value for a large hydro unit (the default in templates).
+    pub typical: f64,
+    /// Typical range for a large hydro unit.
+    pub range: (f64, f64),
+}
+
+/// Access to a model's parameters by index (the order of [`ParamSet::specs`]).
+pub trait ParamSet {
+    fn specs(&self) -> &'static [ParamSpec];
+    fn get(&self, index: usize) -> f64;
+    fn set(&mut self, index: usize, value: f64);
+
+    /// Index of a parameter by canonical name or (case-insensitive) alias.
+    fn index_of(&self, name: &str) -> Option<usize> {
+        let specs = self.specs();
+        specs
+            .iter()
+            .position(|s| s.name == name)
+            .or_else(|| specs.iter().position(|s| s.alias.eq_ignore_ascii_case(name)))
+            .or_else(|| specs.iter().position(|s| s.name.eq_ignore_ascii_case(name)))
+    }
+
+    /// All values in spec order.
+    fn values(&self) -> Vec<f64> {
+        (0..self.specs().len()).map(|i| self.get(i)).collect()
+    }
+}
+
+/// Declares a parameter struct with `f64` fields and its [`ParamSpec`] table.
+///
+/// ```ignore
+/// param_set! {
+///     /// SEXS parameters.
+///     pub struct SexsParams {
+///         k: ("K", "pu", 100.0, (30.0, 400.0), "gain"),
+///     }
+/// }
+/// ```
+#[macro_export]
+macro_rules! param_set {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident {
+            $( $field:ident : ($alias:literal, $unit:literal, $typical:expr, ($lo:expr, $hi:expr), $doc:literal) ),* $(,)?
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, PartialEq)]
+        pub struct $name {
+            $( #[doc = concat!($doc, " [", $unit, "] (PSS/E `", $alias, "`)")] pub $field: f64, )*
+        }
+
+        impl $name {
+            /// The parameter table of this model.
+            pub const SPECS: &'static [$crate::params::ParamSpec] = &[
+                $( $crate::params::ParamSpec {
+                    name: stringify!($field), alias: $alias, unit: $unit, doc: $doc,
+                    typical: $typical, range: ($lo, $hi),
+                } ),*
+            ];
+        }
+
+        impl Default for $name {
+            /// Typical values for a large hydro unit.
+            fn default() -> Self {
+                Self { $( $field: $typical ),* }
+            }
+        }
+
+        impl $crate::params::ParamSet for $name {
+            fn specs(&self) -> &'static [$crate::params::ParamSpec] {
+                Self::SPECS
+            }
+            #[allow(unused_assignments)]
+            fn get(&self, index: usize) -> f64 {
+                let mut k = 0usize;
+                $( if index == k { return self.$field; } k += 1; )*
+                panic!("{}: parameter index {} out of range", stringify!($name), index)
+            }
+            #[allow(unused_assignments)]
+            fn set(&mut self, index: usize, value: f64) {
+                let mut k = 0usize;
+                $( if index == k { self.$field = value; return; } k += 1; )*
+                panic!("{}: parameter index {} out of range", stringify!($name), index)
+            }
+        }
+    };
+}

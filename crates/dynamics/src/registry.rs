@@ -1,0 +1,92 @@
+//! The catalogue of block models by name, as written in unit files (`model = "GENSAE"`).
+
+use crate::block::Block;
+use crate::models::exciter::sexs::Sexs;
+use crate::models::governor::{constant_pm::ConstantPm, hygov::Hygov};
+use crate::models::machine::{gencls::Gencls, genrou::Genrou, gensae::Gensae, gensal::Gensal, Machine};
+use crate::models::pss::{ieeest::Ieeest, stab3::Stab3};
+
+/// What a model is for; the unit file section it normally goes in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    Machine,
+    Exciter,
+    Pss,
+    Governor,
+    Other,
+}
+
+impl Role {
+    pub fn section(self) -> &'static str {
+        match self {
+            Role::Machine => "machine",
+            Role::Exciter => "exciter",
+            Role::Pss => "pss",
+            Role::Governor => "governor",
+            Role::Other => "block",
+        }
+    }
+}
+
+/// One catalogue entry.
+pub struct ModelInfo {
+    pub name: &'static str,
+    pub role: Role,
+    pub summary: &'static str,
+    make: fn() -> Box<dyn Block>,
+}
+
+impl ModelInfo {
+    /// A new block with typical parameter values.
+    pub fn create(&self) -> Box<dyn Block> {
+        (self.make)()
+    }
+}
+
+/// All models.
+pub static MODELS: &[ModelInfo] = &[
+    ModelInfo {
+        name: "GENSAE",
+        role: Role::Machine,
+        summary: "salient-pole machine, exponential saturation on |ψ''| (both axes)",
+        make: || Box::new(Machine::new(Gensae::default())),
+    },
+    ModelInfo {
+        name: "GENSAL",
+        role: Role::Machine,
+        summary: "salient-pole machine, quadratic saturation on E'q (d-axis)",
+        make: || Box::new(Machine::new(Gensal::default())),
+    },
+    ModelInfo {
+        name: "GENROU",
+        role: Role::Machine,
+        summary: "round-rotor machine, quadratic saturation on |ψ''|",
+        make: || Box::new(Machine::new(Genrou::default())),
+    },
+    ModelInfo {
+        name: "GENCLS",
+        role: Role::Machine,
+        summary: "classical machine, constant E' behind X'd",
+        make: || Box::new(Machine::new(Gencls::default())),
+    },
+    ModelInfo { name: "SEXS", role: Role::Exciter, summary: "simplified excitation system", make: || Box::new(Sexs::default()) },
+    ModelInfo { name: "STAB3", role: Role::Pss, summary: "power-input stabiliser (PSS/E STAB3)", make: || Box::new(Stab3::default()) },
+    ModelInfo { name: "IEEEST", role: Role::Pss, summary: "IEEE 1981 stabiliser", make: || Box::new(Ieeest::default()) },
+    ModelInfo { name: "HYGOV", role: Role::Governor, summary: "hydro turbine-governor", make: || Box::new(Hygov::default()) },
+    ModelInfo {
+        name: "constant_pm",
+        role: Role::Governor,
+        summary: "constant mechanical power (no governor action)",
+        make: || Box::new(ConstantPm::default()),
+    },
+];
+
+/// Looks a model up by name (case-insensitive).
+pub fn find(name: &str) -> Option<&'static ModelInfo> {
+    MODELS.iter().find(|m| m.name.eq_ignore_ascii_case(name))
+}
+
+/// Names of all models, for error messages.
+pub fn names() -> String {
+    MODELS.iter().map(|m| m.name).collect::<Vec<_>>().join(", ")
+}

@@ -1,0 +1,489 @@
+//! A generating unit: blocks wired by named signals, assembled into one explicit ODE.
+//!
+//! The state vector is the concatenation of the blocks' states in the order they were added
+//! (the machine first). Signals live on a bus (`Vec<f64>`); each block port reads or writes one
+//! slot. Two signals are written by the playback source, not by a block: `v_term` (|V|, pu) and
+//! `theta_term` (angle, rad, unwrapped, nominal-frequency frame).
+//!
+//! Signals that no block writes at run time keep the value they had after initialisation. That
+//! is how a unit without an exciter holds `E_fd` at `E_fd0` (the generator stage of a
+//! calibration) and a unit without a governor holds `P_m` at `P_m0`.
+//!
+//! ## Adding a block
+//! Implement [`Block`] (ports, states, parameters via `param_set!`, `init`, `outputs`,
+//! `derivatives`, and the mode hooks if it has non-windup limits), register its model name in
+//! [`crate::registry`], and add it to a unit file as `[[block]]` with any port rewired, e.g.
+//! `inputs = { pm = "p_shaft" }`. The machine code is never touched.
+
+use crate::block::{Block, Dir, InitPoint, Io, ModelError, PortInit};
+use crate::integrate::OdeSystem;
+use crate::params::ParamSpec;
+
+/// Name of the signal carrying the played-back terminal voltage magnitude.
+pub const SIG_V_TERM: &str = "v_term";
+/// Name of the signal carrying the played-back terminal voltage angle.
+pub const SIG_THETA_TERM: &str = "theta_term";
+
+/// A block placed in a unit.
+#[derive(Clone)]
+pub struct Instance {
+    /// Instance name (`machine`, `exciter`, `pss`, `governor`, or a user's name).
+    pub name: String,
+    pub block: Box<dyn Block>,
+    /// Signal name for each port (after overrides).
+    pub wiring: Vec<String>,
+    map: Vec<usize>,
+    x_offset: usize,
+    ev_offset: usize,
+}
+
+impl Instance {
+    fn nx(&self) -> usize {
+        self.block.state_names().len()
+    }
+}
+
+/// Assembly or initialisation failure of a unit.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum UnitError {
+    #[error("{block} ({model}): {source}")]
+    Model { block: String, model: String, source: ModelError },
+    #[error("wiring: {0}")]
+    Wiring(String),
+    #[error("unknown parameter '{0}' (use block.name, e.g. machine.h; see `itaipu-calib models`)")]
+    UnknownParam(String),
+}
+
+/// Address of one parameter in a unit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ParamRef {
+    pub block: usize,
+    pub index: usize,
+}
+
+/// A generating unit. Build with [`Unit::new`] and [`Unit::add`], then [`Unit::finish`].
+#[derive(Clone)]
+pub struct Unit {
+    pub name: String,
+    pub description: String,
+    /// Machine base [MVA].
+    pub machine_mva: f64,
+    /// Nominal frequency [Hz].
+    pub nominal_hz: f64,
+    instances: Vec<Instance>,
+    signals: Vec<String>,
+    bus: Vec<f64>,
+    eval_order: Vec<usize>,
+    init_order: Vec<usize>,
+    sig_v: usize,
+    sig_theta: usize,
+    n_states: usize,
+    n_events: usize,
+    finished: bool,
+}
+
+impl Unit {
+    pub fn new(name: &str, machine_mva: f64, nominal_hz: f64) -> Self {
+        Self {
+            name: name.to_string(),
+            description: String::new(),
+            machine_mva,
+            nominal_hz,
+            instances: Vec::new(),
+            signals: Vec::new(),
+            bus: Vec::new(),
+            eval_order: Vec::new(),
+            init_order: Vec::new(),
+            sig_v: 0,
+            sig_theta: 0,
+            n_states: 0,
+            n_events: 0,
+            finished: false,
+        }
+    }
+
+    /// Adds a block under `name`, with optional `(port, signal)` rewiring.
+    pub fn add(&mut self, name: &str, block: Box<dyn Block>, rewire: &[(String, String)]) -> Result<(), UnitError> {
+        if self.instances.iter().any(|i| i.name == name) {
+            return Err(UnitError::Wiring(format!("two blocks are named '{name}'")));
+        }
+        let ports = block.ports();
+        let mut wiring: Vec<String> = ports.iter().map(|p| p.name.to_string()).collect();
+        for (port, signal) in rewire {
+            let Some(k) = ports.iter().position(|p| p.name == port) else {
+                let names: Vec<_> = ports.iter().map(|p| p.name).collect();
+                return Err(UnitError::Wiring(format!(
+                    "{name} ({}) has no port '{port}' (ports: {})",
+                    block.model(),
+                    names.join(", ")
+                )));
+            };
+            wiring[k] = signal.clone();
+        }
+        self.instances.push(Instance { name: name.to_string(), block, wiring, map: vec![], x_offset: 0, ev_offset: 0 });
+        self.finished = false;
+        Ok(())
+    }
+
+    /// Resolves the wiring and computes evaluation and initialisation orders.
+    pub fn finish(&mut self) -> Result<(), UnitError> {
+        self.signals = vec![SIG_V_TERM.to_string(), SIG_THETA_TERM.to_string()];
+        let (mut nx, mut nev) = (0, 0);
+        for inst in &mut self.instances {
+            inst.map.clear();
+            for s in &inst.wiring {
+                let k = match self.signals.iter().position(|x| x == s) {
+                    Some(k) => k,
+                    None => {
+                        self.signals.push(s.clone());
+                        self.signals.len() - 1
+                    }
+                };
+                inst.map.push(k);
+            }
+            inst.x_offset = nx;
+            inst.ev_offset = nev;
+            nx += inst.nx();
+            nev += inst.block.n_events();
+            inst.block.set_nominal_frequency(self.nominal_hz);
+        }
+        self.sig_v = 0;
+        self.sig_theta = 1;
+        self.n_states = nx;
+        self.n_events = nev;
+        self.bus = vec![0.0; self.signals.len()];
+
+        let ns = self.signals.len();
+        // Run-time writers and init givers, one each per signal.
+        let mut writer: Vec<Option<usize>> = vec![None; ns];
+        let mut giver: Vec<Option<usize>> = vec![None; ns];
+        for (b, inst) in self.instances.iter().enumerate() {
+            for (port, &s) in inst.block.ports().iter().zip(&inst.map) {
+                if port.dir == Dir::Out {
+                    if s == self.sig_v || s == self.sig_theta {
+                        return Err(UnitError::Wiring(format!(
+                            "{} writes '{}', which only the playback source may write",
+                            inst.name, self.signals[s]
+                        )));
+                    }
+                    if let Some(o) = writer[s] {
+                        return Err(UnitError::Wiring(format!(
+                            "signal '{}' is written by both {} and {}",
+                            self.signals[s], self.instances[o].name, inst.name
+                        )));
+                    }
+                    writer[s] = Some(b);
+                }
+                if port.init == PortInit::Gives {
+                    if let Some(o) = giver[s] {
+                        return Err(UnitError::Wiring(format!(
+                            "signal '{}' is set at initialisation by both {} and {}",
+                            self.signals[s], self.instances[o].name, inst.name
+                        )));
+                    }
+                    giver[s] = Some(b);
+                }
+            }
+        }
+        // An output that needs a target must have a giver.
+        for inst in &self.instances {
+            for (port, &s) in inst.block.ports().iter().zip(&inst.map) {
+                if port.dir == Dir::Out && port.init == PortInit::Needs && giver[s].is_none() {
+                    return Err(UnitError::Wiring(format!(
+                        "{} output '{}' (signal '{}') is not consumed by any block that fixes its initial value",
+                        inst.name, port.name, self.signals[s]
+                    )));
+                }
+            }
+        }
+        let n = self.instances.len();
+        let edges = |feedthrough_only: bool, providers: &Vec<Option<usize>>| {
+            let mut deps: Vec<Vec<usize>> = vec![vec![]; n];
+            for (b, inst) in self.instances.iter().enumerate() {
+                for (port, &s) in inst.block.ports().iter().zip(&inst.map) {
+                    let relevant = if feedthrough_only {
+                        port.dir == Dir::In && port.feedthrough
+                    } else {
+                        port.init == PortInit::Needs
+                    };
+                    if relevant {
+                        if let Some(a) = providers[s] {
+                            if a != b {
+                                deps[b].push(a);
+                            }
+                        }
+                    }
+                }
+            }
+            deps
+        };
+        self.eval_order = topo_order(&edges(true, &writer))
+            .map_err(|c| UnitError::Wiring(format!("algebraic loop through {}", self.names(&c))))?;
+        self.init_order = topo_order(&edges(false, &giver))
+            .map_err(|c| UnitError::Wiring(format!("initialisation cycle through {}", self.names(&c))))?;
+        for inst in &self.instances {
+            inst.block.validate().map_err(|e| self.model_err(inst, e))?;
+        }
+        self.finished = true;
+        Ok(())
+    }
+
+    fn names(&self, idx: &[usize]) -> String {
+        idx.iter().map(|&i| self.instances[i].name.as_str()).collect::<Vec<_>>().join(" -> ")
+    }
+
+    fn model_err(&self, inst: &Instance, e: ModelError) -> UnitError {
+        UnitError::Model { block: inst.name.clone(), model: inst.block.model().to_string(), source: e }
+    }
+
+    /// Number of states.
+    pub fn n_states(&self) -> usize {
+        self.n_states
+    }
+    /// The blocks in state order.
+    pub fn instances(&self) -> &[Instance] {
+        &self.instances
+    }
+    /// Mutable access to the block named `name`.
+    pub fn block_mut(&mut self, name: &str) -> Option<&mut Box<dyn Block>> {
+        self.instances.iter_mut().find(|i| i.name == name).map(|i| &mut i.block)
+    }
+    /// The block named `name`.
+    pub fn block(&self, name: &str) -> Option<&dyn Block> {
+        self.instances.iter().find(|i| i.name == name).map(|i| i.block.as_ref())
+    }
+    /// Signal names in bus order.
+    pub fn signal_names(&self) -> &[String] {
+        &self.signals
+    }
+    /// Current bus values (valid after an RHS evaluation or initialisation).
+    pub fn bus(&self) -> &[f64] {
+        &self.bus
+    }
+    /// Bus index of a signal.
+    pub fn signal_index(&self, name: &str) -> Option<usize> {
+        self.signals.iter().position(|s| s == name)
+    }
+    /// Names `block.state` of all states, in state-vector order.
+    pub fn state_names(&self) -> Vec<String> {
+        self.instances
+            .iter()
+            .flat_map(|i| i.block.state_names().iter().map(move |s| format!("{}.{}", i.name, s)))
+            .collect()
+    }
+
+    /// Finds a parameter by `block.name` (name or PSS/E alias).
+    pub fn param(&self, path: &str) -> Result<ParamRef, UnitError> {
+        let (b, p) = path.split_once('.').ok_or_else(|| UnitError::UnknownParam(path.to_string()))?;
+        let block = self.instances.iter().position(|i| i.name == b).ok_or_else(|| UnitError::UnknownParam(path.to_string()))?;
+        let index =
+            self.instances[block].block.params().index_of(p).ok_or_else(|| UnitError::UnknownParam(path.to_string()))?;
+        Ok(ParamRef { block, index })
+    }
+    pub fn get(&self, r: ParamRef) -> f64 {
+        self.instances[r.block].block.params().get(r.index)
+    }
+    pub fn set(&mut self, r: ParamRef, value: f64) {
+        self.instances[r.block].block.params_mut().set(r.index, value)
+    }
+    /// Canonical `block.name` of a parameter.
+    pub fn param_path(&self, r: ParamRef) -> String {
+        let i = &self.instances[r.block];
+        format!("{}.{}", i.name, i.block.params().specs()[r.index].name)
+    }
+    pub fn param_spec(&self, r: ParamRef) -> &'static ParamSpec {
+        &self.instances[r.block].block.params().specs()[r.index]
+    }
+    /// Every parameter as `(path, spec, value)`.
+    pub fn params(&self) -> Vec<(String, &'static ParamSpec, f64)> {
+        let mut out = vec![];
+        for i in &self.instances {
+            let ps = i.block.params();
+            for (k, s) in ps.specs().iter().enumerate() {
+                out.push((format!("{}.{}", i.name, s.name), s, ps.get(k)));
+            }
+        }
+        out
+    }
+
+    /// Validates parameters and initialises every block at the operating point `op` (machine
+    /// base). Returns the initial state vector. Leaves the bus at the initial values.
+    pub fn initialise(&mut self, op: &InitPoint) -> Result<Vec<f64>, UnitError> {
+        if !self.finished {
+            self.finish()?;
+        }
+        let mut x = vec![0.0; self.n_states];
+        self.bus.fill(0.0);
+        self.bus[self.sig_v] = op.v_mag;
+        self.bus[self.sig_theta] = op.v_ang;
+        for k in 0..self.init_order.len() {
+            let b = self.init_order[k];
+            let inst = &mut self.instances[b];
+            let (o, n) = (inst.x_offset, inst.nx());
+            let mut io = Io::new(&mut self.bus, &inst.map);
+            if let Err(e) = inst.block.init(op, &mut x[o..o + n], &mut io) {
+                let inst = &self.instances[b];
+                return Err(self.model_err(inst, e));
+            }
+        }
+        // Initial modes.
+        self.eval_outputs(0.0, &x);
+        self.update_modes(&mut x);
+        Ok(x)
+    }
+
+    /// Phase 1 of the right-hand side: every block's outputs, in feed-through order. The
+    /// playback signals must already be on the bus.
+    #[inline]
+    pub fn eval_outputs(&mut self, t: f64, x: &[f64]) {
+        for &b in &self.eval_order {
+            let inst = &self.instances[b];
+            let (o, n) = (inst.x_offset, inst.block.state_names().len());
+            let mut io = Io::new(&mut self.bus, &inst.map);
+            inst.block.outputs(t, &x[o..o + n], &mut io);
+        }
+    }
+
+    /// Phase 2: derivatives of all states (after [`Unit::eval_outputs`] at the same point).
+    #[inline]
+    pub fn eval_derivatives(&mut self, t: f64, x: &[f64], dx: &mut [f64]) {
+        for inst in &self.instances {
+            let (o, n) = (inst.x_offset, inst.block.state_names().len());
+            let io = Io::new(&mut self.bus, &inst.map);
+            inst.block.derivatives(t, &x[o..o + n], &io, &mut dx[o..o + n]);
+        }
+    }
+
+    /// Sets the playback voltage on the bus.
+    #[inline(always)]
+    pub fn set_terminal_voltage(&mut self, v_mag: f64, v_ang: f64) {
+        self.bus[self.sig_v] = v_mag;
+        self.bus[self.sig_theta] = v_ang;
+    }
+
+    fn eval_events(&mut self, x: &[f64], g: &mut [f64]) {
+        for inst in &self.instances {
+            let ne = inst.block.n_events();
+            if ne == 0 {
+                continue;
+            }
+            let (o, n) = (inst.x_offset, inst.nx());
+            let io = Io::new(&mut self.bus, &inst.map);
+            inst.block.events(&x[o..o + n], &io, &mut g[inst.ev_offset..inst.ev_offset + ne]);
+        }
+    }
+
+    fn update_modes(&mut self, x: &mut [f64]) -> bool {
+        let mut changed = false;
+        for inst in &mut self.instances {
+            if inst.block.n_events() == 0 {
+                continue;
+            }
+            let (o, n) = (inst.x_offset, inst.block.state_names().len());
+            let io = Io::new(&mut self.bus, &inst.map);
+            changed |= inst.block.update_modes(&mut x[o..o + n], &io);
+        }
+        changed
+    }
+}
+
+/// Kahn's algorithm; on a cycle returns the blocks left over.
+fn topo_order(deps: &[Vec<usize>]) -> Result<Vec<usize>, Vec<usize>> {
+    let n = deps.len();
+    let mut done = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    while order.len() < n {
+        let next = (0..n).find(|&b| !done[b] && deps[b].iter().all(|&a| done[a]));
+        match next {
+            Some(b) => {
+                done[b] = true;
+                order.push(b);
+            }
+            None => return Err((0..n).filter(|&b| !done[b]).collect()),
+        }
+    }
+    Ok(order)
+}
+
+/// The played-back terminal voltage: magnitude and unwrapped angle, linear between samples,
+/// held constant outside the record.
+///
+/// Interpolating (|V|, θ) rather than (v_re, v_im) keeps |V| exact between samples when the
+/// phasor rotates (off-nominal frequency); the two differ only at second order (`models.md`
+/// §1.1). The integrators stop at every sample instant, so no step straddles the kinks of the
+/// piecewise-linear input.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlaybackInput {
+    pub time_s: Vec<f64>,
+    pub v_mag: Vec<f64>,
+    pub v_ang: Vec<f64>,
+}
+
+impl PlaybackInput {
+    /// `(|V|, θ)` at `t`, using and updating the search `cursor` (an index hint).
+    #[inline(always)]
+    pub fn at(&self, t: f64, cursor: &mut usize) -> (f64, f64) {
+        let ts = &self.time_s;
+        let n = ts.len();
+        if t <= ts[0] {
+            return (self.v_mag[0], self.v_ang[0]);
+        }
+        if t >= ts[n - 1] {
+            return (self.v_mag[n - 1], self.v_ang[n - 1]);
+        }
+        let mut k = (*cursor).min(n - 2);
+        while t < ts[k] {
+            k -= 1;
+        }
+        while t > ts[k + 1] {
+            k += 1;
+        }
+        *cursor = k;
+        let w = (t - ts[k]) / (ts[k + 1] - ts[k]);
+        (
+            self.v_mag[k] + w * (self.v_mag[k + 1] - self.v_mag[k]),
+            self.v_ang[k] + w * (self.v_ang[k + 1] - self.v_ang[k]),
+        )
+    }
+}
+
+/// A unit driven by a playback input: the ODE the integrators solve.
+pub struct Playback<'a> {
+    pub unit: &'a mut Unit,
+    pub input: &'a PlaybackInput,
+    cursor: usize,
+}
+
+impl<'a> Playback<'a> {
+    pub fn new(unit: &'a mut Unit, input: &'a PlaybackInput) -> Self {
+        Self { unit, input, cursor: 0 }
+    }
+    /// Evaluates all signals at `(t, x)` (for recording).
+    pub fn eval_signals(&mut self, t: f64, x: &[f64]) {
+        let (v, th) = self.input.at(t, &mut self.cursor);
+        self.unit.set_terminal_voltage(v, th);
+        self.unit.eval_outputs(t, x);
+    }
+}
+
+impl OdeSystem for Playback<'_> {
+    fn dim(&self) -> usize {
+        self.unit.n_states
+    }
+    #[inline]
+    fn rhs(&mut self, t: f64, x: &[f64], dx: &mut [f64]) {
+        self.eval_signals(t, x);
+        self.unit.eval_derivatives(t, x, dx);
+    }
+    fn n_events(&self) -> usize {
+        self.unit.n_events
+    }
+    fn events(&mut self, t: f64, x: &[f64], g: &mut [f64]) {
+        self.eval_signals(t, x);
+        self.unit.eval_events(x, g);
+    }
+    fn handle_event(&mut self, t: f64, x: &mut [f64]) -> bool {
+        self.eval_signals(t, x);
+        self.unit.update_modes(x)
+    }
+}
