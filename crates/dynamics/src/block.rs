@@ -39,8 +39,12 @@ pub enum PortInit {
 /// A named port.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Port {
-    /// Port name; also the default signal name.
+    /// Port name.
     pub name: &'static str,
+    /// Signal the port is wired to unless the unit file rewires it (usually the port name).
+    pub signal: &'static str,
+    /// For inputs: may be left undriven (then it reads 0), e.g. limiter or stabiliser signals.
+    pub optional: bool,
     pub dir: Dir,
     pub init: PortInit,
     /// For inputs: does the value reach an output in the same instant (algebraic path)?
@@ -51,13 +55,24 @@ pub struct Port {
 
 impl Port {
     pub const fn input(name: &'static str, init: PortInit, doc: &'static str) -> Self {
-        Self { name, dir: Dir::In, init, feedthrough: false, doc }
+        Self { name, signal: name, optional: false, dir: Dir::In, init, feedthrough: false, doc }
     }
+    /// An input with a direct (algebraic) path to an output.
     pub const fn input_ft(name: &'static str, init: PortInit, doc: &'static str) -> Self {
-        Self { name, dir: Dir::In, init, feedthrough: true, doc }
+        Self { name, signal: name, optional: false, dir: Dir::In, init, feedthrough: true, doc }
     }
     pub const fn output(name: &'static str, init: PortInit, doc: &'static str) -> Self {
-        Self { name, dir: Dir::Out, init, feedthrough: false, doc }
+        Self { name, signal: name, optional: false, dir: Dir::Out, init, feedthrough: false, doc }
+    }
+    /// Wires the port to `signal` by default.
+    pub const fn wired(mut self, signal: &'static str) -> Self {
+        self.signal = signal;
+        self
+    }
+    /// Marks an input that reads 0 when nothing drives it.
+    pub const fn optional(mut self) -> Self {
+        self.optional = true;
+        self
     }
 }
 

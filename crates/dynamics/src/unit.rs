@@ -108,7 +108,7 @@ impl Unit {
             return Err(UnitError::Wiring(format!("two blocks are named '{name}'")));
         }
         let ports = block.ports();
-        let mut wiring: Vec<String> = ports.iter().map(|p| p.name.to_string()).collect();
+        let mut wiring: Vec<String> = ports.iter().map(|p| p.signal.to_string()).collect();
         for (port, signal) in rewire {
             let Some(k) = ports.iter().position(|p| p.name == port) else {
                 let names: Vec<_> = ports.iter().map(|p| p.name).collect();
@@ -185,9 +185,16 @@ impl Unit {
                 }
             }
         }
-        // An output that needs a target must have a giver.
+        // An output that needs a target must have a giver; a required input must be driven.
         for inst in &self.instances {
             for (port, &s) in inst.block.ports().iter().zip(&inst.map) {
+                let external = s == self.sig_v || s == self.sig_theta;
+                if port.dir == Dir::In && !port.optional && !external && writer[s].is_none() && giver[s].is_none() {
+                    return Err(UnitError::Wiring(format!(
+                        "{} input '{}' reads signal '{}', which no block writes (rewire it with wiring = {{ {} = \"...\" }})",
+                        inst.name, port.name, self.signals[s], port.name
+                    )));
+                }
                 if port.dir == Dir::Out && port.init == PortInit::Needs && giver[s].is_none() {
                     return Err(UnitError::Wiring(format!(
                         "{} output '{}' (signal '{}') is not consumed by any block that fixes its initial value",

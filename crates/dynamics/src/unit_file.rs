@@ -249,7 +249,7 @@ pub fn unit_to_toml(unit: &Unit) -> String {
             .ports()
             .iter()
             .zip(&inst.wiring)
-            .filter(|(p, w)| p.name != w.as_str())
+            .filter(|(p, w)| p.signal != w.as_str())
             .map(|(p, w)| format!("{} = {}", p.name, toml_str(w)))
             .collect();
         if !rew.is_empty() {

@@ -1,1 +1,602 @@
+//! Python bindings for `itaipu-dynamics`: the compiled module `itaipu_calib._core`.
+//!
+//! Thin glue only: every computation, check and message lives in the Rust crates. This file
+//! converts arguments, releases the GIL while simulating, turns results into numpy arrays and
+//! dicts, and maps the typed Rust errors onto a small Python exception hierarchy whose messages
+//! are exactly the Rust `Display` text (what the CLI prints after `error: `).
+//!
+//! The pure-Python package (`python/itaipu_calib/__init__.py`) re-exports everything from here.
 
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::exceptions::{PyAttributeError, PyException, PyKeyError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use pyo3::{create_exception, PyTypeInfo};
+
+use itaipu_dynamics::block::Dir;
+use itaipu_dynamics::event::{Event, EventError as RsEventError};
+use itaipu_dynamics::integrate::{Dopri5Options, Method};
+use itaipu_dynamics::registry::MODELS;
+use itaipu_dynamics::simulate::{SimError, SimOptions, Traces};
+use itaipu_dynamics::unit::Unit;
+use itaipu_dynamics::unit_file::{read_unit, unit_to_toml, UnitFileError};
+
+// -------------------------------------------------------------------------------------------
+// Exceptions
+// -------------------------------------------------------------------------------------------
+
+create_exception!(
+    itaipu_calib,
+    ItaipuError,
+    PyException,
+    "Base class of every itaipu_calib error. `str(e)` is the Rust error message (the text the \
+     command line prints); `e.kind` is a short stable identifier of the error variant where the \
+     Rust error defines one (EventError, UnitModelError), otherwise None."
+);
+create_exception!(
+    itaipu_calib,
+    EventError,
+    ItaipuError,
+    "Bad event data: the event TOML file or its CSV recording (kind: e.g. 'io', 'unknown_column')."
+);
+create_exception!(
+    itaipu_calib,
+    UnitModelError,
+    ItaipuError,
+    "Bad unit model file (kind: 'io', 'syntax', 'field', 'model' or 'wiring')."
+);
+create_exception!(
+    itaipu_calib,
+    InitError,
+    ItaipuError,
+    "The unit cannot initialise at the event's measured operating point (or the unit and the \
+     event have different nominal frequencies)."
+);
+create_exception!(itaipu_calib, SimulationError, ItaipuError, "The time integration failed.");
+
+/// A failure inside the GIL-free part of a call, converted to a Python exception afterwards.
+enum Failure {
+    Event(RsEventError),
+    Unit(UnitFileError),
+    Sim(SimError),
+}
+
+impl From<RsEventError> for Failure {
+    fn from(e: RsEventError) -> Self {
+        Failure::Event(e)
+    }
+}
+impl From<UnitFileError> for Failure {
+    fn from(e: UnitFileError) -> Self {
+        Failure::Unit(e)
+    }
+}
+impl From<SimError> for Failure {
+    fn from(e: SimError) -> Self {
+        Failure::Sim(e)
+    }
+}
+
+/// An exception of type `T` with message `msg` and attribute `kind`.
+fn raise<T: PyTypeInfo>(py: Python<'_>, msg: String, kind: Option<&'static str>) -> PyErr {
+    let err = PyErr::new::<T, _>(msg);
+    // Setting an attribute on a fresh exception instance cannot fail in practice; if it did,
+    // the class attribute `kind = None` still answers.
+    let _ = err.value(py).setattr("kind", kind);
+    err
+}
+
+impl Failure {
+    fn into_pyerr(self, py: Python<'_>) -> PyErr {
+        match self {
+            Failure::Event(e) => raise::<EventError>(py, e.to_string(), Some(e.kind())),
+            Failure::Unit(e) => raise::<UnitModelError>(py, e.to_string(), Some(e.kind())),
+            Failure::Sim(e @ (SimError::Init(_) | SimError::Frequency { .. })) => raise::<InitError>(py, e.to_string(), None),
+            Failure::Sim(e @ SimError::Solve(_)) => raise::<SimulationError>(py, e.to_string(), None),
+        }
+    }
+}
+
+// -------------------------------------------------------------------------------------------
+// Helpers
+// -------------------------------------------------------------------------------------------
+
+fn array<'py>(py: Python<'py>, v: &[f64]) -> Bound<'py, PyArray1<f64>> {
+    PyArray1::from_slice(py, v)
+}
+
+/// An event or unit argument: an already loaded object, or a path to load (without the GIL).
+enum Source<T> {
+    Loaded(Arc<T>),
+    Path(PathBuf),
+}
+
+fn source<'py, C, T>(arg: &Bound<'py, PyAny>, what: &str, inner: impl Fn(&C) -> Arc<T>) -> PyResult<Source<T>>
+where
+    C: PyClass + Sync,
+    C: pyo3::PyClass<Frozen = pyo3::pyclass::boolean_struct::True>,
+{
+    if let Ok(obj) = arg.downcast::<C>() {
+        return Ok(Source::Loaded(inner(obj.get())));
+    }
+    match arg.extract::<PathBuf>() {
+        Ok(p) => Ok(Source::Path(p)),
+        Err(_) => {
+            let ty = arg.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".into());
+            Err(PyTypeError::new_err(format!(
+                "{what} must be a path (str or os.PathLike) or an {} object, not {ty}",
+                C::NAME
+            )))
+        }
+    }
+}
+
+// -------------------------------------------------------------------------------------------
+// Event
+// -------------------------------------------------------------------------------------------
+
+/// A measured event: the PMU record played back into a unit, with its bases and windows.
+///
+/// Read with `load_event(path)`. Arrays are copies (numpy float64). P and Q are per unit on
+/// `system_mva`, generator convention; |V| in pu; the angle in rad, unwrapped, in the
+/// nominal-frequency PMU frame. `record` holds the samples inside the playback window only.
+#[pyclass(name = "Event", module = "itaipu_calib", frozen)]
+struct PyEvent {
+    inner: Arc<Event>,
+}
+
+#[pymethods]
+impl PyEvent {
+    /// Short identifier (`name` in the event file).
+    #[getter]
+    fn name(&self) -> &str {
+        &self.inner.name
+    }
+    /// Free text ('' if not given).
+    #[getter]
+    fn description(&self) -> &str {
+        &self.inner.description
+    }
+    /// MVA base of p_pu and q_pu.
+    #[getter]
+    fn system_mva(&self) -> f64 {
+        self.inner.system_mva
+    }
+    /// Nominal frequency of the grid and of the PMU reference frame, Hz.
+    #[getter]
+    fn nominal_hz(&self) -> f64 {
+        self.inner.nominal_hz
+    }
+    /// The event TOML file (pathlib.Path).
+    #[getter]
+    fn toml_path(&self) -> Option<PathBuf> {
+        self.inner.toml_path.clone()
+    }
+    /// The CSV recording (pathlib.Path).
+    #[getter]
+    fn csv_path(&self) -> PathBuf {
+        self.inner.csv_path.clone()
+    }
+    /// Playback window `(start_s, end_s)`.
+    #[getter]
+    fn playback(&self) -> (f64, f64) {
+        (self.inner.playback.start_s, self.inner.playback.end_s)
+    }
+    /// Pre-event (init) window `(start_s, end_s)` used by `operating_point()`.
+    #[getter]
+    fn init(&self) -> (f64, f64) {
+        (self.inner.init.start_s, self.inner.init.end_s)
+    }
+    /// Fit window `(start_s, end_s)`.
+    #[getter]
+    fn fit(&self) -> (f64, f64) {
+        (self.inner.fit.start_s, self.inner.fit.end_s)
+    }
+    /// Sample times, s.
+    #[getter]
+    fn time_s<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array(py, &self.inner.record.time_s)
+    }
+    /// Terminal-voltage magnitude, pu.
+    #[getter]
+    fn v_mag_pu<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array(py, &self.inner.record.v_mag_pu)
+    }
+    /// Terminal-voltage angle, rad (unwrapped, nominal-frequency frame).
+    #[getter]
+    fn v_ang_rad<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array(py, &self.inner.record.v_ang_rad)
+    }
+    /// Measured active power, pu on `system_mva` (generator convention).
+    #[getter]
+    fn p_pu<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array(py, &self.inner.record.p_pu)
+    }
+    /// Measured reactive power, pu on `system_mva` (generator convention).
+    #[getter]
+    fn q_pu<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array(py, &self.inner.record.q_pu)
+    }
+    /// Measured frequency, Hz, or None if the record has no `freq_hz` column.
+    #[getter]
+    fn freq_hz<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.inner.record.freq_hz.as_deref().map(|v| array(py, v))
+    }
+    /// Measured field voltage, pu, or None.
+    #[getter]
+    fn efd_pu<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.inner.record.efd_pu.as_deref().map(|v| array(py, v))
+    }
+    /// Measured field current, pu, or None.
+    #[getter]
+    fn ifd_pu<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.inner.record.ifd_pu.as_deref().map(|v| array(py, v))
+    }
+
+    /// Pre-event operating point on the SYSTEM base, estimated over the init window: a dict
+    /// with v_mag_pu, v_ang_rad (at t0_s), p_pu, q_pu, freq_hz, t0_s, n_samples.
+    fn operating_point<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let op = self.inner.operating_point();
+        let d = PyDict::new(py);
+        d.set_item("v_mag_pu", op.v_mag_pu)?;
+        d.set_item("v_ang_rad", op.v_ang_rad)?;
+        d.set_item("p_pu", op.p_pu)?;
+        d.set_item("q_pu", op.q_pu)?;
+        d.set_item("freq_hz", op.freq_hz)?;
+        d.set_item("t0_s", op.t0_s)?;
+        d.set_item("n_samples", op.n_samples)?;
+        Ok(d)
+    }
+
+    /// Number of samples in the playback record.
+    fn __len__(&self) -> usize {
+        self.inner.record.time_s.len()
+    }
+
+    fn __repr__(&self) -> String {
+        let e = &self.inner;
+        format!(
+            "<Event '{}': {} samples, {} .. {} s, system_mva={}, nominal_hz={}>",
+            e.name,
+            e.record.time_s.len(),
+            e.playback.start_s,
+            e.playback.end_s,
+            e.system_mva,
+            e.nominal_hz
+        )
+    }
+}
+
+/// Reads an event file (TOML naming the CSV recording, the system base, the nominal frequency
+/// and the windows) and validates it. Raises EventError.
+#[pyfunction]
+fn load_event(py: Python<'_>, path: PathBuf) -> PyResult<PyEvent> {
+    py.detach(|| Event::from_toml_file(&path))
+        .map(|e| PyEvent { inner: Arc::new(e) })
+        .map_err(|e| Failure::from(e).into_pyerr(py))
+}
+
+// -------------------------------------------------------------------------------------------
+// Unit
+// -------------------------------------------------------------------------------------------
+
+/// A generating-unit model (machine, exciter, stabiliser, governor, further blocks).
+///
+/// Read with `load_unit(path)`. Parameters are per unit on `machine_mva` (or in the unit each
+/// model's documentation gives, see `models()`).
+#[pyclass(name = "Unit", module = "itaipu_calib", frozen)]
+struct PyUnit {
+    inner: Arc<Unit>,
+}
+
+#[pymethods]
+impl PyUnit {
+    /// Unit name.
+    #[getter]
+    fn name(&self) -> &str {
+        &self.inner.name
+    }
+    /// Free text ('' if not given).
+    #[getter]
+    fn description(&self) -> &str {
+        &self.inner.description
+    }
+    /// Machine base, MVA.
+    #[getter]
+    fn machine_mva(&self) -> f64 {
+        self.inner.machine_mva
+    }
+    /// Nominal frequency, Hz.
+    #[getter]
+    fn nominal_hz(&self) -> f64 {
+        self.inner.nominal_hz
+    }
+
+    /// Every parameter as an ordered dict `{"block.name": value}` with canonical names,
+    /// e.g. `{"machine.h": 4.5, "exciter.k": 100.0, ...}`, in state order of the blocks.
+    fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (path, _, value) in self.inner.params() {
+            d.set_item(path, value)?;
+        }
+        Ok(d)
+    }
+
+    /// Model names of the blocks in state order, e.g. `["GENSAE", "SEXS", "STAB3", "constant_pm"]`.
+    fn models(&self) -> Vec<&'static str> {
+        self.inner.instances().iter().map(|i| i.block.model()).collect()
+    }
+
+    /// Block instance names mapped to their model, e.g. `{"machine": "GENSAE", ...}`.
+    fn blocks<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for i in self.inner.instances() {
+            d.set_item(&i.name, i.block.model())?;
+        }
+        Ok(d)
+    }
+
+    /// The unit as unit-file TOML text (every parameter, with its unit and meaning as a comment).
+    fn to_toml(&self) -> String {
+        unit_to_toml(&self.inner)
+    }
+
+    fn __repr__(&self) -> String {
+        let u = &self.inner;
+        format!(
+            "<Unit '{}': {}, machine_mva={}, nominal_hz={}>",
+            u.name,
+            self.models().join(" + "),
+            u.machine_mva,
+            u.nominal_hz
+        )
+    }
+}
+
+/// Reads a unit model file (TOML). Raises UnitModelError.
+#[pyfunction]
+fn load_unit(py: Python<'_>, path: PathBuf) -> PyResult<PyUnit> {
+    py.detach(|| read_unit(&path))
+        .map(|u| PyUnit { inner: Arc::new(u) })
+        .map_err(|e| Failure::from(e).into_pyerr(py))
+}
+
+// -------------------------------------------------------------------------------------------
+// Traces and simulate
+// -------------------------------------------------------------------------------------------
+
+/// Result of `simulate`: one row per event sample, named columns (numpy float64 copies).
+///
+/// `traces["name"]` or `traces.name` gives a column; `columns` lists the names; `time_s` the
+/// sample times; `len(traces)` is the number of samples. Columns: `p_pu`, `q_pu` (simulated,
+/// pu on the event's system base), `p_meas_pu`, `q_meas_pu` (measured, system base),
+/// `p_mach_pu`, `q_mach_pu` (simulated, machine base), every signal of the unit (`v_term`,
+/// `theta_term` [rad], `delta` [rad], `speed`, `pe`, `qe`, `te`, `efd`, `pm`, `vs`, ...: machine
+/// base), every state as `block.state`, and `efd_meas_pu`, `ifd_meas_pu`, `freq_meas_hz` when
+/// the event has them.
+#[pyclass(name = "Traces", module = "itaipu_calib", frozen)]
+struct PyTraces {
+    inner: Traces,
+}
+
+impl PyTraces {
+    fn column(&self, name: &str) -> Option<&[f64]> {
+        self.inner.get(name)
+    }
+}
+
+#[pymethods]
+impl PyTraces {
+    /// Sample times, s.
+    #[getter]
+    fn time_s<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array(py, &self.inner.time_s)
+    }
+
+    /// Column names (without `time_s`), in recording order.
+    #[getter]
+    fn columns(&self) -> Vec<String> {
+        self.inner.names.clone()
+    }
+
+    /// Integrator counters: steps_accepted, steps_rejected, rhs_evals, events.
+    #[getter]
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = &self.inner.stats;
+        let d = PyDict::new(py);
+        d.set_item("steps_accepted", s.steps_accepted)?;
+        d.set_item("steps_rejected", s.steps_rejected)?;
+        d.set_item("rhs_evals", s.rhs_evals)?;
+        d.set_item("events", s.events)?;
+        Ok(d)
+    }
+
+    /// `{"time_s": array, column: array, ...}` (e.g. for `pandas.DataFrame(traces.to_dict())`).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("time_s", array(py, &self.inner.time_s))?;
+        for (name, col) in self.inner.names.iter().zip(&self.inner.columns) {
+            d.set_item(name, array(py, col))?;
+        }
+        Ok(d)
+    }
+
+    fn __getitem__<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        if name == "time_s" {
+            return Ok(array(py, &self.inner.time_s));
+        }
+        self.column(name).map(|c| array(py, c)).ok_or_else(|| PyKeyError::new_err(name.to_string()))
+    }
+
+    fn __getattr__<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        self.column(name).map(|c| array(py, c)).ok_or_else(|| {
+            PyAttributeError::new_err(format!(
+                "'Traces' object has no attribute or column '{name}' (columns: {})",
+                self.inner.names.join(", ")
+            ))
+        })
+    }
+
+    fn __contains__(&self, name: &str) -> bool {
+        name == "time_s" || self.column(name).is_some()
+    }
+
+    fn __dir__(slf: &Bound<'_, Self>) -> PyResult<Vec<String>> {
+        let object = slf.py().import("builtins")?.getattr("object")?;
+        let mut names: Vec<String> = object.call_method1("__dir__", (slf,))?.extract()?;
+        let inner = &slf.get().inner;
+        names.extend(
+            inner
+                .names
+                .iter()
+                .filter(|n| n.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'))
+                .cloned(),
+        );
+        Ok(names)
+    }
+
+    /// Number of samples.
+    fn __len__(&self) -> usize {
+        self.inner.time_s.len()
+    }
+
+    fn __repr__(&self) -> String {
+        let t = &self.inner.time_s;
+        let (t0, t1) = (t.first().copied().unwrap_or(f64::NAN), t.last().copied().unwrap_or(f64::NAN));
+        format!("<Traces: {} samples, {} .. {} s, {} columns>", t.len(), t0, t1, self.inner.names.len())
+    }
+}
+
+/// Plays the measured terminal voltage of `event` into `unit` and records every signal.
+///
+/// `event` and `unit` are paths to the TOML files (str or os.PathLike) or objects from
+/// `load_event` / `load_unit`. `method` is "dopri5" (adaptive Dormand-Prince 5(4), tolerances
+/// `rtol`, `atol`) or "rk4" (fixed step of at most `step` seconds). The GIL is released while
+/// files are read and the model is integrated.
+///
+/// Raises EventError, UnitModelError, InitError, SimulationError (and ValueError for bad
+/// options, TypeError for bad argument types).
+#[pyfunction]
+#[pyo3(signature = (event, unit, *, method = "dopri5", rtol = 1e-6, atol = 1e-8, step = 0.001))]
+fn simulate(
+    py: Python<'_>,
+    event: &Bound<'_, PyAny>,
+    unit: &Bound<'_, PyAny>,
+    method: &str,
+    rtol: f64,
+    atol: f64,
+    step: f64,
+) -> PyResult<PyTraces> {
+    let opts = sim_options(method, rtol, atol, step)?;
+    let event = source::<PyEvent, _>(event, "event", |e| e.inner.clone())?;
+    let unit = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
+    let result = py.detach(move || -> Result<Traces, Failure> {
+        let event = match event {
+            Source::Loaded(e) => e,
+            Source::Path(p) => Arc::new(Event::from_toml_file(&p)?),
+        };
+        let unit = match unit {
+            Source::Loaded(u) => u,
+            Source::Path(p) => Arc::new(read_unit(&p)?),
+        };
+        Ok(itaipu_dynamics::simulate(&unit, &event, &opts)?)
+    });
+    result.map(|t| PyTraces { inner: t }).map_err(|e| e.into_pyerr(py))
+}
+
+/// Integrator options, checked as the command line checks them.
+fn sim_options(method: &str, rtol: f64, atol: f64, step: f64) -> PyResult<SimOptions> {
+    let method = match method.to_ascii_lowercase().as_str() {
+        "rk4" => {
+            if !(step > 0.0 && step.is_finite()) {
+                return Err(PyValueError::new_err(format!("step must be > 0 (got {step})")));
+            }
+            Method::Rk4 { h: step }
+        }
+        "dopri5" => {
+            if !(rtol > 0.0 && atol >= 0.0) {
+                return Err(PyValueError::new_err(format!("rtol must be > 0 and atol >= 0 (got rtol={rtol}, atol={atol})")));
+            }
+            // Everything but the tolerances as in the library's default options.
+            let base = match SimOptions::default().method {
+                Method::Dopri5(o) => o,
+                Method::Rk4 { .. } => Dopri5Options::default(),
+            };
+            Method::Dopri5(Dopri5Options { rtol, atol, ..base })
+        }
+        _ => return Err(PyValueError::new_err(format!("method must be 'dopri5' or 'rk4' (got '{method}')"))),
+    };
+    Ok(SimOptions { method })
+}
+
+// -------------------------------------------------------------------------------------------
+// Model library
+// -------------------------------------------------------------------------------------------
+
+/// The model library (the same catalogue unit files and the command line use): a list of dicts
+/// with name, role ('machine', 'exciter', 'pss', 'governor' or 'block'), summary, parameters
+/// (dicts: name, alias (PSS/E), unit, doc, typical, range = (low, high)), ports (dicts: name,
+/// direction 'in'/'out', doc) and states.
+#[pyfunction]
+fn models<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for m in MODELS {
+        let block = m.create();
+        let params = PyList::empty(py);
+        for s in block.params().specs() {
+            let p = PyDict::new(py);
+            p.set_item("name", s.name)?;
+            p.set_item("alias", s.alias)?;
+            p.set_item("unit", s.unit)?;
+            p.set_item("doc", s.doc)?;
+            p.set_item("typical", s.typical)?;
+            p.set_item("range", s.range)?;
+            params.append(p)?;
+        }
+        let ports = PyList::empty(py);
+        for port in block.ports() {
+            let p = PyDict::new(py);
+            p.set_item("name", port.name)?;
+            p.set_item("direction", if port.dir == Dir::In { "in" } else { "out" })?;
+            p.set_item("doc", port.doc)?;
+            ports.append(p)?;
+        }
+        let d = PyDict::new(py);
+        d.set_item("name", m.name)?;
+        d.set_item("role", m.role.section())?;
+        d.set_item("summary", m.summary)?;
+        d.set_item("parameters", params)?;
+        d.set_item("ports", ports)?;
+        d.set_item("states", block.state_names().to_vec())?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
+// -------------------------------------------------------------------------------------------
+// Module
+// -------------------------------------------------------------------------------------------
+
+/// Compiled part of itaipu_calib; import `itaipu_calib` instead.
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    py.get_type::<ItaipuError>().setattr("kind", py.None())?;
+    m.add("ItaipuError", py.get_type::<ItaipuError>())?;
+    m.add("EventError", py.get_type::<EventError>())?;
+    m.add("UnitModelError", py.get_type::<UnitModelError>())?;
+    m.add("InitError", py.get_type::<InitError>())?;
+    m.add("SimulationError", py.get_type::<SimulationError>())?;
+    m.add_class::<PyEvent>()?;
+    m.add_class::<PyUnit>()?;
+    m.add_class::<PyTraces>()?;
+    m.add_function(wrap_pyfunction!(load_event, m)?)?;
+    m.add_function(wrap_pyfunction!(load_unit, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(models, m)?)?;
+    Ok(())
+}

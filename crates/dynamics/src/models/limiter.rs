@@ -13,6 +13,9 @@
 //! event function (positive while the mode holds) and calls [`NonWindup::update`] there, which
 //! pins the state exactly on the limit. No overshoot, no chattering.
 
+/// Relative distance from a limit within which a state counts as on it at an event.
+pub const AT_LIMIT_TOL: f64 = 1e-7;
+
 /// Mode of a non-windup limit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum LimitMode {
@@ -59,11 +62,16 @@ impl NonWindup {
 
     /// Re-evaluates the mode at the current point and pins `x` when a limit is active.
     /// Returns `true` when the mode or `x` changed.
+    ///
+    /// The integrator locates a crossing to within ~1e-12 s, so at an event `x` may sit a hair
+    /// short of the limit: within [`AT_LIMIT_TOL`] (relative) it counts as on the limit.
     pub fn update(&mut self, x: &mut f64, f: f64, lo: f64, hi: f64) -> bool {
         let old = (self.mode, *x);
-        self.mode = if *x >= hi && f > 0.0 {
+        let tol_hi = AT_LIMIT_TOL * hi.abs().max(1.0);
+        let tol_lo = AT_LIMIT_TOL * lo.abs().max(1.0);
+        self.mode = if *x >= hi - tol_hi && f > 0.0 {
             LimitMode::AtMax
-        } else if *x <= lo && f < 0.0 {
+        } else if *x <= lo + tol_lo && f < 0.0 {
             LimitMode::AtMin
         } else {
             LimitMode::Free
@@ -106,5 +114,15 @@ mod tests {
         assert!(l.update(&mut x, -0.1, 0.0, 5.0));
         assert_eq!(l.mode, LimitMode::Free);
         assert_eq!(l.derivative(-0.1), -0.1);
+    }
+
+    #[test]
+    fn an_event_located_a_hair_before_the_limit_still_pins() {
+        let mut l = NonWindup::default();
+        let mut x = 5.0 - 1e-10;
+        assert!(l.update(&mut x, 2.0, 0.0, 5.0));
+        assert_eq!((l.mode, x), (LimitMode::AtMax, 5.0));
+        let mut y = 4.99;
+        assert!(!l.clone().update(&mut y, 2.0, 0.0, 5.0) || y == 4.99);
     }
 }

@@ -41,9 +41,9 @@ mod port {
 
 const PORTS: &[Port] = &[
     Port::input("v_term", PortInit::Needs, "compensated terminal voltage E_comp [pu]"),
-    Port::input("vs", PortInit::Needs, "stabiliser signal V_S [pu]"),
-    Port::input("voel", PortInit::Needs, "over-excitation limiter signal (<= 0) [pu]"),
-    Port::input("vuel", PortInit::Needs, "under-excitation limiter signal [pu]"),
+    Port::input("vs", PortInit::Needs, "stabiliser signal V_S [pu]").optional(),
+    Port::input("voel", PortInit::Needs, "over-excitation limiter signal (<= 0) [pu]").optional(),
+    Port::input("vuel", PortInit::Needs, "under-excitation limiter signal [pu]").optional(),
     Port::output("efd", PortInit::Needs, "field voltage E_fd [pu]"),
 ];
 

@@ -46,7 +46,7 @@ mod port {
 }
 
 const PORTS: &[Port] = &[
-    Port::input_ft("u", PortInit::Needs, "stabiliser input (default: speed deviation Δω) [pu]"),
+    Port::input_ft("u", PortInit::Needs, "stabiliser input (default: speed deviation Δω) [pu]").wired("speed"),
     Port::input_ft("v_term", PortInit::Needs, "terminal voltage V_CT for the output cut-off [pu]"),
     Port::output("vs", PortInit::Gives, "stabiliser output V_S [pu]"),
 ];
