@@ -21,10 +21,16 @@ fn simulate_defaults_to_the_bundled_itaipu_event_and_writes_traces_and_plot() {
         assert!(header.iter().any(|h| h == col), "traces.csv lacks {col}: {header:?}");
     }
     let idx = |n: &str| header.iter().position(|h| h == n).unwrap();
-    // Pre-event: simulated P and Q sit on the measured operating point (system base).
-    for row in rows.iter().take(55) {
-        assert!((row[idx("p_pu")] - 0.6236).abs() < 3e-3, "pre-event P {}", row[idx("p_pu")]);
-        assert!((row[idx("q_pu")] - 0.0225).abs() < 5e-3, "pre-event Q {}", row[idx("q_pu")]);
+    // Pre-event (0-0.95 s): the model starts at the averaged operating point, so the mean of the
+    // simulated P and Q equals the measured mean; sample by sample the played-back PMU noise
+    // (about 0.05 deg in angle) moves P by a few 1e-3.
+    let pre: Vec<&Vec<f64>> = rows.iter().filter(|r| r[idx("time_s")] <= 0.95).collect();
+    let mean = |c: usize| pre.iter().map(|r| r[c]).sum::<f64>() / pre.len() as f64;
+    assert!((mean(idx("p_pu")) - mean(idx("p_meas_pu"))).abs() < 1e-3, "pre-event mean P");
+    assert!((mean(idx("q_pu")) - mean(idx("q_meas_pu"))).abs() < 2e-3, "pre-event mean Q");
+    for row in &pre {
+        assert!((row[idx("p_pu")] - 0.6236).abs() < 6e-3, "pre-event P {}", row[idx("p_pu")]);
+        assert!((row[idx("q_pu")] - 0.0225).abs() < 1e-2, "pre-event Q {}", row[idx("q_pu")]);
     }
     // The fault dip must show in the simulation: P falls well below its pre-event value.
     let p_min = rows.iter().map(|r| r[idx("p_pu")]).fold(f64::INFINITY, f64::min);

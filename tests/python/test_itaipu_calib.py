@@ -3,6 +3,7 @@
 import os
 import re
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -142,6 +143,37 @@ def test_gil_released_concurrent_threads(traces):
         np.testing.assert_array_equal(r.p_pu, traces.p_pu)
         np.testing.assert_array_equal(r.q_pu, traces.q_pu)
     np.testing.assert_array_equal(results[0].to_dict()["efd"], results[1].to_dict()["efd"])
+
+
+def test_gil_released_while_simulating():
+    """A pure-Python thread keeps running while simulate() integrates (about 0.5 s of work).
+
+    With the GIL held for the whole call the spinning thread could only run for one switch
+    interval (5 ms) around the call; with it released it runs throughout.
+    """
+    count = [0]
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            count[0] += 1
+
+    thread = threading.Thread(target=spin)
+    thread.start()
+    try:
+        time.sleep(0.05)
+        c0, t0 = count[0], time.perf_counter()
+        time.sleep(0.1)
+        rate = (count[0] - c0) / (time.perf_counter() - t0)  # spins per second, GIL free
+        c0, t0 = count[0], time.perf_counter()
+        ic.simulate(EVENT, UNIT, method="rk4", step=2e-5)
+        elapsed = time.perf_counter() - t0
+        spins = count[0] - c0
+    finally:
+        stop.set()
+        thread.join()
+    assert elapsed > 0.05, "simulation too short to tell"
+    assert spins > 0.1 * rate * elapsed, (spins, rate, elapsed)
 
 
 # --- loading ----------------------------------------------------------------------------------

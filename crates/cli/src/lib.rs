@@ -75,7 +75,7 @@ struct SimulateArgs {
     #[arg(long, default_value_t = 1e-6)]
     rtol: f64,
     /// Absolute tolerance (with --method dopri5).
-    #[arg(long, default_value_t = 1e-8)]
+    #[arg(long, default_value_t = 1e-7)]
     atol: f64,
     /// Do not draw plot.svg.
     #[arg(long)]

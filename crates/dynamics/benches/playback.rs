@@ -1,1 +1,66 @@
-fn main(){}
+//! Playback benchmarks (divan): `cargo bench -p itaipu-dynamics`.
+//!
+//! * a 20 s synthetic event at 60 samples/s (dip, grid swing, 0.2 Hz frequency fall, PMU
+//!   noise) into GENSAE + SEXS + STAB3 + HYGOV, with RK4 at 1 ms and Dormand-Prince at rtol 1e-6;
+//! * the bundled Itaipu record (4.65 s, 280 samples) into its GENSAE + SEXS + STAB3 unit.
+//!
+//! Each iteration is one complete playback: initialisation, integration, P and Q at every sample.
+
+use std::path::PathBuf;
+
+use divan::Bencher;
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::integrate::{Dopri5Options, Method};
+use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
+use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
+use itaipu_dynamics::unit::Unit;
+use itaipu_dynamics::unit_file::read_unit;
+
+fn main() {
+    divan::main();
+}
+
+fn data(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data").join(rel)
+}
+
+fn synthetic() -> (Unit, PreparedEvent) {
+    let unit = read_unit(&data("synthetic/unit_gensae_sexs_stab3_hygov.toml")).unwrap();
+    let event = synthesize("bench", &unit, &VoltageProfile::default(), 737.0, &PmuNoise::typical(1), &SimOptions::default()).unwrap();
+    (unit, PreparedEvent::new(&event))
+}
+
+fn itaipu() -> (Unit, PreparedEvent) {
+    let unit = read_unit(&data("itaipu/unit.toml")).unwrap();
+    let event = Event::from_toml_file(&data("itaipu/event.toml")).unwrap();
+    (unit, PreparedEvent::new(&event))
+}
+
+fn dopri5() -> SimOptions {
+    SimOptions { method: Method::Dopri5(Dopri5Options { rtol: 1e-6, atol: 1e-7, h_max: 0.05, ..Default::default() }) }
+}
+
+fn bench(bencher: Bencher, (unit, ev): (Unit, PreparedEvent), opts: SimOptions) {
+    let mut u = unit.clone();
+    bencher.bench_local(|| simulate_pq(divan::black_box(&mut u), &ev, &opts).unwrap());
+}
+
+#[divan::bench(sample_count = 30)]
+fn synthetic_20s_rk4_1ms(bencher: Bencher) {
+    bench(bencher, synthetic(), SimOptions { method: Method::Rk4 { h: 1e-3 } });
+}
+
+#[divan::bench(sample_count = 100)]
+fn synthetic_20s_dopri5_rtol_1e6(bencher: Bencher) {
+    bench(bencher, synthetic(), dopri5());
+}
+
+#[divan::bench(sample_count = 100)]
+fn itaipu_record_dopri5_rtol_1e6(bencher: Bencher) {
+    bench(bencher, itaipu(), dopri5());
+}
+
+#[divan::bench(sample_count = 30)]
+fn itaipu_record_rk4_1ms(bencher: Bencher) {
+    bench(bencher, itaipu(), SimOptions { method: Method::Rk4 { h: 1e-3 } });
+}

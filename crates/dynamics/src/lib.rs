@@ -20,6 +20,7 @@ pub mod models;
 pub mod params;
 pub mod registry;
 pub mod simulate;
+pub mod synthetic;
 pub mod unit;
 pub mod unit_file;
 

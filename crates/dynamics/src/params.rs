@@ -46,7 +46,7 @@ pub trait ParamSet {
 
 /// Declares a parameter struct with `f64` fields and its [`ParamSpec`] table.
 ///
-/// ```ignore
+/// ```text
 /// param_set! {
 ///     /// SEXS parameters.
 ///     pub struct SexsParams {

@@ -10,7 +10,7 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use numpy::{PyArray1, PyArrayMethods};
+use numpy::PyArray1;
 use pyo3::exceptions::{PyAttributeError, PyException, PyKeyError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -116,8 +116,7 @@ enum Source<T> {
 
 fn source<'py, C, T>(arg: &Bound<'py, PyAny>, what: &str, inner: impl Fn(&C) -> Arc<T>) -> PyResult<Source<T>>
 where
-    C: PyClass + Sync,
-    C: pyo3::PyClass<Frozen = pyo3::pyclass::boolean_struct::True>,
+    C: pyo3::PyClass<Frozen = pyo3::pyclass::boolean_struct::True> + Sync,
 {
     if let Ok(obj) = arg.downcast::<C>() {
         return Ok(Source::Loaded(inner(obj.get())));

@@ -25,6 +25,14 @@
 //! then resumes from the event time. Convention: an event function is **positive while the
 //! current mode remains valid**.
 //!
+//! **Event details.** Crossing times are located to 1e-12 s (never coarser than 1e-10 of the
+//! step). The crossing is confirmed on the re-taken step: [`OdeSystem::handle_event`] is only
+//! called with a state at which some event function is `<= 0`; if the re-taken step has not
+//! crossed yet (interpolant and step differ slightly) it is kept as an ordinary step and the next
+//! step finds the crossing. A crossing less than 1e-12 s after an event is ignored, and more than
+//! 100 consecutive events each less than 1 ns apart stop the integration with
+//! [`SolveError::EventLoop`] (chattering modes).
+//!
 //! All work buffers are allocated once per [`solve`] call; the step loop does not allocate.
 
 pub mod dopri5;
@@ -109,6 +117,8 @@ pub enum SolveError {
     TooManySteps { t: f64, max_steps: usize },
     #[error("invalid integrator setting: {0}")]
     BadSetting(String),
+    #[error("more than 100 events less than 1 ns apart at t = {t:.9} s (modes chatter)")]
+    EventLoop { t: f64 },
 }
 
 /// Integrates `sys` from `knots[0]` to the last knot starting at `x` (overwritten with the final
@@ -129,4 +139,194 @@ where
         Method::Rk4 { h } => Rk4::new(*h)?.solve(sys, x, knots, observer),
         Method::Dopri5(opts) => Dopri5::new(opts.clone())?.solve(sys, x, knots, observer),
     }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Shared driver helpers (private to the integrators).
+
+/// Event times are located to this absolute tolerance (s) ...
+const EVENT_TOL_ABS: f64 = 1e-12;
+/// ... but never coarser than this fraction of the step being searched.
+const EVENT_TOL_REL: f64 = 1e-10;
+/// A crossing closer than this (s) to the previous event is ignored (no re-trigger loops).
+const EVENT_DEADBAND: f64 = 1e-12;
+/// Consecutive events closer than this (s) to each other count as one instant.
+const EVENT_INSTANT: f64 = 1e-9;
+/// More events than this at one instant is reported as [`SolveError::EventLoop`].
+const MAX_EVENTS_PER_INSTANT: usize = 100;
+
+/// Validates the knots and the state length, calls the initial [`OdeSystem::handle_event`] at
+/// `knots[0]` and checks that the resulting state is finite.
+fn begin<S: OdeSystem>(sys: &mut S, x: &mut [f64], knots: &[f64]) -> Result<(), SolveError> {
+    let Some(&t0) = knots.first() else {
+        return Err(SolveError::BadKnots { index: 0, t: f64::NAN });
+    };
+    if !t0.is_finite() {
+        return Err(SolveError::BadKnots { index: 0, t: t0 });
+    }
+    for (i, w) in knots.windows(2).enumerate() {
+        if !(w[1] > w[0] && w[1].is_finite()) {
+            return Err(SolveError::BadKnots { index: i + 1, t: w[1] });
+        }
+    }
+    if x.len() != sys.dim() {
+        return Err(SolveError::BadSetting(format!(
+            "state has {} entries but the system has {} states",
+            x.len(),
+            sys.dim()
+        )));
+    }
+    sys.handle_event(t0, x);
+    check_finite(t0, x)
+}
+
+/// `Err(NonFinite)` naming the first non-finite entry of `x`.
+fn check_finite(t: f64, x: &[f64]) -> Result<(), SolveError> {
+    match x.iter().position(|v| !v.is_finite()) {
+        Some(state) => Err(SolveError::NonFinite { t, state }),
+        None => Ok(()),
+    }
+}
+
+/// Sign tracking and location of event-function crossings, shared by both methods.
+///
+/// `g_start` holds the event functions at the start of the current step, `g_end` at the end of
+/// the step just taken. A crossing is `g_start[i] > 0 && g_end[i] <= 0`.
+struct Events {
+    g_start: Vec<f64>,
+    g_end: Vec<f64>,
+    g_probe: Vec<f64>,
+    x_probe: Vec<f64>,
+    last_event: f64,
+    burst_len: usize,
+}
+
+impl Events {
+    fn new<S: OdeSystem>(sys: &S) -> Self {
+        let m = sys.n_events();
+        let n = if m > 0 { sys.dim() } else { 0 };
+        Self {
+            g_start: vec![0.0; m],
+            g_end: vec![0.0; m],
+            g_probe: vec![0.0; m],
+            x_probe: vec![0.0; n],
+            last_event: f64::NEG_INFINITY,
+            burst_len: 0,
+        }
+    }
+
+    /// Evaluates the event functions at the start of a step (after the start or an event).
+    fn restart<S: OdeSystem>(&mut self, sys: &mut S, t: f64, x: &[f64]) {
+        if !self.g_start.is_empty() {
+            sys.events(t, x, &mut self.g_start);
+        }
+    }
+
+    /// Evaluates the event functions at the end `(t1, x1)` of a step; `true` if one crossed.
+    fn crossed<S: OdeSystem>(&mut self, sys: &mut S, t1: f64, x1: &[f64]) -> bool {
+        if self.g_start.is_empty() {
+            return false;
+        }
+        sys.events(t1, x1, &mut self.g_end);
+        self.g_start.iter().zip(&self.g_end).any(|(&a, &b)| a > 0.0 && b <= 0.0)
+    }
+
+    /// The step end becomes the next step start.
+    fn step_accepted(&mut self) {
+        std::mem::swap(&mut self.g_start, &mut self.g_end);
+    }
+
+    /// Earliest crossing time in `(t0, t1]` (after [`Events::crossed`] returned `true`), or
+    /// `None` if every crossing lies within [`EVENT_DEADBAND`] of the previous event.
+    /// `interp(t, out)` writes the state at `t` (dense output or Hermite interpolation). The
+    /// returned time is the end of the final bracket, where the interpolated `g_i <= 0`.
+    fn locate<S, F>(&mut self, sys: &mut S, t0: f64, t1: f64, mut interp: F) -> Option<f64>
+    where
+        S: OdeSystem,
+        F: FnMut(f64, &mut [f64]),
+    {
+        let tol = EVENT_TOL_ABS.min(EVENT_TOL_REL * (t1 - t0)).max(4.0 * f64::EPSILON * t1.abs());
+        let Events { g_start, g_end, g_probe, x_probe, last_event, .. } = self;
+        let mut g = |i: usize, t: f64| {
+            interp(t, x_probe);
+            sys.events(t, x_probe, g_probe);
+            g_probe[i]
+        };
+        // Search only after the dead band; a crossing inside it is ignored.
+        let lo = t0.max(*last_event + EVENT_DEADBAND);
+        let mut earliest: Option<f64> = None;
+        for (i, (&ga, &gb)) in g_start.iter().zip(g_end.iter()).enumerate() {
+            if !(ga > 0.0 && gb <= 0.0) || lo >= t1 {
+                continue;
+            }
+            let g_lo = if lo > t0 { g(i, lo) } else { ga };
+            if g_lo > 0.0 {
+                let te = illinois(lo, g_lo, t1, gb, tol, |t| g(i, t));
+                earliest = Some(earliest.map_or(te, |e| e.min(te)));
+            }
+        }
+        earliest
+    }
+
+    /// Records an event handled at `t`; fails when more than [`MAX_EVENTS_PER_INSTANT`]
+    /// consecutive events are each within [`EVENT_INSTANT`] of the one before.
+    fn record(&mut self, t: f64) -> Result<(), SolveError> {
+        if t - self.last_event <= EVENT_INSTANT {
+            self.burst_len += 1;
+        } else {
+            self.burst_len = 1;
+        }
+        self.last_event = t;
+        if self.burst_len > MAX_EVENTS_PER_INSTANT {
+            return Err(SolveError::EventLoop { t });
+        }
+        Ok(())
+    }
+}
+
+/// Illinois (modified regula falsi) on a bracket with `ga = g(a) > 0`, `gb = g(b) <= 0`.
+/// Returns the right end of the final bracket (so `g <= 0` there) once it is narrower than
+/// `tol`, `g` hits zero exactly, no float lies strictly inside, or after 200 evaluations (only
+/// reached at multiple roots; a triple root needs about 140).
+fn illinois(
+    mut a: f64,
+    mut ga: f64,
+    mut b: f64,
+    mut gb: f64,
+    tol: f64,
+    mut g: impl FnMut(f64) -> f64,
+) -> f64 {
+    let mut kept = 0; // +1: `a` moved last time (b kept), -1: `b` moved last time
+    for _ in 0..200 {
+        if b - a <= tol {
+            break;
+        }
+        let mut c = b - gb * (b - a) / (gb - ga);
+        if !(c > a && c < b) {
+            c = 0.5 * (a + b);
+            if !(c > a && c < b) {
+                break;
+            }
+        }
+        let gc = g(c);
+        if gc > 0.0 {
+            a = c;
+            ga = gc;
+            if kept == 1 {
+                gb *= 0.5;
+            }
+            kept = 1;
+        } else {
+            b = c;
+            gb = gc;
+            if gc == 0.0 {
+                break;
+            }
+            if kept == -1 {
+                ga *= 0.5;
+            }
+            kept = -1;
+        }
+    }
+    b
 }

@@ -7,7 +7,7 @@
 //! departure: OpenIPSL's form is only consistent when the machine base equals the system base).
 //! GENCLS has no field winding: an exciter cannot be attached (the unit rejects it).
 
-use super::{Electrical, ElectricalInit, Phasor, Stator};
+use super::{Electrical, ElectricalInit, Field, Phasor, Stator};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -67,8 +67,8 @@ impl Electrical for Gencls {
     fn stator(&self, _x: &[f64], vd: f64, vq: f64) -> Stator {
         Stator::solve(0.0, self.e_prime, vd, vq, self.p.r_a, self.p.x_d_prime, self.p.x_d_prime)
     }
-    fn xadifd(&self, _x: &[f64], _st: &Stator) -> f64 {
-        self.e_prime
+    fn field(&self, _x: &[f64], _st: &Stator) -> Field {
+        Field { xadifd: self.e_prime, sat: 0.0 }
     }
-    fn derivatives(&self, _x: &[f64], _efd: f64, _xadifd: f64, _st: &Stator, _dx: &mut [f64]) {}
+    fn derivatives(&self, _x: &[f64], _efd: f64, _field: Field, _st: &Stator, _dx: &mut [f64]) {}
 }

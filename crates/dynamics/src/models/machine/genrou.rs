@@ -18,7 +18,7 @@
 //! (E'_d decays to 0), which is how ANDES represents a salient-pole unit.
 
 use super::saturation::QuadraticSaturation;
-use super::{check_d_axis, Electrical, ElectricalInit, Phasor, Stator};
+use super::{check_d_axis, norm2, Electrical, ElectricalInit, Field, Phasor, Stator};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -155,18 +155,20 @@ impl Electrical for Genrou {
     }
 
     #[inline(always)]
-    fn xadifd(&self, x: &[f64], st: &Stator) -> f64 {
+    fn field(&self, x: &[f64], st: &Stator) -> Field {
         let (p, k) = (&self.p, &self.k);
         let (e_d_pp, e_q_pp) = self.subtransient(x);
-        let se = k.sat.eval(e_q_pp.hypot(e_d_pp));
-        x[0] + k.k1d * (x[0] - x[2] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + se * e_q_pp
+        let se = k.sat.eval(norm2(e_q_pp, e_d_pp));
+        let xadifd =
+            x[0] + k.k1d * (x[0] - x[2] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + se * e_q_pp;
+        Field { xadifd, sat: se }
     }
 
     #[inline(always)]
-    fn derivatives(&self, x: &[f64], efd: f64, xadifd: f64, st: &Stator, dx: &mut [f64]) {
+    fn derivatives(&self, x: &[f64], efd: f64, field: Field, st: &Stator, dx: &mut [f64]) {
         let (p, k) = (&self.p, &self.k);
-        let (e_d_pp, e_q_pp) = self.subtransient(x);
-        let se = k.sat.eval(e_q_pp.hypot(e_d_pp));
+        let (e_d_pp, _) = self.subtransient(x);
+        let (xadifd, se) = (field.xadifd, field.sat);
         let xaqi1q = x[1] + k.k1q * (x[1] - x[3] + (p.x_q_prime - p.x_l) * st.iq) - (p.x_q - p.x_q_prime) * st.iq
             + k.gamma * se * e_d_pp;
         dx[0] = (efd - xadifd) / p.t_d0_prime;

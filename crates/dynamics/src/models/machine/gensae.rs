@@ -18,7 +18,7 @@
 //! X''q ≠ X''d (where OpenIPSL itself starts slightly off steady state).
 
 use super::saturation::ExponentialSaturation;
-use super::{check_d_axis, Electrical, ElectricalInit, Phasor, Stator};
+use super::{check_d_axis, norm2, Electrical, ElectricalInit, Field, Phasor, Stator};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -71,7 +71,7 @@ impl Gensae {
         let (id, iq) = i.to_dq(delta);
         let e_q_pp = vq + p.x_d_pp * id + p.r_a * iq;
         let e_d_pp = vd - p.x_q_pp * iq + p.r_a * id;
-        let se = self.k.sat.eval(e_q_pp.hypot(e_d_pp));
+        let se = self.k.sat.eval(norm2(e_q_pp, e_d_pp));
         e_d_pp * (1.0 + self.k.gamma * se) - (p.x_q - p.x_q_pp) * iq
     }
 }
@@ -155,7 +155,7 @@ impl Electrical for Gensae {
         let (id, iq) = i.to_dq(delta);
         let e_q_pp = vq + p.x_d_pp * id + p.r_a * iq;
         let e_d_pp = vd - p.x_q_pp * iq + p.r_a * id;
-        let se = k.sat.eval(e_q_pp.hypot(e_d_pp));
+        let se = k.sat.eval(norm2(e_q_pp, e_d_pp));
         let e_q_p = e_q_pp + (p.x_d_prime - p.x_d_pp) * id;
         let psi_kd = e_q_p - (p.x_d_prime - p.x_l) * id;
         x[0] = e_q_p;
@@ -172,18 +172,19 @@ impl Electrical for Gensae {
     }
 
     #[inline(always)]
-    fn xadifd(&self, x: &[f64], st: &Stator) -> f64 {
+    fn field(&self, x: &[f64], st: &Stator) -> Field {
         let (p, k) = (&self.p, &self.k);
         let e_q_pp = k.k3d * x[0] + k.k4d * x[1];
-        let se = k.sat.eval(e_q_pp.hypot(x[2]));
-        x[0] + k.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + se * e_q_pp
+        let se = k.sat.eval(norm2(e_q_pp, x[2]));
+        let xadifd =
+            x[0] + k.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + se * e_q_pp;
+        Field { xadifd, sat: se }
     }
 
     #[inline(always)]
-    fn derivatives(&self, x: &[f64], efd: f64, xadifd: f64, st: &Stator, dx: &mut [f64]) {
+    fn derivatives(&self, x: &[f64], efd: f64, field: Field, st: &Stator, dx: &mut [f64]) {
         let (p, k) = (&self.p, &self.k);
-        let e_q_pp = k.k3d * x[0] + k.k4d * x[1];
-        let se = k.sat.eval(e_q_pp.hypot(x[2]));
+        let (xadifd, se) = (field.xadifd, field.sat);
         dx[0] = (efd - xadifd) / p.t_d0_prime;
         dx[1] = (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) / p.t_d0_pp;
         dx[2] = (-x[2] + (p.x_q - p.x_q_pp) * st.iq - k.gamma * se * x[2]) / p.t_q0_pp;

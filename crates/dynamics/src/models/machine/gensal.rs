@@ -16,7 +16,7 @@
 //! closed form and `E_fd0 = (1 + Se(E'_q0)) E'_q0 + (Xd − X'd) i_d0`.
 
 use super::saturation::QuadraticSaturation;
-use super::{check_d_axis, Electrical, ElectricalInit, Phasor, Stator};
+use super::{check_d_axis, Electrical, ElectricalInit, Field, Phasor, Stator};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -123,17 +123,17 @@ impl Electrical for Gensal {
     }
 
     #[inline(always)]
-    fn xadifd(&self, x: &[f64], st: &Stator) -> f64 {
+    fn field(&self, x: &[f64], st: &Stator) -> Field {
         let (p, k) = (&self.p, &self.k);
-        k.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id)
-            + (p.x_d - p.x_d_prime) * st.id
-            + (1.0 + k.sat.eval(x[0])) * x[0]
+        let se = k.sat.eval(x[0]);
+        let xadifd = k.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + (1.0 + se) * x[0];
+        Field { xadifd, sat: se }
     }
 
     #[inline(always)]
-    fn derivatives(&self, x: &[f64], efd: f64, xadifd: f64, st: &Stator, dx: &mut [f64]) {
+    fn derivatives(&self, x: &[f64], efd: f64, field: Field, st: &Stator, dx: &mut [f64]) {
         let p = &self.p;
-        dx[0] = (efd - xadifd) / p.t_d0_prime;
+        dx[0] = (efd - field.xadifd) / p.t_d0_prime;
         dx[1] = (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) / p.t_d0_pp;
         dx[2] = (-x[2] + (p.x_q - p.x_q_pp) * st.iq) / p.t_q0_pp;
     }

@@ -107,6 +107,21 @@ impl Stator {
     }
 }
 
+/// Field current and saturation factor at one point.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Field {
+    /// X_ad I_fd [pu].
+    pub xadifd: f64,
+    /// Saturation factor Se (0 when unsaturated or not modelled).
+    pub sat: f64,
+}
+
+/// Magnitude of (a, b) without `hypot`'s overflow guards (arguments are O(1) pu).
+#[inline(always)]
+pub fn norm2(a: f64, b: f64) -> f64 {
+    (a * a + b * b).sqrt()
+}
+
 /// Steady-state electrical quantities found by [`Electrical::init_electrical`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ElectricalInit {
@@ -134,11 +149,11 @@ pub trait Electrical: Clone + Send + Sync + 'static {
     fn init_electrical(&mut self, v: Phasor, i: Phasor, x_el: &mut [f64]) -> Result<ElectricalInit, ModelError>;
     /// Stator solution for electrical states `x_el` and terminal voltage `(v_d, v_q)`.
     fn stator(&self, x_el: &[f64], vd: f64, vq: f64) -> Stator;
-    /// Field current X_ad I_fd [pu, non-reciprocal].
-    fn xadifd(&self, x_el: &[f64], st: &Stator) -> f64;
-    /// Electrical state derivatives; `xadifd` is the value [`Electrical::xadifd`] returned at
-    /// this point (read back from the bus to avoid computing it twice).
-    fn derivatives(&self, x_el: &[f64], efd: f64, xadifd: f64, st: &Stator, dx_el: &mut [f64]);
+    /// Field current X_ad I_fd [pu, non-reciprocal] and the saturation factor Se at this point.
+    fn field(&self, x_el: &[f64], st: &Stator) -> Field;
+    /// Electrical state derivatives; `field` is what [`Electrical::field`] returned at this
+    /// point (read back from the bus, so saturation is evaluated once per right-hand side).
+    fn derivatives(&self, x_el: &[f64], efd: f64, field: Field, st: &Stator, dx_el: &mut [f64]);
 }
 
 /// Which mechanical-torque convention the swing equation uses.
@@ -165,6 +180,7 @@ pub mod port {
     pub const XADIFD: usize = 9;
     pub const ID: usize = 10;
     pub const IQ: usize = 11;
+    pub const SAT: usize = 12;
 }
 
 const PORTS: &[Port] = &[
@@ -180,6 +196,7 @@ const PORTS: &[Port] = &[
     Port::output("xadifd", PortInit::Gives, "field current X_ad I_fd [pu]"),
     Port::output("id", PortInit::Gives, "d-axis stator current [pu]"),
     Port::output("iq", PortInit::Gives, "q-axis stator current [pu]"),
+    Port::output("sat", PortInit::Gives, "saturation factor Se [-]"),
 ];
 
 /// A machine block: swing equation + stator + the electrical model `E`.
@@ -287,7 +304,8 @@ impl<E: Electrical> Block for Machine<E> {
         };
         dx[0] = self.omega_b * w;
         dx[1] = (tm - io.get(port::TE)) / (2.0 * h);
-        self.el.derivatives(&x[2..], io.get(port::EFD), io.get(port::XADIFD), &st, &mut dx[2..]);
+        let field = Field { xadifd: io.get(port::XADIFD), sat: io.get(port::SAT) };
+        self.el.derivatives(&x[2..], io.get(port::EFD), field, &st, &mut dx[2..]);
     }
 
     fn set_nominal_frequency(&mut self, hz: f64) {
@@ -327,7 +345,9 @@ impl<E: Electrical> Machine<E> {
         io.set(port::PE, st.p());
         io.set(port::QE, st.q());
         io.set(port::TE, st.torque());
-        io.set(port::XADIFD, self.el.xadifd(&x[2..], st));
+        let field = self.el.field(&x[2..], st);
+        io.set(port::XADIFD, field.xadifd);
+        io.set(port::SAT, field.sat);
         io.set(port::ID, st.id);
         io.set(port::IQ, st.iq);
     }

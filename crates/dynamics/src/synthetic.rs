@@ -1,0 +1,245 @@
+//! Synthetic events: a terminal-voltage profile played into a "true" unit, whose simulated P and
+//! Q (with optional PMU-like noise and quantisation) become the measurement.
+//!
+//! Used by benchmarks, tests and (later) `itaipu-calib synth`. Deterministic: the noise comes
+//! from a seeded SplitMix64 generator with Box-Muller normals, identical on every platform.
+
+use crate::event::{Event, EventError, Record, Window};
+use crate::simulate::{simulate_pq, PreparedEvent, SimError, SimOptions};
+use crate::unit::Unit;
+
+/// Shape of the played-back terminal voltage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VoltageProfile {
+    /// Record length [s] and sampling rate [samples/s].
+    pub duration_s: f64,
+    pub rate_hz: f64,
+    /// Pre-event voltage magnitude [pu] and angle [rad].
+    pub v0: f64,
+    pub angle0: f64,
+    /// Fault-like dip: start [s], duration [s], depth (|V| during the dip) [pu]. `depth >= v0`
+    /// disables it.
+    pub dip_start_s: f64,
+    pub dip_duration_s: f64,
+    pub dip_v: f64,
+    /// Angle jump at clearing [rad] (a post-fault angle swing follows from the grid).
+    pub angle_step: f64,
+    /// Electromechanical swing of the grid angle after the dip: amplitude [rad], frequency
+    /// [Hz], damping ratio.
+    pub swing_amp: f64,
+    pub swing_hz: f64,
+    pub swing_zeta: f64,
+    /// Grid frequency deviation reached after the event [Hz] (ramped with time constant
+    /// `freq_tau_s`), shown as an angle drift in the nominal-frequency frame.
+    pub freq_dev_hz: f64,
+    pub freq_tau_s: f64,
+    /// Pre-event active and reactive power of the true unit [pu on its machine base].
+    pub p0_mach: f64,
+    pub q0_mach: f64,
+}
+
+impl Default for VoltageProfile {
+    /// A 20 s, 60 samples/s event: 0.1 s dip to 0.7 pu at 1 s, a 0.8 Hz grid swing and a fall
+    /// of 0.2 Hz.
+    fn default() -> Self {
+        Self {
+            duration_s: 20.0,
+            rate_hz: 60.0,
+            v0: 1.0,
+            angle0: 0.3,
+            dip_start_s: 1.0,
+            dip_duration_s: 0.1,
+            dip_v: 0.7,
+            angle_step: 0.05,
+            swing_amp: 0.08,
+            swing_hz: 0.8,
+            swing_zeta: 0.1,
+            freq_dev_hz: -0.2,
+            freq_tau_s: 3.0,
+            p0_mach: 0.8,
+            q0_mach: 0.2,
+        }
+    }
+}
+
+impl VoltageProfile {
+    /// Sample times, magnitudes and unwrapped angles.
+    pub fn samples(&self, nominal_hz: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let _ = nominal_hz;
+        let n = (self.duration_s * self.rate_hz).round() as usize + 1;
+        let mut t = Vec::with_capacity(n);
+        let mut v = Vec::with_capacity(n);
+        let mut a = Vec::with_capacity(n);
+        let t_clear = self.dip_start_s + self.dip_duration_s;
+        for k in 0..n {
+            let tk = k as f64 / self.rate_hz;
+            let in_dip = self.dip_v < self.v0 && tk >= self.dip_start_s && tk < t_clear;
+            let mut mag = if in_dip { self.dip_v } else { self.v0 };
+            let mut ang = self.angle0;
+            if tk >= t_clear {
+                let s = tk - t_clear;
+                let wd = 2.0 * std::f64::consts::PI * self.swing_hz;
+                let decay = (-self.swing_zeta * wd * s).exp();
+                ang += self.angle_step + self.swing_amp * decay * (wd * s).sin();
+                // A slight voltage recovery transient.
+                mag += 0.02 * decay * (wd * s).cos();
+                // Frequency ramp f(t) = Δf (1 − e^{−s/τ}); the angle is its integral × 2π.
+                let tau = self.freq_tau_s.max(1e-6);
+                ang += 2.0 * std::f64::consts::PI * self.freq_dev_hz * (s - tau * (1.0 - (-s / tau).exp()));
+            }
+            t.push(tk);
+            v.push(mag);
+            a.push(ang);
+        }
+        (t, v, a)
+    }
+}
+
+/// PMU measurement imperfections applied to the simulated P and Q.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PmuNoise {
+    /// Standard deviation of white noise on P and Q [pu, system base].
+    pub pq_sigma: f64,
+    /// Standard deviation of white noise on |V| [pu] and on the angle [rad].
+    pub v_sigma: f64,
+    pub angle_sigma: f64,
+    /// Quantisation step of P and Q [pu] (0 = none).
+    pub pq_quantum: f64,
+    pub seed: u64,
+}
+
+impl PmuNoise {
+    /// No noise.
+    pub fn none() -> Self {
+        Self { pq_sigma: 0.0, v_sigma: 0.0, angle_sigma: 0.0, pq_quantum: 0.0, seed: 0 }
+    }
+    /// Typical M-class PMU: 0.002 pu on P and Q, 0.0005 pu on |V|, 0.0005 rad on the angle,
+    /// P and Q quantised at 0.0014 pu (as in the Itaipu record).
+    pub fn typical(seed: u64) -> Self {
+        Self { pq_sigma: 0.002, v_sigma: 0.0005, angle_sigma: 0.0005, pq_quantum: 0.0014, seed }
+    }
+}
+
+/// Deterministic normal random numbers (SplitMix64 + Box-Muller).
+#[derive(Debug, Clone)]
+pub struct Normal {
+    state: u64,
+    spare: Option<f64>,
+}
+
+impl Normal {
+    pub fn new(seed: u64) -> Self {
+        Self { state: seed ^ 0x9E37_79B9_7F4A_7C15, spare: None }
+    }
+    fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in (0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+    /// Standard normal.
+    pub fn sample(&mut self) -> f64 {
+        if let Some(s) = self.spare.take() {
+            return s;
+        }
+        let (u1, u2) = (self.uniform(), self.uniform());
+        let r = (-2.0 * u1.ln()).sqrt();
+        let th = 2.0 * std::f64::consts::PI * u2;
+        self.spare = Some(r * th.sin());
+        r * th.cos()
+    }
+}
+
+/// Why a synthetic event could not be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SynthError {
+    #[error("{0}")]
+    Event(String),
+    #[error("simulating the true unit: {0}")]
+    Sim(#[from] SimError),
+}
+
+impl From<EventError> for SynthError {
+    fn from(e: EventError) -> Self {
+        SynthError::Event(e.to_string())
+    }
+}
+
+/// Plays `profile` into `truth` and returns an event whose P and Q are the simulated ones with
+/// `noise` applied (the voltage channels get their noise after the simulation, as a PMU's would).
+pub fn synthesize(
+    name: &str,
+    truth: &Unit,
+    profile: &VoltageProfile,
+    system_mva: f64,
+    noise: &PmuNoise,
+    opts: &SimOptions,
+) -> Result<Event, SynthError> {
+    let (t, v, a) = profile.samples(truth.nominal_hz);
+    let n = t.len();
+    let pre = (profile.dip_start_s - 0.05).max(3.0 / profile.rate_hz);
+    // The true unit starts from the exact pre-event operating point: build a provisional event
+    // with P, Q placeholders, simulate, then take the simulated initial P, Q as the measured ones.
+    let mut unit = truth.clone();
+    let machine_to_sys = truth.machine_mva / system_mva;
+    let op_p = profile.p0_mach * machine_to_sys;
+    let op_q = profile.q0_mach * machine_to_sys;
+    let record = Record {
+        time_s: t.clone(),
+        v_mag_pu: v.clone(),
+        v_ang_rad: a.clone(),
+        p_pu: vec![op_p; n],
+        q_pu: vec![op_q; n],
+        freq_hz: None,
+        efd_pu: None,
+        ifd_pu: None,
+    };
+    let init = Window { start_s: 0.0, end_s: pre };
+    let ev = Event::from_record(name, record, system_mva, truth.nominal_hz, Some(init), None)?;
+    let prepared = PreparedEvent::new(&ev);
+    let (p, q) = simulate_pq(&mut unit, &prepared, opts)?;
+    let mut rng = Normal::new(noise.seed);
+    let quant = |x: f64| if noise.pq_quantum > 0.0 { (x / noise.pq_quantum).round() * noise.pq_quantum } else { x };
+    let mut rec = ev.record.clone();
+    for k in 0..n {
+        rec.p_pu[k] = quant(p[k] + noise.pq_sigma * rng.sample());
+        rec.q_pu[k] = quant(q[k] + noise.pq_sigma * rng.sample());
+        rec.v_mag_pu[k] += noise.v_sigma * rng.sample();
+        rec.v_ang_rad[k] += noise.angle_sigma * rng.sample();
+    }
+    Ok(Event::from_record(name, rec, system_mva, truth.nominal_hz, Some(init), None)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normal_is_deterministic_and_standard() {
+        let mut a = Normal::new(7);
+        let mut b = Normal::new(7);
+        let xs: Vec<f64> = (0..20000).map(|_| a.sample()).collect();
+        assert!(xs.iter().zip((0..20000).map(|_| b.sample())).all(|(x, y)| *x == y));
+        let mean = xs.iter().sum::<f64>() / xs.len() as f64;
+        let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / xs.len() as f64;
+        assert!(mean.abs() < 0.03 && (var - 1.0).abs() < 0.04, "mean {mean} var {var}");
+    }
+
+    #[test]
+    fn profile_has_the_dip_and_the_frequency_drift() {
+        let p = VoltageProfile::default();
+        let (t, v, a) = p.samples(60.0);
+        assert_eq!(t.len(), 1201);
+        let k_dip = (1.05 * 60.0) as usize;
+        assert_eq!(v[k_dip], 0.7);
+        // Late slope of the angle: 2π Δf.
+        let n = t.len();
+        let slope = (a[n - 1] - a[n - 61]) / (t[n - 1] - t[n - 61]);
+        assert!((slope / (2.0 * std::f64::consts::PI) + 0.2).abs() < 0.01, "slope {slope}");
+    }
+}
