@@ -32,8 +32,9 @@ library defines one:
 * :class:`UnitModelError`: bad unit file (``kind``: ``"io"``, ``"syntax"``, ``"field"``,
   ``"model"``, ``"wiring"``).
 * :class:`InitError`: the unit cannot start at the measured operating point, or the unit's and
-  the event's nominal frequencies differ (``kind`` is None).
-* :class:`SimulationError`: the integration failed (``kind`` is None).
+  the event's nominal frequencies differ (``kind``: ``"init"``, ``"bad_param"``, ``"wiring"``,
+  ``"unknown_param"`` or ``"frequency_mismatch"``).
+* :class:`SimulationError`: the integration failed (``kind``: ``"solve"``).
 
 Bad options raise ``ValueError``; arguments of the wrong type ``TypeError``.
 """

@@ -93,7 +93,7 @@ def simulate(
     *,
     method: str = "dopri5",
     rtol: float = 1e-6,
-    atol: float = 1e-8,
+    atol: float = 1e-7,
     step: float = 0.001,
 ) -> Traces: ...
 def models() -> List[Dict[str, Any]]: ...

@@ -298,4 +298,13 @@ def test_exciter_limit_below_initial_field_voltage(tmp_path, traces):
     msg = str(info.value)
     assert msg.startswith("initialisation failed: exciter (SEXS): ")
     assert "E_fd0" in msg and "E_MAX" in msg
-    assert info.value.kind is None
+    assert info.value.kind == "init"
+
+
+def test_frequency_mismatch_names_the_event(tmp_path):
+    path = tmp_path / "unit50.toml"
+    path.write_text(_unit_text().replace("nominal_hz = 60.0", "nominal_hz = 50.0"))
+    with pytest.raises(ic.InitError) as info:
+        ic.simulate(EVENT, path)
+    assert info.value.kind == "frequency_mismatch"
+    assert "itaipu-60hz-fault" in str(info.value) and "50 Hz" in str(info.value)

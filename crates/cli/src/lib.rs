@@ -288,7 +288,7 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     );
     let s = traces.stats;
     println!(
-        "run    {:?}: {} steps ({} rejected), {} RHS evaluations, {} limiter events, {:.2} ms",
+        "run    {}: {} steps ({} rejected), {} RHS evaluations, {} limiter events, {:.2} ms",
         opts.method,
         s.steps_accepted,
         s.steps_rejected,

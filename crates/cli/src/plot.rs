@@ -69,6 +69,7 @@ pub fn draw(path: &Path, title: &str, x_label: &str, panels: &[Panel]) -> Result
             .y_desc(panel.y_label.as_str())
             .light_line_style(RGBColor(235, 235, 235))
             .label_style(("sans-serif", 14))
+            .y_label_formatter(&|v| format!("{:.3}", if v.abs() < 1e-12 { 0.0 } else { *v }))
             .draw()
             .map_err(|e| err(&e))?;
         for s in &panel.series {

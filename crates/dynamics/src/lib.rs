@@ -13,6 +13,9 @@
 //! * [`unit_file`]: unit model files (TOML).
 //! * [`simulate`]: the playback simulation and its traces.
 
+// Parameter and state guards are written `!(x > 0.0)` on purpose: that form also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod block;
 pub mod event;
 pub mod integrate;

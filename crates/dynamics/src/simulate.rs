@@ -38,9 +38,22 @@ pub enum SimError {
     Solve(#[from] SolveError),
 }
 
+impl SimError {
+    /// Short identifier of the error kind.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            SimError::Frequency { .. } => "frequency_mismatch",
+            SimError::Init(e) => e.kind(),
+            SimError::Solve(_) => "solve",
+        }
+    }
+}
+
 /// Everything a playback needs from an event, prepared once (shared by many simulations).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PreparedEvent {
+    /// Event name (for messages).
+    pub name: String,
     pub input: PlaybackInput,
     /// Operating point on the **system** base.
     pub op_system: crate::event::OperatingPoint,
@@ -52,6 +65,7 @@ impl PreparedEvent {
     pub fn new(event: &Event) -> Self {
         let r = &event.record;
         Self {
+            name: event.name.clone(),
             input: PlaybackInput { time_s: r.time_s.clone(), v_mag: r.v_mag_pu.clone(), v_ang: r.v_ang_rad.clone() },
             op_system: event.operating_point(),
             system_mva: event.system_mva,
@@ -83,7 +97,7 @@ where
         return Err(SimError::Frequency {
             unit: unit.name.clone(),
             unit_hz: unit.nominal_hz,
-            event: String::new(),
+            event: ev.name.clone(),
             event_hz: ev.nominal_hz,
         });
     }

@@ -54,6 +54,19 @@ pub enum UnitError {
     UnknownParam(String),
 }
 
+impl UnitError {
+    /// Short identifier of the error kind: `init` (a block cannot start at the operating
+    /// point), `bad_param`, `wiring` or `unknown_param`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            UnitError::Model { source: ModelError::Init(_), .. } => "init",
+            UnitError::Model { .. } => "bad_param",
+            UnitError::Wiring(_) => "wiring",
+            UnitError::UnknownParam(_) => "unknown_param",
+        }
+    }
+}
+
 /// Address of one parameter in a unit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ParamRef {

@@ -214,7 +214,7 @@ fn add_block(unit: &mut Unit, name: &str, ctx: &str, t: &toml::Table, path: &Pat
         .map(|(s, _)| format!("{} ({}, {} [{}])", s.name, s.alias, s.doc, s.unit))
         .collect();
     if !missing.is_empty() {
-        return Err(field(format!("{ctx}"), format!("{} needs these parameters: {}", info.name, missing.join("; "))));
+        return Err(field(ctx.to_string(), format!("{} needs these parameters: {}", info.name, missing.join("; "))));
     }
     block.validate().map_err(|e| field(ctx.to_string(), format!("{}: {e}", info.name)))?;
     unit.add(name, block, &rewire).map_err(|e| UnitFileError::Unit { path: path.into(), source: e })

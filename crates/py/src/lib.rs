@@ -94,8 +94,10 @@ impl Failure {
         match self {
             Failure::Event(e) => raise::<EventError>(py, e.to_string(), Some(e.kind())),
             Failure::Unit(e) => raise::<UnitModelError>(py, e.to_string(), Some(e.kind())),
-            Failure::Sim(e @ (SimError::Init(_) | SimError::Frequency { .. })) => raise::<InitError>(py, e.to_string(), None),
-            Failure::Sim(e @ SimError::Solve(_)) => raise::<SimulationError>(py, e.to_string(), None),
+            Failure::Sim(e @ (SimError::Init(_) | SimError::Frequency { .. })) => {
+                raise::<InitError>(py, e.to_string(), Some(e.kind()))
+            }
+            Failure::Sim(e @ SimError::Solve(_)) => raise::<SimulationError>(py, e.to_string(), Some(e.kind())),
         }
     }
 }
@@ -479,7 +481,7 @@ impl PyTraces {
 /// Raises EventError, UnitModelError, InitError, SimulationError (and ValueError for bad
 /// options, TypeError for bad argument types).
 #[pyfunction]
-#[pyo3(signature = (event, unit, *, method = "dopri5", rtol = 1e-6, atol = 1e-8, step = 0.001))]
+#[pyo3(signature = (event, unit, *, method = "dopri5", rtol = 1e-6, atol = 1e-7, step = 0.001))]
 fn simulate(
     py: Python<'_>,
     event: &Bound<'_, PyAny>,

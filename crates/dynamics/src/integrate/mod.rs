@@ -74,6 +74,15 @@ pub enum Method {
     Dopri5(Dopri5Options),
 }
 
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Method::Rk4 { h } => write!(f, "RK4, h = {} ms", h * 1e3),
+            Method::Dopri5(o) => write!(f, "Dopri5, rtol {:e}, atol {:e}", o.rtol, o.atol),
+        }
+    }
+}
+
 /// Settings for [`Method::Dopri5`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dopri5Options {

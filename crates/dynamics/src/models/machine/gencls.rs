@@ -59,7 +59,7 @@ impl Electrical for Gencls {
         Ok(())
     }
     fn init_electrical(&mut self, v: Phasor, i: Phasor, _x: &mut [f64]) -> Result<ElectricalInit, ModelError> {
-        let e = v.add(Phasor::new(self.p.r_a, self.p.x_d_prime).mul(i));
+        let e = v + Phasor::new(self.p.r_a, self.p.x_d_prime) * i;
         self.e_prime = e.abs();
         Ok(ElectricalInit { delta: e.arg(), efd: self.e_prime })
     }

@@ -125,7 +125,7 @@ impl Electrical for Genrou {
         let k = &self.k;
         let xpp = p.x_d_pp;
         // Closed form (§5.2 / §6), exact with a single X''.
-        let psi_pp = v.add(Phasor::new(p.r_a, xpp).mul(i));
+        let psi_pp = v + Phasor::new(p.r_a, xpp) * i;
         let theta_psi = psi_pp.arg();
         let alpha = theta_psi - i.arg();
         let se0 = k.sat.eval(psi_pp.abs());

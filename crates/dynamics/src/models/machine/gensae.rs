@@ -121,7 +121,7 @@ impl Electrical for Gensae {
         let p = self.p.clone();
         let k = self.k;
         // Closed form (exact for X''q = X''d).
-        let psi_pp = v.add(Phasor::new(p.r_a, p.x_d_pp).mul(i));
+        let psi_pp = v + Phasor::new(p.r_a, p.x_d_pp) * i;
         let theta_psi = psi_pp.arg();
         let alpha = theta_psi - i.arg();
         let se0 = k.sat.eval(psi_pp.abs());

@@ -104,7 +104,7 @@ impl Electrical for Gensal {
 
     fn init_electrical(&mut self, v: Phasor, i: Phasor, x: &mut [f64]) -> Result<ElectricalInit, ModelError> {
         let p = &self.p;
-        let delta = v.add(Phasor::new(p.r_a, p.x_q).mul(i)).arg();
+        let delta = (v + Phasor::new(p.r_a, p.x_q) * i).arg();
         let (vd, vq) = v.to_dq(delta);
         let (id, iq) = i.to_dq(delta);
         let e_q_pp = vq + p.x_d_pp * id + p.r_a * iq;

@@ -50,20 +50,32 @@ impl Phasor {
     pub fn conj(self) -> Self {
         Self { re: self.re, im: -self.im }
     }
-    pub fn mul(self, o: Self) -> Self {
-        Self { re: self.re * o.re - self.im * o.im, im: self.re * o.im + self.im * o.re }
-    }
-    pub fn div(self, o: Self) -> Self {
-        let d = o.re * o.re + o.im * o.im;
-        Self { re: (self.re * o.re + self.im * o.im) / d, im: (self.im * o.re - self.re * o.im) / d }
-    }
-    pub fn add(self, o: Self) -> Self {
-        Self { re: self.re + o.re, im: self.im + o.im }
-    }
     /// Park transform at rotor angle δ: returns `(d, q)` components.
     pub fn to_dq(self, delta: f64) -> (f64, f64) {
         let (s, c) = delta.sin_cos();
         (self.re * s - self.im * c, self.re * c + self.im * s)
+    }
+}
+
+impl std::ops::Mul for Phasor {
+    type Output = Phasor;
+    fn mul(self, o: Self) -> Self {
+        Self { re: self.re * o.re - self.im * o.im, im: self.re * o.im + self.im * o.re }
+    }
+}
+
+impl std::ops::Div for Phasor {
+    type Output = Phasor;
+    fn div(self, o: Self) -> Self {
+        let d = o.re * o.re + o.im * o.im;
+        Self { re: (self.re * o.re + self.im * o.im) / d, im: (self.im * o.re - self.re * o.im) / d }
+    }
+}
+
+impl std::ops::Add for Phasor {
+    type Output = Phasor;
+    fn add(self, o: Self) -> Self {
+        Self { re: self.re + o.re, im: self.im + o.im }
     }
 }
 
@@ -255,7 +267,7 @@ impl<E: Electrical> Block for Machine<E> {
             )));
         }
         let v = Phasor::polar(op.v_mag, op.v_ang);
-        let i = Phasor::new(op.p, op.q).div(v).conj();
+        let i = (Phasor::new(op.p, op.q) / v).conj();
         let ei = self.el.init_electrical(v, i, &mut x[2..])?;
         x[0] = ei.delta;
         x[1] = op.speed_dev;

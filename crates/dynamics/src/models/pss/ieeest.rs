@@ -86,11 +86,7 @@ impl Filter {
     }
     #[inline(always)]
     fn output(&self, z: &[f64], u: f64) -> f64 {
-        let mut y = self.dff * u;
-        for i in 0..self.order {
-            y += self.c[i] * z[i];
-        }
-        y
+        self.dff * u + self.c[..self.order].iter().zip(z).map(|(c, z)| c * z).sum::<f64>()
     }
     #[inline(always)]
     fn derivatives(&self, z: &[f64], u: f64, dz: &mut [f64]) {
@@ -99,14 +95,8 @@ impl Filter {
         if n == 0 {
             return;
         }
-        for i in 0..n - 1 {
-            dz[i] = z[i + 1];
-        }
-        let mut s = u;
-        for i in 0..n {
-            s -= self.a[i] * z[i];
-        }
-        dz[n - 1] = s;
+        dz[..n - 1].copy_from_slice(&z[1..n]);
+        dz[n - 1] = u - self.a[..n].iter().zip(z).map(|(a, z)| a * z).sum::<f64>();
     }
 }
 
