@@ -468,21 +468,37 @@ impl PlaybackInput {
 }
 
 /// A unit driven by a playback input: the ODE the integrators solve.
+///
+/// The bus remembers the point `(t, x)` it was last evaluated at. The integrators evaluate the
+/// event functions at the end of every step, which is where the last right-hand side was
+/// evaluated (Dopri5's FSAL stage), and RK4 starts its next step there: those calls reuse the
+/// bus instead of recomputing every block's outputs.
 pub struct Playback<'a> {
     pub unit: &'a mut Unit,
     pub input: &'a PlaybackInput,
     cursor: usize,
+    bus_t: f64,
+    bus_x: Vec<f64>,
+    bus_valid: bool,
 }
 
 impl<'a> Playback<'a> {
     pub fn new(unit: &'a mut Unit, input: &'a PlaybackInput) -> Self {
-        Self { unit, input, cursor: 0 }
+        let n = unit.n_states;
+        Self { unit, input, cursor: 0, bus_t: f64::NAN, bus_x: vec![0.0; n], bus_valid: false }
     }
     /// Evaluates all signals at `(t, x)` (for recording).
+    #[inline]
     pub fn eval_signals(&mut self, t: f64, x: &[f64]) {
+        if self.bus_valid && t == self.bus_t && x == self.bus_x.as_slice() {
+            return;
+        }
         let (v, th) = self.input.at(t, &mut self.cursor);
         self.unit.set_terminal_voltage(v, th);
         self.unit.eval_outputs(t, x);
+        self.bus_t = t;
+        self.bus_x.copy_from_slice(x);
+        self.bus_valid = true;
     }
 }
 
@@ -504,6 +520,9 @@ impl OdeSystem for Playback<'_> {
     }
     fn handle_event(&mut self, t: f64, x: &mut [f64]) -> bool {
         self.eval_signals(t, x);
-        self.unit.update_modes(x)
+        let changed = self.unit.update_modes(x);
+        // Modes (and possibly x) changed: outputs must be recomputed.
+        self.bus_valid = false;
+        changed
     }
 }

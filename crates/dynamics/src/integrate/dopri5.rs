@@ -280,9 +280,15 @@ impl Dopri5Step {
         for s in 1..7 {
             let (done, rest) = self.k.split_at_mut(s);
             let y = if s == 6 { &mut self.x1 } else { &mut self.stage };
-            for (i, yi) in y.iter_mut().enumerate() {
-                let sum: f64 = done.iter().zip(&A[s]).map(|(k, a)| a * k[i]).sum();
-                *yi = self.x0[i] + h * sum;
+            // y = x0 + h Σ_j A[s][j] k_j, as one vectorisable axpy per earlier stage.
+            y.copy_from_slice(&self.x0);
+            for (kj, a) in done.iter().zip(&A[s]) {
+                if *a != 0.0 {
+                    let ha = h * a;
+                    for (yi, ki) in y.iter_mut().zip(kj.iter()) {
+                        *yi += ha * ki;
+                    }
+                }
             }
             let ts = if s == 6 { t1 } else { t + C[s] * h };
             sys.rhs(ts, y, &mut rest[0]);
@@ -292,10 +298,14 @@ impl Dopri5Step {
     /// Hairer's RMS error norm of the last attempt (see the module documentation).
     pub fn error_norm(&self, rtol: f64, atol: f64) -> f64 {
         let n = self.x0.len();
+        let k: [&[f64]; 7] = std::array::from_fn(|j| &self.k[j][..n]);
+        let (x0, x1) = (&self.x0[..n], &self.x1[..n]);
         let mut sum = 0.0;
         for i in 0..n {
-            let e: f64 = self.h * self.k.iter().zip(&E).map(|(k, w)| w * k[i]).sum::<f64>();
-            let scale = atol + rtol * self.x0[i].abs().max(self.x1[i].abs());
+            let e = self.h
+                * (E[0] * k[0][i] + E[1] * k[1][i] + E[2] * k[2][i] + E[3] * k[3][i] + E[4] * k[4][i] + E[5] * k[5][i]
+                    + E[6] * k[6][i]);
+            let scale = atol + rtol * x0[i].abs().max(x1[i].abs());
             sum += (e / scale.max(f64::MIN_POSITIVE)).powi(2);
         }
         (sum / n.max(1) as f64).sqrt()
@@ -306,12 +316,16 @@ impl Dopri5Step {
     pub fn dense(&self, theta: f64, out: &mut [f64]) {
         let (h, th1) = (self.h, 1.0 - theta);
         let (k1, k7) = (&self.k[0], &self.k[6]);
+        let n = out.len();
+        let k: [&[f64]; 7] = std::array::from_fn(|j| &self.k[j][..n]);
+        let (x0, x1) = (&self.x0[..n], &self.x1[..n]);
         for (i, o) in out.iter_mut().enumerate() {
-            let dx = self.x1[i] - self.x0[i];
+            let dx = x1[i] - x0[i];
             let b = h * k1[i] - dx;
-            let d: f64 = self.k.iter().zip(&D).map(|(k, w)| w * k[i]).sum();
+            let d = D[0] * k[0][i] + D[1] * k[1][i] + D[2] * k[2][i] + D[3] * k[3][i] + D[4] * k[4][i] + D[5] * k[5][i]
+                + D[6] * k[6][i];
             let r4 = dx - h * k7[i] - b;
-            *o = self.x0[i] + theta * (dx + th1 * (b + theta * (r4 + th1 * h * d)));
+            *o = x0[i] + theta * (dx + th1 * (b + theta * (r4 + th1 * h * d)));
         }
     }
 

@@ -7,7 +7,7 @@
 //! departure: OpenIPSL's form is only consistent when the machine base equals the system base).
 //! GENCLS has no field winding: an exciter cannot be attached (the unit rejects it).
 
-use super::{Electrical, ElectricalInit, Field, Phasor, Stator};
+use super::{Electrical, StatorImpedance, ElectricalInit, Field, Phasor, Stator};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -28,11 +28,12 @@ pub struct Gencls {
     pub p: GenclsParams,
     /// Internal voltage E' [pu], set at initialisation.
     e_prime: f64,
+    z: StatorImpedance,
 }
 
 impl Gencls {
     pub fn new(p: GenclsParams) -> Self {
-        Self { p, e_prime: 0.0 }
+        Self { p, e_prime: 0.0, z: StatorImpedance::default() }
     }
 }
 
@@ -56,6 +57,7 @@ impl Electrical for Gencls {
         guard::positive("x_d_prime", self.p.x_d_prime)
     }
     fn prepare(&mut self) -> Result<(), ModelError> {
+        self.z = StatorImpedance::new(self.p.r_a, self.p.x_d_prime, self.p.x_d_prime);
         Ok(())
     }
     fn init_electrical(&mut self, v: Phasor, i: Phasor, _x: &mut [f64]) -> Result<ElectricalInit, ModelError> {
@@ -65,7 +67,7 @@ impl Electrical for Gencls {
     }
     #[inline(always)]
     fn stator(&self, _x: &[f64], vd: f64, vq: f64) -> Stator {
-        Stator::solve(0.0, self.e_prime, vd, vq, self.p.r_a, self.p.x_d_prime, self.p.x_d_prime)
+        Stator::solve(0.0, self.e_prime, vd, vq, &self.z)
     }
     fn field(&self, _x: &[f64], _st: &Stator) -> Field {
         Field { xadifd: self.e_prime, sat: 0.0 }

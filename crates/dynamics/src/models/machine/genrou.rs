@@ -18,7 +18,7 @@
 //! (E'_d decays to 0), which is how ANDES represents a salient-pole unit.
 
 use super::saturation::QuadraticSaturation;
-use super::{check_d_axis, norm2, Electrical, ElectricalInit, Field, Phasor, Stator};
+use super::{check_d_axis, StatorImpedance, norm2, Electrical, ElectricalInit, Field, Phasor, Stator};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -46,6 +46,7 @@ param_set! {
 
 #[derive(Debug, Clone, Copy, Default)]
 struct Consts {
+    z: StatorImpedance,
     k1d: f64,
     k3d: f64,
     k4d: f64,
@@ -108,6 +109,7 @@ impl Electrical for Genrou {
         let xdl = p.x_d_prime - p.x_l;
         let xql = p.x_q_prime - p.x_l;
         self.k = Consts {
+            z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_d_pp),
             k1d: (p.x_d_prime - p.x_d_pp) * (p.x_d - p.x_d_prime) / (xdl * xdl),
             k3d: (p.x_d_pp - p.x_l) / xdl,
             k4d: (p.x_d_prime - p.x_d_pp) / xdl,
@@ -151,7 +153,7 @@ impl Electrical for Genrou {
     #[inline(always)]
     fn stator(&self, x: &[f64], vd: f64, vq: f64) -> Stator {
         let (e_d_pp, e_q_pp) = self.subtransient(x);
-        Stator::solve(e_d_pp, e_q_pp, vd, vq, self.p.r_a, self.p.x_d_pp, self.p.x_d_pp)
+        Stator::solve(e_d_pp, e_q_pp, vd, vq, &self.k.z)
     }
 
     #[inline(always)]

@@ -16,7 +16,7 @@
 //! closed form and `E_fd0 = (1 + Se(E'_q0)) E'_q0 + (Xd − X'd) i_d0`.
 
 use super::saturation::QuadraticSaturation;
-use super::{check_d_axis, Electrical, ElectricalInit, Field, Phasor, Stator};
+use super::{check_d_axis, StatorImpedance, Electrical, ElectricalInit, Field, Phasor, Stator};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -43,6 +43,10 @@ param_set! {
 
 #[derive(Debug, Clone, Copy, Default)]
 struct Consts {
+    z: StatorImpedance,
+    inv_t_d0_prime: f64,
+    inv_t_d0_pp: f64,
+    inv_t_q0_pp: f64,
     k1d: f64,
     k3d: f64,
     k4d: f64,
@@ -94,6 +98,10 @@ impl Electrical for Gensal {
         let p = &self.p;
         let xdl = p.x_d_prime - p.x_l;
         self.k = Consts {
+            z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_q_pp),
+            inv_t_d0_prime: 1.0 / p.t_d0_prime,
+            inv_t_d0_pp: 1.0 / p.t_d0_pp,
+            inv_t_q0_pp: 1.0 / p.t_q0_pp,
             k1d: (p.x_d_prime - p.x_d_pp) * (p.x_d - p.x_d_prime) / (xdl * xdl),
             k3d: (p.x_d_pp - p.x_l) / xdl,
             k4d: (p.x_d_prime - p.x_d_pp) / xdl,
@@ -119,7 +127,7 @@ impl Electrical for Gensal {
     #[inline(always)]
     fn stator(&self, x: &[f64], vd: f64, vq: f64) -> Stator {
         let e_q_pp = self.k.k3d * x[0] + self.k.k4d * x[1];
-        Stator::solve(x[2], e_q_pp, vd, vq, self.p.r_a, self.p.x_d_pp, self.p.x_q_pp)
+        Stator::solve(x[2], e_q_pp, vd, vq, &self.k.z)
     }
 
     #[inline(always)]
@@ -132,9 +140,9 @@ impl Electrical for Gensal {
 
     #[inline(always)]
     fn derivatives(&self, x: &[f64], efd: f64, field: Field, st: &Stator, dx: &mut [f64]) {
-        let p = &self.p;
-        dx[0] = (efd - field.xadifd) / p.t_d0_prime;
-        dx[1] = (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) / p.t_d0_pp;
-        dx[2] = (-x[2] + (p.x_q - p.x_q_pp) * st.iq) / p.t_q0_pp;
+        let (p, k) = (&self.p, &self.k);
+        dx[0] = (efd - field.xadifd) * k.inv_t_d0_prime;
+        dx[1] = (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) * k.inv_t_d0_pp;
+        dx[2] = (-x[2] + (p.x_q - p.x_q_pp) * st.iq) * k.inv_t_q0_pp;
     }
 }

@@ -90,6 +90,23 @@ pub struct Stator {
     pub psi_q: f64,
 }
 
+/// Stator impedance with the inverse determinant of the 2×2 solve, computed once per
+/// initialisation.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StatorImpedance {
+    pub r_a: f64,
+    pub x_d_pp: f64,
+    pub x_q_pp: f64,
+    /// 1/(R_a² + X''_d X''_q).
+    pub inv_det: f64,
+}
+
+impl StatorImpedance {
+    pub fn new(r_a: f64, x_d_pp: f64, x_q_pp: f64) -> Self {
+        Self { r_a, x_d_pp, x_q_pp, inv_det: 1.0 / (r_a * r_a + x_d_pp * x_q_pp) }
+    }
+}
+
 impl Stator {
     /// Solves the stator algebraic equations (§1.2) for the currents given the subtransient
     /// voltages `E''_d`, `E''_q` and the terminal voltage in dq:
@@ -97,13 +114,12 @@ impl Stator {
     /// `i_d = [R_a (E''_d − v_d) + X''_q (E''_q − v_q)]/Δ`,
     /// `i_q = [X''_d (v_d − E''_d) + R_a (E''_q − v_q)]/Δ`.
     #[inline(always)]
-    pub fn solve(e_d_pp: f64, e_q_pp: f64, vd: f64, vq: f64, r_a: f64, x_d_pp: f64, x_q_pp: f64) -> Self {
-        let det = r_a * r_a + x_d_pp * x_q_pp;
+    pub fn solve(e_d_pp: f64, e_q_pp: f64, vd: f64, vq: f64, z: &StatorImpedance) -> Self {
         let dd = e_d_pp - vd;
         let dq = e_q_pp - vq;
-        let id = (r_a * dd + x_q_pp * dq) / det;
-        let iq = (-x_d_pp * dd + r_a * dq) / det;
-        Self { vd, vq, id, iq, psi_d: e_q_pp - x_d_pp * id, psi_q: -e_d_pp - x_q_pp * iq }
+        let id = (z.r_a * dd + z.x_q_pp * dq) * z.inv_det;
+        let iq = (-z.x_d_pp * dd + z.r_a * dq) * z.inv_det;
+        Self { vd, vq, id, iq, psi_d: e_q_pp - z.x_d_pp * id, psi_q: -e_d_pp - z.x_q_pp * iq }
     }
     #[inline(always)]
     pub fn torque(&self) -> f64 {
@@ -218,11 +234,14 @@ pub struct Machine<E: Electrical> {
     pub swing: Swing,
     /// Base angular frequency ω_b = 2π f_n [rad/s] (set by the unit).
     pub omega_b: f64,
+    /// 1/(2H) and D, refreshed at every initialisation.
+    inv_2h: f64,
+    damping: f64,
 }
 
 impl<E: Electrical> Machine<E> {
     pub fn new(el: E) -> Self {
-        Self { el, swing: Swing::default(), omega_b: 2.0 * std::f64::consts::PI * 60.0 }
+        Self { el, swing: Swing::default(), omega_b: 2.0 * std::f64::consts::PI * 60.0, inv_2h: 0.0, damping: 0.0 }
     }
 
     #[inline(always)]
@@ -260,6 +279,9 @@ impl<E: Electrical> Block for Machine<E> {
     fn init(&mut self, op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
         self.validate()?;
         self.el.prepare()?;
+        let (h, d) = self.el.inertia_damping();
+        self.inv_2h = 1.0 / (2.0 * h);
+        self.damping = d;
         if !(op.v_mag > 0.0) || !op.p.is_finite() || !op.q.is_finite() {
             return Err(ModelError::Init(format!(
                 "operating point is not usable (|V| = {}, P = {}, Q = {})",
@@ -307,7 +329,7 @@ impl<E: Electrical> Block for Machine<E> {
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
         // `outputs` has just solved the stator at this (t, x): reuse its currents and torque.
         let st = Stator { id: io.get(port::ID), iq: io.get(port::IQ), ..Stator::default() };
-        let (h, d) = self.el.inertia_damping();
+        let d = self.damping;
         let w = x[1];
         let pm = io.get(port::PM);
         let tm = match self.swing {
@@ -315,7 +337,7 @@ impl<E: Electrical> Block for Machine<E> {
             Swing::PmIsTorque => pm - d * w,
         };
         dx[0] = self.omega_b * w;
-        dx[1] = (tm - io.get(port::TE)) / (2.0 * h);
+        dx[1] = (tm - io.get(port::TE)) * self.inv_2h;
         let field = Field { xadifd: io.get(port::XADIFD), sat: io.get(port::SAT) };
         self.el.derivatives(&x[2..], io.get(port::EFD), field, &st, &mut dx[2..]);
     }
