@@ -1,1 +1,24 @@
-pub fn placeholder() {}
+//! # itaipu-calib
+//!
+//! Staged calibration of generating-unit models against PMU playback, the way the source papers
+//! do it (a particle swarm for the global search, then a gradient method from its best point;
+//! generator first, then AVR, PSS, governor), reproducibly and with an identifiability report.
+//!
+//! * [`spec`]: the calibration spec (TOML): stages, free parameters and bounds, objectives.
+//! * [`problem`]: the least-squares problem, parameter coordinates, failure penalty.
+//! * [`pso`]: a deterministic particle swarm evaluated in parallel (rayon).
+//! * [`local`]: argmin's L-BFGS with central-difference gradients on fixed-step RK4.
+//! * [`identify`]: standard errors and correlations from the Gauss-Newton approximation.
+//! * [`filter`]: zero-phase low-pass filtering of measurements.
+//! * [`fit`]: stages, strategies and reports.
+
+pub mod filter;
+pub mod fit;
+pub mod identify;
+pub mod local;
+pub mod problem;
+pub mod pso;
+pub mod spec;
+
+pub use fit::{fit, FitOptions, FitReport, FitResult, Progress, Silent};
+pub use spec::{CalibSpec, Strategy};

@@ -16,11 +16,12 @@ use itaipu_dynamics::simulate::{simulate, SimError, SimOptions, Traces};
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::read_unit;
 
+pub mod fit_cmd;
 pub mod plot;
 
-const EXIT_CODES: &str = "Exit codes: 0 success, 2 usage error, 3 bad event data (event TOML or CSV), \
-4 bad unit model, 5 model cannot initialise at the measured operating point, 6 simulation failed, \
-7 output could not be written (or would overwrite an existing folder).";
+pub const EXIT_CODES: &str = "Exit codes: 0 success, 2 usage error, 3 bad event data (event TOML or CSV), \
+4 bad unit model or calibration spec, 5 model cannot initialise at the measured operating point, \
+6 simulation or fit failed, 7 output could not be written (or would overwrite an existing folder).";
 
 #[derive(Parser, Debug)]
 #[command(
@@ -40,6 +41,10 @@ enum Cmd {
     /// P and Q with the measured ones. With no arguments: the bundled Itaipu event and unit.
     #[command(after_help = EXIT_CODES)]
     Simulate(SimulateArgs),
+    /// Calibrate a unit model against one or more events, stage by stage (generator, AVR, PSS,
+    /// governor), each by a particle swarm then L-BFGS. With no arguments: the bundled Itaipu
+    /// record, unit and calibration spec (RaPId's problem).
+    Fit(fit_cmd::FitArgs),
     /// List the model library: models, their parameters (name, PSS/E alias, unit, meaning,
     /// typical value and range) and ports.
     Models {
@@ -98,7 +103,7 @@ pub struct CliError {
 }
 
 impl CliError {
-    fn new(code: u8, msg: impl Into<String>) -> Self {
+    pub fn new(code: u8, msg: impl Into<String>) -> Self {
         Self { code, msg: msg.into() }
     }
 }
@@ -130,6 +135,7 @@ where
     let result = match cli.cmd {
         Cmd::Simulate(a) => cmd_simulate(&a),
         Cmd::Models { name } => cmd_models(name.as_deref()),
+        Cmd::Fit(a) => fit_cmd::cmd_fit(&a),
     };
     match result {
         Ok(()) => 0,

@@ -41,6 +41,16 @@ impl Instance {
     fn nx(&self) -> usize {
         self.block.state_names().len()
     }
+    /// The `(port, signal)` pairs where the wiring differs from the port's default.
+    pub fn rewiring(&self) -> Vec<(String, String)> {
+        self.block
+            .ports()
+            .iter()
+            .zip(&self.wiring)
+            .filter(|(p, w)| p.signal != w.as_str())
+            .map(|(p, w)| (p.name.to_string(), w.clone()))
+            .collect()
+    }
 }
 
 /// Assembly or initialisation failure of a unit.
@@ -136,6 +146,32 @@ impl Unit {
         self.instances.push(Instance { name: name.to_string(), block, wiring, map: vec![], x_offset: 0, ev_offset: 0 });
         self.finished = false;
         Ok(())
+    }
+
+    /// A copy of this unit without the named blocks (their ports' signals then keep their
+    /// initial values: no exciter holds E_fd at E_fd0, no governor holds P_m at P_m0).
+    pub fn without(&self, names: &[&str]) -> Result<Unit, UnitError> {
+        let mut u = Unit::new(&self.name, self.machine_mva, self.nominal_hz);
+        u.description = self.description.clone();
+        for inst in self.instances.iter().filter(|i| !names.contains(&i.name.as_str())) {
+            u.add(&inst.name, inst.block.clone(), &inst.rewiring())?;
+        }
+        u.finish()?;
+        Ok(u)
+    }
+
+    /// Replaces the block named `name` (keeping its place in the state order) or appends it.
+    pub fn put(&mut self, name: &str, block: Box<dyn Block>, rewire: &[(String, String)]) -> Result<(), UnitError> {
+        match self.instances.iter().position(|i| i.name == name) {
+            Some(k) => {
+                let mut tmp = Unit::new(&self.name, self.machine_mva, self.nominal_hz);
+                tmp.add(name, block, rewire)?;
+                self.instances[k] = tmp.instances.pop().expect("just added");
+            }
+            None => self.add(name, block, rewire)?,
+        }
+        self.finished = false;
+        self.finish()
     }
 
     /// Resolves the wiring and computes evaluation and initialisation orders.

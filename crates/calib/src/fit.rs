@@ -1,0 +1,615 @@
+//! Staged calibration: generator, then AVR, PSS, governor, each by PSO then L-BFGS (paper 000
+//! Algorithm 1), with the incremental and simultaneous-first strategies of paper 001.
+//!
+//! Per stage: the unit is reduced to the stage's blocks ([`crate::spec::removed_blocks`]),
+//! `set` values and `replace` blocks are applied, the swarm searches the stage's box from the
+//! current values, L-BFGS refines the swarm's best, and the best of start / swarm / L-BFGS by
+//! an accurate re-evaluation is kept. The Gauss-Newton (Fisher) approximation at that point
+//! gives standard errors and correlations. Results carry over to the next stage.
+
+use std::time::Instant;
+
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::registry;
+use itaipu_dynamics::simulate::{simulate_prepared, SimOptions, Traces};
+use itaipu_dynamics::unit::Unit;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::identify;
+use crate::local;
+use crate::problem::{accurate_integrator, objective_weights, search_integrator, EventData, FreeParam, Problem};
+use crate::pso::{self, PsoOptions};
+use crate::spec::{removed_blocks, CalibSpec, Objective, StageSpec, Strategy, Weights, STAGES};
+
+/// Correlation above which two parameters are reported as not separately identifiable.
+pub const CORRELATION_LIMIT: f64 = 0.95;
+/// Relative standard error above which a parameter is reported as only weakly determined.
+pub const WEAK_LIMIT: f64 = 0.01;
+
+/// Receives progress (implemented by the CLI as a progress bar or plain lines).
+pub trait Progress: Sync {
+    /// A phase starts: `stage`, `phase` ("pso", "lbfgs", …), expected iterations.
+    fn phase(&self, stage: &str, phase: &str, total: u64);
+    /// An iteration of the current phase finished with this best objective.
+    fn iteration(&self, i: u64, best: f64);
+    /// A line of information.
+    fn message(&self, text: &str);
+}
+
+/// A [`Progress`] that says nothing.
+pub struct Silent;
+
+impl Progress for Silent {
+    fn phase(&self, _: &str, _: &str, _: u64) {}
+    fn iteration(&self, _: u64, _: f64) {}
+    fn message(&self, _: &str) {}
+}
+
+/// Options of a fit beyond the spec.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitOptions {
+    /// Stages to run, in order (subset of gen, avr, pss, tg).
+    pub stages: Vec<String>,
+    pub strategy: Strategy,
+    pub seed: u64,
+    pub particles: usize,
+    pub pso_iterations: usize,
+    pub lbfgs_iterations: u64,
+    pub lbfgs_memory: usize,
+}
+
+impl FitOptions {
+    /// Options from a spec, running every stage it lists.
+    pub fn from_spec(spec: &CalibSpec) -> Self {
+        Self {
+            stages: spec.stages.iter().map(|s| s.name.clone()).collect(),
+            strategy: spec.strategy,
+            seed: spec.seed,
+            particles: spec.pso.particles,
+            pso_iterations: spec.pso.iterations,
+            lbfgs_iterations: spec.lbfgs.iterations,
+            lbfgs_memory: spec.lbfgs.memory,
+        }
+    }
+}
+
+/// Why a fit could not run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FitError {
+    #[error("stage {stage}: {msg}")]
+    Stage { stage: String, msg: String },
+    #[error("{0}")]
+    Setup(String),
+}
+
+/// One parameter's line in a stage report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamReport {
+    pub param: String,
+    pub unit: String,
+    pub start: f64,
+    pub min: f64,
+    pub max: f64,
+    pub result: f64,
+    /// Standard error from the Fisher approximation (∞ when not determined by the data).
+    pub std_error: f64,
+    pub at_bound: bool,
+    pub log_scaled: bool,
+}
+
+/// Objective values of the unit on one event.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EventFitness {
+    pub event: String,
+    /// Σ(ΔP² + ΔQ²) over the event's fit window (system base), RaPId's J.
+    pub j_pq: f64,
+    pub rms_p: f64,
+    pub rms_q: f64,
+    pub samples: usize,
+    pub held_out: bool,
+}
+
+/// One phase's counters.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhaseReport {
+    pub phase: String,
+    pub iterations: u64,
+    pub best_objective: f64,
+    pub stopped_by: String,
+}
+
+/// The report of one stage.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StageReport {
+    pub stage: String,
+    pub strategy: String,
+    pub objective: Objective,
+    pub weights: Weights,
+    pub window: Option<[f64; 2]>,
+    pub lowpass_hz: Option<f64>,
+    pub models: Vec<String>,
+    pub parameters: Vec<ParamReport>,
+    /// Stage objective before and after (accurate integrator).
+    pub objective_before: f64,
+    pub objective_after: f64,
+    /// P+Q fitness per event after the stage (fit and held-out events).
+    pub fitness: Vec<EventFitness>,
+    pub phases: Vec<PhaseReport>,
+    pub simulations: usize,
+    pub failed_candidates: usize,
+    pub failure_messages: Vec<String>,
+    pub wall_s: f64,
+    pub seed: u64,
+    pub residual_variance: f64,
+    pub correlation: Vec<Vec<f64>>,
+    /// Pairs with |ρ| above [`CORRELATION_LIMIT`]: not separately identifiable.
+    pub correlated_pairs: Vec<(String, String, f64)>,
+    pub unidentified: Vec<String>,
+    /// Determined, but with a relative standard error above [`WEAK_LIMIT`].
+    pub weakly_determined: Vec<String>,
+    /// Parameters the data determine: not unidentified, not in a correlated pair, relative
+    /// standard error at most [`WEAK_LIMIT`].
+    pub identifiable: Vec<String>,
+    pub condition_number: f64,
+}
+
+/// The whole fit.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FitReport {
+    pub unit: String,
+    pub events: Vec<String>,
+    pub held_out: Vec<String>,
+    pub strategy: String,
+    pub seed: u64,
+    pub threads: usize,
+    /// P+Q fitness of the starting unit (the row before any stage).
+    pub start_fitness: Vec<EventFitness>,
+    pub stages: Vec<StageReport>,
+    pub wall_s: f64,
+}
+
+/// A stage's units and traces (not serialised).
+pub struct StageOutput {
+    pub stage: String,
+    pub start_unit: Unit,
+    pub calibrated_unit: Unit,
+    /// Per fit event: traces of the start and the calibrated stage unit.
+    pub traces: Vec<(String, Traces, Traces)>,
+}
+
+/// Everything a fit returns.
+pub struct FitResult {
+    pub report: FitReport,
+    /// The calibrated full unit (every block, with the stages' results).
+    pub unit: Unit,
+    pub stages: Vec<StageOutput>,
+}
+
+/// P+Q fitness of `unit` on `event` (accurate integrator); `None` if it fails.
+pub fn fitness(unit: &Unit, event: &Event, held_out: bool) -> Result<(EventFitness, Traces), String> {
+    let data = EventData::new(event, None, None)?;
+    let mut u = unit.clone();
+    let tr = simulate_prepared(&mut u, &data.prepared, event, &accurate_integrator()).map_err(|e| e.to_string())?;
+    let (p, q) = (tr.get("p_pu").unwrap(), tr.get("q_pu").unwrap());
+    let (mut sp, mut sq, mut n) = (0.0, 0.0, 0usize);
+    for k in 0..p.len() {
+        if data.in_window[k] {
+            sp += (p[k] - data.p_meas[k]).powi(2);
+            sq += (q[k] - data.q_meas[k]).powi(2);
+            n += 1;
+        }
+    }
+    let nn = n.max(1) as f64;
+    Ok((
+        EventFitness { event: event.name.clone(), j_pq: sp + sq, rms_p: (sp / nn).sqrt(), rms_q: (sq / nn).sqrt(), samples: n, held_out },
+        tr,
+    ))
+}
+
+fn stage_err(stage: &str, msg: impl Into<String>) -> FitError {
+    FitError::Stage { stage: stage.to_string(), msg: msg.into() }
+}
+
+/// Applies a stage's `set` and `replace` entries to the master unit.
+fn apply_stage_edits(master: &mut Unit, spec: &StageSpec) -> Result<(), FitError> {
+    for (section, table) in &spec.replace {
+        let block = build_block(section, table).map_err(|m| stage_err(&spec.name, m))?;
+        master.put(section, block, &[]).map_err(|e| stage_err(&spec.name, e.to_string()))?;
+    }
+    for (path, v) in &spec.set {
+        let r = master.param(path).map_err(|e| stage_err(&spec.name, format!("set: {e}")))?;
+        master.set(r, *v);
+    }
+    Ok(())
+}
+
+/// Builds a block from a unit-file-style table (`model = "…"` and every parameter).
+fn build_block(section: &str, table: &toml::Table) -> Result<Box<dyn itaipu_dynamics::block::Block>, String> {
+    let model = table.get("model").and_then(|v| v.as_str()).ok_or_else(|| format!("replace.{section}: needs model = \"...\""))?;
+    let info = registry::find(model).ok_or_else(|| format!("replace.{section}: unknown model '{model}' (known: {})", registry::names()))?;
+    let mut block = info.create();
+    let mut given = vec![false; block.params().specs().len()];
+    for (k, v) in table {
+        if k == "model" {
+            continue;
+        }
+        let x = match v {
+            toml::Value::Float(f) => *f,
+            toml::Value::Integer(i) => *i as f64,
+            toml::Value::String(s) => {
+                block.set_option(k, s).map_err(|e| format!("replace.{section}.{k}: {e}"))?;
+                continue;
+            }
+            _ => return Err(format!("replace.{section}.{k}: must be a number")),
+        };
+        let idx = block.params().index_of(k).ok_or_else(|| format!("replace.{section}.{k}: unknown parameter of {model}"))?;
+        block.params_mut().set(idx, x);
+        given[idx] = true;
+    }
+    let missing: Vec<&str> = block
+        .params()
+        .specs()
+        .iter()
+        .zip(&given)
+        .filter(|(s, g)| !**g && !s.name.ends_with("_offset"))
+        .map(|(s, _)| s.name)
+        .collect();
+    if !missing.is_empty() {
+        return Err(format!("replace.{section}: {model} needs {}", missing.join(", ")));
+    }
+    block.validate().map_err(|e| format!("replace.{section}: {e}"))?;
+    Ok(block)
+}
+
+/// Resolves a stage's free parameters in `unit`.
+fn free_params(unit: &Unit, spec: &StageSpec) -> Result<Vec<FreeParam>, FitError> {
+    spec.free
+        .iter()
+        .map(|f| {
+            let r = unit.param(&f.param).map_err(|e| {
+                stage_err(&spec.name, format!("free parameter {}: {e} (is its block part of this stage?)", f.param))
+            })?;
+            let start = f.start.unwrap_or(unit.get(r));
+            Ok(FreeParam::new(unit.param_path(r), r, f.min, f.max, start, unit.param_spec(r).unit))
+        })
+        .collect()
+}
+
+/// Runs the swarm then L-BFGS on `problem` from its start; returns the best physical values,
+/// the phase reports, and the objective at the best (accurate integrator).
+fn search(problem: &Problem, opts: &FitOptions, stage: &str, progress: &dyn Progress, use_pso: bool) -> (Vec<f64>, Vec<PhaseReport>) {
+    let n = problem.dim();
+    let start = problem.start();
+    let mut phases = vec![];
+    let mut candidates = vec![start.clone()];
+    if use_pso && n > 0 && opts.pso_iterations > 0 {
+        progress.phase(stage, "pso", opts.pso_iterations as u64);
+        let sim = search_integrator();
+        let pso_opts = PsoOptions { particles: opts.particles, iterations: opts.pso_iterations, seed: opts.seed, ..Default::default() };
+        let u0 = problem.to_unit(&start);
+        let res = pso::minimize(
+            |u: &[f64]| problem.cost(&problem.from_unit(u), &sim),
+            n,
+            Some(&u0),
+            &pso_opts,
+            |i, best| progress.iteration(i as u64, best),
+        );
+        phases.push(PhaseReport {
+            phase: "pso".into(),
+            iterations: res.iterations as u64,
+            best_objective: res.best_cost,
+            stopped_by: format!("{:?}", res.stopped_by),
+        });
+        candidates.push(problem.from_unit(&res.best));
+    }
+    let from = candidates.last().cloned().unwrap_or_default();
+    if n > 0 && opts.lbfgs_iterations > 0 {
+        progress.phase(stage, "lbfgs", opts.lbfgs_iterations);
+        let res = local::refine(problem, &from, opts.lbfgs_iterations, opts.lbfgs_memory);
+        progress.iteration(res.iterations, res.best_cost);
+        phases.push(PhaseReport {
+            phase: format!("lbfgs (RK4 h = {:.3} ms)", res.step_s * 1e3),
+            iterations: res.iterations,
+            best_objective: res.best_cost,
+            stopped_by: res.stopped_by.clone(),
+        });
+        candidates.push(res.best);
+    }
+    // Keep the best candidate by an accurate evaluation (the phases used different integrators).
+    let acc = accurate_integrator();
+    let scored: Vec<(f64, usize)> = candidates
+        .par_iter()
+        .enumerate()
+        .map(|(k, x)| (problem.cost(x, &acc), k))
+        .collect();
+    let (_, k) = scored.into_iter().fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
+    (candidates[k].clone(), phases)
+}
+
+/// Jacobian of the residuals in physical units (accurate integrator): central differences,
+/// one-sided where a parameter sits on a bound (the model may reject values beyond it, e.g. a
+/// negative damping).
+fn jacobian(problem: &Problem, x: &[f64]) -> Option<Vec<Vec<f64>>> {
+    let acc = accurate_integrator();
+    let r0 = problem.residuals(x, &acc).ok()?;
+    let cols: Vec<Option<Vec<f64>>> = (0..x.len())
+        .into_par_iter()
+        .map(|j| {
+            let f = &problem.free[j];
+            let h = 1e-4 * (f.hi - f.lo).min(x[j].abs().max(1e-3 * (f.hi - f.lo)));
+            let at = |v: f64| {
+                let mut xv = x.to_vec();
+                xv[j] = v;
+                problem.residuals(&xv, &acc).ok()
+            };
+            let (plus, minus, span) = if x[j] - h < f.lo {
+                (at(x[j] + h)?, r0.clone(), h)
+            } else if x[j] + h > f.hi {
+                (r0.clone(), at(x[j] - h)?, h)
+            } else {
+                (at(x[j] + h)?, at(x[j] - h)?, 2.0 * h)
+            };
+            Some(plus.iter().zip(&minus).map(|(a, b)| (a - b) / span).collect())
+        })
+        .collect();
+    let cols: Vec<Vec<f64>> = cols.into_iter().collect::<Option<_>>()?;
+    let rows = cols.first().map_or(0, |c| c.len());
+    Some((0..rows).map(|k| cols.iter().map(|c| c[k]).collect()).collect())
+}
+
+/// Runs a stage (or the simultaneous pass) on `unit` with `free` parameters.
+#[allow(clippy::too_many_arguments)]
+fn run_stage(
+    name: &str,
+    label: &str,
+    unit: Unit,
+    free: Vec<FreeParam>,
+    spec: &StageSpec,
+    events: &[Event],
+    held_out: &[Event],
+    opts: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
+    let t0 = Instant::now();
+    let data: Vec<EventData> = events
+        .iter()
+        .map(|e| EventData::new(e, spec.window, spec.lowpass_hz))
+        .collect::<Result<_, _>>()
+        .map_err(|m| stage_err(name, m))?;
+    let weights = objective_weights(spec.objective, spec.weights);
+    let problem = Problem::new(unit, free, data, weights);
+    let acc = accurate_integrator();
+    let start = problem.start();
+    let objective_before = problem.residuals(&start, &acc).map(|r| r.iter().map(|v| v * v).sum::<f64>()).map_err(|m| {
+        stage_err(name, format!("the starting unit does not simulate: {m}"))
+    })?;
+    let mut phases = vec![];
+    let best = if opts.strategy == Strategy::Incremental && name == "gen" {
+        // Free the parameters one at a time in the listed order, each step from the last.
+        let mut x = start.clone();
+        for i in 1..=problem.dim() {
+            let mut sub = Problem::new(
+                problem.unit_at(&x),
+                problem.free[..i].iter().zip(&x).map(|(f, v)| FreeParam { start: *v, ..f.clone() }).collect(),
+                problem.events.clone(),
+                weights,
+            );
+            sub.penalty = problem.penalty;
+            let (b, ph) = search(&sub, opts, &format!("{label} {i}/{}", problem.dim()), progress, false);
+            x[..i].copy_from_slice(&b);
+            phases.extend(ph.into_iter().map(|p| PhaseReport { phase: format!("step {i} ({}): {}", problem.free[i - 1].path, p.phase), ..p }));
+        }
+        x
+    } else {
+        let (b, ph) = search(&problem, opts, label, progress, true);
+        phases = ph;
+        b
+    };
+    let r_best = problem.residuals(&best, &acc).map_err(|m| stage_err(name, format!("the calibrated unit does not simulate: {m}")))?;
+    let objective_after: f64 = r_best.iter().map(|v| v * v).sum();
+    progress.message(&format!("{label}: objective {objective_before:.5} -> {objective_after:.5}"));
+
+    // Identifiability at the optimum.
+    let ident = jacobian(&problem, &best).map(|j| identify::analyse(&j, objective_after, CORRELATION_LIMIT));
+    let n = problem.dim();
+    let (std_errors, correlation, pairs, unidentified, sigma2, cond): (Vec<f64>, Vec<Vec<f64>>, Vec<(String, String, f64)>, Vec<String>, f64, f64) = match &ident {
+        Some(id) => (
+            id.std_errors.clone(),
+            id.correlation.clone(),
+            id.correlated_pairs.iter().map(|&(i, j, r)| (problem.free[i].path.clone(), problem.free[j].path.clone(), r)).collect(),
+            id.unidentified.iter().map(|&i| problem.free[i].path.clone()).collect(),
+            id.sigma2,
+            id.condition,
+        ),
+        None => (vec![f64::NAN; n], vec![vec![f64::NAN; n]; n], vec![], vec![], f64::NAN, f64::NAN),
+    };
+    let parameters = problem
+        .free
+        .iter()
+        .enumerate()
+        .map(|(i, f)| ParamReport {
+            param: f.path.clone(),
+            unit: f.unit.to_string(),
+            start: f.start,
+            min: f.lo,
+            max: f.hi,
+            result: best[i],
+            std_error: std_errors[i],
+            at_bound: f.at_bound(best[i]),
+            log_scaled: f.log,
+        })
+        .collect();
+
+    let start_unit = problem.unit_at(&start);
+    let calibrated_unit = problem.unit_at(&best);
+    let mut fitness_rows = vec![];
+    let mut traces = vec![];
+    for e in events {
+        let (fs, tr_end) = fitness(&calibrated_unit, e, false).map_err(|m| stage_err(name, m))?;
+        let (_, tr_start) = fitness(&start_unit, e, false).map_err(|m| stage_err(name, m))?;
+        fitness_rows.push(fs);
+        traces.push((e.name.clone(), tr_start, tr_end));
+    }
+    for e in held_out {
+        // A held-out event that the calibrated unit cannot simulate is reported, not fatal.
+        match fitness(&calibrated_unit, e, true) {
+            Ok((fs, _)) => fitness_rows.push(fs),
+            Err(m) => progress.message(&format!("{label}: held-out event {}: {m}", e.name)),
+        }
+    }
+    let flagged = |p: &String| unidentified.contains(p) || pairs.iter().any(|(a, b, _): &(String, String, f64)| a == p || b == p);
+    let rel_se = |i: usize| std_errors[i] / best[i].abs().max(1e-12);
+    let weakly_determined: Vec<String> = problem
+        .free
+        .iter()
+        .enumerate()
+        .filter(|(i, f)| !flagged(&f.path) && !(rel_se(*i) <= WEAK_LIMIT))
+        .map(|(_, f)| f.path.clone())
+        .collect();
+    let identifiable: Vec<String> = problem
+        .free
+        .iter()
+        .filter(|f| !flagged(&f.path) && !weakly_determined.contains(&f.path))
+        .map(|f| f.path.clone())
+        .collect();
+    let report = StageReport {
+        stage: label.to_string(),
+        strategy: opts.strategy.to_string(),
+        objective: spec.objective,
+        weights: spec.weights,
+        window: spec.window,
+        lowpass_hz: spec.lowpass_hz,
+        models: problem.unit.instances().iter().map(|i| format!("{}={}", i.name, i.block.model())).collect(),
+        parameters,
+        objective_before,
+        objective_after,
+        fitness: fitness_rows,
+        phases,
+        simulations: problem.simulations(),
+        failed_candidates: problem.failures(),
+        failure_messages: problem.failure_messages(),
+        wall_s: t0.elapsed().as_secs_f64(),
+        seed: opts.seed,
+        residual_variance: sigma2,
+        correlation,
+        correlated_pairs: pairs,
+        unidentified,
+        weakly_determined,
+        identifiable,
+        condition_number: cond,
+    };
+    Ok((report, StageOutput { stage: label.to_string(), start_unit, calibrated_unit, traces }, best))
+}
+
+/// Calibrates `unit` against `events` following `spec` (stages in `opts.stages`).
+pub fn fit(
+    unit: &Unit,
+    spec: &CalibSpec,
+    events: &[Event],
+    held_out: &[Event],
+    opts: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<FitResult, FitError> {
+    let t0 = Instant::now();
+    if events.is_empty() {
+        return Err(FitError::Setup("no event to fit".into()));
+    }
+    for s in &opts.stages {
+        if !STAGES.contains(&s.as_str()) {
+            return Err(FitError::Setup(format!("unknown stage '{s}' (gen, avr, pss, tg)")));
+        }
+        if spec.stage(s).is_none() {
+            return Err(FitError::Setup(format!("stage '{s}' is not in the calibration spec")));
+        }
+    }
+    let mut master = unit.clone();
+    let mut start_fitness = vec![];
+    for e in events {
+        start_fitness.push(fitness(&master, e, false).map_err(|m| FitError::Setup(format!("the starting unit: {m}")))?.0);
+    }
+    for e in held_out {
+        if let Ok((f, _)) = fitness(&master, e, true) {
+            start_fitness.push(f);
+        }
+    }
+    let mut reports = vec![];
+    let mut outputs = vec![];
+
+    if opts.strategy == Strategy::SimultaneousFirst {
+        // All listed stages' parameters at once on the full unit, objective P+Q.
+        let mut full = master.clone();
+        for s in &opts.stages {
+            apply_stage_edits(&mut full, spec.stage(s).expect("checked"))?;
+        }
+        let mut all = StageSpec {
+            name: "all".into(),
+            objective: Objective::Pq,
+            weights: Weights::default(),
+            window: None,
+            lowpass_hz: None,
+            set: Default::default(),
+            free: vec![],
+            replace: Default::default(),
+        };
+        for s in &opts.stages {
+            let st = spec.stage(s).expect("checked");
+            all.free.extend(st.free.iter().cloned());
+            all.window = all.window.or(st.window);
+            all.lowpass_hz = all.lowpass_hz.or(st.lowpass_hz);
+        }
+        let free = free_params(&full, &all)?;
+        let (rep, out, best) = run_stage("all", "simultaneous", full.clone(), free.clone(), &all, events, held_out, opts, progress)?;
+        for (f, v) in free.iter().zip(&best) {
+            let r = master.param(&f.path).map_err(|e| FitError::Setup(e.to_string()))?;
+            master.set(r, *v);
+        }
+        reports.push(rep);
+        outputs.push(out);
+    }
+
+    for s in &opts.stages {
+        let st = spec.stage(s).expect("checked");
+        apply_stage_edits(&mut master, st)?;
+        let stage_unit = master.without(removed_blocks(s)).map_err(|e| stage_err(s, e.to_string()))?;
+        let free = free_params(&stage_unit, st)?;
+        let (rep, out, best) = run_stage(s, s, stage_unit, free.clone(), st, events, held_out, opts, progress)?;
+        for (f, v) in free.iter().zip(&best) {
+            let r = master.param(&f.path).map_err(|e| stage_err(s, e.to_string()))?;
+            master.set(r, *v);
+        }
+        reports.push(rep);
+        outputs.push(out);
+    }
+
+    let report = FitReport {
+        unit: unit.name.clone(),
+        events: events.iter().map(|e| e.name.clone()).collect(),
+        held_out: held_out.iter().map(|e| e.name.clone()).collect(),
+        strategy: opts.strategy.to_string(),
+        seed: opts.seed,
+        threads: rayon::current_num_threads(),
+        start_fitness,
+        stages: reports,
+        wall_s: t0.elapsed().as_secs_f64(),
+    };
+    Ok(FitResult { report, unit: master, stages: outputs })
+}
+
+/// Search options used by tests and benchmarks that want a quick, reproducible fit.
+pub fn quick_options(stages: &[&str], seed: u64) -> FitOptions {
+    FitOptions {
+        stages: stages.iter().map(|s| s.to_string()).collect(),
+        strategy: Strategy::Sequential,
+        seed,
+        particles: 24,
+        pso_iterations: 30,
+        lbfgs_iterations: 30,
+        lbfgs_memory: 7,
+    }
+}
+
+/// Integrator used by the search phase (re-exported for reports).
+pub fn search_options() -> SimOptions {
+    search_integrator()
+}

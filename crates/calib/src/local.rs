@@ -1,0 +1,160 @@
+//! Local refinement: argmin's L-BFGS (More-Thuente line search) in the unbounded coordinates
+//! `z` (see [`crate::problem`]), with central-difference gradients.
+//!
+//! Finite differences on an adaptive integrator stall L-BFGS on step-size noise, so the local
+//! phase evaluates the objective with **fixed-step RK4**: the step is chosen once per run as
+//! `min(2 ms, 0.3 τ_min)` from the smallest time constant `τ_min` of the starting unit, and the
+//! objective is then a smooth function of the parameters. The 2n gradient evaluations run in
+//! parallel (rayon); the result does not depend on the number of threads.
+
+use argmin::core::{CostFunction, Error, Executor, Gradient, State, TerminationReason, TerminationStatus};
+use argmin::solver::linesearch::MoreThuenteLineSearch;
+use argmin::solver::quasinewton::LBFGS;
+use itaipu_dynamics::integrate::Method;
+use itaipu_dynamics::simulate::SimOptions;
+use itaipu_dynamics::unit::Unit;
+use rayon::prelude::*;
+
+use crate::problem::Problem;
+
+/// Step of the central differences in `z`.
+pub const FD_STEP: f64 = 1e-5;
+
+/// Smallest positive parameter measured in seconds anywhere in the unit (a proxy for the
+/// fastest time constant).
+pub fn smallest_time_constant(unit: &Unit) -> f64 {
+    unit.params()
+        .iter()
+        .filter(|(_, s, v)| s.unit == "s" && *v > 1e-6)
+        .map(|(_, _, v)| *v)
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The fixed-step integrator for the local phase, starting at physical values `x`.
+pub fn gradient_integrator(problem: &Problem, x: &[f64]) -> SimOptions {
+    let tau = smallest_time_constant(&problem.unit_at(x));
+    let h = (0.3 * tau).min(2e-3).max(5e-5);
+    SimOptions { method: Method::Rk4 { h } }
+}
+
+/// The problem in `z` coordinates, as argmin sees it. It remembers the best point it has
+/// evaluated (ties broken by coordinates, so the result does not depend on thread timing), which
+/// survives a line search that gives up.
+pub struct LocalProblem<'a> {
+    pub problem: &'a Problem,
+    pub sim: SimOptions,
+    best: std::sync::Mutex<(f64, Vec<f64>)>,
+}
+
+impl<'a> LocalProblem<'a> {
+    pub fn new(problem: &'a Problem, sim: SimOptions) -> Self {
+        Self { problem, sim, best: std::sync::Mutex::new((f64::INFINITY, vec![])) }
+    }
+
+    /// Objective at `z`.
+    pub fn cost_z(&self, z: &[f64]) -> f64 {
+        let c = self.problem.cost(&self.problem.from_z(z), &self.sim);
+        let mut best = self.best.lock().expect("best point");
+        let better = c < best.0 || (c == best.0 && z.partial_cmp(best.1.as_slice()) == Some(std::cmp::Ordering::Less));
+        if better {
+            *best = (c, z.to_vec());
+        }
+        c
+    }
+
+    /// Best `(cost, z)` evaluated so far.
+    pub fn best(&self) -> (f64, Vec<f64>) {
+        self.best.lock().expect("best point").clone()
+    }
+
+    /// Central-difference gradient at `z` (2n evaluations in parallel).
+    pub fn gradient_z(&self, z: &[f64]) -> Vec<f64> {
+        let n = z.len();
+        let pairs: Vec<(f64, f64)> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let mut zp = z.to_vec();
+                zp[i] += FD_STEP;
+                let mut zm = z.to_vec();
+                zm[i] -= FD_STEP;
+                (self.cost_z(&zp), self.cost_z(&zm))
+            })
+            .collect();
+        pairs.iter().map(|(p, m)| (p - m) / (2.0 * FD_STEP)).collect()
+    }
+}
+
+/// Shares a [`LocalProblem`] with argmin's executor (which takes its problem by value).
+struct ArcProblem<'a>(std::sync::Arc<LocalProblem<'a>>);
+
+impl CostFunction for ArcProblem<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+    fn cost(&self, z: &Self::Param) -> Result<f64, Error> {
+        Ok(self.0.cost_z(z))
+    }
+}
+
+impl Gradient for ArcProblem<'_> {
+    type Param = Vec<f64>;
+    type Gradient = Vec<f64>;
+    fn gradient(&self, z: &Self::Param) -> Result<Vec<f64>, Error> {
+        Ok(self.0.gradient_z(z))
+    }
+}
+
+/// Outcome of a local run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocalResult {
+    /// Best physical values found.
+    pub best: Vec<f64>,
+    /// Objective there (on the local phase's integrator).
+    pub best_cost: f64,
+    pub iterations: u64,
+    /// Why it stopped (argmin's words), or the error that stopped it.
+    pub stopped_by: String,
+    /// RK4 step used [s].
+    pub step_s: f64,
+}
+
+/// Runs L-BFGS from physical values `x0` for at most `iterations` iterations.
+pub fn refine(problem: &Problem, x0: &[f64], iterations: u64, memory: usize) -> LocalResult {
+    let sim = gradient_integrator(problem, x0);
+    let step_s = match sim.method {
+        Method::Rk4 { h } => h,
+        _ => f64::NAN,
+    };
+    let z0: Vec<f64> = problem.to_unit(x0).into_iter().map(crate::problem::logit).collect();
+    let local = LocalProblem::new(problem, sim);
+    let start_cost = local.cost_z(&z0);
+    if problem.dim() == 0 || iterations == 0 {
+        return LocalResult { best: x0.to_vec(), best_cost: start_cost, iterations: 0, stopped_by: "nothing to do".into(), step_s };
+    }
+    let solver = LBFGS::new(MoreThuenteLineSearch::new(), memory.max(1));
+    let solver = solver.with_tolerance_grad(1e-9).and_then(|s| s.with_tolerance_cost(1e-12));
+    let solver = match solver {
+        Ok(s) => s,
+        Err(e) => {
+            return LocalResult { best: x0.to_vec(), best_cost: start_cost, iterations: 0, stopped_by: e.to_string(), step_s }
+        }
+    };
+    let local = std::sync::Arc::new(local);
+    let run = Executor::new(ArcProblem(local.clone()), solver)
+        .configure(|state| state.param(z0.clone()).max_iters(iterations))
+        .run();
+    let (iterations, stopped_by) = match run {
+        Ok(res) => {
+            let state = res.state();
+            let why = match state.get_termination_status() {
+                TerminationStatus::Terminated(TerminationReason::MaxItersReached) => "max iterations".to_string(),
+                TerminationStatus::Terminated(r) => r.to_string(),
+                TerminationStatus::NotTerminated => "not terminated".to_string(),
+            };
+            (state.get_iter(), why)
+        }
+        // A line search that cannot make progress ends the run; the best point seen stands.
+        Err(e) => (0, format!("stopped: {e}")),
+    };
+    let (best_cost, best_z) = local.best();
+    LocalResult { best: problem.from_z(&best_z), best_cost, iterations, stopped_by, step_s }
+}

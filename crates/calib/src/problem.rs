@@ -1,0 +1,268 @@
+//! A least-squares problem: a unit, its free parameters with bounds, and measured events.
+//!
+//! The objective (paper 000 eq. 3, RaPId's `J`) is
+//!
+//! ```text
+//! J(x) = Σ_events Σ_{k in window} w_p (P_sim,k(x) − P_meas,k)² + w_q (Q_sim,k(x) − Q_meas,k)²
+//! ```
+//!
+//! with P and Q in pu on each event's system base. Each event is simulated from its own
+//! pre-event operating point. A candidate whose unit cannot initialise or whose simulation
+//! fails gets a finite penalty; it is counted and the first messages are kept for the report.
+//!
+//! **Coordinates.** Optimisers never see physical values. A free parameter with bounds
+//! `[lo, hi]` maps to `u ∈ [0, 1]` linearly, or logarithmically when `0 < lo` and `hi/lo >= 10`
+//! (time constants and gains spanning decades), so the swarm searches decades evenly. L-BFGS,
+//! which has no bounds, works on `z ∈ ℝ` with `u = 1/(1 + e^{−z})`.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::integrate::{Dopri5Options, Method};
+use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
+use itaipu_dynamics::unit::{ParamRef, Unit};
+
+use crate::spec::{Objective, Weights};
+
+/// A free parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FreeParam {
+    /// Canonical `block.name`.
+    pub path: String,
+    pub r: ParamRef,
+    pub lo: f64,
+    pub hi: f64,
+    /// Logarithmic scaling of the unit coordinate.
+    pub log: bool,
+    /// Value at the start of the stage.
+    pub start: f64,
+    /// Unit of measure, for reports.
+    pub unit: &'static str,
+}
+
+impl FreeParam {
+    pub fn new(path: String, r: ParamRef, lo: f64, hi: f64, start: f64, unit: &'static str) -> Self {
+        let log = lo > 0.0 && hi / lo >= 10.0;
+        Self { path, r, lo, hi, log, start: start.clamp(lo, hi), unit }
+    }
+    /// Physical value at box coordinate `u ∈ [0, 1]`.
+    pub fn from_unit(&self, u: f64) -> f64 {
+        let u = u.clamp(0.0, 1.0);
+        let x = if self.log { self.lo * (self.hi / self.lo).powf(u) } else { self.lo + (self.hi - self.lo) * u };
+        x.clamp(self.lo, self.hi)
+    }
+    /// Box coordinate of physical value `x`.
+    pub fn to_unit(&self, x: f64) -> f64 {
+        let x = x.clamp(self.lo, self.hi);
+        if self.log {
+            (x / self.lo).ln() / (self.hi / self.lo).ln()
+        } else {
+            (x - self.lo) / (self.hi - self.lo)
+        }
+    }
+    /// True when `x` lies within 0.1 % of the box width of a bound.
+    pub fn at_bound(&self, x: f64) -> bool {
+        let u = self.to_unit(x);
+        !(0.001..=0.999).contains(&u)
+    }
+}
+
+/// Logistic map ℝ → (0, 1).
+pub fn logistic(z: f64) -> f64 {
+    1.0 / (1.0 + (-z).exp())
+}
+
+/// Inverse of [`logistic`], with `u` kept 1e-9 away from 0 and 1.
+pub fn logit(u: f64) -> f64 {
+    let u = u.clamp(1e-9, 1.0 - 1e-9);
+    (u / (1.0 - u)).ln()
+}
+
+/// One event's data as the objective uses it.
+#[derive(Debug, Clone)]
+pub struct EventData {
+    pub name: String,
+    pub prepared: PreparedEvent,
+    /// Measured P and Q (system base), low-passed if the stage asks for it.
+    pub p_meas: Vec<f64>,
+    pub q_meas: Vec<f64>,
+    /// Samples inside the fit window.
+    pub in_window: Vec<bool>,
+}
+
+impl EventData {
+    /// Prepares `event` with the window `window` (default: the event's fit window) and an
+    /// optional zero-phase low-pass of the measurement.
+    pub fn new(event: &Event, window: Option<[f64; 2]>, lowpass_hz: Option<f64>) -> Result<Self, String> {
+        let r = &event.record;
+        let [a, b] = window.unwrap_or([event.fit.start_s, event.fit.end_s]);
+        let in_window: Vec<bool> = r.time_s.iter().map(|&t| t >= a - 1e-9 && t <= b + 1e-9).collect();
+        if in_window.iter().filter(|w| **w).count() < 3 {
+            return Err(format!("event '{}': fewer than 3 samples in the fit window [{a}, {b}] s", event.name));
+        }
+        let (mut p, mut q) = (r.p_pu.clone(), r.q_pu.clone());
+        if let Some(fc) = lowpass_hz {
+            let fs = crate::filter::sample_rate(&r.time_s).map_err(|e| format!("event '{}': {e}", event.name))?;
+            p = crate::filter::lowpass_zero_phase(&p, fs, fc).map_err(|e| format!("event '{}': {e}", event.name))?;
+            q = crate::filter::lowpass_zero_phase(&q, fs, fc).map_err(|e| format!("event '{}': {e}", event.name))?;
+        }
+        Ok(Self { name: event.name.clone(), prepared: PreparedEvent::new(event), p_meas: p, q_meas: q, in_window })
+    }
+
+    /// Number of samples in the window.
+    pub fn n_window(&self) -> usize {
+        self.in_window.iter().filter(|w| **w).count()
+    }
+}
+
+/// Signal weights of an objective.
+pub fn objective_weights(objective: Objective, w: Weights) -> (f64, f64) {
+    match objective {
+        Objective::Pq => (w.p, w.q),
+        Objective::Q => (0.0, w.q),
+        Objective::P => (w.p, 0.0),
+    }
+}
+
+/// Integrator used for objective evaluations during the search (robust for stiff candidates).
+pub fn search_integrator() -> SimOptions {
+    SimOptions { method: Method::Dopri5(Dopri5Options { rtol: 1e-6, atol: 1e-7, h_max: 0.05, max_steps: 400_000, ..Default::default() }) }
+}
+
+/// Integrator used for reported objectives and the Fisher matrix (tight tolerances).
+pub fn accurate_integrator() -> SimOptions {
+    SimOptions { method: Method::Dopri5(Dopri5Options { rtol: 1e-9, atol: 1e-10, h_max: 0.02, max_steps: 2_000_000, ..Default::default() }) }
+}
+
+/// Largest |P| or |Q| [pu] a sane simulation produces; beyond it a candidate has diverged.
+const DIVERGED_PU: f64 = 100.0;
+/// Failure messages kept (all of them up to this many, so that the sorted first few are the same
+/// whatever order threads ran in).
+const FAILURE_LOG: usize = 10_000;
+/// Failure messages shown in a report.
+pub const FAILURES_SHOWN: usize = 20;
+
+/// The least-squares problem of one stage.
+pub struct Problem {
+    /// The unit with every non-free parameter at its value.
+    pub unit: Unit,
+    pub free: Vec<FreeParam>,
+    pub events: Vec<EventData>,
+    /// (w_p, w_q).
+    pub weights: (f64, f64),
+    /// Finite cost given to a candidate that fails.
+    pub penalty: f64,
+    evaluations: AtomicUsize,
+    failures: AtomicUsize,
+    failure_log: Mutex<Vec<String>>,
+}
+
+impl Problem {
+    pub fn new(unit: Unit, free: Vec<FreeParam>, events: Vec<EventData>, weights: (f64, f64)) -> Self {
+        Self {
+            unit,
+            free,
+            events,
+            weights,
+            penalty: 1e6,
+            evaluations: AtomicUsize::new(0),
+            failures: AtomicUsize::new(0),
+            failure_log: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// Number of free parameters.
+    pub fn dim(&self) -> usize {
+        self.free.len()
+    }
+
+    /// Physical values at box coordinates `u`.
+    pub fn from_unit(&self, u: &[f64]) -> Vec<f64> {
+        self.free.iter().zip(u).map(|(f, u)| f.from_unit(*u)).collect()
+    }
+    /// Box coordinates of physical values `x`.
+    pub fn to_unit(&self, x: &[f64]) -> Vec<f64> {
+        self.free.iter().zip(x).map(|(f, x)| f.to_unit(*x)).collect()
+    }
+    /// Physical values at unbounded coordinates `z`.
+    pub fn from_z(&self, z: &[f64]) -> Vec<f64> {
+        self.free.iter().zip(z).map(|(f, z)| f.from_unit(logistic(*z))).collect()
+    }
+    /// Starting values.
+    pub fn start(&self) -> Vec<f64> {
+        self.free.iter().map(|f| f.start).collect()
+    }
+
+    /// The unit with the free parameters at `x`.
+    pub fn unit_at(&self, x: &[f64]) -> Unit {
+        let mut u = self.unit.clone();
+        for (f, v) in self.free.iter().zip(x) {
+            u.set(f.r, *v);
+        }
+        u
+    }
+
+    /// Weighted residual vector `[√w_p ΔP, √w_q ΔQ]` over every event's window samples
+    /// (only the signals with a non-zero weight).
+    pub fn residuals(&self, x: &[f64], sim: &SimOptions) -> Result<Vec<f64>, String> {
+        let mut unit = self.unit_at(x);
+        let (sp, sq) = (self.weights.0.sqrt(), self.weights.1.sqrt());
+        let mut r = Vec::new();
+        for ev in &self.events {
+            let (p, q) = simulate_pq(&mut unit, &ev.prepared, sim).map_err(|e| format!("{}: {e}", ev.name))?;
+            for k in 0..p.len() {
+                if !ev.in_window[k] {
+                    continue;
+                }
+                if !(p[k].abs() < DIVERGED_PU && q[k].abs() < DIVERGED_PU) {
+                    return Err(format!("{}: simulation diverged at t = {:.3} s", ev.name, ev.prepared.input.time_s[k]));
+                }
+                if sp > 0.0 {
+                    r.push(sp * (p[k] - ev.p_meas[k]));
+                }
+                if sq > 0.0 {
+                    r.push(sq * (q[k] - ev.q_meas[k]));
+                }
+            }
+        }
+        Ok(r)
+    }
+
+    /// The objective at physical values `x`; the penalty (counted and logged) on failure.
+    pub fn cost(&self, x: &[f64], sim: &SimOptions) -> f64 {
+        self.evaluations.fetch_add(self.events.len(), Ordering::Relaxed);
+        match self.residuals(x, sim) {
+            Ok(r) => r.iter().map(|v| v * v).sum(),
+            Err(msg) => {
+                self.record_failure(x, msg);
+                self.penalty
+            }
+        }
+    }
+
+    fn record_failure(&self, x: &[f64], msg: String) {
+        self.failures.fetch_add(1, Ordering::Relaxed);
+        let mut log = self.failure_log.lock().expect("failure log");
+        if log.len() < FAILURE_LOG {
+            let at: Vec<String> = self.free.iter().zip(x).map(|(f, v)| format!("{}={v:.4}", f.path)).collect();
+            log.push(format!("{msg} [{}]", at.join(", ")));
+        }
+    }
+
+    /// Simulations run so far (one per event per objective evaluation).
+    pub fn simulations(&self) -> usize {
+        self.evaluations.load(Ordering::Relaxed)
+    }
+    /// Failed candidates so far.
+    pub fn failures(&self) -> usize {
+        self.failures.load(Ordering::Relaxed)
+    }
+    /// The first failure messages in sorted order (the order threads ran in does not show).
+    pub fn failure_messages(&self) -> Vec<String> {
+        let mut v = self.failure_log.lock().expect("failure log").clone();
+        v.sort();
+        v.truncate(FAILURES_SHOWN);
+        v
+    }
+}

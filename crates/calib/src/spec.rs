@@ -1,0 +1,300 @@
+//! The calibration spec (TOML): which parameters are free in each stage, their bounds, the
+//! objective, the window, the weights and the optimiser settings.
+//!
+//! It lives in a `[calibration]` table, either in the unit file or in a file of its own:
+//!
+//! ```toml
+//! [calibration]
+//! strategy = "sequential"        # "sequential" | "incremental" | "simultaneous-first"
+//! seed = 1
+//! [calibration.pso]              # optional, defaults shown
+//! particles = 40
+//! iterations = 100
+//! [calibration.lbfgs]
+//! iterations = 100
+//!
+//! [[calibration.stage]]
+//! name = "gen"                   # gen | avr | pss | tg
+//! objective = "pq"               # pq (paper 000 eq. 3) | q (paper 001 eq. 4) | p
+//! weights = { p = 1.0, q = 1.0 } # optional
+//! window = [0.0, 4.65]           # optional; default: the event's fit window
+//! lowpass_hz = 15.0              # optional zero-phase low-pass of the measurement
+//! set = { "machine.x_l" = 0.13 } # optional fixed values, applied before this stage and kept
+//! free = [ { param = "machine.x_d", min = 0.6, max = 2.0 }, … ]   # in engineering order
+//! [calibration.stage.replace.governor]   # optional: a block put into the unit from this stage on
+//! model = "HYGOV"
+//! r_perm = 0.05                  # …every parameter, as in a unit file
+//! ```
+//!
+//! Stage semantics (paper 001 Phase A-C, paper 000 Algorithm 1): `gen` simulates the machine with
+//! E_fd held at E_fd0 and P_m constant (exciter, PSS and governor removed), `avr` adds the exciter,
+//! `pss` the stabiliser, `tg` the governor. Earlier stages' results are frozen.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+/// Stage names in their fixed order.
+pub const STAGES: [&str; 4] = ["gen", "avr", "pss", "tg"];
+
+/// Blocks removed from the unit in each stage.
+pub fn removed_blocks(stage: &str) -> &'static [&'static str] {
+    match stage {
+        "gen" => &["exciter", "pss", "governor"],
+        "avr" => &["pss", "governor"],
+        "pss" => &["governor"],
+        _ => &[],
+    }
+}
+
+/// How stages are combined (paper 000 Algorithm 1; paper 001 Fig. 10 and "simultaneous-first").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Strategy {
+    /// Each stage: PSO over the stage's parameters, then L-BFGS from the PSO best.
+    Sequential,
+    /// In the generator stage, free the parameters one at a time in the listed (engineering)
+    /// order, each step an L-BFGS run from the last; other stages as `sequential`.
+    Incremental,
+    /// PSO + L-BFGS over all stages' parameters at once on the full unit, then the sequential
+    /// pass starting from that result.
+    SimultaneousFirst,
+}
+
+impl std::fmt::Display for Strategy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Strategy::Sequential => "sequential",
+            Strategy::Incremental => "incremental",
+            Strategy::SimultaneousFirst => "simultaneous-first",
+        })
+    }
+}
+
+/// What the objective sums.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Objective {
+    /// Σ w_p ΔP² + w_q ΔQ² (paper 000 eq. 3, RaPId's J).
+    Pq,
+    /// Σ ΔQ² (paper 001 eq. 4, used for the AVR and PSS stages).
+    Q,
+    /// Σ ΔP².
+    P,
+}
+
+/// Signal weights.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Weights {
+    #[serde(default = "one")]
+    pub p: f64,
+    #[serde(default = "one")]
+    pub q: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl Default for Weights {
+    fn default() -> Self {
+        Self { p: 1.0, q: 1.0 }
+    }
+}
+
+/// A free parameter with its bounds.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FreeSpec {
+    /// `block.name`, e.g. `machine.x_d` (PSS/E aliases accepted: `machine.Xd`).
+    pub param: String,
+    pub min: f64,
+    pub max: f64,
+    /// Starting value; default: the value in the unit (clamped into the bounds).
+    pub start: Option<f64>,
+}
+
+/// One stage.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StageSpec {
+    pub name: String,
+    #[serde(default = "default_objective")]
+    pub objective: Objective,
+    #[serde(default)]
+    pub weights: Weights,
+    pub window: Option<[f64; 2]>,
+    pub lowpass_hz: Option<f64>,
+    #[serde(default)]
+    pub set: BTreeMap<String, f64>,
+    #[serde(default)]
+    pub free: Vec<FreeSpec>,
+    /// Blocks put into the unit from this stage on (section name → unit-file table).
+    #[serde(default)]
+    pub replace: BTreeMap<String, toml::Table>,
+}
+
+fn default_objective() -> Objective {
+    Objective::Pq
+}
+
+/// PSO settings.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PsoSpec {
+    #[serde(default = "default_particles")]
+    pub particles: usize,
+    #[serde(default = "default_pso_iterations")]
+    pub iterations: usize,
+}
+
+fn default_particles() -> usize {
+    40
+}
+fn default_pso_iterations() -> usize {
+    100
+}
+
+impl Default for PsoSpec {
+    fn default() -> Self {
+        Self { particles: default_particles(), iterations: default_pso_iterations() }
+    }
+}
+
+/// L-BFGS settings.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LbfgsSpec {
+    #[serde(default = "default_lbfgs_iterations")]
+    pub iterations: u64,
+    #[serde(default = "default_memory")]
+    pub memory: usize,
+}
+
+fn default_lbfgs_iterations() -> u64 {
+    100
+}
+fn default_memory() -> usize {
+    7
+}
+
+impl Default for LbfgsSpec {
+    fn default() -> Self {
+        Self { iterations: default_lbfgs_iterations(), memory: default_memory() }
+    }
+}
+
+/// The whole spec.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibSpec {
+    #[serde(default = "default_strategy")]
+    pub strategy: Strategy,
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    #[serde(default)]
+    pub pso: PsoSpec,
+    #[serde(default)]
+    pub lbfgs: LbfgsSpec,
+    #[serde(default, rename = "stage")]
+    pub stages: Vec<StageSpec>,
+}
+
+fn default_strategy() -> Strategy {
+    Strategy::Sequential
+}
+fn default_seed() -> u64 {
+    1
+}
+
+#[derive(Deserialize)]
+struct FileWithCalibration {
+    calibration: Option<CalibSpec>,
+}
+
+/// Error reading a calibration spec. Messages name the file and the field.
+#[derive(Debug, thiserror::Error)]
+pub enum SpecError {
+    #[error("{}: cannot read: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{}: {msg}", path.display())]
+    Syntax { path: PathBuf, msg: String },
+    #[error("{}: no [calibration] table (give one in the unit file or with --calib)", path.display())]
+    Missing { path: PathBuf },
+    #[error("{}: {field}: {msg}", path.display())]
+    Field { path: PathBuf, field: String, msg: String },
+}
+
+impl CalibSpec {
+    /// Reads the `[calibration]` table of a file.
+    pub fn from_file(path: &Path) -> Result<CalibSpec, SpecError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SpecError::Io { path: path.into(), source: e })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses text (`path` is used in messages).
+    pub fn parse(text: &str, path: &Path) -> Result<CalibSpec, SpecError> {
+        let f: FileWithCalibration = toml::from_str(text)
+            .map_err(|e| SpecError::Syntax { path: path.into(), msg: e.to_string().trim().replace('\n', " ") })?;
+        let spec = f.calibration.ok_or_else(|| SpecError::Missing { path: path.into() })?;
+        spec.validate(path)?;
+        Ok(spec)
+    }
+
+    fn validate(&self, path: &Path) -> Result<(), SpecError> {
+        let err = |field: String, msg: String| SpecError::Field { path: path.into(), field, msg };
+        if self.pso.particles < 2 {
+            return Err(err("calibration.pso.particles".into(), "needs at least 2".into()));
+        }
+        let mut last = None;
+        for (k, s) in self.stages.iter().enumerate() {
+            let ctx = format!("calibration.stage[{k}]");
+            let pos = STAGES
+                .iter()
+                .position(|n| *n == s.name)
+                .ok_or_else(|| err(format!("{ctx}.name"), format!("'{}' is not one of gen, avr, pss, tg", s.name)))?;
+            if last.is_some_and(|l| pos <= l) {
+                return Err(err(format!("{ctx}.name"), "stages must be listed once each, in the order gen, avr, pss, tg".into()));
+            }
+            last = Some(pos);
+            if let Some([a, b]) = s.window {
+                if !(a < b) {
+                    return Err(err(format!("{ctx}.window"), format!("start {a} must be before end {b}")));
+                }
+            }
+            if let Some(fc) = s.lowpass_hz {
+                if !(fc > 0.0) {
+                    return Err(err(format!("{ctx}.lowpass_hz"), format!("must be > 0 (got {fc})")));
+                }
+            }
+            if !(s.weights.p >= 0.0 && s.weights.q >= 0.0) {
+                return Err(err(format!("{ctx}.weights"), "weights must be >= 0".into()));
+            }
+            for (j, f) in s.free.iter().enumerate() {
+                let fctx = format!("{ctx}.free[{j}] ({})", f.param);
+                if !(f.min.is_finite() && f.max.is_finite()) {
+                    return Err(err(fctx, "bounds must be finite".into()));
+                }
+                if !(f.min < f.max) {
+                    return Err(err(fctx, format!("bounds upside down or empty: min {} >= max {}", f.min, f.max)));
+                }
+                if let Some(x) = f.start {
+                    if !(x >= f.min && x <= f.max) {
+                        return Err(err(fctx, format!("start {x} lies outside [{}, {}]", f.min, f.max)));
+                    }
+                }
+                if s.free[..j].iter().any(|g| g.param == f.param) {
+                    return Err(err(fctx, "listed twice".into()));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The spec of stage `name`, if listed.
+    pub fn stage(&self, name: &str) -> Option<&StageSpec> {
+        self.stages.iter().find(|s| s.name == name)
+    }
+}
