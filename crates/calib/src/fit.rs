@@ -57,6 +57,9 @@ pub struct FitOptions {
     pub pso_iterations: usize,
     pub lbfgs_iterations: u64,
     pub lbfgs_memory: usize,
+    /// After several stages, refine every freed parameter together on the full unit (L-BFGS,
+    /// objective P+Q), reported as the stage `joint`.
+    pub polish: bool,
 }
 
 impl FitOptions {
@@ -70,6 +73,7 @@ impl FitOptions {
             pso_iterations: spec.pso.iterations,
             lbfgs_iterations: spec.lbfgs.iterations,
             lbfgs_memory: spec.lbfgs.memory,
+            polish: spec.polish,
         }
     }
 }
@@ -286,7 +290,13 @@ fn search(problem: &Problem, opts: &FitOptions, stage: &str, progress: &dyn Prog
     if use_pso && n > 0 && opts.pso_iterations > 0 {
         progress.phase(stage, "pso", opts.pso_iterations as u64);
         let sim = search_integrator();
-        let pso_opts = PsoOptions { particles: opts.particles, iterations: opts.pso_iterations, seed: opts.seed, ..Default::default() };
+        let pso_opts = PsoOptions {
+            particles: opts.particles,
+            iterations: opts.pso_iterations,
+            seed: opts.seed,
+            stall_iterations: 30,
+            ..Default::default()
+        };
         let u0 = problem.to_unit(&start);
         let res = pso::minimize(
             |u: &[f64]| problem.cost(&problem.from_unit(u), &sim),
@@ -370,6 +380,7 @@ fn run_stage(
     held_out: &[Event],
     opts: &FitOptions,
     progress: &dyn Progress,
+    use_pso: bool,
 ) -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
     let t0 = Instant::now();
     let data: Vec<EventData> = events
@@ -402,7 +413,7 @@ fn run_stage(
         }
         x
     } else {
-        let (b, ph) = search(&problem, opts, label, progress, true);
+        let (b, ph) = search(&problem, opts, label, progress, use_pso);
         phases = ph;
         b
     };
@@ -559,10 +570,11 @@ pub fn fit(
             all.lowpass_hz = all.lowpass_hz.or(st.lowpass_hz);
         }
         let free = free_params(&full, &all)?;
-        let (rep, out, best) = run_stage("all", "simultaneous", full.clone(), free.clone(), &all, events, held_out, opts, progress)?;
+        let (rep, out, best) = run_stage("all", "simultaneous", full.clone(), free.clone(), &all, events, held_out, opts, progress, true)?;
+        // The full unit (with every stage's replacements) carries on with the joint result.
+        master = full;
         for (f, v) in free.iter().zip(&best) {
-            let r = master.param(&f.path).map_err(|e| FitError::Setup(e.to_string()))?;
-            master.set(r, *v);
+            master.set(f.r, *v);
         }
         reports.push(rep);
         outputs.push(out);
@@ -573,10 +585,39 @@ pub fn fit(
         apply_stage_edits(&mut master, st)?;
         let stage_unit = master.without(removed_blocks(s)).map_err(|e| stage_err(s, e.to_string()))?;
         let free = free_params(&stage_unit, st)?;
-        let (rep, out, best) = run_stage(s, s, stage_unit, free.clone(), st, events, held_out, opts, progress)?;
+        let (rep, out, best) = run_stage(s, s, stage_unit, free.clone(), st, events, held_out, opts, progress, true)?;
         for (f, v) in free.iter().zip(&best) {
             let r = master.param(&f.path).map_err(|e| stage_err(s, e.to_string()))?;
             master.set(r, *v);
+        }
+        reports.push(rep);
+        outputs.push(out);
+    }
+
+    if opts.polish && opts.stages.len() > 1 {
+        // Joint refinement of everything the stages freed, on the full unit.
+        let mut joint = StageSpec {
+            name: "joint".into(),
+            objective: Objective::Pq,
+            weights: Weights::default(),
+            window: None,
+            lowpass_hz: None,
+            set: Default::default(),
+            free: vec![],
+            replace: Default::default(),
+        };
+        for s in &opts.stages {
+            let st = spec.stage(s).expect("checked");
+            joint.free.extend(st.free.iter().cloned());
+            joint.window = joint.window.or(st.window);
+        }
+        let full = master.clone();
+        let free = free_params(&full, &joint)?;
+        // Start from the current values, not the spec's starting values.
+        let free: Vec<FreeParam> = free.into_iter().map(|f| FreeParam { start: full.get(f.r).clamp(f.lo, f.hi), ..f }).collect();
+        let (rep, out, best) = run_stage("joint", "joint", full, free.clone(), &joint, events, held_out, opts, progress, false)?;
+        for (f, v) in free.iter().zip(&best) {
+            master.set(f.r, *v);
         }
         reports.push(rep);
         outputs.push(out);
@@ -606,6 +647,7 @@ pub fn quick_options(stages: &[&str], seed: u64) -> FitOptions {
         pso_iterations: 30,
         lbfgs_iterations: 30,
         lbfgs_memory: 7,
+        polish: false,
     }
 }
 

@@ -3,7 +3,7 @@
 //!
 //! Finite differences on an adaptive integrator stall L-BFGS on step-size noise, so the local
 //! phase evaluates the objective with **fixed-step RK4**: the step is chosen once per run as
-//! `min(2 ms, 0.3 τ_min)` from the smallest time constant `τ_min` of the starting unit, and the
+//! `min(2 ms, τ_min/2)` from the smallest time constant `τ_min` of the starting unit, and the
 //! objective is then a smooth function of the parameters. The 2n gradient evaluations run in
 //! parallel (rayon); the result does not depend on the number of threads.
 
@@ -33,7 +33,7 @@ pub fn smallest_time_constant(unit: &Unit) -> f64 {
 /// The fixed-step integrator for the local phase, starting at physical values `x`.
 pub fn gradient_integrator(problem: &Problem, x: &[f64]) -> SimOptions {
     let tau = smallest_time_constant(&problem.unit_at(x));
-    let h = (0.3 * tau).min(2e-3).max(5e-5);
+    let h = (0.5 * tau).min(2e-3).max(5e-5);
     SimOptions { method: Method::Rk4 { h } }
 }
 
@@ -67,9 +67,14 @@ impl<'a> LocalProblem<'a> {
         self.best.lock().expect("best point").clone()
     }
 
-    /// Central-difference gradient at `z` (2n evaluations in parallel).
+    /// Central-difference gradient at `z` (2n evaluations in parallel). Where one side of a
+    /// difference fails (a parameter set the model rejects, e.g. X'd crossing X_d), the
+    /// one-sided difference from the feasible side is used, so L-BFGS can slide along a
+    /// feasibility boundary instead of seeing the penalty as a cliff; with both sides failing
+    /// the component is 0.
     pub fn gradient_z(&self, z: &[f64]) -> Vec<f64> {
         let n = z.len();
+        let failed = |c: f64| c >= self.problem.penalty;
         let pairs: Vec<(f64, f64)> = (0..n)
             .into_par_iter()
             .map(|i| {
@@ -80,7 +85,16 @@ impl<'a> LocalProblem<'a> {
                 (self.cost_z(&zp), self.cost_z(&zm))
             })
             .collect();
-        pairs.iter().map(|(p, m)| (p - m) / (2.0 * FD_STEP)).collect()
+        let c0 = if pairs.iter().any(|(p, m)| failed(*p) || failed(*m)) { self.cost_z(z) } else { f64::NAN };
+        pairs
+            .iter()
+            .map(|&(p, m)| match (failed(p), failed(m)) {
+                (false, false) => (p - m) / (2.0 * FD_STEP),
+                (true, false) if !failed(c0) => (c0 - m) / FD_STEP,
+                (false, true) if !failed(c0) => (p - c0) / FD_STEP,
+                _ => 0.0,
+            })
+            .collect()
     }
 }
 

@@ -7,6 +7,7 @@
 //! [calibration]
 //! strategy = "sequential"        # "sequential" | "incremental" | "simultaneous-first"
 //! seed = 1
+//! polish = true                  # after several stages, a joint L-BFGS pass over all of them
 //! [calibration.pso]              # optional, defaults shown
 //! particles = 40
 //! iterations = 100
@@ -200,6 +201,13 @@ pub struct CalibSpec {
     pub lbfgs: LbfgsSpec,
     #[serde(default, rename = "stage")]
     pub stages: Vec<StageSpec>,
+    /// After several stages, refine all their parameters together on the full unit.
+    #[serde(default = "default_polish")]
+    pub polish: bool,
+}
+
+fn default_polish() -> bool {
+    true
 }
 
 fn default_strategy() -> Strategy {

@@ -15,10 +15,11 @@ use crate::{bundled, load_event, load_unit, plot, prepare_out, CliError, EXIT_CO
 #[derive(clap::Args, Debug)]
 #[command(after_help = EXIT_CODES)]
 pub struct FitArgs {
-    /// Stage to run: gen (machine, E_fd and P_m held), avr, pss, tg, or all (every stage the
-    /// spec lists, in order, each starting from the previous result).
-    #[arg(long, value_enum, default_value_t = StageArg::All)]
-    stage: StageArg,
+    /// Stage(s) to run: gen (machine, E_fd and P_m held), avr, pss, tg, or all (every stage the
+    /// spec lists). Several stages (`--stage gen,avr,pss`) run in the fixed order gen, avr, pss,
+    /// tg, each starting from the previous result.
+    #[arg(long, value_enum, value_delimiter = ',', num_args = 1.., default_values_t = [StageArg::All])]
+    stage: Vec<StageArg>,
     /// How stages are combined (default: the spec's, else sequential).
     #[arg(long, value_enum)]
     strategy: Option<StrategyArg>,
@@ -62,6 +63,9 @@ pub struct FitArgs {
     /// Do not draw the plots.
     #[arg(long)]
     no_plot: bool,
+    /// Skip the final joint refinement of all stages' parameters on the full unit.
+    #[arg(long)]
+    no_polish: bool,
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -155,12 +159,15 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     if let Some(s) = a.strategy {
         opts.strategy = strategy(s);
     }
-    opts.stages = match a.stage {
-        StageArg::All => opts.stages,
-        s => vec![format!("{s:?}").to_lowercase()],
-    };
+    if !a.stage.contains(&StageArg::All) {
+        let wanted: Vec<String> = a.stage.iter().map(|s| format!("{s:?}").to_lowercase()).collect();
+        opts.stages = itaipu_calib::spec::STAGES.iter().filter(|s| wanted.iter().any(|w| w == *s)).map(|s| s.to_string()).collect();
+    }
     if let Some(s) = a.seed {
         opts.seed = s;
+    }
+    if a.no_polish {
+        opts.polish = false;
     }
     if let Some(n) = a.particles {
         opts.particles = n.max(2);
