@@ -24,6 +24,9 @@ impl TempDir {
     /// Writes `text` to `name` inside the folder and returns its path.
     pub fn write(&self, name: &str, text: &str) -> PathBuf {
         let p = self.0.join(name);
+        if let Some(d) = p.parent() {
+            std::fs::create_dir_all(d).unwrap();
+        }
         std::fs::write(&p, text).unwrap();
         p
     }

@@ -81,10 +81,24 @@ impl FitOptions {
 /// Why a fit could not run.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FitError {
+    /// The spec does not fit the unit (unknown parameter, bad replacement block…).
+    #[error("calibration spec: {0}")]
+    Spec(String),
     #[error("stage {stage}: {msg}")]
     Stage { stage: String, msg: String },
     #[error("{0}")]
     Setup(String),
+}
+
+impl FitError {
+    /// Short stable identifier of the variant (`"spec"`, `"stage"`, `"setup"`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            FitError::Spec(_) => "spec",
+            FitError::Stage { .. } => "stage",
+            FitError::Setup(_) => "setup",
+        }
+    }
 }
 
 /// One parameter's line in a stage report.
@@ -513,6 +527,23 @@ fn run_stage(
     Ok((report, StageOutput { stage: label.to_string(), start_unit, calibrated_unit, traces }, best))
 }
 
+/// Checks, before any simulation, that every `set`, `replace` and `free` entry of the stages to
+/// run resolves in the unit (as the stage will see it) and that the unit initialises.
+pub fn check_spec(unit: &Unit, spec: &CalibSpec, stages: &[String]) -> Result<(), FitError> {
+    let mut u = unit.clone();
+    for s in stages {
+        let st = spec.stage(s).ok_or_else(|| FitError::Spec(format!("stage '{s}' is not in the spec")))?;
+        apply_stage_edits(&mut u, st).map_err(|e| FitError::Spec(e.to_string()))?;
+        let stage_unit = u.without(removed_blocks(s)).map_err(|e| FitError::Spec(format!("stage {s}: {e}")))?;
+        for f in &st.free {
+            stage_unit.param(&f.param).map_err(|e| {
+                FitError::Spec(format!("stage {s}: free parameter {}: {e} (is its block part of this stage?)", f.param))
+            })?;
+        }
+    }
+    Ok(())
+}
+
 /// Calibrates `unit` against `events` following `spec` (stages in `opts.stages`).
 pub fn fit(
     unit: &Unit,
@@ -534,6 +565,7 @@ pub fn fit(
             return Err(FitError::Setup(format!("stage '{s}' is not in the calibration spec")));
         }
     }
+    check_spec(unit, spec, &opts.stages)?;
     let mut master = unit.clone();
     let mut start_fitness = vec![];
     for e in events {

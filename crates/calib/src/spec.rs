@@ -235,6 +235,18 @@ pub enum SpecError {
     Field { path: PathBuf, field: String, msg: String },
 }
 
+impl SpecError {
+    /// Short stable identifier of the variant (`"io"`, `"syntax"`, `"missing"`, `"field"`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            SpecError::Io { .. } => "io",
+            SpecError::Syntax { .. } => "syntax",
+            SpecError::Missing { .. } => "missing",
+            SpecError::Field { .. } => "field",
+        }
+    }
+}
+
 impl CalibSpec {
     /// Reads the `[calibration]` table of a file.
     pub fn from_file(path: &Path) -> Result<CalibSpec, SpecError> {

@@ -208,7 +208,10 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         rayon::current_num_threads()
     );
     let reporter = Reporter::new();
-    let result = fit(&unit, &spec, &events, &held_out, &opts, &reporter).map_err(|e| CliError::new(6, e.to_string()))?;
+    let result = fit(&unit, &spec, &events, &held_out, &opts, &reporter).map_err(|e| {
+        let code = if matches!(e, itaipu_calib::fit::FitError::Spec(_)) { 4 } else { 6 };
+        CliError::new(code, e.to_string())
+    })?;
     if let Some(b) = reporter.bar.lock().expect("progress").take() {
         b.finish();
     }

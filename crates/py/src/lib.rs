@@ -1,9 +1,10 @@
-//! Python bindings for `itaipu-dynamics`: the compiled module `itaipu_calib._core`.
+//! Python bindings for `itaipu-dynamics` and `itaipu-calib`: the compiled module
+//! `itaipu_calib._core`.
 //!
 //! Thin glue only: every computation, check and message lives in the Rust crates. This file
-//! converts arguments, releases the GIL while simulating, turns results into numpy arrays and
-//! dicts, and maps the typed Rust errors onto a small Python exception hierarchy whose messages
-//! are exactly the Rust `Display` text (what the CLI prints after `error: `).
+//! converts arguments, releases the GIL while simulating and fitting, turns results into numpy
+//! arrays and dicts, and maps the typed Rust errors onto a small Python exception hierarchy whose
+//! messages are exactly the Rust `Display` text (what the CLI prints after `error: `).
 //!
 //! The pure-Python package (`python/itaipu_calib/__init__.py`) re-exports everything from here.
 
@@ -11,11 +12,13 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use numpy::PyArray1;
-use pyo3::exceptions::{PyAttributeError, PyException, PyKeyError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyAttributeError, PyException, PyKeyError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use pyo3::{create_exception, PyTypeInfo};
 
+use itaipu_calib::fit::{self as calib_fit, FitError, FitOptions, FitReport, Silent, StageOutput};
+use itaipu_calib::spec::{CalibSpec, SpecError, Strategy, STAGES};
 use itaipu_dynamics::block::Dir;
 use itaipu_dynamics::event::{Event, EventError as RsEventError};
 use itaipu_dynamics::integrate::{Dopri5Options, Method};
@@ -56,12 +59,21 @@ create_exception!(
      event have different nominal frequencies)."
 );
 create_exception!(itaipu_calib, SimulationError, ItaipuError, "The time integration failed.");
+create_exception!(
+    itaipu_calib,
+    CalibrationError,
+    ItaipuError,
+    "Bad calibration spec, or a fit that cannot run (kind: 'io', 'syntax', 'missing' or 'field' \
+     for the spec file; 'spec', 'stage' or 'setup' for the fit)."
+);
 
 /// A failure inside the GIL-free part of a call, converted to a Python exception afterwards.
 enum Failure {
     Event(RsEventError),
     Unit(UnitFileError),
     Sim(SimError),
+    Spec(SpecError),
+    Fit(FitError),
 }
 
 impl From<RsEventError> for Failure {
@@ -77,6 +89,16 @@ impl From<UnitFileError> for Failure {
 impl From<SimError> for Failure {
     fn from(e: SimError) -> Self {
         Failure::Sim(e)
+    }
+}
+impl From<SpecError> for Failure {
+    fn from(e: SpecError) -> Self {
+        Failure::Spec(e)
+    }
+}
+impl From<FitError> for Failure {
+    fn from(e: FitError) -> Self {
+        Failure::Fit(e)
     }
 }
 
@@ -98,6 +120,8 @@ impl Failure {
                 raise::<InitError>(py, e.to_string(), Some(e.kind()))
             }
             Failure::Sim(e @ SimError::Solve(_)) => raise::<SimulationError>(py, e.to_string(), Some(e.kind())),
+            Failure::Spec(e) => raise::<CalibrationError>(py, e.to_string(), Some(e.kind())),
+            Failure::Fit(e) => raise::<CalibrationError>(py, e.to_string(), Some(e.kind())),
         }
     }
 }
@@ -291,6 +315,8 @@ fn load_event(py: Python<'_>, path: PathBuf) -> PyResult<PyEvent> {
 #[pyclass(name = "Unit", module = "itaipu_calib", frozen)]
 struct PyUnit {
     inner: Arc<Unit>,
+    /// The file it was read from (None for a unit made by `fit`).
+    path: Option<PathBuf>,
 }
 
 #[pymethods]
@@ -309,6 +335,11 @@ impl PyUnit {
     #[getter]
     fn machine_mva(&self) -> f64 {
         self.inner.machine_mva
+    }
+    /// The unit file it was read from (pathlib.Path), or None (e.g. `FitResult.unit`).
+    #[getter]
+    fn path(&self) -> Option<PathBuf> {
+        self.path.clone()
     }
     /// Nominal frequency, Hz.
     #[getter]
@@ -361,7 +392,7 @@ impl PyUnit {
 #[pyfunction]
 fn load_unit(py: Python<'_>, path: PathBuf) -> PyResult<PyUnit> {
     py.detach(|| read_unit(&path))
-        .map(|u| PyUnit { inner: Arc::new(u) })
+        .map(|u| PyUnit { inner: Arc::new(u), path: Some(path) })
         .map_err(|e| Failure::from(e).into_pyerr(py))
 }
 
@@ -592,12 +623,15 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("UnitModelError", py.get_type::<UnitModelError>())?;
     m.add("InitError", py.get_type::<InitError>())?;
     m.add("SimulationError", py.get_type::<SimulationError>())?;
+    m.add("CalibrationError", py.get_type::<CalibrationError>())?;
     m.add_class::<PyEvent>()?;
     m.add_class::<PyUnit>()?;
     m.add_class::<PyTraces>()?;
+    m.add_class::<PyFitResult>()?;
     m.add_function(wrap_pyfunction!(load_event, m)?)?;
     m.add_function(wrap_pyfunction!(load_unit, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(models, m)?)?;
     Ok(())
 }
