@@ -1,4 +1,4 @@
-"""Playback simulation of generating-unit models against PMU recordings.
+"""Playback simulation and calibration of generating-unit models against PMU recordings.
 
 ``itaipu_calib`` plays the measured terminal-voltage phasor of an *event* (a PMU recording,
 described by a TOML file that names a CSV) into a *unit* model (machine, exciter, stabiliser,
@@ -22,6 +22,37 @@ Units and conventions
   the nominal frequency; the measured angle is unwrapped.
 * ``v_term``/``v_mag_pu`` is |V| in pu of rated voltage; frequencies are in Hz.
 
+Calibration
+-----------
+:func:`fit` calibrates a unit against one or more events, stage by stage (``gen``: the machine
+with E_fd and P_m held; then ``avr``, ``pss``, ``tg``), each by a particle swarm then L-BFGS,
+exactly as the ``itaipu-calib fit`` command line::
+
+    r = ic.fit("data/itaipu/event.toml", "data/itaipu/unit.toml",
+               calib="data/itaipu/calibration.toml", stages="gen,avr,pss", seed=1)
+    r.stages                    # ['gen', 'avr', 'pss', 'joint']
+    r.fitness                   # [('start', J), ('gen', J), ...]: J = sum(dP^2 + dQ^2)
+    r.parameters("gen")         # {'machine.x_d': ..., ...}: the stage's calibrated values
+    r.unit.to_toml()            # the calibrated full unit
+    start, cal = r.traces("avr")  # Traces before and after the stage (first event)
+    r.report                    # the full report (report.json of the command line) as a dict
+
+* ``calib`` is a file with a ``[calibration]`` table (stages, free parameters and bounds,
+  objectives, optimiser settings); by default the unit file's own table, so a :class:`Unit` that
+  was not read from a file (``FitResult.unit``) needs ``calib``.
+* ``stages`` is ``"all"`` (every stage the spec lists) or some of ``gen``, ``avr``, ``pss``,
+  ``tg`` as a list or a comma-separated string; they always run in that order, each from the
+  previous result. With several stages a final joint L-BFGS pass over all their parameters on
+  the full unit is reported as stage ``joint`` (``polish=False`` skips it).
+* ``strategy``, ``seed``, ``particles``, ``pso_iterations`` and ``lbfgs_iterations`` override
+  the spec. The same seed gives the same numbers on any number of threads.
+* ``held_out`` events are not fitted; their fitness is reported per stage in ``report``.
+* ``FitResult.fitness`` sums J over the fitted events; a stage's row is the fitness of that
+  stage's unit (``gen`` runs without exciter, stabiliser and governor). Non-finite numbers in
+  ``report`` (e.g. the standard error of an undetermined parameter) are ``None``.
+* The GIL is released during the fit (a full fit of the bundled problem takes some tens of
+  seconds; it cannot be interrupted with Ctrl-C).
+
 Errors
 ------
 Every error is an :class:`ItaipuError`; its message is exactly the message of the Rust library
@@ -35,13 +66,19 @@ library defines one:
   the event's nominal frequencies differ (``kind``: ``"init"``, ``"bad_param"``, ``"wiring"``,
   ``"unknown_param"`` or ``"frequency_mismatch"``).
 * :class:`SimulationError`: the integration failed (``kind``: ``"solve"``).
+* :class:`CalibrationError`: bad calibration spec (``kind``: ``"io"``, ``"syntax"``,
+  ``"missing"`` for a file without a ``[calibration]`` table, ``"field"``: bounds upside down, an
+  unknown stage or key...), a spec that does not fit the unit (``"spec"``: e.g. an unknown
+  parameter in ``free``), or a fit that cannot run (``"stage"``, ``"setup"``).
 
 Bad options raise ``ValueError``; arguments of the wrong type ``TypeError``.
 """
 
 from ._core import (
+    CalibrationError,
     Event,
     EventError,
+    FitResult,
     InitError,
     ItaipuError,
     SimulationError,
@@ -49,6 +86,7 @@ from ._core import (
     Unit,
     UnitModelError,
     __version__,
+    fit,
     load_event,
     load_unit,
     models,
@@ -56,8 +94,10 @@ from ._core import (
 )
 
 __all__ = [
+    "CalibrationError",
     "Event",
     "EventError",
+    "FitResult",
     "InitError",
     "ItaipuError",
     "SimulationError",
@@ -65,6 +105,7 @@ __all__ = [
     "Unit",
     "UnitModelError",
     "__version__",
+    "fit",
     "load_event",
     "load_unit",
     "models",

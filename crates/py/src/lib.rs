@@ -565,6 +565,288 @@ fn sim_options(method: &str, rtol: f64, atol: f64, step: f64) -> PyResult<SimOpt
 }
 
 // -------------------------------------------------------------------------------------------
+// Fit
+// -------------------------------------------------------------------------------------------
+
+/// Result of `fit`: the report, the calibrated unit, and per stage its parameters and traces.
+///
+/// `report` is the fit report as a dict (the `report.json` of the command line: a new dict on
+/// each access; non-finite numbers such as an undetermined standard error are None). `unit` is
+/// the calibrated full unit. `stages` lists the stages run, in order (`gen`, `avr`, `pss`, `tg`,
+/// and `joint` for the final joint polish, `simultaneous` first with that strategy).
+/// `parameters(stage)` gives a stage's calibrated free parameters, `fitness` the fitness table of
+/// the command line, `traces(stage)` the start and calibrated traces of a stage.
+#[pyclass(name = "FitResult", module = "itaipu_calib", frozen)]
+struct PyFitResult {
+    report: FitReport,
+    report_json: String,
+    unit: Arc<Unit>,
+    stages: Vec<StageOutput>,
+}
+
+impl PyFitResult {
+    fn unknown_stage(&self, stage: &str) -> PyErr {
+        let names: Vec<&str> = self.stages.iter().map(|s| s.stage.as_str()).collect();
+        PyKeyError::new_err(format!("no stage '{stage}' in this fit (stages: {})", names.join(", ")))
+    }
+
+    /// J = Σ(ΔP² + ΔQ²) summed over the fitted (not held-out) events.
+    fn j_fitted(rows: &[calib_fit::EventFitness]) -> f64 {
+        rows.iter().filter(|f| !f.held_out).map(|f| f.j_pq).sum()
+    }
+}
+
+#[pymethods]
+impl PyFitResult {
+    /// The fit report as a dict (unit, events, held_out, strategy, seed, threads,
+    /// start_fitness, stages: list of stage reports with parameters, objective_before/after,
+    /// fitness, phases, identifiability, ...; wall_s).
+    #[getter]
+    fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        py.import("json")?.call_method1("loads", (&self.report_json,))
+    }
+
+    /// The calibrated full unit (every block, with every stage's results).
+    #[getter]
+    fn unit(&self) -> PyUnit {
+        PyUnit { inner: self.unit.clone(), path: None }
+    }
+
+    /// Names of the stages run, in order.
+    #[getter]
+    fn stages(&self) -> Vec<String> {
+        self.stages.iter().map(|s| s.stage.clone()).collect()
+    }
+
+    /// Calibrated values of the free parameters of `stage`: `{"block.name": value}` in the
+    /// spec's order. Raises KeyError for a stage that did not run.
+    fn parameters<'py>(&self, py: Python<'py>, stage: &str) -> PyResult<Bound<'py, PyDict>> {
+        let rep = self.report.stages.iter().find(|s| s.stage == stage).ok_or_else(|| self.unknown_stage(stage))?;
+        let d = PyDict::new(py);
+        for p in &rep.parameters {
+            d.set_item(&p.param, p.result)?;
+        }
+        Ok(d)
+    }
+
+    /// The fitness table of the command line: `[("start", J), (stage, J), ...]` with
+    /// J = Σ(ΔP² + ΔQ²) over the fit window on the system base (RaPId's J), summed over the
+    /// fitted events (per-event and held-out values are in `report`).
+    #[getter]
+    fn fitness(&self) -> Vec<(String, f64)> {
+        let mut rows = vec![("start".to_string(), Self::j_fitted(&self.report.start_fitness))];
+        rows.extend(self.report.stages.iter().map(|s| (s.stage.clone(), Self::j_fitted(&s.fitness))));
+        rows
+    }
+
+    /// `(start, calibrated)`: Traces of the stage's unit before and after the stage, on the
+    /// first fitted event or on the event named `event`. Raises KeyError for an unknown stage or
+    /// event.
+    #[pyo3(signature = (stage, event = None))]
+    fn traces(&self, stage: &str, event: Option<&str>) -> PyResult<(PyTraces, PyTraces)> {
+        let st = self.stages.iter().find(|s| s.stage == stage).ok_or_else(|| self.unknown_stage(stage))?;
+        let found = match event {
+            None => st.traces.first(),
+            Some(name) => st.traces.iter().find(|(e, _, _)| e == name),
+        };
+        let (_, start, end) = found.ok_or_else(|| {
+            let names: Vec<&str> = st.traces.iter().map(|(e, _, _)| e.as_str()).collect();
+            PyKeyError::new_err(format!("no event '{}' in this fit (events: {})", event.unwrap_or(""), names.join(", ")))
+        })?;
+        Ok((PyTraces { inner: start.clone() }, PyTraces { inner: end.clone() }))
+    }
+
+    fn __repr__(&self) -> String {
+        let r = &self.report;
+        let rows = self.fitness();
+        let (j0, j1) = (rows.first().map_or(f64::NAN, |r| r.1), rows.last().map_or(f64::NAN, |r| r.1));
+        format!(
+            "<FitResult '{}' on {}: stages {}, J {:.5} -> {:.5}, {:.1} s>",
+            r.unit,
+            r.events.join(", "),
+            self.stages().join(" -> "),
+            j0,
+            j1,
+            r.wall_s
+        )
+    }
+}
+
+/// Events from a path, an Event, or an iterable of them.
+fn event_sources(arg: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Source<Event>>> {
+    if arg.downcast::<PyEvent>().is_ok() || arg.extract::<PathBuf>().is_ok() {
+        return Ok(vec![source::<PyEvent, _>(arg, what, |e| e.inner.clone())?]);
+    }
+    match arg.try_iter() {
+        Ok(items) => items
+            .enumerate()
+            .map(|(k, item)| source::<PyEvent, _>(&item?, &format!("{what}[{k}]"), |e| e.inner.clone()))
+            .collect(),
+        Err(_) => {
+            let ty = arg.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".into());
+            Err(PyTypeError::new_err(format!(
+                "{what} must be a path (str or os.PathLike), an Event object, or a list of them, not {ty}"
+            )))
+        }
+    }
+}
+
+/// The stages to run from the `stages` argument, as the command line's `--stage`: "all" (None:
+/// every stage the spec lists) or names among gen, avr, pss, tg (a list, or one string with
+/// commas), run in that fixed order.
+fn stage_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Vec<String>>> {
+    let Some(arg) = arg else { return Ok(None) };
+    let given: Vec<String> = if let Ok(s) = arg.extract::<String>() {
+        vec![s]
+    } else {
+        arg.extract::<Vec<String>>().map_err(|_| {
+            PyTypeError::new_err("stages must be 'all', a stage name, a comma-separated string or a list of stage names")
+        })?
+    };
+    let names: Vec<String> = given.iter().flat_map(|s| s.split(',')).map(|s| s.trim().to_ascii_lowercase()).collect();
+    if names.is_empty() {
+        return Err(PyValueError::new_err("stages must name at least one stage (gen, avr, pss, tg) or be 'all'"));
+    }
+    if let Some(bad) = names.iter().find(|n| *n != "all" && !STAGES.contains(&n.as_str())) {
+        return Err(PyValueError::new_err(format!("stages: unknown stage '{bad}' (gen, avr, pss, tg or all)")));
+    }
+    if names.iter().any(|n| n == "all") {
+        return Ok(None);
+    }
+    Ok(Some(STAGES.iter().filter(|s| names.iter().any(|n| n == *s)).map(|s| s.to_string()).collect()))
+}
+
+fn strategy(s: &str) -> PyResult<Strategy> {
+    match s.to_ascii_lowercase().as_str() {
+        "sequential" => Ok(Strategy::Sequential),
+        "incremental" => Ok(Strategy::Incremental),
+        "simultaneous-first" => Ok(Strategy::SimultaneousFirst),
+        _ => Err(PyValueError::new_err(format!(
+            "strategy must be 'sequential', 'incremental' or 'simultaneous-first' (got '{s}')"
+        ))),
+    }
+}
+
+/// The events of `Source`s, read from file where needed.
+fn load_events(sources: Vec<Source<Event>>) -> Result<Vec<Event>, Failure> {
+    sources
+        .into_iter()
+        .map(|s| match s {
+            Source::Loaded(e) => Ok(Arc::unwrap_or_clone(e)),
+            Source::Path(p) => Ok(Event::from_toml_file(&p)?),
+        })
+        .collect()
+}
+
+/// Calibrates `unit` against `events`, stage by stage (particle swarm, then L-BFGS), as the
+/// command line's `fit`.
+///
+/// `events` (and `held_out`) are paths to event files or Event objects, or lists of them; the
+/// objective sums over `events`, `held_out` events are only scored. `unit` is a path or a Unit.
+/// `calib` is a file with a `[calibration]` table; by default the unit file's own (a Unit that
+/// was not read from a file then needs `calib`). `stages` is "all" (every stage the spec lists)
+/// or some of gen, avr, pss, tg (a list or a comma-separated string), run in that order.
+/// `strategy` ('sequential', 'incremental', 'simultaneous-first'), `seed`, `particles`,
+/// `pso_iterations` and `lbfgs_iterations` override the spec; `polish=False` skips the final
+/// joint refinement ('joint') after several stages. Same seed, same numbers. The GIL is
+/// released while files are read and the fit runs.
+///
+/// Raises CalibrationError (bad spec, or a fit that cannot run), EventError, UnitModelError
+/// (and ValueError for bad options, TypeError for bad argument types).
+#[pyfunction]
+#[pyo3(
+    signature = (events, unit, *, calib = None, stages = None, strategy = None, seed = None, particles = None,
+                 pso_iterations = None, lbfgs_iterations = None, polish = true, held_out = None),
+    text_signature = "(events, unit, *, calib=None, stages='all', strategy=None, seed=None, particles=None, \
+                      pso_iterations=None, lbfgs_iterations=None, polish=True, held_out=())"
+)]
+#[allow(clippy::too_many_arguments)]
+fn fit(
+    py: Python<'_>,
+    events: &Bound<'_, PyAny>,
+    unit: &Bound<'_, PyAny>,
+    calib: Option<PathBuf>,
+    stages: Option<&Bound<'_, PyAny>>,
+    strategy: Option<&str>,
+    seed: Option<u64>,
+    particles: Option<usize>,
+    pso_iterations: Option<usize>,
+    lbfgs_iterations: Option<u64>,
+    polish: bool,
+    held_out: Option<&Bound<'_, PyAny>>,
+) -> PyResult<PyFitResult> {
+    let events = event_sources(events, "events")?;
+    let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
+    let held_out = match held_out {
+        Some(h) => event_sources(h, "held_out")?,
+        None => vec![],
+    };
+    let calib = match calib {
+        Some(p) => p,
+        None => match &unit_src {
+            Source::Path(p) => p.clone(),
+            Source::Loaded(_) => unit.downcast::<PyUnit>()?.get().path.clone().ok_or_else(|| {
+                PyValueError::new_err(
+                    "calib is required: unit is a Unit that was not read from a file (e.g. FitResult.unit), \
+                     so it has no [calibration] table; pass calib=<file with a [calibration] table>",
+                )
+            })?,
+        },
+    };
+    let stages = stage_list(stages)?;
+    let strategy = strategy.map(self::strategy).transpose()?;
+    if let Some(n) = particles {
+        if n < 2 {
+            return Err(PyValueError::new_err(format!("particles must be at least 2 (got {n})")));
+        }
+    }
+    let result = py.detach(move || -> Result<calib_fit::FitResult, Failure> {
+        let unit = match unit_src {
+            Source::Loaded(u) => u,
+            Source::Path(p) => Arc::new(read_unit(&p)?),
+        };
+        let spec = CalibSpec::from_file(&calib)?;
+        let events = load_events(events)?;
+        let held_out = load_events(held_out)?;
+        let mut opts = FitOptions::from_spec(&spec);
+        if let Some(s) = strategy {
+            opts.strategy = s;
+        }
+        if let Some(s) = stages {
+            opts.stages = s;
+        }
+        if let Some(s) = seed {
+            opts.seed = s;
+        }
+        if !polish {
+            opts.polish = false;
+        }
+        if let Some(n) = particles {
+            opts.particles = n;
+        }
+        if let Some(n) = pso_iterations {
+            opts.pso_iterations = n;
+        }
+        if let Some(n) = lbfgs_iterations {
+            opts.lbfgs_iterations = n;
+        }
+        let mut result = calib_fit::fit(&unit, &spec, &events, &held_out, &opts, &Silent)?;
+        // As the command line's calibrated.toml.
+        result.unit.description = format!(
+            "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
+            unit.description,
+            opts.stages.join("+"),
+            opts.seed
+        );
+        Ok(result)
+    });
+    let result = result.map_err(|e| e.into_pyerr(py))?;
+    let report_json =
+        serde_json::to_string(&result.report).map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
+    Ok(PyFitResult { report: result.report, report_json, unit: Arc::new(result.unit), stages: result.stages })
+}
+
+// -------------------------------------------------------------------------------------------
 // Model library
 // -------------------------------------------------------------------------------------------
 

@@ -1,0 +1,48 @@
+//! Calibration benchmarks (divan): `cargo bench -p itaipu-calib`.
+//!
+//! * `itaipu_fit_gen_avr_pss`: the whole bundled fit (RaPId's 18-parameter problem: generator,
+//!   AVR and PSS stages, then the joint refinement) on the Itaipu record, all threads;
+//! * `itaipu_gen_swarm`: the generator stage's swarm alone (40 particles, 10 iterations,
+//!   440 objective evaluations) in a pool of 1 and of 2 threads, for the parallel speed-up.
+
+use std::path::PathBuf;
+
+use divan::Bencher;
+use itaipu_calib::fit::{fit, FitOptions, Silent};
+use itaipu_calib::spec::CalibSpec;
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::unit::Unit;
+use itaipu_dynamics::unit_file::read_unit;
+
+fn main() {
+    divan::main();
+}
+
+fn inputs() -> (Unit, Event, CalibSpec) {
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/itaipu");
+    (
+        read_unit(&data.join("unit.toml")).unwrap(),
+        Event::from_toml_file(&data.join("event.toml")).unwrap(),
+        CalibSpec::from_file(&data.join("calibration.toml")).unwrap(),
+    )
+}
+
+#[divan::bench(sample_count = 1, sample_size = 1)]
+fn itaipu_fit_gen_avr_pss(bencher: Bencher) {
+    let (unit, event, spec) = inputs();
+    let mut opts = FitOptions::from_spec(&spec);
+    opts.stages = vec!["gen".into(), "avr".into(), "pss".into()];
+    bencher.bench_local(|| fit(&unit, &spec, std::slice::from_ref(&event), &[], &opts, &Silent).unwrap());
+}
+
+#[divan::bench(args = [1, 2], sample_count = 3, sample_size = 1)]
+fn itaipu_gen_swarm(bencher: Bencher, threads: usize) {
+    let (unit, event, spec) = inputs();
+    let mut opts = FitOptions::from_spec(&spec);
+    opts.stages = vec!["gen".into()];
+    opts.pso_iterations = 10;
+    opts.lbfgs_iterations = 0;
+    opts.polish = false;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    bencher.bench_local(|| pool.install(|| fit(&unit, &spec, std::slice::from_ref(&event), &[], &opts, &Silent).unwrap()));
+}
