@@ -53,6 +53,9 @@ pub struct Sexs {
     pub p: SexsParams,
     v_ref: f64,
     limit: NonWindup,
+    /// 1/T_B and 1/T_E (refreshed at initialisation).
+    inv_tb: f64,
+    inv_te: f64,
 }
 
 impl Sexs {
@@ -78,7 +81,7 @@ impl Sexs {
     /// Unconstrained `dx_e/dt`.
     #[inline(always)]
     fn exciter_rate(&self, x: &[f64], io: &Io) -> f64 {
-        (self.p.k * self.lead_lag(x, io).1 - x[1]) / self.p.te
+        (self.p.k * self.lead_lag(x, io).1 - x[1]) * self.inv_te
     }
 }
 
@@ -117,6 +120,8 @@ impl Block for Sexs {
         x[0] = efd0 / self.p.k;
         self.v_ref = io.get(port::V_TERM) - io.get(port::VS) - io.get(port::VOEL) - io.get(port::VUEL) + efd0 / self.p.k;
         self.limit = NonWindup::default();
+        self.inv_tb = 1.0 / self.p.tb;
+        self.inv_te = 1.0 / self.p.te;
         Ok(())
     }
 
@@ -128,8 +133,8 @@ impl Block for Sexs {
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
         let (v_err, y_ll) = self.lead_lag(x, io);
-        dx[0] = (v_err - x[0]) / self.p.tb;
-        dx[1] = self.limit.derivative((self.p.k * y_ll - x[1]) / self.p.te);
+        dx[0] = (v_err - x[0]) * self.inv_tb;
+        dx[1] = self.limit.derivative((self.p.k * y_ll - x[1]) * self.inv_te);
     }
 
     fn n_events(&self) -> usize {

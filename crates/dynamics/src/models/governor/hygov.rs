@@ -56,6 +56,8 @@ pub struct Hygov {
     pub p: HygovParams,
     n_ref: f64,
     gate_limit: NonWindup,
+    /// 1/T_f, 1/(r T_r), 1/r, 1/T_g, 1/T_w (refreshed at initialisation).
+    inv: [f64; 5],
 }
 
 impl Hygov {
@@ -67,8 +69,9 @@ impl Hygov {
     #[inline(always)]
     fn rates(&self, x: &[f64], speed: f64) -> (f64, f64) {
         let p = &self.p;
-        let de = (self.n_ref + p.n_ref_offset - speed - p.r_perm * x[1] - x[0]) / p.t_f;
-        let v = x[0] / (p.r_temp * p.t_r) + de / p.r_temp;
+        let [inv_tf, inv_rtr, inv_r, _, _] = self.inv;
+        let de = (self.n_ref + p.n_ref_offset - speed - p.r_perm * x[1] - x[0]) * inv_tf;
+        let v = x[0] * inv_rtr + de * inv_r;
         (de, clamp(v, -p.velm, p.velm))
     }
 
@@ -126,6 +129,7 @@ impl Block for Hygov {
         x[2] = q0;
         x[3] = q0;
         self.n_ref = p.r_perm * q0 + w0;
+        self.inv = [1.0 / p.t_f, 1.0 / (p.r_temp * p.t_r), 1.0 / p.r_temp, 1.0 / p.t_g, 1.0 / p.t_w];
         self.gate_limit = NonWindup::default();
         Ok(())
     }
@@ -139,12 +143,11 @@ impl Block for Hygov {
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        let p = &self.p;
         let (de, dc) = self.rates(x, io.get(port::SPEED));
         dx[0] = de;
         dx[1] = self.gate_limit.derivative(dc);
-        dx[2] = (x[1] - x[2]) / p.t_g;
-        dx[3] = (1.0 - Self::head(x[3], x[2])) / p.t_w;
+        dx[2] = (x[1] - x[2]) * self.inv[3];
+        dx[3] = (1.0 - Self::head(x[3], x[2])) * self.inv[4];
     }
 
     fn n_events(&self) -> usize {
