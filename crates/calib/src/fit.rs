@@ -13,6 +13,7 @@ use itaipu_dynamics::event::Event;
 use itaipu_dynamics::registry;
 use itaipu_dynamics::simulate::{simulate_prepared, SimOptions, Traces};
 use itaipu_dynamics::unit::Unit;
+use itaipu_dynamics::unit_file;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -242,42 +243,34 @@ fn apply_stage_edits(master: &mut Unit, spec: &StageSpec) -> Result<(), FitError
     Ok(())
 }
 
-/// Builds a block from a unit-file-style table (`model = "…"` and every parameter).
+/// Builds a replacement block from a unit-file table (the unit-file parser's own function).
 fn build_block(section: &str, table: &toml::Table) -> Result<Box<dyn itaipu_dynamics::block::Block>, String> {
     let model = table.get("model").and_then(|v| v.as_str()).ok_or_else(|| format!("replace.{section}: needs model = \"...\""))?;
     let info = registry::find(model).ok_or_else(|| format!("replace.{section}: unknown model '{model}' (known: {})", registry::names()))?;
-    let mut block = info.create();
-    let mut given = vec![false; block.params().specs().len()];
-    for (k, v) in table {
-        if k == "model" {
-            continue;
-        }
-        let x = match v {
-            toml::Value::Float(f) => *f,
-            toml::Value::Integer(i) => *i as f64,
-            toml::Value::String(s) => {
-                block.set_option(k, s).map_err(|e| format!("replace.{section}.{k}: {e}"))?;
-                continue;
-            }
-            _ => return Err(format!("replace.{section}.{k}: must be a number")),
-        };
-        let idx = block.params().index_of(k).ok_or_else(|| format!("replace.{section}.{k}: unknown parameter of {model}"))?;
-        block.params_mut().set(idx, x);
-        given[idx] = true;
-    }
-    let missing: Vec<&str> = block
-        .params()
-        .specs()
-        .iter()
-        .zip(&given)
-        .filter(|(s, g)| !**g && !s.name.ends_with("_offset"))
-        .map(|(s, _)| s.name)
-        .collect();
-    if !missing.is_empty() {
-        return Err(format!("replace.{section}: {model} needs {}", missing.join(", ")));
-    }
-    block.validate().map_err(|e| format!("replace.{section}: {e}"))?;
+    let (block, _) = unit_file::build_block(info, &format!("replace.{section}"), table).map_err(|(f, m)| format!("{f}: {m}"))?;
     Ok(block)
+}
+
+/// A stage spec combining the free parameters of `stages` (for the simultaneous and joint
+/// passes), objective P+Q.
+fn combined_stage(name: &str, spec: &CalibSpec, stages: &[String]) -> StageSpec {
+    let mut all = StageSpec {
+        name: name.into(),
+        objective: Objective::Pq,
+        weights: Weights::default(),
+        window: None,
+        lowpass_hz: None,
+        set: Default::default(),
+        free: vec![],
+        replace: Default::default(),
+    };
+    for s in stages {
+        let st = spec.stage(s).expect("stages are checked against the spec");
+        all.free.extend(st.free.iter().cloned());
+        all.window = all.window.or(st.window);
+        all.lowpass_hz = all.lowpass_hz.or(st.lowpass_hz);
+    }
+    all
 }
 
 /// Resolves a stage's free parameters in `unit`.
@@ -382,6 +375,16 @@ fn jacobian(problem: &Problem, x: &[f64]) -> Option<Vec<Vec<f64>>> {
     Some((0..rows).map(|k| cols.iter().map(|c| c[k]).collect()).collect())
 }
 
+/// Identifiability results in parameter names.
+struct Ident {
+    std_errors: Vec<f64>,
+    correlation: Vec<Vec<f64>>,
+    pairs: Vec<(String, String, f64)>,
+    unidentified: Vec<String>,
+    sigma2: f64,
+    condition: f64,
+}
+
 /// Runs a stage (or the simultaneous pass) on `unit` with `free` parameters.
 #[allow(clippy::too_many_arguments)]
 fn run_stage(
@@ -438,17 +441,25 @@ fn run_stage(
     // Identifiability at the optimum.
     let ident = jacobian(&problem, &best).map(|j| identify::analyse(&j, objective_after, CORRELATION_LIMIT));
     let n = problem.dim();
-    let (std_errors, correlation, pairs, unidentified, sigma2, cond): (Vec<f64>, Vec<Vec<f64>>, Vec<(String, String, f64)>, Vec<String>, f64, f64) = match &ident {
-        Some(id) => (
-            id.std_errors.clone(),
-            id.correlation.clone(),
-            id.correlated_pairs.iter().map(|&(i, j, r)| (problem.free[i].path.clone(), problem.free[j].path.clone(), r)).collect(),
-            id.unidentified.iter().map(|&i| problem.free[i].path.clone()).collect(),
-            id.sigma2,
-            id.condition,
-        ),
-        None => (vec![f64::NAN; n], vec![vec![f64::NAN; n]; n], vec![], vec![], f64::NAN, f64::NAN),
+    let id = match &ident {
+        Some(id) => Ident {
+            std_errors: id.std_errors.clone(),
+            correlation: id.correlation.clone(),
+            pairs: id.correlated_pairs.iter().map(|&(i, j, r)| (problem.free[i].path.clone(), problem.free[j].path.clone(), r)).collect(),
+            unidentified: id.unidentified.iter().map(|&i| problem.free[i].path.clone()).collect(),
+            sigma2: id.sigma2,
+            condition: id.condition,
+        },
+        None => Ident {
+            std_errors: vec![f64::NAN; n],
+            correlation: vec![vec![f64::NAN; n]; n],
+            pairs: vec![],
+            unidentified: vec![],
+            sigma2: f64::NAN,
+            condition: f64::NAN,
+        },
     };
+    let Ident { std_errors, correlation, pairs, unidentified, sigma2, condition: cond } = id;
     let parameters = problem
         .free
         .iter()
@@ -585,22 +596,7 @@ pub fn fit(
         for s in &opts.stages {
             apply_stage_edits(&mut full, spec.stage(s).expect("checked"))?;
         }
-        let mut all = StageSpec {
-            name: "all".into(),
-            objective: Objective::Pq,
-            weights: Weights::default(),
-            window: None,
-            lowpass_hz: None,
-            set: Default::default(),
-            free: vec![],
-            replace: Default::default(),
-        };
-        for s in &opts.stages {
-            let st = spec.stage(s).expect("checked");
-            all.free.extend(st.free.iter().cloned());
-            all.window = all.window.or(st.window);
-            all.lowpass_hz = all.lowpass_hz.or(st.lowpass_hz);
-        }
+        let all = combined_stage("all", spec, &opts.stages);
         let free = free_params(&full, &all)?;
         let (rep, out, best) = run_stage("all", "simultaneous", full.clone(), free.clone(), &all, events, held_out, opts, progress, true)?;
         // The full unit (with every stage's replacements) carries on with the joint result.
@@ -628,21 +624,8 @@ pub fn fit(
 
     if opts.polish && opts.stages.len() > 1 {
         // Joint refinement of everything the stages freed, on the full unit.
-        let mut joint = StageSpec {
-            name: "joint".into(),
-            objective: Objective::Pq,
-            weights: Weights::default(),
-            window: None,
-            lowpass_hz: None,
-            set: Default::default(),
-            free: vec![],
-            replace: Default::default(),
-        };
-        for s in &opts.stages {
-            let st = spec.stage(s).expect("checked");
-            joint.free.extend(st.free.iter().cloned());
-            joint.window = joint.window.or(st.window);
-        }
+        let mut joint = combined_stage("joint", spec, &opts.stages);
+        joint.lowpass_hz = None;
         let full = master.clone();
         let free = free_params(&full, &joint)?;
         // Start from the current values, not the spec's starting values.

@@ -621,7 +621,7 @@ mod tests {
                 2 => -1.0,
                 3 => 1e200 * rng.normal(),
                 4 => 1e-200 * rng.normal(),
-                5 if rng.next_u64() % 20 == 0 => f64::NAN,
+                5 if rng.next_u64().is_multiple_of(20) => f64::NAN,
                 _ => rng.normal(),
             }
         };
@@ -631,7 +631,7 @@ mod tests {
             let mut jac: Vec<Vec<f64>> = (0..n)
                 .map(|_| (0..p).map(|_| pick(&mut rng)).collect())
                 .collect();
-            if p > 1 && n > 0 && rng.next_u64() % 3 == 0 {
+            if p > 1 && n > 0 && rng.next_u64().is_multiple_of(3) {
                 // Duplicate (possibly scaled) column.
                 let f = pick(&mut rng);
                 for row in &mut jac {

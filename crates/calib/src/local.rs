@@ -33,7 +33,7 @@ pub fn smallest_time_constant(unit: &Unit) -> f64 {
 /// The fixed-step integrator for the local phase, starting at physical values `x`.
 pub fn gradient_integrator(problem: &Problem, x: &[f64]) -> SimOptions {
     let tau = smallest_time_constant(&problem.unit_at(x));
-    let h = (0.5 * tau).min(2e-3).max(5e-5);
+    let h = (0.5 * tau).clamp(5e-5, 2e-3);
     SimOptions { method: Method::Rk4 { h } }
 }
 

@@ -118,7 +118,7 @@ impl Progress for Reporter {
         if let Some(b) = self.bar.lock().expect("progress").as_ref() {
             b.set_position(i);
             b.set_message(format!("{best:.5}"));
-        } else if i % 10 == 0 {
+        } else if i.is_multiple_of(10) {
             eprintln!("    iteration {i}: best objective {best:.5}");
         }
     }

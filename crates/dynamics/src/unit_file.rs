@@ -172,6 +172,21 @@ fn add_block(unit: &mut Unit, name: &str, ctx: &str, t: &toml::Table, path: &Pat
     if expected_role.is_none() && info.role == Role::Machine {
         return Err(field(format!("{ctx}.model"), "a machine goes in the [machine] section".into()));
     }
+    let (block, rewire) = build_block(info, ctx, t).map_err(|(f, msg)| field(f, msg))?;
+    unit.add(name, block, &rewire).map_err(|e| UnitFileError::Unit { path: path.into(), source: e })
+}
+
+/// A block built from a table, with its `(port, signal)` rewiring.
+pub type BuiltBlock = (Box<dyn crate::block::Block>, Vec<(String, String)>);
+
+/// Builds a block of model `info` from a unit-file table: every parameter (nuisance offsets
+/// default to 0), word options, and `wiring`. Errors are `(field, message)`, the field prefixed
+/// with `ctx`. Used for unit files and for the calibrator's replacement blocks alike.
+pub fn build_block(
+    info: &registry::ModelInfo,
+    ctx: &str,
+    t: &toml::Table,
+) -> Result<BuiltBlock, (String, String)> {
     let mut block = info.create();
     let mut given = vec![false; block.params().specs().len()];
     let mut rewire = vec![];
@@ -180,25 +195,25 @@ fn add_block(unit: &mut Unit, name: &str, ctx: &str, t: &toml::Table, path: &Pat
         match key.as_str() {
             "model" | "name" => {}
             "wiring" => {
-                let w = value.as_table().ok_or_else(|| field(f.clone(), "must be a table { port = \"signal\" }".into()))?;
+                let w = value.as_table().ok_or_else(|| (f.clone(), "must be a table { port = \"signal\" }".to_string()))?;
                 for (port, sig) in w {
-                    let s = sig.as_str().ok_or_else(|| field(format!("{f}.{port}"), "must be a signal name".into()))?;
+                    let s = sig.as_str().ok_or_else(|| (format!("{f}.{port}"), "must be a signal name".to_string()))?;
                     rewire.push((port.clone(), s.to_string()));
                 }
             }
             _ => match value {
-                toml::Value::String(s) => block.set_option(key, s).map_err(|e| field(f.clone(), e.to_string()))?,
+                toml::Value::String(s) => block.set_option(key, s).map_err(|e| (f.clone(), e.to_string()))?,
                 v => {
-                    let x = as_f64(v).ok_or_else(|| field(f.clone(), "must be a number".into()))?;
+                    let x = as_f64(v).ok_or_else(|| (f.clone(), "must be a number".to_string()))?;
                     let idx = block.params().index_of(key).ok_or_else(|| {
                         let names: Vec<_> = block.params().specs().iter().map(|s| s.name).collect();
-                        field(f.clone(), format!("unknown parameter of {} (parameters: {})", info.name, names.join(", ")))
+                        (f.clone(), format!("unknown parameter of {} (parameters: {})", info.name, names.join(", ")))
                     })?;
                     if given[idx] {
-                        return Err(field(f.clone(), "given twice (by name and by alias?)".into()));
+                        return Err((f.clone(), "given twice (by name and by alias?)".to_string()));
                     }
                     if !x.is_finite() {
-                        return Err(field(f.clone(), format!("must be finite (got {x})")));
+                        return Err((f.clone(), format!("must be finite (got {x})")));
                     }
                     block.params_mut().set(idx, x);
                     given[idx] = true;
@@ -214,10 +229,10 @@ fn add_block(unit: &mut Unit, name: &str, ctx: &str, t: &toml::Table, path: &Pat
         .map(|(s, _)| format!("{} ({}, {} [{}])", s.name, s.alias, s.doc, s.unit))
         .collect();
     if !missing.is_empty() {
-        return Err(field(ctx.to_string(), format!("{} needs these parameters: {}", info.name, missing.join("; "))));
+        return Err((ctx.to_string(), format!("{} needs these parameters: {}", info.name, missing.join("; "))));
     }
-    block.validate().map_err(|e| field(ctx.to_string(), format!("{}: {e}", info.name)))?;
-    unit.add(name, block, &rewire).map_err(|e| UnitFileError::Unit { path: path.into(), source: e })
+    block.validate().map_err(|e| (ctx.to_string(), format!("{}: {e}", info.name)))?;
+    Ok((block, rewire))
 }
 
 /// Writes a unit as a unit file (every parameter, with its unit and meaning as a comment).

@@ -18,7 +18,7 @@
 //! (E'_d decays to 0), which is how ANDES represents a salient-pole unit.
 
 use super::saturation::QuadraticSaturation;
-use super::{check_d_axis, StatorImpedance, norm2, Electrical, ElectricalInit, Field, Phasor, Stator};
+use super::{check_d_axis, DAxis, StatorImpedance, norm2, Electrical, ElectricalInit, Field, Phasor, Stator};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -47,9 +47,7 @@ param_set! {
 #[derive(Debug, Clone, Copy, Default)]
 struct Consts {
     z: StatorImpedance,
-    k1d: f64,
-    k3d: f64,
-    k4d: f64,
+    d: DAxis,
     k1q: f64,
     k3q: f64,
     k4q: f64,
@@ -71,7 +69,7 @@ impl Genrou {
     #[inline(always)]
     fn subtransient(&self, x: &[f64]) -> (f64, f64) {
         let k = &self.k;
-        (k.k3q * x[1] + k.k4q * x[3], k.k3d * x[0] + k.k4d * x[2])
+        (k.k3q * x[1] + k.k4q * x[3], k.d.k3d * x[0] + k.d.k4d * x[2])
     }
 }
 
@@ -106,13 +104,10 @@ impl Electrical for Genrou {
 
     fn prepare(&mut self) -> Result<(), ModelError> {
         let p = &self.p;
-        let xdl = p.x_d_prime - p.x_l;
         let xql = p.x_q_prime - p.x_l;
         self.k = Consts {
             z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_d_pp),
-            k1d: (p.x_d_prime - p.x_d_pp) * (p.x_d - p.x_d_prime) / (xdl * xdl),
-            k3d: (p.x_d_pp - p.x_l) / xdl,
-            k4d: (p.x_d_prime - p.x_d_pp) / xdl,
+            d: DAxis::new(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l),
             k1q: (p.x_q_prime - p.x_d_pp) * (p.x_q - p.x_q_prime) / (xql * xql),
             k3q: (p.x_d_pp - p.x_l) / xql,
             k4q: (p.x_q_prime - p.x_d_pp) / xql,
@@ -162,7 +157,7 @@ impl Electrical for Genrou {
         let (e_d_pp, e_q_pp) = self.subtransient(x);
         let se = k.sat.eval(norm2(e_q_pp, e_d_pp));
         let xadifd =
-            x[0] + k.k1d * (x[0] - x[2] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + se * e_q_pp;
+            x[0] + k.d.k1d * (x[0] - x[2] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + se * e_q_pp;
         Field { xadifd, sat: se }
     }
 

@@ -18,7 +18,7 @@
 //! X''q ≠ X''d (where OpenIPSL itself starts slightly off steady state).
 
 use super::saturation::ExponentialSaturation;
-use super::{check_d_axis, StatorImpedance, norm2, Electrical, ElectricalInit, Field, Phasor, Stator};
+use super::{check_d_axis, DAxis, StatorImpedance, norm2, Electrical, ElectricalInit, Field, Phasor, Stator};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -49,9 +49,7 @@ struct Consts {
     inv_t_d0_prime: f64,
     inv_t_d0_pp: f64,
     inv_t_q0_pp: f64,
-    k1d: f64,
-    k3d: f64,
-    k4d: f64,
+    d: DAxis,
     gamma: f64,
     sat: ExponentialSaturation,
 }
@@ -110,15 +108,12 @@ impl Electrical for Gensae {
 
     fn prepare(&mut self) -> Result<(), ModelError> {
         let p = &self.p;
-        let xdl = p.x_d_prime - p.x_l;
         self.k = Consts {
             z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_q_pp),
             inv_t_d0_prime: 1.0 / p.t_d0_prime,
             inv_t_d0_pp: 1.0 / p.t_d0_pp,
             inv_t_q0_pp: 1.0 / p.t_q0_pp,
-            k1d: (p.x_d_prime - p.x_d_pp) * (p.x_d - p.x_d_prime) / (xdl * xdl),
-            k3d: (p.x_d_pp - p.x_l) / xdl,
-            k4d: (p.x_d_prime - p.x_d_pp) / xdl,
+            d: DAxis::new(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l),
             gamma: (p.x_q - p.x_l) / (p.x_d - p.x_l),
             sat: ExponentialSaturation::new(p.s10, p.s12)?,
         };
@@ -175,17 +170,17 @@ impl Electrical for Gensae {
 
     #[inline(always)]
     fn stator(&self, x: &[f64], vd: f64, vq: f64) -> Stator {
-        let e_q_pp = self.k.k3d * x[0] + self.k.k4d * x[1];
+        let e_q_pp = self.k.d.k3d * x[0] + self.k.d.k4d * x[1];
         Stator::solve(x[2], e_q_pp, vd, vq, &self.k.z)
     }
 
     #[inline(always)]
     fn field(&self, x: &[f64], st: &Stator) -> Field {
         let (p, k) = (&self.p, &self.k);
-        let e_q_pp = k.k3d * x[0] + k.k4d * x[1];
+        let e_q_pp = k.d.k3d * x[0] + k.d.k4d * x[1];
         let se = k.sat.eval(norm2(e_q_pp, x[2]));
         let xadifd =
-            x[0] + k.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + se * e_q_pp;
+            x[0] + k.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + se * e_q_pp;
         Field { xadifd, sat: se }
     }
 

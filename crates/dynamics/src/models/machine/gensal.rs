@@ -16,7 +16,7 @@
 //! closed form and `E_fd0 = (1 + Se(E'_q0)) E'_q0 + (Xd − X'd) i_d0`.
 
 use super::saturation::QuadraticSaturation;
-use super::{check_d_axis, StatorImpedance, Electrical, ElectricalInit, Field, Phasor, Stator};
+use super::{check_d_axis, DAxis, StatorImpedance, Electrical, ElectricalInit, Field, Phasor, Stator};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -47,9 +47,7 @@ struct Consts {
     inv_t_d0_prime: f64,
     inv_t_d0_pp: f64,
     inv_t_q0_pp: f64,
-    k1d: f64,
-    k3d: f64,
-    k4d: f64,
+    d: DAxis,
     sat: QuadraticSaturation,
 }
 
@@ -96,15 +94,12 @@ impl Electrical for Gensal {
 
     fn prepare(&mut self) -> Result<(), ModelError> {
         let p = &self.p;
-        let xdl = p.x_d_prime - p.x_l;
         self.k = Consts {
             z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_q_pp),
             inv_t_d0_prime: 1.0 / p.t_d0_prime,
             inv_t_d0_pp: 1.0 / p.t_d0_pp,
             inv_t_q0_pp: 1.0 / p.t_q0_pp,
-            k1d: (p.x_d_prime - p.x_d_pp) * (p.x_d - p.x_d_prime) / (xdl * xdl),
-            k3d: (p.x_d_pp - p.x_l) / xdl,
-            k4d: (p.x_d_prime - p.x_d_pp) / xdl,
+            d: DAxis::new(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l),
             sat: QuadraticSaturation::new(p.s10, p.s12)?,
         };
         Ok(())
@@ -126,7 +121,7 @@ impl Electrical for Gensal {
 
     #[inline(always)]
     fn stator(&self, x: &[f64], vd: f64, vq: f64) -> Stator {
-        let e_q_pp = self.k.k3d * x[0] + self.k.k4d * x[1];
+        let e_q_pp = self.k.d.k3d * x[0] + self.k.d.k4d * x[1];
         Stator::solve(x[2], e_q_pp, vd, vq, &self.k.z)
     }
 
@@ -134,7 +129,7 @@ impl Electrical for Gensal {
     fn field(&self, x: &[f64], st: &Stator) -> Field {
         let (p, k) = (&self.p, &self.k);
         let se = k.sat.eval(x[0]);
-        let xadifd = k.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + (1.0 + se) * x[0];
+        let xadifd = k.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + (1.0 + se) * x[0];
         Field { xadifd, sat: se }
     }
 

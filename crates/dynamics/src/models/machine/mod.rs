@@ -387,6 +387,27 @@ impl<E: Electrical> Machine<E> {
     }
 }
 
+/// The d-axis constants shared by GENSAL, GENSAE and GENROU (`models.md` §4.2):
+/// `K3d = (X''d − Xl)/(X'd − Xl)`, `K4d = (X'd − X''d)/(X'd − Xl)` (K3d + K4d = 1),
+/// `K1d = (X'd − X''d)(Xd − X'd)/(X'd − Xl)²`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct DAxis {
+    pub k1d: f64,
+    pub k3d: f64,
+    pub k4d: f64,
+}
+
+impl DAxis {
+    pub fn new(x_d: f64, x_d_prime: f64, x_d_pp: f64, x_l: f64) -> Self {
+        let xdl = x_d_prime - x_l;
+        Self {
+            k1d: (x_d_prime - x_d_pp) * (x_d - x_d_prime) / (xdl * xdl),
+            k3d: (x_d_pp - x_l) / xdl,
+            k4d: (x_d_prime - x_d_pp) / xdl,
+        }
+    }
+}
+
 /// Common reactance guards of the salient-pole and round-rotor models:
 /// `X_d > X'_d > X''_d > X_l > 0`, `X_q > X''_q > X_l`, `X_d >= X_q` is *not* enforced (a
 /// round rotor may have X_q close to X_d), all time constants > 0.
