@@ -17,7 +17,7 @@ impl Progress for Lines {
         println!("[{stage}] {phase} ({total} iterations max)");
     }
     fn iteration(&self, i: u64, best: f64) {
-        if i % 10 == 0 {
+        if i.is_multiple_of(10) {
             println!("    iteration {i}: best {best:.5}");
         }
     }
