@@ -184,3 +184,47 @@ fn a_seed_gives_the_same_numbers_on_one_and_two_threads() {
     let c = fit(&start, &spec, &[ev], &[], &other, &Silent).unwrap();
     assert_ne!(c.report.stages[0].phases[0].best_objective.to_bits(), sa.phases[0].best_objective.to_bits());
 }
+
+#[test]
+fn incremental_strategy_frees_the_machine_parameters_one_at_a_time() {
+    let truth = truth(&["exciter", "pss", "governor"]);
+    let ev = event(&truth, 51, 6.0);
+    let mut start = truth.clone();
+    scale(&mut start, "machine.h", 1.3);
+    scale(&mut start, "machine.x_d_prime", 1.25);
+    let spec = CalibSpec::parse(GEN_SPEC, std::path::Path::new("gen.toml")).unwrap();
+    let mut opts = quick_options(&["gen"], 4);
+    opts.strategy = itaipu_calib::spec::Strategy::Incremental;
+    opts.lbfgs_iterations = 15;
+    let res = fit(&start, &spec, &[ev], &[], &opts, &Silent).unwrap();
+    let stage = &res.report.stages[0];
+    let steps: Vec<&str> = stage.phases.iter().map(|p| p.phase.as_str()).collect();
+    assert_eq!(steps.len(), 6, "one L-BFGS step per parameter: {steps:?}");
+    assert!(steps[0].starts_with("step 1 (machine.h)") && steps[5].starts_with("step 6 (machine.d)"), "{steps:?}");
+    assert!(stage.phases.iter().all(|p| !p.phase.contains("pso")), "incremental steps use no swarm");
+    assert!(stage.objective_after < 0.2 * stage.objective_before, "{} -> {}", stage.objective_before, stage.objective_after);
+}
+
+#[test]
+fn several_events_are_fitted_together_and_a_held_out_event_is_reported() {
+    let truth = truth(&["exciter", "pss", "governor"]);
+    let other = VoltageProfile { duration_s: 6.0, dip_start_s: 3.0, dip_v: 0.8, swing_hz: 1.2, freq_dev_hz: 0.1, ..Default::default() };
+    let ev1 = event(&truth, 61, 6.0);
+    let ev2 = synthesize("synthetic-2", &truth, &other, 737.0, &noise(62), &SimOptions::default()).unwrap();
+    let held = synthesize("held-out", &truth, &VoltageProfile { swing_hz: 0.6, ..other.clone() }, 737.0, &noise(63), &SimOptions::default()).unwrap();
+    let mut start = truth.clone();
+    scale(&mut start, "machine.h", 1.3);
+    scale(&mut start, "machine.x_q", 1.2);
+    let spec = CalibSpec::parse(GEN_SPEC, std::path::Path::new("gen.toml")).unwrap();
+    let res = fit(&start, &spec, &[ev1, ev2], std::slice::from_ref(&held), &quick_options(&["gen"], 6), &Silent).unwrap();
+    assert_eq!(res.report.events, ["synthetic", "synthetic-2"]);
+    assert_eq!(res.report.held_out, ["held-out"]);
+    let rows = &res.report.stages[0].fitness;
+    assert_eq!(rows.iter().map(|r| (r.event.as_str(), r.held_out)).collect::<Vec<_>>(), [("synthetic", false), ("synthetic-2", false), ("held-out", true)]);
+    let before = res.report.start_fitness.iter().find(|r| r.held_out).unwrap().j_pq;
+    let after = rows[2].j_pq;
+    assert!(after < 0.2 * before, "the calibration should carry over to the held-out event: {before} -> {after}");
+    // The summed objective is the sum over the fitted events.
+    let sum: f64 = rows[..2].iter().map(|r| r.j_pq).sum();
+    assert!((sum - res.report.stages[0].objective_after).abs() < 1e-9 * sum.max(1.0), "{sum} vs {}", res.report.stages[0].objective_after);
+}

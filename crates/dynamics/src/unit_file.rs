@@ -277,3 +277,79 @@ pub fn unit_to_toml(unit: &Unit) -> String {
 fn toml_str(s: &str) -> String {
     toml::Value::String(s.to_string()).to_string()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+name = "u"
+machine_mva = 700.0
+nominal_hz = 60.0
+[machine]
+model = "GENCLS"
+h = 4.0
+d = 0.0
+x_d_prime = 0.3
+r_a = 0.0
+[governor]
+model = "constant_pm"
+"#;
+
+    fn err(text: &str) -> UnitFileError {
+        match parse_unit(text, Path::new("u.toml")) {
+            Ok(_) => panic!("accepted:\n{text}"),
+            Err(e) => e,
+        }
+    }
+
+    #[test]
+    fn a_minimal_unit_parses_and_round_trips() {
+        let u = parse_unit(GOOD, Path::new("u.toml")).unwrap();
+        let text = unit_to_toml(&u);
+        let v = parse_unit(&text, Path::new("again.toml")).unwrap();
+        assert_eq!(u.params().iter().map(|p| p.2).collect::<Vec<_>>(), v.params().iter().map(|p| p.2).collect::<Vec<_>>());
+        // PSS/E aliases are accepted.
+        let aliased = GOOD.replace("x_d_prime = 0.3", "Xpd = 0.3").replace("h = 4.0", "H = 4.0");
+        parse_unit(&aliased, Path::new("u.toml")).unwrap();
+    }
+
+    #[test]
+    fn each_bad_unit_file_is_refused_naming_file_and_field() {
+        let cases: Vec<(&str, String, &str, &str)> = vec![
+            ("missing parameter", GOOD.replace("x_d_prime = 0.3\n", ""), "field", "x_d_prime"),
+            ("unknown parameter", GOOD.replace("h = 4.0", "h = 4.0\ninertia = 1.0"), "field", "machine.inertia"),
+            ("unknown top-level key", GOOD.replace("name = \"u\"", "name = \"u\"\ncolour = \"red\""), "field", "colour"),
+            ("unknown model", GOOD.replace("GENCLS", "GENXYZ"), "field", "machine.model"),
+            ("model in the wrong section", GOOD.replace("model = \"constant_pm\"", "model = \"SEXS\""), "field", "governor.model"),
+            ("no machine", GOOD.replace("[machine]", "[machin]"), "field", "machin"),
+            ("parameter given twice", GOOD.replace("h = 4.0", "h = 4.0\nH = 4.0"), "field", "machine"),
+            ("not a number", GOOD.replace("h = 4.0", "h = \"four\""), "field", "machine.h"),
+            ("zero inertia", GOOD.replace("h = 4.0", "h = 0.0"), "field", "h"),
+            ("negative base", GOOD.replace("machine_mva = 700.0", "machine_mva = -1.0"), "field", "machine_mva"),
+            ("syntax error", GOOD.replace("h = 4.0", "h = = 4.0"), "syntax", "line"),
+            ("rewiring an unknown port", GOOD.replace("model = \"constant_pm\"", "model = \"constant_pm\"\nwiring = { torque = \"pm\" }"), "wiring", "torque"),
+            (
+                "exciter on GENCLS",
+                GOOD.to_string() + "[exciter]\nmodel = \"SEXS\"\nta_tb = 0.1\ntb = 10.0\nk = 100.0\nte = 0.05\ne_min = 0.0\ne_max = 5.0\n",
+                "field",
+                "no field winding",
+            ),
+        ];
+        for (what, text, kind, mention) in cases {
+            let e = err(&text);
+            let msg = e.to_string();
+            assert_eq!(e.kind(), kind, "{what}: {msg}");
+            assert!(msg.starts_with("u.toml"), "{what}: {msg}");
+            assert!(msg.contains(mention), "{what}: '{msg}' should mention {mention}");
+        }
+    }
+
+    #[test]
+    fn an_input_nobody_drives_is_a_wiring_error() {
+        let text = GOOD.to_string() + "[pss]\nmodel = \"STAB3\"\nt_t = 0.1\nt_x1 = 0.04\nt_x2 = 3.0\nk_x = 1.0\nv_lim = 0.1\nwiring = { pe = \"p_elec\" }\n";
+        let e = err(&text);
+        assert_eq!(e.kind(), "wiring");
+        assert!(e.to_string().contains("p_elec"), "{e}");
+    }
+}
