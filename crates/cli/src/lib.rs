@@ -18,6 +18,7 @@ use itaipu_dynamics::unit_file::read_unit;
 
 pub mod fit_cmd;
 pub mod plot;
+pub mod synth_cmd;
 
 pub const EXIT_CODES: &str = "Exit codes: 0 success, 2 usage error, 3 bad event data (event TOML or CSV), \
 4 bad unit model or calibration spec, 5 model cannot initialise at the measured operating point, \
@@ -45,6 +46,10 @@ enum Cmd {
     /// governor), each by a particle swarm then L-BFGS. With no arguments: the bundled Itaipu
     /// record, unit and calibration spec (RaPId's problem).
     Fit(fit_cmd::FitArgs),
+    /// Make a realistic synthetic event from the engine: a fault dip, frequency excursion,
+    /// voltage step or ambient record played into a true unit, PMU sampling, noise and
+    /// quantisation, optionally a hidden effect; writes the event, its CSV and the truth.
+    Synth(synth_cmd::SynthArgs),
     /// List the model library: models, their parameters (name, PSS/E alias, unit, meaning,
     /// typical value and range) and ports.
     Models {
@@ -136,6 +141,7 @@ where
         Cmd::Simulate(a) => cmd_simulate(&a),
         Cmd::Models { name } => cmd_models(name.as_deref()),
         Cmd::Fit(a) => fit_cmd::cmd_fit(&a),
+        Cmd::Synth(a) => synth_cmd::cmd_synth(&a),
     };
     match result {
         Ok(()) => 0,

@@ -36,6 +36,15 @@ pub struct VoltageProfile {
     /// Pre-event active and reactive power of the true unit [pu on its machine base].
     pub p0_mach: f64,
     pub q0_mach: f64,
+    /// Step of |V| at the event instant [pu] (0: none).
+    pub v_step: f64,
+    /// Ambient fluctuations over the whole record: Ornstein-Uhlenbeck processes on |V| [pu] and
+    /// the angle [rad] with these stationary standard deviations and correlation time (0: none).
+    pub ambient_v_sigma: f64,
+    pub ambient_angle_sigma: f64,
+    pub ambient_tau_s: f64,
+    /// Seed of the ambient fluctuations.
+    pub seed: u64,
 }
 
 impl Default for VoltageProfile {
@@ -58,6 +67,64 @@ impl Default for VoltageProfile {
             freq_tau_s: 3.0,
             p0_mach: 0.8,
             q0_mach: 0.2,
+            v_step: 0.0,
+            ambient_v_sigma: 0.0,
+            ambient_angle_sigma: 0.0,
+            ambient_tau_s: 1.0,
+            seed: 0,
+        }
+    }
+}
+
+/// The kinds of event `synth` makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EventKind {
+    /// Fault-like dip to 0.7 pu for 0.1 s, angle jump and 0.8 Hz grid swing, 0.2 Hz frequency fall.
+    FaultDip,
+    /// No dip: a 0.3 Hz frequency fall (τ = 4 s) with a small 0.6 Hz swing.
+    FrequencyExcursion,
+    /// A +2 % step of the grid voltage with a small swing.
+    VoltageStep,
+    /// Ambient: only small random fluctuations of |V| and angle (no discrete event).
+    Ambient,
+}
+
+impl VoltageProfile {
+    /// A preset for `kind`, `duration_s` long at `rate_hz`, with the event at 1 s.
+    pub fn preset(kind: EventKind, duration_s: f64, rate_hz: f64, seed: u64) -> Self {
+        let base = Self { duration_s, rate_hz, seed, ..Default::default() };
+        match kind {
+            EventKind::FaultDip => base,
+            EventKind::FrequencyExcursion => Self {
+                dip_v: base.v0,
+                dip_duration_s: 0.0,
+                angle_step: 0.0,
+                swing_amp: 0.02,
+                swing_hz: 0.6,
+                freq_dev_hz: -0.3,
+                freq_tau_s: 4.0,
+                ..base
+            },
+            EventKind::VoltageStep => Self {
+                dip_v: base.v0,
+                dip_duration_s: 0.0,
+                angle_step: 0.0,
+                swing_amp: 0.01,
+                freq_dev_hz: 0.0,
+                v_step: 0.02,
+                ..base
+            },
+            EventKind::Ambient => Self {
+                dip_v: base.v0,
+                dip_duration_s: 0.0,
+                angle_step: 0.0,
+                swing_amp: 0.0,
+                freq_dev_hz: 0.0,
+                ambient_v_sigma: 0.003,
+                ambient_angle_sigma: 0.01,
+                ambient_tau_s: 1.5,
+                ..base
+            },
         }
     }
 }
@@ -71,6 +138,11 @@ impl VoltageProfile {
         let mut v = Vec::with_capacity(n);
         let mut a = Vec::with_capacity(n);
         let t_clear = self.dip_start_s + self.dip_duration_s;
+        let mut rng = Normal::new(self.seed ^ 0xA5A5_5A5A);
+        let dt = 1.0 / self.rate_hz;
+        let phi = if self.ambient_tau_s > 0.0 { (-dt / self.ambient_tau_s).exp() } else { 0.0 };
+        let innov = (1.0 - phi * phi).sqrt();
+        let (mut ou_v, mut ou_a) = (0.0, 0.0);
         for k in 0..n {
             let tk = k as f64 / self.rate_hz;
             let in_dip = self.dip_v < self.v0 && tk >= self.dip_start_s && tk < t_clear;
@@ -86,6 +158,13 @@ impl VoltageProfile {
                 // Frequency ramp f(t) = Δf (1 − e^{−s/τ}); the angle is its integral × 2π.
                 let tau = self.freq_tau_s.max(1e-6);
                 ang += 2.0 * std::f64::consts::PI * self.freq_dev_hz * (s - tau * (1.0 - (-s / tau).exp()));
+                mag += self.v_step;
+            }
+            if self.ambient_v_sigma > 0.0 || self.ambient_angle_sigma > 0.0 {
+                ou_v = phi * ou_v + innov * self.ambient_v_sigma * rng.sample();
+                ou_a = phi * ou_a + innov * self.ambient_angle_sigma * rng.sample();
+                mag += ou_v;
+                ang += ou_a;
             }
             t.push(tk);
             v.push(mag);
@@ -105,18 +184,21 @@ pub struct PmuNoise {
     pub angle_sigma: f64,
     /// Quantisation step of P and Q [pu] (0 = none).
     pub pq_quantum: f64,
+    /// Time skew of the power channels: the recorded P and Q at t are the true ones at
+    /// t − `pq_delay_s` (linear interpolation) [s].
+    pub pq_delay_s: f64,
     pub seed: u64,
 }
 
 impl PmuNoise {
     /// No noise.
     pub fn none() -> Self {
-        Self { pq_sigma: 0.0, v_sigma: 0.0, angle_sigma: 0.0, pq_quantum: 0.0, seed: 0 }
+        Self { pq_sigma: 0.0, v_sigma: 0.0, angle_sigma: 0.0, pq_quantum: 0.0, pq_delay_s: 0.0, seed: 0 }
     }
     /// Typical M-class PMU: 0.002 pu on P and Q, 0.0005 pu on |V|, 0.0005 rad on the angle,
     /// P and Q quantised at 0.0014 pu (as in the Itaipu record).
     pub fn typical(seed: u64) -> Self {
-        Self { pq_sigma: 0.002, v_sigma: 0.0005, angle_sigma: 0.0005, pq_quantum: 0.0014, seed }
+        Self { pq_sigma: 0.002, v_sigma: 0.0005, angle_sigma: 0.0005, pq_quantum: 0.0014, pq_delay_s: 0.0, seed }
     }
 }
 
@@ -205,6 +287,7 @@ pub fn synthesize(
     let (p, q) = simulate_pq(&mut unit, &prepared, opts)?;
     let mut rng = Normal::new(noise.seed);
     let quant = |x: f64| if noise.pq_quantum > 0.0 { (x / noise.pq_quantum).round() * noise.pq_quantum } else { x };
+    let (p, q) = (delayed(&t, &p, noise.pq_delay_s), delayed(&t, &q, noise.pq_delay_s));
     let mut rec = ev.record.clone();
     for k in 0..n {
         rec.p_pu[k] = quant(p[k] + noise.pq_sigma * rng.sample());
@@ -213,6 +296,34 @@ pub fn synthesize(
         rec.v_ang_rad[k] += noise.angle_sigma * rng.sample();
     }
     Ok(Event::from_record(name, rec, system_mva, truth.nominal_hz, Some(init), None)?)
+}
+
+/// `y` delayed by `tau` seconds on the sample times `t`: y(t_k − τ) by linear interpolation,
+/// held at the first sample before the record starts.
+pub fn delayed(t: &[f64], y: &[f64], tau: f64) -> Vec<f64> {
+    if tau == 0.0 {
+        return y.to_vec();
+    }
+    let mut cursor = 0usize;
+    t.iter()
+        .map(|&tk| {
+            let ts = tk - tau;
+            if ts <= t[0] {
+                return y[0];
+            }
+            if ts >= t[t.len() - 1] {
+                return y[y.len() - 1];
+            }
+            while t[cursor + 1] < ts {
+                cursor += 1;
+            }
+            while t[cursor] > ts {
+                cursor -= 1;
+            }
+            let w = (ts - t[cursor]) / (t[cursor + 1] - t[cursor]);
+            y[cursor] + w * (y[cursor + 1] - y[cursor])
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -228,6 +339,37 @@ mod tests {
         let mean = xs.iter().sum::<f64>() / xs.len() as f64;
         let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / xs.len() as f64;
         assert!(mean.abs() < 0.03 && (var - 1.0).abs() < 0.04, "mean {mean} var {var}");
+    }
+
+    #[test]
+    fn delay_shifts_a_ramp_by_tau() {
+        let t: Vec<f64> = (0..100).map(|k| k as f64 / 60.0).collect();
+        let y: Vec<f64> = t.iter().map(|t| 2.0 * t).collect();
+        let d = delayed(&t, &y, 0.005);
+        for k in 1..100 {
+            assert!((d[k] - 2.0 * (t[k] - 0.005)).abs() < 1e-12);
+        }
+        assert_eq!(delayed(&t, &y, 0.0), y);
+    }
+
+    #[test]
+    fn presets_make_their_event() {
+        let (_, v, a) = VoltageProfile::preset(EventKind::VoltageStep, 5.0, 60.0, 1).samples(60.0);
+        assert!((v[0] - 1.0).abs() < 1e-12 && (v[v.len() - 1] - 1.02).abs() < 1e-3);
+        assert!(a.iter().all(|x| (x - 0.3).abs() < 0.02));
+        let (t, v, a) = VoltageProfile::preset(EventKind::FrequencyExcursion, 10.0, 30.0, 1).samples(60.0);
+        assert_eq!(t.len(), 301);
+        assert!(v.iter().all(|x| (x - 1.0).abs() < 0.03), "no dip");
+        let n = t.len();
+        let slope = (a[n - 1] - a[n - 31]) / (t[n - 1] - t[n - 31]) / (2.0 * std::f64::consts::PI);
+        assert!((slope + 0.3).abs() < 0.05, "frequency fall {slope}");
+        let (_, v, a) = VoltageProfile::preset(EventKind::Ambient, 20.0, 60.0, 3).samples(60.0);
+        let sd = |x: &[f64]| {
+            let m = x.iter().sum::<f64>() / x.len() as f64;
+            (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / x.len() as f64).sqrt()
+        };
+        assert!(sd(&v) > 0.001 && sd(&v) < 0.006, "ambient |V| spread {}", sd(&v));
+        assert!(sd(&a) > 0.003, "ambient angle spread {}", sd(&a));
     }
 
     #[test]
