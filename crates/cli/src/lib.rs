@@ -4,6 +4,9 @@
 //! CSV), 4 bad unit model, 5 the model cannot initialise at the measured operating point,
 //! 6 the simulation failed, 7 output could not be written (or would overwrite).
 
+// Checks are written `!(x > 0.0)` on purpose: that form also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
