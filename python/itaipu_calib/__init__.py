@@ -74,6 +74,11 @@ library defines one:
 Bad options raise ``ValueError``; arguments of the wrong type ``TypeError``.
 """
 
+# Synthetic events: ``synth(unit, kind="dip"|"frequency"|"step"|"ambient", duration=20.0,
+# rate=60.0, pq_sigma=0.002, v_sigma=0.0005, quantum=0.0014, skew_ms=0.0, seed=1)`` returns an
+# in-memory Event made by playing a grid-side voltage profile into the true unit, with PMU noise
+# and quantisation (the generator behind ``itaipu-calib synth``).
+
 from ._core import (
     CalibrationError,
     Event,
@@ -91,6 +96,7 @@ from ._core import (
     load_unit,
     models,
     simulate,
+    synth,
 )
 
 __all__ = [
@@ -110,4 +116,5 @@ __all__ = [
     "load_unit",
     "models",
     "simulate",
+    "synth",
 ]

@@ -128,3 +128,18 @@ def fit(
     held_out: Optional[_Events] = (),
 ) -> FitResult: ...
 def models() -> List[Dict[str, Any]]: ...
+
+def synth(
+    unit: Union[_PathLike, Unit],
+    *,
+    kind: str = "dip",
+    duration: float = 20.0,
+    rate: float = 60.0,
+    system_mva: Optional[float] = None,
+    pq_sigma: float = 0.002,
+    v_sigma: float = 0.0005,
+    quantum: float = 0.0014,
+    skew_ms: float = 0.0,
+    seed: int = 1,
+    name: Optional[str] = None,
+) -> Event: ...

@@ -854,6 +854,74 @@ fn fit(
 /// with name, role ('machine', 'exciter', 'pss', 'governor' or 'block'), summary, parameters
 /// (dicts: name, alias (PSS/E), unit, doc, typical, range = (low, high)), ports (dicts: name,
 /// direction 'in'/'out', doc) and states.
+/// Makes a realistic synthetic event from the engine (the same generator as
+/// `itaipu-calib synth`): a grid-side voltage profile (`kind`: "dip", "frequency", "step" or
+/// "ambient", the event at 1 s) played into the true `unit` (path or Unit), sampled at `rate`
+/// samples/s, with white noise on P and Q (`pq_sigma` pu) and on |V| and the angle
+/// (`v_sigma`), quantisation of P and Q (`quantum` pu), and optionally a hidden delay of the
+/// power channels (`skew_ms`). Returns an Event (in memory; P and Q on `system_mva`, default
+/// the unit's machine base). Deterministic for a seed. The GIL is released while it runs.
+///
+/// Raises UnitModelError, InitError, SimulationError; ValueError for bad options.
+#[pyfunction]
+#[pyo3(signature = (unit, *, kind = "dip", duration = 20.0, rate = 60.0, system_mva = None, pq_sigma = 0.002, v_sigma = 0.0005, quantum = 0.0014, skew_ms = 0.0, seed = 1, name = None))]
+#[allow(clippy::too_many_arguments)]
+fn synth(
+    py: Python<'_>,
+    unit: &Bound<'_, PyAny>,
+    kind: &str,
+    duration: f64,
+    rate: f64,
+    system_mva: Option<f64>,
+    pq_sigma: f64,
+    v_sigma: f64,
+    quantum: f64,
+    skew_ms: f64,
+    seed: u64,
+    name: Option<String>,
+) -> PyResult<PyEvent> {
+    use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
+    let event_kind = match kind.to_ascii_lowercase().as_str() {
+        "dip" => EventKind::FaultDip,
+        "frequency" => EventKind::FrequencyExcursion,
+        "step" => EventKind::VoltageStep,
+        "ambient" => EventKind::Ambient,
+        k => return Err(PyValueError::new_err(format!("kind '{k}' is not one of dip, frequency, step, ambient"))),
+    };
+    if !(duration > 1.5 && duration.is_finite()) {
+        return Err(PyValueError::new_err(format!("duration must exceed 1.5 s (got {duration})")));
+    }
+    if !(10.0..=1000.0).contains(&rate) {
+        return Err(PyValueError::new_err(format!("rate must lie in 10-1000 samples/s (got {rate})")));
+    }
+    for (n, v) in [("pq_sigma", pq_sigma), ("v_sigma", v_sigma), ("quantum", quantum), ("skew_ms", skew_ms)] {
+        if !(v >= 0.0 && v.is_finite()) {
+            return Err(PyValueError::new_err(format!("{n} must be >= 0 (got {v})")));
+        }
+    }
+    let unit = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
+    let name = name.unwrap_or_else(|| format!("synthetic-{}-{seed}", kind.to_ascii_lowercase()));
+    let result = py.detach(move || -> Result<Result<Event, String>, Failure> {
+        let unit = match unit {
+            Source::Loaded(u) => u,
+            Source::Path(p) => Arc::new(read_unit(&p)?),
+        };
+        let profile = VoltageProfile::preset(event_kind, duration, rate, seed);
+        let noise = PmuNoise { pq_sigma, v_sigma, angle_sigma: v_sigma, pq_quantum: quantum, pq_delay_s: skew_ms * 1e-3, seed };
+        let mva = system_mva.unwrap_or(unit.machine_mva);
+        match synthesize(&name, &unit, &profile, mva, &noise, &SimOptions::default()) {
+            Ok(e) => Ok(Ok(e)),
+            Err(itaipu_dynamics::synthetic::SynthError::Sim(e)) => Err(Failure::Sim(e)),
+            Err(e) => Ok(Err(e.to_string())),
+        }
+    });
+    match result {
+        Ok(Ok(e)) => Ok(PyEvent { inner: Arc::new(e) }),
+        Ok(Err(msg)) => Err(PyValueError::new_err(msg)),
+        Err(f) => Err(f.into_pyerr(py)),
+    }
+}
+
 #[pyfunction]
 fn models<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
     let out = PyList::empty(py);
@@ -915,5 +983,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(models, m)?)?;
+    m.add_function(wrap_pyfunction!(synth, m)?)?;
     Ok(())
 }
