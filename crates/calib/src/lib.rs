@@ -10,11 +10,14 @@
 //! * [`local`]: argmin's L-BFGS with central-difference gradients on fixed-step RK4.
 //! * [`identify`]: standard errors and correlations from the Gauss-Newton approximation.
 //! * [`filter`]: zero-phase low-pass filtering of measurements.
+//! * [`evidence`]: residual evidence for diagnosis (windows, noise floor, whiteness,
+//!   cross-correlation with the inputs, spectrum, matrix-pencil modes).
 //! * [`fit`]: stages, strategies and reports.
 
 // Guards are written `!(x <= limit)` on purpose: that form also catches NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod evidence;
 pub mod filter;
 pub mod fit;
 pub mod identify;
