@@ -2,6 +2,7 @@
 
 use crate::block::Block;
 use crate::models::exciter::sexs::Sexs;
+use crate::models::extensions::{oel::Oel, sexs_bus_fed::SexsBusFed, speed_deadband::SpeedDeadband, two_mass_shaft::TwoMassShaft};
 use crate::models::governor::{constant_pm::ConstantPm, hygov::Hygov};
 use crate::models::machine::{gencls::Gencls, genrou::Genrou, gensae::Gensae, gensal::Gensal, Machine};
 use crate::models::pss::{ieeest::Ieeest, stab3::Stab3};
@@ -70,6 +71,12 @@ pub static MODELS: &[ModelInfo] = &[
         make: || Box::new(Machine::new(Gencls::default())),
     },
     ModelInfo { name: "SEXS", role: Role::Exciter, summary: "simplified excitation system", make: || Box::new(Sexs::default()) },
+    ModelInfo {
+        name: "SEXS_bus_fed",
+        role: Role::Exciter,
+        summary: "SEXS with a bus-fed ceiling V_t·VRMAX − KC·X_adI_fd (extension, models.md §12.3)",
+        make: || Box::new(SexsBusFed::default()),
+    },
     ModelInfo { name: "STAB3", role: Role::Pss, summary: "power-input stabiliser (PSS/E STAB3)", make: || Box::new(Stab3::default()) },
     ModelInfo { name: "IEEEST", role: Role::Pss, summary: "IEEE 1981 stabiliser", make: || Box::new(Ieeest::default()) },
     ModelInfo { name: "HYGOV", role: Role::Governor, summary: "hydro turbine-governor", make: || Box::new(Hygov::default()) },
@@ -78,6 +85,24 @@ pub static MODELS: &[ModelInfo] = &[
         role: Role::Governor,
         summary: "constant mechanical power (no governor action)",
         make: || Box::new(ConstantPm::default()),
+    },
+    ModelInfo {
+        name: "two_mass_shaft",
+        role: Role::Other,
+        summary: "turbine mass and elastic shaft between governor and machine (extension, §12.1)",
+        make: || Box::new(TwoMassShaft::default()),
+    },
+    ModelInfo {
+        name: "speed_deadband",
+        role: Role::Other,
+        summary: "intentional governor speed deadband, no-jump type (extension, §12.2)",
+        make: || Box::new(SpeedDeadband::default()),
+    },
+    ModelInfo {
+        name: "oel",
+        role: Role::Other,
+        summary: "inverse-time over-excitation limiter, summing-point type (extension, §12.4)",
+        make: || Box::new(Oel::default()),
     },
 ];
 

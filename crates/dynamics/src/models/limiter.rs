@@ -85,6 +85,72 @@ impl NonWindup {
     }
 }
 
+/// Non-windup limits that move with time (`lo(t)`, `hi(t)` computed from signals, e.g. a
+/// bus-fed exciter ceiling `V_t·V_RMAX − K_C·X_adI_fd`, `models.md` §12.3).
+///
+/// The same three modes as [`NonWindup`], with these changes, because a pinned state must follow
+/// a limit that moves and the derivative of the limit is not available:
+///
+/// ```text
+/// effective state  x_eff = hi (AtMax), lo (AtMin), x (Free)   → used for the output and for f
+/// Free:   dx/dt = f                 event g0 = max(hi − x, −f), g1 = max(x − lo, f)
+/// AtMax:  dx/dt = (hi − x)/T_track  event g0 = f(x_eff = hi)   (leave when it pulls back inside)
+/// AtMin:  dx/dt = (lo − x)/T_track  event g0 = −f(x_eff = lo)
+/// ```
+///
+/// While pinned, the block uses `x_eff = hi(t)` exactly; the stored state only tracks it (with
+/// the block's own time constant `T_track`, so that traces of the state stay meaningful) and is
+/// projected onto the limit at every mode change. With constant limits the stored state sits
+/// exactly on the limit and `dx/dt = 0`, as for [`NonWindup`]. In Free mode the guard
+/// `max(hi − x, −f)` only fires when the state is at or above the ceiling *and* pushing
+/// outwards: when the ceiling drops faster than the state decays (`x > hi`, `f < 0`), the output
+/// is clamped to `hi` and the state is pinned as soon as it pushes outwards again (no upward
+/// windup, and no event that starts at a zero guard and could never be detected).
+impl NonWindup {
+    /// The state the block must use (`hi`/`lo` while pinned).
+    #[inline(always)]
+    pub fn effective(&self, x: f64, lo: f64, hi: f64) -> f64 {
+        match self.mode {
+            LimitMode::Free => x,
+            LimitMode::AtMax => hi,
+            LimitMode::AtMin => lo,
+        }
+    }
+
+    /// Derivative of the stored state with moving limits (`inv_t_track` = 1/T_track).
+    #[inline(always)]
+    pub fn derivative_moving(&self, f: f64, x: f64, lo: f64, hi: f64, inv_t_track: f64) -> f64 {
+        match self.mode {
+            LimitMode::Free => f,
+            LimitMode::AtMax => (hi - x) * inv_t_track,
+            LimitMode::AtMin => (lo - x) * inv_t_track,
+        }
+    }
+
+    /// Event functions with moving limits; `f` is the unconstrained derivative at the effective
+    /// state.
+    #[inline]
+    pub fn events_moving(&self, x: f64, f: f64, lo: f64, hi: f64, g: &mut [f64]) {
+        match self.mode {
+            LimitMode::Free => {
+                g[0] = (hi - x).max(-f);
+                g[1] = (x - lo).max(f);
+            }
+            _ => self.events(x, f, lo, hi, g),
+        }
+    }
+
+    /// Mode update with moving limits: projects a pinned state onto its (moved) limit, then
+    /// re-evaluates as [`NonWindup::update`] with `f = rate(x)`. Returns `true` on any change.
+    pub fn update_moving(&mut self, x: &mut f64, rate: impl Fn(f64) -> f64, lo: f64, hi: f64) -> bool {
+        let old = (self.mode, *x);
+        *x = self.effective(*x, lo, hi);
+        let f = rate(*x);
+        self.update(x, f, lo, hi);
+        (self.mode, *x) != old
+    }
+}
+
 /// Clamp that tolerates `lo > hi` by returning `lo` (never panics).
 #[inline(always)]
 pub fn clamp(v: f64, lo: f64, hi: f64) -> f64 {
@@ -124,5 +190,32 @@ mod tests {
         assert_eq!((l.mode, x), (LimitMode::AtMax, 5.0));
         let mut y = 4.99;
         assert!(!l.clone().update(&mut y, 2.0, 0.0, 5.0) || y == 4.99);
+    }
+
+    #[test]
+    fn moving_limit_pins_to_the_current_ceiling_and_releases_there() {
+        let mut l = NonWindup::default();
+        let mut x = 4.0;
+        // Reaching a ceiling of 4 while pushing up: pinned.
+        assert!(l.update_moving(&mut x, |_| 1.0, 0.0, 4.0));
+        assert_eq!(l.mode, LimitMode::AtMax);
+        // The ceiling drops to 3: the block uses 3 at once; the stored state tracks it.
+        assert_eq!(l.effective(x, 0.0, 3.0), 3.0);
+        assert_eq!(l.derivative_moving(1.0, x, 0.0, 3.0, 20.0), -20.0);
+        // Pulling back inside releases from the moved ceiling, not from the stale state.
+        assert!(l.update_moving(&mut x, |xe| 2.5 - xe, 0.0, 3.0));
+        assert_eq!((l.mode, x), (LimitMode::Free, 3.0));
+        // Free above a ceiling that fell faster than the state: guard positive while f < 0,
+        // crosses when the state pushes outwards again.
+        let mut g = [0.0; 2];
+        l.events_moving(3.2, -0.5, 0.0, 3.0, &mut g);
+        assert!(g[0] > 0.0 && g[1] > 0.0);
+        l.events_moving(3.2, 0.5, 0.0, 3.0, &mut g);
+        assert!(g[0] <= 0.0);
+        // Constant limits: the pinned state sits on the limit and does not move.
+        let mut c = NonWindup::default();
+        let mut y = 5.0;
+        c.update_moving(&mut y, |_| 1.0, 0.0, 5.0);
+        assert_eq!(c.derivative_moving(1.0, y, 0.0, 5.0, 20.0), 0.0);
     }
 }

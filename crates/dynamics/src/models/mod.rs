@@ -1,5 +1,7 @@
-//! Model library: machines, exciters, stabilisers, governors, and shared limiter logic.
+//! Model library: machines, exciters, stabilisers, governors, model extensions, and shared
+//! limiter logic.
 pub mod exciter;
+pub mod extensions;
 pub mod governor;
 pub mod limiter;
 pub mod machine;

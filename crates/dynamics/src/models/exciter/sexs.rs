@@ -13,9 +13,15 @@
 //! E_fd0/K`; infeasible (an error, not a clip) when `E_fd0 ∉ [E_MIN, E_MAX]`. `ΔV_ref`
 //! (`v_ref_offset`, default 0) is a nuisance parameter a fit may free to absorb a set-point
 //! mismatch between model and measurement.
+//!
+//! The equations live once, in [`SexsModel`], generic over a [`SexsVariant`] that supplies the
+//! parameter set and the field-voltage limits: [`Sexs`] (constant `E_MIN`, `E_MAX`) and the
+//! bus-fed variant `SEXS_bus_fed` (`models::extensions::sexs_bus_fed`, limits that follow the
+//! terminal voltage and the field current, `models.md` §12.3).
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::NonWindup;
+use crate::params::ParamSet;
 use crate::{block_common, param_set};
 
 param_set! {
@@ -31,7 +37,8 @@ param_set! {
     }
 }
 
-mod port {
+/// Port indices shared by every SEXS variant (a variant may append ports after `EFD`).
+pub mod port {
     pub const V_TERM: usize = 0;
     pub const VS: usize = 1;
     pub const VOEL: usize = 2;
@@ -39,7 +46,8 @@ mod port {
     pub const EFD: usize = 4;
 }
 
-const PORTS: &[Port] = &[
+/// Ports of SEXS; variants start with the same five.
+pub const PORTS: &[Port] = &[
     Port::input("v_term", PortInit::Needs, "compensated terminal voltage E_comp [pu]"),
     Port::input("vs", PortInit::Needs, "stabiliser signal V_S [pu]").optional(),
     Port::input("voel", PortInit::Needs, "over-excitation limiter signal (<= 0) [pu]").optional(),
@@ -47,10 +55,58 @@ const PORTS: &[Port] = &[
     Port::output("efd", PortInit::Needs, "field voltage E_fd [pu]"),
 ];
 
-/// SEXS exciter block.
+/// The parameters every SEXS variant shares, read from its parameter set.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SexsGains {
+    pub ta_tb: f64,
+    pub tb: f64,
+    pub k: f64,
+    pub te: f64,
+    pub v_ref_offset: f64,
+}
+
+/// What distinguishes one SEXS variant from another: its parameters, ports and E_fd limits.
+pub trait SexsVariant: ParamSet + Clone + Default + std::fmt::Debug + Send + Sync + 'static {
+    /// Model name in unit files.
+    const MODEL: &'static str;
+    /// Ports; the first five are [`PORTS`] (same indices, see [`port`]).
+    const PORTS: &'static [Port];
+    /// `true` when the limits depend on signals (then the moving-limit logic of
+    /// [`NonWindup::derivative_moving`] applies); `false` keeps the plain non-windup logic.
+    const MOVING_LIMITS: bool;
+    fn gains(&self) -> SexsGains;
+    /// Guards on the limit parameters.
+    fn validate_limits(&self) -> Result<(), ModelError>;
+    /// `(E_fd,min, E_fd,max)` at the current point.
+    fn limits(&self, io: &Io) -> (f64, f64);
+    /// How the limits read in an error message, e.g. `[E_MIN, E_MAX] = [0, 4]`.
+    fn describe_limits(&self, io: &Io) -> String;
+}
+
+impl SexsVariant for SexsParams {
+    const MODEL: &'static str = "SEXS";
+    const PORTS: &'static [Port] = PORTS;
+    const MOVING_LIMITS: bool = false;
+    #[inline(always)]
+    fn gains(&self) -> SexsGains {
+        SexsGains { ta_tb: self.ta_tb, tb: self.tb, k: self.k, te: self.te, v_ref_offset: self.v_ref_offset }
+    }
+    fn validate_limits(&self) -> Result<(), ModelError> {
+        guard::greater("e_max", self.e_max, "e_min", self.e_min)
+    }
+    #[inline(always)]
+    fn limits(&self, _io: &Io) -> (f64, f64) {
+        (self.e_min, self.e_max)
+    }
+    fn describe_limits(&self, _io: &Io) -> String {
+        format!("[E_MIN, E_MAX] = [{}, {}]", self.e_min, self.e_max)
+    }
+}
+
+/// A SEXS exciter block with the limits of variant `V`.
 #[derive(Debug, Clone, Default)]
-pub struct Sexs {
-    pub p: SexsParams,
+pub struct SexsModel<V: SexsVariant> {
+    pub p: V,
     v_ref: f64,
     limit: NonWindup,
     /// 1/T_B and 1/T_E (refreshed at initialisation).
@@ -58,9 +114,12 @@ pub struct Sexs {
     inv_te: f64,
 }
 
-impl Sexs {
-    pub fn new(p: SexsParams) -> Self {
-        Self { p, ..Default::default() }
+/// SEXS with constant limits `[E_MIN, E_MAX]`.
+pub type Sexs = SexsModel<SexsParams>;
+
+impl<V: SexsVariant> SexsModel<V> {
+    pub fn new(p: V) -> Self {
+        Self { p, v_ref: 0.0, limit: NonWindup::default(), inv_tb: 0.0, inv_te: 0.0 }
     }
 
     /// Voltage reference found at initialisation [pu].
@@ -70,81 +129,111 @@ impl Sexs {
 
     /// `(v_err, y_ll)` at the current point.
     #[inline(always)]
-    fn lead_lag(&self, x: &[f64], io: &Io) -> (f64, f64) {
-        let v_err = self.v_ref + self.p.v_ref_offset - io.get(port::V_TERM)
+    fn lead_lag(&self, g: &SexsGains, x: &[f64], io: &Io) -> (f64, f64) {
+        let v_err = self.v_ref + g.v_ref_offset - io.get(port::V_TERM)
             + io.get(port::VS)
             + io.get(port::VOEL)
             + io.get(port::VUEL);
-        (v_err, self.p.ta_tb * v_err + (1.0 - self.p.ta_tb) * x[0])
+        (v_err, g.ta_tb * v_err + (1.0 - g.ta_tb) * x[0])
     }
 
-    /// Unconstrained `dx_e/dt`.
+    /// Unconstrained `dx_e/dt` with the exciter state at `x_e`.
     #[inline(always)]
-    fn exciter_rate(&self, x: &[f64], io: &Io) -> f64 {
-        (self.p.k * self.lead_lag(x, io).1 - x[1]) * self.inv_te
+    fn exciter_rate(&self, g: &SexsGains, x: &[f64], io: &Io, x_e: f64) -> f64 {
+        (g.k * self.lead_lag(g, x, io).1 - x_e) * self.inv_te
     }
 }
 
-impl Block for Sexs {
+impl<V: SexsVariant> Block for SexsModel<V> {
     block_common!();
 
     fn model(&self) -> &'static str {
-        "SEXS"
+        V::MODEL
     }
     fn ports(&self) -> &'static [Port] {
-        PORTS
+        V::PORTS
     }
     fn state_names(&self) -> &'static [&'static str] {
         &["x_ll", "x_e"]
     }
     fn validate(&self) -> Result<(), ModelError> {
-        let p = &self.p;
-        guard::non_negative("ta_tb", p.ta_tb)?;
-        guard::positive("tb", p.tb)?;
-        guard::positive("k", p.k)?;
-        guard::positive("te", p.te)?;
-        guard::finite("v_ref_offset", p.v_ref_offset)?;
-        guard::greater("e_max", p.e_max, "e_min", p.e_min)
+        let g = self.p.gains();
+        guard::non_negative("ta_tb", g.ta_tb)?;
+        guard::positive("tb", g.tb)?;
+        guard::positive("k", g.k)?;
+        guard::positive("te", g.te)?;
+        guard::finite("v_ref_offset", g.v_ref_offset)?;
+        self.p.validate_limits()
     }
 
     fn init(&mut self, _op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
         self.validate()?;
+        let g = self.p.gains();
         let efd0 = io.get(port::EFD);
-        if !(efd0 >= self.p.e_min && efd0 <= self.p.e_max) {
+        let (lo, hi) = self.p.limits(io);
+        if !(efd0 >= lo && efd0 <= hi) {
             return Err(ModelError::Init(format!(
-                "SEXS: initial field voltage E_fd0 = {efd0:.4} pu lies outside [E_MIN, E_MAX] = [{}, {}]",
-                self.p.e_min, self.p.e_max
+                "{}: initial field voltage E_fd0 = {efd0:.4} pu lies outside {}",
+                V::MODEL,
+                self.p.describe_limits(io)
             )));
         }
         x[1] = efd0;
-        x[0] = efd0 / self.p.k;
-        self.v_ref = io.get(port::V_TERM) - io.get(port::VS) - io.get(port::VOEL) - io.get(port::VUEL) + efd0 / self.p.k;
+        x[0] = efd0 / g.k;
+        self.v_ref = io.get(port::V_TERM) - io.get(port::VS) - io.get(port::VOEL) - io.get(port::VUEL) + efd0 / g.k;
         self.limit = NonWindup::default();
-        self.inv_tb = 1.0 / self.p.tb;
-        self.inv_te = 1.0 / self.p.te;
+        self.inv_tb = 1.0 / g.tb;
+        self.inv_te = 1.0 / g.te;
         Ok(())
     }
 
     #[inline]
     fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
-        io.set(port::EFD, x[1].clamp(self.p.e_min, self.p.e_max));
+        let (lo, hi) = self.p.limits(io);
+        let x_e = if V::MOVING_LIMITS { self.limit.effective(x[1], lo, hi) } else { x[1] };
+        io.set(port::EFD, x_e.clamp(lo, hi));
     }
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        let (v_err, y_ll) = self.lead_lag(x, io);
+        let g = self.p.gains();
+        let (v_err, y_ll) = self.lead_lag(&g, x, io);
         dx[0] = (v_err - x[0]) * self.inv_tb;
-        dx[1] = self.limit.derivative((self.p.k * y_ll - x[1]) * self.inv_te);
+        if V::MOVING_LIMITS {
+            let (lo, hi) = self.p.limits(io);
+            let f = (g.k * y_ll - self.limit.effective(x[1], lo, hi)) * self.inv_te;
+            dx[1] = self.limit.derivative_moving(f, x[1], lo, hi, self.inv_te);
+        } else {
+            dx[1] = self.limit.derivative((g.k * y_ll - x[1]) * self.inv_te);
+        }
     }
 
     fn n_events(&self) -> usize {
         2
     }
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
-        self.limit.events(x[1], self.exciter_rate(x, io), self.p.e_min, self.p.e_max, g);
+        let gains = self.p.gains();
+        let (lo, hi) = self.p.limits(io);
+        if V::MOVING_LIMITS {
+            let f = self.exciter_rate(&gains, x, io, self.limit.effective(x[1], lo, hi));
+            self.limit.events_moving(x[1], f, lo, hi, g);
+        } else {
+            self.limit.events(x[1], self.exciter_rate(&gains, x, io, x[1]), lo, hi, g);
+        }
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {
-        let f = self.exciter_rate(x, io);
-        self.limit.update(&mut x[1], f, self.p.e_min, self.p.e_max)
+        let gains = self.p.gains();
+        let (lo, hi) = self.p.limits(io);
+        if V::MOVING_LIMITS {
+            let mut limit = self.limit;
+            let (x_ll, mut x_e) = (x[0], x[1]);
+            let changed = limit.update_moving(&mut x_e, |xe| self.exciter_rate(&gains, &[x_ll, xe], io, xe), lo, hi);
+            self.limit = limit;
+            x[1] = x_e;
+            changed
+        } else {
+            let f = self.exciter_rate(&gains, x, io, x[1]);
+            self.limit.update(&mut x[1], f, lo, hi)
+        }
     }
 }
