@@ -228,3 +228,29 @@ fn several_events_are_fitted_together_and_a_held_out_event_is_reported() {
     let sum: f64 = rows[..2].iter().map(|r| r.j_pq).sum();
     assert!((sum - res.report.stages[0].objective_after).abs() < 1e-9 * sum.max(1.0), "{sum} vs {}", res.report.stages[0].objective_after);
 }
+
+const SKEW_SPEC: &str = r#"
+[calibration]
+[[calibration.stage]]
+name = "tg"
+objective = "pq"
+free = [ { param = "measurement.pq_delay_s", min = 0.0, max = 0.05 } ]
+"#;
+
+/// A hidden skew of the power channels (12 ms, under one sample at 60 samples/s) is recovered
+/// within half a sample by freeing the `pmu_measurement` block's delay.
+#[test]
+fn a_hidden_power_channel_skew_is_recovered_within_half_a_sample() {
+    let truth = truth(&[]);
+    let profile = VoltageProfile { duration_s: 6.0, dip_start_s: 3.0, ..Default::default() };
+    let noise = PmuNoise { pq_delay_s: 0.012, ..noise(71) };
+    let ev = synthesize("skewed", &truth, &profile, 737.0, &noise, &SimOptions::default()).unwrap();
+    let mut start = truth.clone();
+    start.put("measurement", itaipu_dynamics::registry::find("pmu_measurement").unwrap().create(), &[]).unwrap();
+    let spec = CalibSpec::parse(SKEW_SPEC, std::path::Path::new("skew.toml")).unwrap();
+    let res = fit(&start, &spec, &[ev], &[], &quick_options(&["tg"], 7), &Silent).unwrap();
+    let p = &res.report.stages[0].parameters[0];
+    println!("delay: truth 0.012 s, result {:.5} s, std err {:.1e}", p.result, p.std_error);
+    assert!((p.result - 0.012).abs() < 0.5 / 60.0, "delay {} s", p.result);
+    assert!((p.result - 0.012).abs() < 0.001, "delay {} s should be within 1 ms", p.result);
+}

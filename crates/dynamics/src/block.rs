@@ -166,6 +166,11 @@ pub trait Block: Send + Sync {
         false
     }
 
+    /// Post-processes the recorded terminal P and Q series (sample times `t`) as a measuring
+    /// device would before they are compared with the recording (PMU skew, phase and ratio
+    /// errors). Default: no change.
+    fn transform_pq(&self, _t: &[f64], _p: &mut [f64], _q: &mut [f64]) {}
+
     /// Sets the nominal frequency [Hz] (machines use ω_b = 2π f_n). Default: ignored.
     fn set_nominal_frequency(&mut self, _hz: f64) {}
 

@@ -2,7 +2,7 @@
 
 use crate::block::Block;
 use crate::models::exciter::sexs::Sexs;
-use crate::models::extensions::{oel::Oel, sexs_bus_fed::SexsBusFed, speed_deadband::SpeedDeadband, two_mass_shaft::TwoMassShaft};
+use crate::models::extensions::{oel::Oel, pmu_measurement::PmuMeasurement, sexs_bus_fed::SexsBusFed, speed_deadband::SpeedDeadband, two_mass_shaft::TwoMassShaft};
 use crate::models::governor::{constant_pm::ConstantPm, hygov::Hygov};
 use crate::models::machine::{gencls::Gencls, genrou::Genrou, gensae::Gensae, gensal::Gensal, Machine};
 use crate::models::pss::{ieeest::Ieeest, stab3::Stab3};
@@ -91,6 +91,12 @@ pub static MODELS: &[ModelInfo] = &[
         role: Role::Other,
         summary: "turbine mass and elastic shaft between governor and machine (extension, §12.1)",
         make: || Box::new(TwoMassShaft::default()),
+    },
+    ModelInfo {
+        name: "pmu_measurement",
+        role: Role::Other,
+        summary: "PMU effects on the recorded P and Q: channel skew, VT/CT phase error, ratio errors",
+        make: || Box::new(PmuMeasurement::default()),
     },
     ModelInfo {
         name: "speed_deadband",

@@ -122,6 +122,7 @@ pub fn simulate_pq(unit: &mut Unit, ev: &PreparedEvent, opts: &SimOptions) -> Re
         p[k] = u.bus()[ip] * to_sys;
         q[k] = u.bus()[iq] * to_sys;
     })?;
+    unit.transform_pq(&ev.input.time_s, &mut p, &mut q);
     Ok((p, q))
 }
 
@@ -162,7 +163,8 @@ impl Traces {
 }
 
 /// Simulates `unit` against `event` and records, at every sample:
-/// `p_pu`, `q_pu` (simulated, system base), `p_meas_pu`, `q_meas_pu` (measured, system base),
+/// `p_pu`, `q_pu` (simulated, system base, as a measuring device would record them: after any
+/// `pmu_measurement` block's skew, phase and ratio errors), `p_meas_pu`, `q_meas_pu` (measured, system base),
 /// `p_mach_pu`, `q_mach_pu` (simulated, machine base), every signal on the bus (`v_term`,
 /// `theta_term`, `delta`, `speed`, `pe`, `qe`, `te`, `efd`, `xadifd`, `pm`, `vs`, …, machine
 /// base) and every state as `block.state`; measured `efd_meas_pu`, `ifd_meas_pu`,
@@ -203,6 +205,11 @@ pub fn simulate_prepared(unit: &mut Unit, ev: &PreparedEvent, event: &Event, opt
             cols[6 + signals.len() + j].push(*v);
         }
     })?;
+    // What a measuring device would record (skew, phase and ratio errors), on both bases.
+    let (c0, rest) = cols.split_at_mut(1);
+    unit.transform_pq(&ev.input.time_s, &mut c0[0], &mut rest[0]);
+    let (c4, rest) = cols[4..].split_at_mut(1);
+    unit.transform_pq(&ev.input.time_s, &mut c4[0], &mut rest[0]);
     cols[2] = event.record.p_pu.clone();
     cols[3] = event.record.q_pu.clone();
     let r = &event.record;

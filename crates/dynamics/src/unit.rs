@@ -410,6 +410,14 @@ impl Unit {
         }
     }
 
+    /// Applies every block's measurement transform ([`Block::transform_pq`]) to recorded P and
+    /// Q series at sample times `t`.
+    pub fn transform_pq(&self, t: &[f64], p: &mut [f64], q: &mut [f64]) {
+        for inst in &self.instances {
+            inst.block.transform_pq(t, p, q);
+        }
+    }
+
     /// Sets the playback voltage on the bus.
     #[inline(always)]
     pub fn set_terminal_voltage(&mut self, v_mag: f64, v_ang: f64) {
