@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::registry;
-use itaipu_dynamics::simulate::{simulate_prepared, SimOptions, Traces};
+use itaipu_dynamics::simulate::{simulate_prepared, Traces};
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file;
 use rayon::prelude::*;
@@ -664,9 +664,4 @@ pub fn quick_options(stages: &[&str], seed: u64) -> FitOptions {
         lbfgs_memory: 7,
         polish: false,
     }
-}
-
-/// Integrator used by the search phase (re-exported for reports).
-pub fn search_options() -> SimOptions {
-    search_integrator()
 }

@@ -179,11 +179,11 @@ pub fn simulate(unit: &Unit, event: &Event, opts: &SimOptions) -> Result<Traces,
 pub fn simulate_prepared(unit: &mut Unit, ev: &PreparedEvent, event: &Event, opts: &SimOptions) -> Result<Traces, SimError> {
     let n = ev.input.time_s.len();
     let to_sys = unit.machine_mva / ev.system_mva;
-    // Column layout is fixed after finish(); build it from a finished unit.
-    if unit.n_states() == 0 && unit.instances().is_empty() {
+    // The column layout is fixed once the wiring is resolved (run_playback initialises).
+    if unit.instances().is_empty() {
         return Err(SimError::Init(UnitError::Wiring("empty unit".into())));
     }
-    let _ = unit.initialise(&ev.init_point(unit))?;
+    unit.ensure_finished()?;
     let signals: Vec<String> = unit.signal_names().to_vec();
     let states = unit.state_names();
     let ip = unit.signal_index("pe").ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?;

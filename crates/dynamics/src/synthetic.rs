@@ -131,8 +131,7 @@ impl VoltageProfile {
 
 impl VoltageProfile {
     /// Sample times, magnitudes and unwrapped angles.
-    pub fn samples(&self, nominal_hz: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let _ = nominal_hz;
+    pub fn samples(&self) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let n = (self.duration_s * self.rate_hz).round() as usize + 1;
         let mut t = Vec::with_capacity(n);
         let mut v = Vec::with_capacity(n);
@@ -262,7 +261,7 @@ pub fn synthesize(
     noise: &PmuNoise,
     opts: &SimOptions,
 ) -> Result<Event, SynthError> {
-    let (t, v, a) = profile.samples(truth.nominal_hz);
+    let (t, v, a) = profile.samples();
     let n = t.len();
     let pre = (profile.dip_start_s - 0.05).max(3.0 / profile.rate_hz);
     // The true unit starts from the exact pre-event operating point: build a provisional event
@@ -354,16 +353,16 @@ mod tests {
 
     #[test]
     fn presets_make_their_event() {
-        let (_, v, a) = VoltageProfile::preset(EventKind::VoltageStep, 5.0, 60.0, 1).samples(60.0);
+        let (_, v, a) = VoltageProfile::preset(EventKind::VoltageStep, 5.0, 60.0, 1).samples();
         assert!((v[0] - 1.0).abs() < 1e-12 && (v[v.len() - 1] - 1.02).abs() < 1e-3);
         assert!(a.iter().all(|x| (x - 0.3).abs() < 0.02));
-        let (t, v, a) = VoltageProfile::preset(EventKind::FrequencyExcursion, 10.0, 30.0, 1).samples(60.0);
+        let (t, v, a) = VoltageProfile::preset(EventKind::FrequencyExcursion, 10.0, 30.0, 1).samples();
         assert_eq!(t.len(), 301);
         assert!(v.iter().all(|x| (x - 1.0).abs() < 0.03), "no dip");
         let n = t.len();
         let slope = (a[n - 1] - a[n - 31]) / (t[n - 1] - t[n - 31]) / (2.0 * std::f64::consts::PI);
         assert!((slope + 0.3).abs() < 0.05, "frequency fall {slope}");
-        let (_, v, a) = VoltageProfile::preset(EventKind::Ambient, 20.0, 60.0, 3).samples(60.0);
+        let (_, v, a) = VoltageProfile::preset(EventKind::Ambient, 20.0, 60.0, 3).samples();
         let sd = |x: &[f64]| {
             let m = x.iter().sum::<f64>() / x.len() as f64;
             (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / x.len() as f64).sqrt()
@@ -375,7 +374,7 @@ mod tests {
     #[test]
     fn profile_has_the_dip_and_the_frequency_drift() {
         let p = VoltageProfile::default();
-        let (t, v, a) = p.samples(60.0);
+        let (t, v, a) = p.samples();
         assert_eq!(t.len(), 1201);
         let k_dip = (1.05 * 60.0) as usize;
         assert_eq!(v[k_dip], 0.7);

@@ -362,12 +362,19 @@ impl Unit {
         out
     }
 
+    /// Resolves the wiring if it has not been (signal and state names are then known).
+    pub fn ensure_finished(&mut self) -> Result<(), UnitError> {
+        if self.finished {
+            Ok(())
+        } else {
+            self.finish()
+        }
+    }
+
     /// Validates parameters and initialises every block at the operating point `op` (machine
     /// base). Returns the initial state vector. Leaves the bus at the initial values.
     pub fn initialise(&mut self, op: &InitPoint) -> Result<Vec<f64>, UnitError> {
-        if !self.finished {
-            self.finish()?;
-        }
+        self.ensure_finished()?;
         let mut x = vec![0.0; self.n_states];
         self.bus.fill(0.0);
         self.bus[self.sig_v] = op.v_mag;

@@ -111,12 +111,11 @@ impl Block for Hygov {
         guard::greater("g_max", p.g_max, "g_min", p.g_min)
     }
 
-    fn init(&mut self, op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
+    fn init(&mut self, _op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
         self.validate()?;
         let p = &self.p;
         let pm0 = io.get(port::PM);
         let w0 = io.get(port::SPEED);
-        let _ = op;
         let q0 = (pm0 + p.a_t * p.q_nl) / (p.a_t - p.d_turb * w0);
         if !(q0 > 0.0 && q0 >= p.g_min && q0 <= p.g_max) {
             return Err(ModelError::Init(format!(
