@@ -85,3 +85,65 @@ fn synth_refuses_bad_arguments() {
     let keep = tmp.write("full/x.txt", "mine");
     assert_eq!(cli(&["synth", "--out", keep.parent().unwrap().to_str().unwrap()]), 7);
 }
+
+#[test]
+fn a_hidden_torsional_mode_is_in_the_truth() {
+    let tmp = TempDir::new("hide");
+    let out = tmp.path().join("t");
+    let args = [
+        "synth",
+        "--duration",
+        "4",
+        "--v-sigma",
+        "0",
+        "--hide",
+        "torsional_mode:shaft.f_torsion_hz=5,shaft.zeta=0.05,shaft.h_turbine=0.6",
+        "--hide",
+        "terminal_load:load.p_load=0.04",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    assert_eq!(cli(&args), 0);
+    let toml = std::fs::read_to_string(out.join("truth.toml")).unwrap();
+    assert!(toml.contains("model = \"two_mass_shaft\"") && toml.contains("pm = \"p_shaft\""), "{toml}");
+    assert!(toml.contains("model = \"terminal_load\""), "{toml}");
+    let truth: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("truth.json")).unwrap()).unwrap();
+    let hidden = truth["hidden_effects"].as_array().unwrap();
+    assert_eq!(hidden.len(), 2);
+    assert_eq!(hidden[0]["cause"], "torsional_mode");
+    assert_eq!(hidden[0]["parameters"]["shaft.f_torsion_hz"], 5.0);
+    assert_eq!(hidden[0]["parameters"]["shaft.zeta"], 0.05);
+    assert_eq!(hidden[0]["parameters"]["shaft.h_turbine"], 0.6);
+    assert_eq!(hidden[1]["cause"], "terminal_load");
+    assert_eq!(hidden[1]["parameters"]["load.p_load"], 0.04);
+    assert_eq!(truth["parameters"]["shaft.f_torsion_hz"], 5.0);
+    assert_eq!(truth["parameters"]["load.p_load"], 0.04);
+    // The truth plays back to the noise level: truth.toml is the unit that made the event.
+    let sim = tmp.path().join("sim");
+    let (event, unit) = (out.join("event.toml"), out.join("truth.toml"));
+    assert_eq!(cli(&["simulate", "--event", event.to_str().unwrap(), "--unit", unit.to_str().unwrap(), "--out", sim.to_str().unwrap(), "--no-plot"]), 0);
+    let (rp, rq) = rms_residuals(&sim.join("traces.csv"));
+    assert!(rp < 0.0026 && rq < 0.0026, "RMS P {rp}, Q {rq}");
+}
+
+#[test]
+fn a_bad_hide_is_a_usage_error_and_writes_nothing() {
+    let tmp = TempDir::new("hidebad");
+    let out = tmp.path().join("o");
+    let o = out.to_str().unwrap();
+    for spec in [
+        "earthquake",
+        "torsional_mode:shaft.nope=3",
+        "torsional_mode:shaft.f_torsion_hz",
+        "torsional_mode:shaft.f_torsion_hz=fast",
+        "torsional_mode:",
+        ":shaft.zeta=0.1",
+        "torsional_mode:shaft.zeta=0.1,shaft.zeta=0.2",
+    ] {
+        assert_eq!(cli(&["synth", "--duration", "3", "--hide", spec, "--out", o]), 2, "{spec}");
+        assert!(!out.exists(), "{spec}: nothing may be written");
+    }
+    // A hidden ceiling below the operating point's field voltage: the truth cannot initialise.
+    assert_eq!(cli(&["synth", "--duration", "3", "--hide", "exciter_limit:exciter.e_max=0.5", "--out", o]), 5);
+    assert!(!out.exists());
+}

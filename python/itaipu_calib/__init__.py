@@ -53,6 +53,43 @@ exactly as the ``itaipu-calib fit`` command line::
 * The GIL is released during the fit (a full fit of the bundled problem takes some tens of
   seconds; it cannot be interrupted with Ctrl-C).
 
+Diagnosis
+---------
+:func:`diagnose` asks what a (calibrated) unit still gets wrong on some events: it analyses the
+residuals, re-fits each cause of the catalog as a model extension (torsional mode, exciter
+limits, saturation, governor, measurement skew, terminal load, PSS state, OEL) and names the
+cause whose gain is significant (ΔBIC, fitted and held-out χ²), as ``itaipu-calib diagnose``::
+
+    ev = ic.synth("data/synthetic/unit_gensae_sexs_stab3_hygov.toml", duration=8.0,
+                  hide=[("measurement_skew", {"measurement.pq_delay_s": 0.012})])
+    d = ic.diagnose("data/synthetic/unit_gensae_sexs_stab3_hygov.toml", ev,
+                    causes=["measurement_skew", "terminal_load"])
+    d.cause                     # 'measurement_skew' (or 'none', 'unexplained')
+    d.verdict                   # cause, title, statement, key_parameters, gains, where
+    d.candidates, d.evidence    # every cause tried with its gain; the residual evidence
+    d.extended_unit_toml        # the extended, re-fitted unit of the named cause (or None)
+    d.traces_before[ev.name]    # {'time_s': array, 'p_pu': array, ...}; also traces_after
+    d.report, d.to_json()       # the whole report as a dict / JSON text
+
+* ``held_out`` events judge the candidates; without them each event is split into alternating
+  0.5 s blocks, fitted and held out.
+* ``seed``, ``particles``, ``pso_iterations``, ``lbfgs_iterations`` set every re-fit;
+  ``threads`` the worker threads (default: all cores). The GIL is released while it runs.
+* An unknown cause raises :class:`CalibrationError` (``kind`` ``"setup"``); a unit that does not
+  simulate on an event :class:`SimulationError` (``kind`` ``"simulation"``).
+
+Synthetic events
+----------------
+:func:`synth` makes an in-memory Event by playing a grid-side voltage profile into a true unit,
+with PMU noise and quantisation (the generator behind ``itaipu-calib synth``):
+``synth(unit, kind="dip"|"frequency"|"step"|"ambient", duration=20.0, rate=60.0,
+pq_sigma=0.002, v_sigma=0.0005, quantum=0.0014, skew_ms=0.0, seed=1, hide=None,
+return_truth=False)``. ``hide`` hides catalog causes in the truth, in order, as the command
+line's ``--hide``: ``[(cause, {param: value}), ...]`` or ``{cause: {param: value}}``
+(parameters not given keep the extension's starting values; an unknown cause or parameter
+raises ``ValueError``, a truth that cannot initialise :class:`InitError`). With
+``return_truth=True`` it returns ``(event, truth_unit)``.
+
 Errors
 ------
 Every error is an :class:`ItaipuError`; its message is exactly the message of the Rust library
@@ -65,22 +102,20 @@ library defines one:
 * :class:`InitError`: the unit cannot start at the measured operating point, or the unit's and
   the event's nominal frequencies differ (``kind``: ``"init"``, ``"bad_param"``, ``"wiring"``,
   ``"unknown_param"`` or ``"frequency_mismatch"``).
-* :class:`SimulationError`: the integration failed (``kind``: ``"solve"``).
+* :class:`SimulationError`: the integration failed (``kind``: ``"solve"``; ``"simulation"`` from
+  :func:`diagnose` when the unit does not simulate on an event as given).
 * :class:`CalibrationError`: bad calibration spec (``kind``: ``"io"``, ``"syntax"``,
   ``"missing"`` for a file without a ``[calibration]`` table, ``"field"``: bounds upside down, an
   unknown stage or key...), a spec that does not fit the unit (``"spec"``: e.g. an unknown
-  parameter in ``free``), or a fit that cannot run (``"stage"``, ``"setup"``).
+  parameter in ``free``), a fit that cannot run (``"stage"``, ``"setup"``), or a diagnosis that
+  cannot run (``"setup"``, e.g. an unknown cause).
 
 Bad options raise ``ValueError``; arguments of the wrong type ``TypeError``.
 """
 
-# Synthetic events: ``synth(unit, kind="dip"|"frequency"|"step"|"ambient", duration=20.0,
-# rate=60.0, pq_sigma=0.002, v_sigma=0.0005, quantum=0.0014, skew_ms=0.0, seed=1)`` returns an
-# in-memory Event made by playing a grid-side voltage profile into the true unit, with PMU noise
-# and quantisation (the generator behind ``itaipu-calib synth``).
-
 from ._core import (
     CalibrationError,
+    Diagnosis,
     Event,
     EventError,
     FitResult,
@@ -91,6 +126,7 @@ from ._core import (
     Unit,
     UnitModelError,
     __version__,
+    diagnose,
     fit,
     load_event,
     load_unit,
@@ -101,6 +137,7 @@ from ._core import (
 
 __all__ = [
     "CalibrationError",
+    "Diagnosis",
     "Event",
     "EventError",
     "FitResult",
@@ -111,6 +148,7 @@ __all__ = [
     "Unit",
     "UnitModelError",
     "__version__",
+    "diagnose",
     "fit",
     "load_event",
     "load_unit",

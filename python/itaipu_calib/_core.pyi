@@ -2,7 +2,7 @@
 
 import os
 from pathlib import Path
-from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Iterable, List, Literal, Mapping, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -100,7 +100,32 @@ class FitResult:
     def parameters(self, stage: str) -> Dict[str, float]: ...
     def traces(self, stage: str, event: Optional[str] = None) -> Tuple[Traces, Traces]: ...
 
+class Diagnosis:
+    @property
+    def verdict(self) -> Dict[str, Any]: ...
+    @property
+    def cause(self) -> str: ...
+    @property
+    def candidates(self) -> List[Dict[str, Any]]: ...
+    @property
+    def evidence(self) -> List[Dict[str, Any]]: ...
+    @property
+    def report(self) -> Dict[str, Any]: ...
+    @property
+    def extended_unit_toml(self) -> Optional[str]: ...
+    @property
+    def extended_unit(self) -> Optional[Unit]: ...
+    @property
+    def traces_before(self) -> Dict[str, Dict[str, _Array]]: ...
+    @property
+    def traces_after(self) -> Dict[str, Dict[str, _Array]]: ...
+    def to_json(self) -> str: ...
+
 _Events = Union[_PathLike, Event, Iterable[Union[_PathLike, Event]]]
+_Hide = Union[
+    Mapping[str, Optional[Mapping[str, float]]],
+    Sequence[Union[str, Tuple[str, Optional[Mapping[str, float]]]]],
+]
 
 def load_event(path: _PathLike) -> Event: ...
 def load_unit(path: _PathLike) -> Unit: ...
@@ -129,6 +154,7 @@ def fit(
 ) -> FitResult: ...
 def models() -> List[Dict[str, Any]]: ...
 
+@overload
 def synth(
     unit: Union[_PathLike, Unit],
     *,
@@ -142,4 +168,35 @@ def synth(
     skew_ms: float = 0.0,
     seed: int = 1,
     name: Optional[str] = None,
+    hide: Optional[_Hide] = None,
+    return_truth: Literal[False] = False,
 ) -> Event: ...
+@overload
+def synth(
+    unit: Union[_PathLike, Unit],
+    *,
+    kind: str = "dip",
+    duration: float = 20.0,
+    rate: float = 60.0,
+    system_mva: Optional[float] = None,
+    pq_sigma: float = 0.002,
+    v_sigma: float = 0.0005,
+    quantum: float = 0.0014,
+    skew_ms: float = 0.0,
+    seed: int = 1,
+    name: Optional[str] = None,
+    hide: Optional[_Hide] = None,
+    return_truth: Literal[True],
+) -> Tuple[Event, Unit]: ...
+def diagnose(
+    unit: Union[_PathLike, Unit],
+    events: _Events,
+    held_out: Optional[_Events] = None,
+    *,
+    causes: Union[str, Sequence[str], None] = None,
+    seed: int = 1,
+    particles: int = 20,
+    pso_iterations: int = 25,
+    lbfgs_iterations: int = 20,
+    threads: Optional[int] = None,
+) -> Diagnosis: ...

@@ -289,7 +289,7 @@ fn free_params(unit: &Unit, spec: &StageSpec) -> Result<Vec<FreeParam>, FitError
 
 /// Runs the swarm then L-BFGS on `problem` from its start; returns the best physical values,
 /// the phase reports, and the objective at the best (accurate integrator).
-fn search(problem: &Problem, opts: &FitOptions, stage: &str, progress: &dyn Progress, use_pso: bool) -> (Vec<f64>, Vec<PhaseReport>) {
+pub(crate) fn search(problem: &Problem, opts: &FitOptions, stage: &str, progress: &dyn Progress, use_pso: bool) -> (Vec<f64>, Vec<PhaseReport>) {
     let n = problem.dim();
     let start = problem.start();
     let mut phases = vec![];

@@ -13,10 +13,13 @@
 //! * [`evidence`]: residual evidence for diagnosis (windows, noise floor, whiteness,
 //!   cross-correlation with the inputs, spectrum, matrix-pencil modes).
 //! * [`fit`]: stages, strategies and reports.
+//! * [`diagnose`]: residual evidence, the catalog of causes with their model extensions,
+//!   re-fits and gains, and the verdict.
 
 // Guards are written `!(x <= limit)` on purpose: that form also catches NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod diagnose;
 pub mod evidence;
 pub mod filter;
 pub mod fit;

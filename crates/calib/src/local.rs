@@ -20,12 +20,16 @@ use crate::problem::Problem;
 /// Step of the central differences in `z`.
 pub const FD_STEP: f64 = 1e-5;
 
-/// Smallest positive parameter measured in seconds anywhere in the unit (a proxy for the
-/// fastest time constant).
+/// Parameters measured in seconds that are not time constants of the dynamics (inertias, a
+/// derivative gain, a measurement delay).
+const NOT_TIME_CONSTANTS: &[&str] = &["h", "h_turbine", "h_generator", "k_x", "pq_delay_s"];
+
+/// Smallest positive time constant (parameter in seconds) anywhere in the unit (a proxy for the
+/// fastest dynamics).
 pub fn smallest_time_constant(unit: &Unit) -> f64 {
     unit.params()
         .iter()
-        .filter(|(_, s, v)| s.unit == "s" && *v > 1e-6)
+        .filter(|(_, s, v)| s.unit == "s" && *v > 1e-6 && !NOT_TIME_CONSTANTS.contains(&s.name))
         .map(|(_, _, v)| *v)
         .fold(f64::INFINITY, f64::min)
 }

@@ -153,6 +153,9 @@ pub struct Problem {
     pub weights: (f64, f64),
     /// Finite cost given to a candidate that fails.
     pub penalty: f64,
+    /// Tied parameters `(from, to)`: `to` takes `from`'s value in every candidate (e.g. a
+    /// two-mass shaft's generator inertia follows `machine.h`).
+    pub ties: Vec<(ParamRef, ParamRef)>,
     evaluations: AtomicUsize,
     failures: AtomicUsize,
     failure_log: Mutex<Vec<String>>,
@@ -166,6 +169,7 @@ impl Problem {
             events,
             weights,
             penalty: 1e6,
+            ties: Vec::new(),
             evaluations: AtomicUsize::new(0),
             failures: AtomicUsize::new(0),
             failure_log: Mutex::new(Vec::new()),
@@ -199,6 +203,10 @@ impl Problem {
         let mut u = self.unit.clone();
         for (f, v) in self.free.iter().zip(x) {
             u.set(f.r, *v);
+        }
+        for &(from, to) in &self.ties {
+            let v = u.get(from);
+            u.set(to, v);
         }
         u
     }

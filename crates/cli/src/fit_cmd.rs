@@ -85,14 +85,22 @@ enum StrategyArg {
 }
 
 /// Progress on a terminal: one bar per phase. Otherwise: plain lines every 10 iterations.
-struct Reporter {
+/// Shared with `diagnose`.
+pub(crate) struct Reporter {
     bar: Mutex<Option<ProgressBar>>,
     terminal: bool,
 }
 
 impl Reporter {
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self { bar: Mutex::new(None), terminal: std::io::stderr().is_terminal() }
+    }
+
+    /// Finishes the current bar, if any.
+    pub(crate) fn finish(&self) {
+        if let Some(b) = self.bar.lock().expect("progress").take() {
+            b.finish();
+        }
     }
 }
 
@@ -212,9 +220,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         let code = if matches!(e, itaipu_calib::fit::FitError::Spec(_)) { 4 } else { 6 };
         CliError::new(code, e.to_string())
     })?;
-    if let Some(b) = reporter.bar.lock().expect("progress").take() {
-        b.finish();
-    }
+    reporter.finish();
     let out = prepare_out(a.out.as_deref(), &format!("fit-{name}"), a.force)?;
     let write = |p: &Path, text: &str| std::fs::write(p, text).map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())));
     let json = serde_json::to_string_pretty(&result.report).map_err(|e| CliError::new(7, e.to_string()))?;

@@ -19,6 +19,7 @@ use itaipu_dynamics::simulate::{simulate, SimError, SimOptions, Traces};
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::read_unit;
 
+pub mod diagnose_cmd;
 pub mod fit_cmd;
 pub mod plot;
 pub mod synth_cmd;
@@ -49,6 +50,11 @@ enum Cmd {
     /// governor), each by a particle swarm then L-BFGS. With no arguments: the bundled Itaipu
     /// record, unit and calibration spec (RaPId's problem).
     Fit(fit_cmd::FitArgs),
+    /// Diagnose what a (calibrated) unit still gets wrong on events: residual evidence, each
+    /// cause of the catalog tried as a model extension and re-fitted, the gain judged by ΔBIC
+    /// and on held-out data, a verdict, the extended unit, plots and an HTML report. With no
+    /// arguments: the bundled Itaipu record and unit.
+    Diagnose(diagnose_cmd::DiagnoseArgs),
     /// Make a realistic synthetic event from the engine: a fault dip, frequency excursion,
     /// voltage step or ambient record played into a true unit, PMU sampling, noise and
     /// quantisation, optionally a hidden effect; writes the event, its CSV and the truth.
@@ -144,6 +150,7 @@ where
         Cmd::Simulate(a) => cmd_simulate(&a),
         Cmd::Models { name } => cmd_models(name.as_deref()),
         Cmd::Fit(a) => fit_cmd::cmd_fit(&a),
+        Cmd::Diagnose(a) => diagnose_cmd::cmd_diagnose(&a),
         Cmd::Synth(a) => synth_cmd::cmd_synth(&a),
     };
     match result {

@@ -1,10 +1,14 @@
 //! `itaipu-calib synth`: realistic synthetic events from the engine, with a separate truth file.
 
-use std::path::PathBuf;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 use clap::ValueEnum;
-use itaipu_dynamics::simulate::SimOptions;
-use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
+use itaipu_calib::diagnose::{self, catalog};
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::simulate::{SimError, SimOptions};
+use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, SynthError, VoltageProfile};
+use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::{bundled, load_unit, prepare_out, CliError, EXIT_CODES};
@@ -37,9 +41,18 @@ pub struct SynthArgs {
     /// Quantisation step of P and Q [pu] (default 0.0014, as in the Itaipu record; 0 for none).
     #[arg(long, default_value_t = 0.0014)]
     quantum: f64,
-    /// Hidden effect: the power channels lag the voltage channel by this much [ms].
+    /// Hidden effect: the power channels lag the voltage channel by this much [ms] (applied by
+    /// the PMU noise model, not by a block in the truth).
     #[arg(long, default_value_t = 0.0)]
     skew_ms: f64,
+    /// Hide a cause of the diagnosis catalog in the truth (repeatable, applied in order): the
+    /// catalog's model extension with the given values, e.g.
+    /// `torsional_mode:shaft.f_torsion_hz=5,shaft.zeta=0.05`, `exciter_limit:exciter.e_max=2.8`,
+    /// `terminal_load:load.p_load=0.04,load.q_load=0.03`,
+    /// `measurement_skew:measurement.pq_delay_s=0.012`. Parameters not given keep the
+    /// extension's starting values. truth.toml is then the extended unit.
+    #[arg(long, value_name = "CAUSE[:PARAM=VALUE,...]")]
+    hide: Vec<String>,
     /// Seed of the noise and of the ambient fluctuations.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -105,8 +118,36 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
     if !(system_mva > 0.0) {
         return Err(CliError::new(2, "--system-mva must be > 0"));
     }
-    let event = synthesize(&name, &truth, &profile, system_mva, &noise, &SimOptions::default())
-        .map_err(|e| CliError::new(5, format!("{}: {e}", unit_path.display())))?;
+    let hides = a.hide.iter().map(|h| parse_hide(h)).collect::<Result<Vec<_>, _>>()?;
+    let mut hidden = if a.skew_ms > 0.0 {
+        vec![serde_json::json!({
+            "cause": "measurement_skew",
+            "source": "noise model (--skew-ms)",
+            "delay_s": a.skew_ms * 1e-3,
+            "parameters": { "pq_delay_s": a.skew_ms * 1e-3 },
+        })]
+    } else {
+        vec![]
+    };
+    let truth = if hides.is_empty() {
+        truth
+    } else {
+        // The catalog's context (operating-point field voltage and current, PMU rate) comes from
+        // the truth as given on a noise-free run of the same profile.
+        let probe = synthesize(&name, &truth, &profile, system_mva, &PmuNoise::none(), &SimOptions::default())
+            .map_err(|e| synth_error(&unit_path, e))?;
+        let (extended, entries) = hide_all(&truth, &probe, &hides, &unit_path)?;
+        hidden.extend(entries);
+        extended
+    };
+    let event = synthesize(&name, &truth, &profile, system_mva, &noise, &SimOptions::default()).map_err(|e| {
+        let e = synth_error(&unit_path, e);
+        if hides.is_empty() {
+            e
+        } else {
+            CliError::new(e.code, format!("{} (with the hidden cause(s) {})", e.msg, a.hide.join(" ")))
+        }
+    })?;
     let out = prepare_out(a.out.as_deref(), &format!("synth-{name}"), a.force)?;
     let csv_name = format!("{name}.csv");
     let csv_path = out.join(&csv_name);
@@ -126,11 +167,6 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
     write(out.join("truth.toml"), unit_to_toml(&truth))?;
     let params: serde_json::Map<String, serde_json::Value> =
         truth.params().into_iter().map(|(p, _, v)| (p, serde_json::json!(v))).collect();
-    let hidden = if a.skew_ms > 0.0 {
-        serde_json::json!([{ "cause": "measurement_skew", "delay_s": a.skew_ms * 1e-3 }])
-    } else {
-        serde_json::json!([])
-    };
     let truth_json = serde_json::json!({
         "event": name,
         "kind": kind_name,
@@ -157,6 +193,135 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
         a.quantum,
         if a.skew_ms > 0.0 { format!(", power channels delayed {} ms", a.skew_ms) } else { String::new() }
     );
+    for h in &a.hide {
+        println!("hidden {h}");
+    }
     println!("wrote  {}/event.toml, {csv_name}, truth.toml, truth.json", out.display());
     Ok(())
+}
+
+/// A `--hide` option: the spec as written, the cause, and the values in the order given.
+type Hide = (String, String, Vec<(String, f64)>);
+
+/// Parses `CAUSE[:PARAM=VALUE,PARAM=VALUE...]`; every error is a usage error (exit 2) naming
+/// the bad piece.
+fn parse_hide(spec: &str) -> Result<Hide, CliError> {
+    let usage = |msg: String| CliError::new(2, format!("--hide {spec}: {msg}"));
+    let (cause, rest) = match spec.split_once(':') {
+        Some((c, r)) => (c.trim(), Some(r)),
+        None => (spec.trim(), None),
+    };
+    if cause.is_empty() {
+        return Err(usage(format!("no cause before ':' (known: {})", catalog::ids())));
+    }
+    if catalog::find(cause).is_none() {
+        return Err(usage(format!("unknown cause '{cause}' (known: {})", catalog::ids())));
+    }
+    let mut values: Vec<(String, f64)> = vec![];
+    if let Some(rest) = rest {
+        if rest.trim().is_empty() {
+            return Err(usage("nothing after ':' (expected PARAM=VALUE[,PARAM=VALUE...])".into()));
+        }
+        for item in rest.split(',') {
+            let (k, v) = item
+                .split_once('=')
+                .ok_or_else(|| usage(format!("'{}' is not PARAM=VALUE", item.trim())))?;
+            let (k, v) = (k.trim(), v.trim());
+            if k.is_empty() {
+                return Err(usage(format!("'{}' has no parameter name", item.trim())));
+            }
+            let x: f64 = v.parse().map_err(|_| usage(format!("{k}: '{v}' is not a number")))?;
+            if !x.is_finite() {
+                return Err(usage(format!("{k}: '{v}' is not a finite number")));
+            }
+            if values.iter().any(|(p, _)| p == k) {
+                return Err(usage(format!("{k} is given twice")));
+            }
+            values.push((k.to_string(), x));
+        }
+    }
+    Ok((spec.to_string(), cause.to_string(), values))
+}
+
+/// The exit code of a failure to synthesise: 5 when the unit cannot initialise, 6 when the
+/// integration fails.
+fn synth_error(unit_path: &Path, e: SynthError) -> CliError {
+    let code = match &e {
+        SynthError::Sim(SimError::Solve(_)) => 6,
+        _ => 5,
+    };
+    CliError::new(code, format!("{}: {e}", unit_path.display()))
+}
+
+/// Hides each cause in turn in `truth` ([`catalog::hide`], the catalog's context taken from the
+/// truth as given on `probe`); returns the extended unit and one `hidden_effects` entry per cause
+/// (its parameters with their values in the extended unit).
+fn hide_all(truth: &Unit, probe: &Event, hides: &[Hide], unit_path: &Path) -> Result<(Unit, Vec<serde_json::Value>), CliError> {
+    let ctx = diagnose::context(truth, probe)
+        .map_err(|e| CliError::new(5, format!("{}: the true unit does not simulate on the synthetic profile: {e}", unit_path.display())))?;
+    let mut unit = truth.clone();
+    let mut entries = vec![];
+    for (spec, cause, values) in hides {
+        let ext = match catalog::extend(cause, &unit, &ctx) {
+            Ok(Ok(ext)) => ext,
+            Ok(Err(why)) => return Err(CliError::new(2, format!("--hide {spec}: cannot hide {cause} in unit '{}': {why}", unit.name))),
+            Err(msg) => return Err(CliError::new(4, format!("{}: --hide {spec}: {msg}", unit_path.display()))),
+        };
+        let known = extension_params(&unit, &ext);
+        if let Some((bad, _)) = values.iter().find(|(p, _)| !known.contains(p)) {
+            if let Some((from, _)) = ext.ties.iter().find(|(_, to)| to == bad) {
+                return Err(CliError::new(2, format!("--hide {spec}: {bad} follows {from} in {cause}; set {from} instead")));
+            }
+            return Err(CliError::new(
+                2,
+                format!("--hide {spec}: unknown parameter '{bad}' for {cause} (its parameters: {})", known.join(", ")),
+            ));
+        }
+        let map: BTreeMap<String, f64> = values.iter().cloned().collect();
+        unit = catalog::hide(cause, &unit, &ctx, &map).map_err(|e| CliError::new(2, format!("--hide {spec}: {e}")))?;
+        let mut shown: Vec<&str> = ext.extension_free.iter().map(|f| f.param.as_str()).collect();
+        shown.extend(ext.ties.iter().map(|(_, to)| to.as_str()));
+        shown.extend(values.iter().map(|(p, _)| p.as_str()));
+        let mut params = serde_json::Map::new();
+        for p in shown {
+            if let Ok(r) = unit.param(p) {
+                params.entry(p.to_string()).or_insert(serde_json::json!(unit.get(r)));
+            }
+        }
+        let info = catalog::find(cause).expect("checked by parse_hide");
+        entries.push(serde_json::json!({
+            "cause": cause,
+            "source": format!("--hide {spec}"),
+            "title": info.title,
+            "extension": ext.description,
+            "parameters": params,
+        }));
+    }
+    let causes: Vec<&str> = hides.iter().map(|(_, c, _)| c.as_str()).collect();
+    unit.description = format!("{} (hidden by itaipu-calib synth: {})", unit.description, causes.join(", "));
+    Ok((unit, entries))
+}
+
+/// The parameters a `--hide` of `ext` may set: those the extension frees and those of the
+/// blocks it adds, except the ones tied to another parameter.
+fn extension_params(unit: &Unit, ext: &catalog::Extension) -> Vec<String> {
+    let old: Vec<&str> = unit.instances().iter().map(|i| i.name.as_str()).collect();
+    let mut known: Vec<String> = vec![];
+    let mut push = |p: &str| {
+        if !known.iter().any(|k| k == p) {
+            known.push(p.to_string());
+        }
+    };
+    for f in ext.extension_free.iter().chain(&ext.interacting_free) {
+        push(&f.param);
+    }
+    for (path, _, _) in ext.unit.params() {
+        let block = path.split('.').next().unwrap_or("");
+        if !old.contains(&block) {
+            push(&path);
+        }
+    }
+    // A tied parameter follows another one: setting it would have no effect.
+    known.retain(|p| !ext.ties.iter().any(|(_, to)| to == p));
+    known
 }

@@ -171,6 +171,13 @@ pub trait Block: Send + Sync {
     /// errors). Default: no change.
     fn transform_pq(&self, _t: &[f64], _p: &mut [f64], _q: &mut [f64]) {}
 
+    /// P and Q [pu machine base] drawn between the machine terminals and the measurement point
+    /// at terminal voltage `v` [pu]: the machine initialises delivering the measured power plus
+    /// this, and the recorded P, Q are the machine's minus this. Default: none.
+    fn terminal_load(&self, _v: f64) -> (f64, f64) {
+        (0.0, 0.0)
+    }
+
     /// Sets the nominal frequency [Hz] (machines use ω_b = 2π f_n). Default: ignored.
     fn set_nominal_frequency(&mut self, _hz: f64) {}
 

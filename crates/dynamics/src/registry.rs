@@ -2,7 +2,7 @@
 
 use crate::block::Block;
 use crate::models::exciter::sexs::Sexs;
-use crate::models::extensions::{oel::Oel, pmu_measurement::PmuMeasurement, sexs_bus_fed::SexsBusFed, speed_deadband::SpeedDeadband, two_mass_shaft::TwoMassShaft};
+use crate::models::extensions::{oel::Oel, pmu_measurement::PmuMeasurement, sexs_bus_fed::SexsBusFed, speed_deadband::SpeedDeadband, terminal_load::TerminalLoad, two_mass_shaft::TwoMassShaft};
 use crate::models::governor::{constant_pm::ConstantPm, hygov::Hygov};
 use crate::models::machine::{gencls::Gencls, genrou::Genrou, gensae::Gensae, gensal::Gensal, Machine};
 use crate::models::pss::{ieeest::Ieeest, stab3::Stab3};
@@ -109,6 +109,12 @@ pub static MODELS: &[ModelInfo] = &[
         role: Role::Other,
         summary: "inverse-time over-excitation limiter, summing-point type (extension, §12.4)",
         make: || Box::new(Oel::default()),
+    },
+    ModelInfo {
+        name: "terminal_load",
+        role: Role::Other,
+        summary: "static voltage-dependent load between the machine and the measurement point (extension)",
+        make: || Box::new(TerminalLoad::default()),
     },
 ];
 

@@ -101,7 +101,11 @@ where
             event_hz: ev.nominal_hz,
         });
     }
-    let op = ev.init_point(unit);
+    let mut op = ev.init_point(unit);
+    // A load between the machine and the measurement point: the machine delivers it as well.
+    let (pl, ql) = unit.terminal_load(op.v_mag);
+    op.p += pl;
+    op.q += ql;
     let mut x = unit.initialise(&op)?;
     let mut sys = Playback::new(unit, &ev.input);
     let stats = integrate::solve(&opts.method, &mut sys, &mut x, &ev.input.time_s, |k, t, x, sys| {
@@ -119,8 +123,9 @@ pub fn simulate_pq(unit: &mut Unit, ev: &PreparedEvent, opts: &SimOptions) -> Re
     let ip = unit.signal_index("pe").ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?;
     let iq = unit.signal_index("qe").ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?;
     run_playback(unit, ev, opts, |k, u, _| {
-        p[k] = u.bus()[ip] * to_sys;
-        q[k] = u.bus()[iq] * to_sys;
+        let (pk, qk) = u.measured_pq_now(ip, iq);
+        p[k] = pk * to_sys;
+        q[k] = qk * to_sys;
     })?;
     unit.transform_pq(&ev.input.time_s, &mut p, &mut q);
     Ok((p, q))
@@ -165,7 +170,8 @@ impl Traces {
 /// Simulates `unit` against `event` and records, at every sample:
 /// `p_pu`, `q_pu` (simulated, system base, as a measuring device would record them: after any
 /// `pmu_measurement` block's skew, phase and ratio errors), `p_meas_pu`, `q_meas_pu` (measured, system base),
-/// `p_mach_pu`, `q_mach_pu` (simulated, machine base), every signal on the bus (`v_term`,
+/// `p_mach_pu`, `q_mach_pu` (simulated, machine base, at the measurement point: after any
+/// `terminal_load`), every signal on the bus (`v_term`,
 /// `theta_term`, `delta`, `speed`, `pe`, `qe`, `te`, `efd`, `xadifd`, `pm`, `vs`, …, machine
 /// base) and every state as `block.state`; measured `efd_meas_pu`, `ifd_meas_pu`,
 /// `freq_meas_hz` when the event has them.
@@ -194,10 +200,11 @@ pub fn simulate_prepared(unit: &mut Unit, ev: &PreparedEvent, event: &Event, opt
     let mut cols: Vec<Vec<f64>> = vec![Vec::with_capacity(n); names.len()];
     let stats = run_playback(unit, ev, opts, |_, u, x| {
         let bus = u.bus();
-        cols[0].push(bus[ip] * to_sys);
-        cols[1].push(bus[iq] * to_sys);
-        cols[4].push(bus[ip]);
-        cols[5].push(bus[iq]);
+        let (pk, qk) = u.measured_pq_now(ip, iq);
+        cols[0].push(pk * to_sys);
+        cols[1].push(qk * to_sys);
+        cols[4].push(pk);
+        cols[5].push(qk);
         for (j, v) in bus.iter().enumerate() {
             cols[6 + j].push(*v);
         }

@@ -148,6 +148,27 @@ impl Unit {
         Ok(())
     }
 
+    /// Connects ports of the block `name` to other signals (`(port, signal)` pairs), keeping
+    /// its other connections. The wiring is resolved again on the next use (or
+    /// [`Unit::finish`]), so that several edits can be made before it has to be consistent.
+    pub fn rewire(&mut self, name: &str, ports: &[(String, String)]) -> Result<(), UnitError> {
+        let inst = self
+            .instances
+            .iter_mut()
+            .find(|i| i.name == name)
+            .ok_or_else(|| UnitError::Wiring(format!("no block named '{name}'")))?;
+        let block_ports = inst.block.ports();
+        for (port, signal) in ports {
+            let k = block_ports.iter().position(|p| p.name == port).ok_or_else(|| {
+                let names: Vec<_> = block_ports.iter().map(|p| p.name).collect();
+                UnitError::Wiring(format!("{name} ({}) has no port '{port}' (ports: {})", inst.block.model(), names.join(", ")))
+            })?;
+            inst.wiring[k] = signal.clone();
+        }
+        self.finished = false;
+        Ok(())
+    }
+
     /// A copy of this unit without the named blocks (their ports' signals then keep their
     /// initial values: no exciter holds E_fd at E_fd0, no governor holds P_m at P_m0).
     pub fn without(&self, names: &[&str]) -> Result<Unit, UnitError> {
@@ -423,6 +444,23 @@ impl Unit {
         for inst in &self.instances {
             inst.block.transform_pq(t, p, q);
         }
+    }
+
+    /// Total load [pu machine base] between the machine and the measurement point at terminal
+    /// voltage `v` ([`Block::terminal_load`]).
+    pub fn terminal_load(&self, v: f64) -> (f64, f64) {
+        self.instances.iter().fold((0.0, 0.0), |(p, q), i| {
+            let (pl, ql) = i.block.terminal_load(v);
+            (p + pl, q + ql)
+        })
+    }
+
+    /// The P and Q a measuring device at the terminals records now [pu machine base]: the
+    /// machine's `pe`, `qe` minus any [`Unit::terminal_load`] at the bus voltage.
+    #[inline]
+    pub fn measured_pq_now(&self, ip: usize, iq: usize) -> (f64, f64) {
+        let (pl, ql) = self.terminal_load(self.bus[self.sig_v]);
+        (self.bus[ip] - pl, self.bus[iq] - ql)
     }
 
     /// Sets the playback voltage on the bus.

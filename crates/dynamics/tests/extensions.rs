@@ -486,3 +486,30 @@ fn pmu_measurement_applies_skew_phase_and_ratio() {
     let worst = p0.iter().zip(&pd).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
     assert!(worst > 0.01, "skew effect {worst}");
 }
+
+#[test]
+fn terminal_load_is_delivered_by_the_machine_and_missing_from_the_recording() {
+    // A 4 % P, 2 % Q constant-impedance load between the machine and the PMU.
+    let text = format!("{BASE}\n[[block]]\nname = \"load\"\nmodel = \"terminal_load\"\np_load = 0.04\nq_load = 0.02\nn_p = 2.0\nn_q = 2.0\n");
+    let ev = event(&VoltageProfile::preset(itaipu_dynamics::synthetic::EventKind::FaultDip, 5.0, 60.0, 1));
+    let tr = sim(&text, &ev, &tight());
+    let (p, pe, qe, q, v) = (col(&tr, "p_mach_pu"), col(&tr, "pe"), col(&tr, "qe"), col(&tr, "q_mach_pu"), col(&tr, "v_term"));
+    // The recording is the machine's output minus the load at the played-back voltage, exactly.
+    for k in 0..p.len() {
+        assert!((pe[k] - p[k] - 0.04 * v[k] * v[k]).abs() < 1e-12, "P at sample {k}");
+        assert!((qe[k] - q[k] - 0.02 * v[k] * v[k]).abs() < 1e-12, "Q at sample {k}");
+    }
+    // It starts at the measured operating point (the machine delivers P0 + P_L(V0)).
+    let op = ev.operating_point();
+    let to_mach = ev.system_mva / 737.0;
+    assert!((p[0] - op.p_pu * to_mach).abs() < 1e-9 && (q[0] - op.q_pu * to_mach).abs() < 1e-9);
+    // In the dip the load falls with V²: the recording differs from the base unit's.
+    let base = sim(BASE, &ev, &tight());
+    assert!(pq_diff(&tr, &base) > 0.01, "the load must change what the PMU sees in a dip");
+    // And the unit with the load starts in exact steady state at any operating point.
+    let mut u = unit(&text);
+    for (at, op) in operating_points() {
+        let (d, state) = worst_derivative(&mut u, &op);
+        assert!(d < 1e-9, "terminal_load at {at}: |d{state}/dt| = {d:e}");
+    }
+}

@@ -8,15 +8,17 @@
 //!
 //! The pure-Python package (`python/itaipu_calib/__init__.py`) re-exports everything from here.
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
 
 use numpy::PyArray1;
 use pyo3::exceptions::{PyAttributeError, PyException, PyKeyError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyDict, PyList, PyTuple};
 use pyo3::{create_exception, PyTypeInfo};
 
+use itaipu_calib::diagnose::{self as calib_diagnose, catalog, DiagnoseError, DiagnoseOptions};
 use itaipu_calib::fit::{self as calib_fit, FitError, FitOptions, FitReport, Silent, StageOutput};
 use itaipu_calib::spec::{CalibSpec, SpecError, Strategy, STAGES};
 use itaipu_dynamics::block::Dir;
@@ -63,8 +65,9 @@ create_exception!(
     itaipu_calib,
     CalibrationError,
     ItaipuError,
-    "Bad calibration spec, or a fit that cannot run (kind: 'io', 'syntax', 'missing' or 'field' \
-     for the spec file; 'spec', 'stage' or 'setup' for the fit)."
+    "Bad calibration spec, or a fit or diagnosis that cannot run (kind: 'io', 'syntax', 'missing' \
+     or 'field' for the spec file; 'spec', 'stage' or 'setup' for the fit; 'setup' for a \
+     diagnosis, e.g. an unknown cause)."
 );
 
 /// A failure inside the GIL-free part of a call, converted to a Python exception afterwards.
@@ -74,6 +77,11 @@ enum Failure {
     Sim(SimError),
     Spec(SpecError),
     Fit(FitError),
+    Diagnose(DiagnoseError),
+    /// A bad argument found while running (ValueError).
+    Value(String),
+    /// The unit cannot initialise (InitError, kind 'init').
+    Init(String),
 }
 
 impl From<RsEventError> for Failure {
@@ -101,6 +109,11 @@ impl From<FitError> for Failure {
         Failure::Fit(e)
     }
 }
+impl From<DiagnoseError> for Failure {
+    fn from(e: DiagnoseError) -> Self {
+        Failure::Diagnose(e)
+    }
+}
 
 /// An exception of type `T` with message `msg` and attribute `kind`.
 fn raise<T: PyTypeInfo>(py: Python<'_>, msg: String, kind: Option<&'static str>) -> PyErr {
@@ -122,6 +135,12 @@ impl Failure {
             Failure::Sim(e @ SimError::Solve(_)) => raise::<SimulationError>(py, e.to_string(), Some(e.kind())),
             Failure::Spec(e) => raise::<CalibrationError>(py, e.to_string(), Some(e.kind())),
             Failure::Fit(e) => raise::<CalibrationError>(py, e.to_string(), Some(e.kind())),
+            Failure::Diagnose(e @ DiagnoseError::Setup(_)) => raise::<CalibrationError>(py, e.to_string(), Some(e.kind())),
+            Failure::Diagnose(e @ DiagnoseError::Simulation { .. }) => {
+                raise::<SimulationError>(py, e.to_string(), Some(e.kind()))
+            }
+            Failure::Value(msg) => PyValueError::new_err(msg),
+            Failure::Init(msg) => raise::<InitError>(py, msg, Some("init")),
         }
     }
 }
@@ -448,12 +467,7 @@ impl PyTraces {
 
     /// `{"time_s": array, column: array, ...}` (e.g. for `pandas.DataFrame(traces.to_dict())`).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = PyDict::new(py);
-        d.set_item("time_s", array(py, &self.inner.time_s))?;
-        for (name, col) in self.inner.names.iter().zip(&self.inner.columns) {
-            d.set_item(name, array(py, col))?;
-        }
-        Ok(d)
+        traces_dict(py, &self.inner)
     }
 
     fn __getitem__<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
@@ -500,6 +514,16 @@ impl PyTraces {
         let (t0, t1) = (t.first().copied().unwrap_or(f64::NAN), t.last().copied().unwrap_or(f64::NAN));
         format!("<Traces: {} samples, {} .. {} s, {} columns>", t.len(), t0, t1, self.inner.names.len())
     }
+}
+
+/// `{"time_s": array, column: array, ...}` of `t`.
+fn traces_dict<'py>(py: Python<'py>, t: &Traces) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("time_s", array(py, &t.time_s))?;
+    for (name, col) in t.names.iter().zip(&t.columns) {
+        d.set_item(name, array(py, col))?;
+    }
+    Ok(d)
 }
 
 /// Plays the measured terminal voltage of `event` into `unit` and records every signal.
@@ -850,10 +874,6 @@ fn fit(
 // Model library
 // -------------------------------------------------------------------------------------------
 
-/// The model library (the same catalogue unit files and the command line use): a list of dicts
-/// with name, role ('machine', 'exciter', 'pss', 'governor' or 'block'), summary, parameters
-/// (dicts: name, alias (PSS/E), unit, doc, typical, range = (low, high)), ports (dicts: name,
-/// direction 'in'/'out', doc) and states.
 /// Makes a realistic synthetic event from the engine (the same generator as
 /// `itaipu-calib synth`): a grid-side voltage profile (`kind`: "dip", "frequency", "step" or
 /// "ambient", the event at 1 s) played into the true `unit` (path or Unit), sampled at `rate`
@@ -862,9 +882,16 @@ fn fit(
 /// power channels (`skew_ms`). Returns an Event (in memory; P and Q on `system_mva`, default
 /// the unit's machine base). Deterministic for a seed. The GIL is released while it runs.
 ///
-/// Raises UnitModelError, InitError, SimulationError; ValueError for bad options.
+/// `hide` hides causes of the diagnosis catalog in the truth, in order, as the command line's
+/// `--hide`: a list of `(cause, {param: value})` tuples (or bare cause names), or a dict
+/// `{cause: {param: value}}`, e.g. `hide=[("measurement_skew", {"measurement.pq_delay_s":
+/// 0.012})]`. Parameters not given keep the extension's starting values. With
+/// `return_truth=True` the result is `(event, truth)`, truth being the (extended) true Unit.
+///
+/// Raises UnitModelError, InitError (also when a hidden cause keeps the truth from
+/// initialising), SimulationError; ValueError for bad options, an unknown cause or parameter.
 #[pyfunction]
-#[pyo3(signature = (unit, *, kind = "dip", duration = 20.0, rate = 60.0, system_mva = None, pq_sigma = 0.002, v_sigma = 0.0005, quantum = 0.0014, skew_ms = 0.0, seed = 1, name = None))]
+#[pyo3(signature = (unit, *, kind = "dip", duration = 20.0, rate = 60.0, system_mva = None, pq_sigma = 0.002, v_sigma = 0.0005, quantum = 0.0014, skew_ms = 0.0, seed = 1, name = None, hide = None, return_truth = false))]
 #[allow(clippy::too_many_arguments)]
 fn synth(
     py: Python<'_>,
@@ -879,8 +906,10 @@ fn synth(
     skew_ms: f64,
     seed: u64,
     name: Option<String>,
-) -> PyResult<PyEvent> {
-    use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
+    hide: Option<&Bound<'_, PyAny>>,
+    return_truth: bool,
+) -> PyResult<Py<PyAny>> {
+    use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, SynthError, VoltageProfile};
     let event_kind = match kind.to_ascii_lowercase().as_str() {
         "dip" => EventKind::FaultDip,
         "frequency" => EventKind::FrequencyExcursion,
@@ -899,29 +928,394 @@ fn synth(
             return Err(PyValueError::new_err(format!("{n} must be >= 0 (got {v})")));
         }
     }
+    if let Some(m) = system_mva {
+        if !(m > 0.0 && m.is_finite()) {
+            return Err(PyValueError::new_err(format!("system_mva must be > 0 (got {m})")));
+        }
+    }
+    let hides = match hide {
+        Some(h) => hide_list(h)?,
+        None => vec![],
+    };
     let unit = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
     let name = name.unwrap_or_else(|| format!("synthetic-{}-{seed}", kind.to_ascii_lowercase()));
-    let result = py.detach(move || -> Result<Result<Event, String>, Failure> {
+    let result = py.detach(move || -> Result<(Event, Arc<Unit>), Failure> {
         let unit = match unit {
             Source::Loaded(u) => u,
             Source::Path(p) => Arc::new(read_unit(&p)?),
         };
         let profile = VoltageProfile::preset(event_kind, duration, rate, seed);
-        let noise = PmuNoise { pq_sigma, v_sigma, angle_sigma: v_sigma, pq_quantum: quantum, pq_delay_s: skew_ms * 1e-3, seed };
         let mva = system_mva.unwrap_or(unit.machine_mva);
-        match synthesize(&name, &unit, &profile, mva, &noise, &SimOptions::default()) {
-            Ok(e) => Ok(Ok(e)),
-            Err(itaipu_dynamics::synthetic::SynthError::Sim(e)) => Err(Failure::Sim(e)),
-            Err(e) => Ok(Err(e.to_string())),
-        }
+        let synth_failure = |e: SynthError| match e {
+            SynthError::Sim(e) => Failure::Sim(e),
+            e => Failure::Value(e.to_string()),
+        };
+        let truth = if hides.is_empty() {
+            unit
+        } else {
+            // The catalog's context comes from the truth as given on a noise-free run.
+            let probe = synthesize(&name, &unit, &profile, mva, &PmuNoise::none(), &SimOptions::default()).map_err(synth_failure)?;
+            Arc::new(hide_all(&unit, &probe, &hides)?)
+        };
+        let noise = PmuNoise { pq_sigma, v_sigma, angle_sigma: v_sigma, pq_quantum: quantum, pq_delay_s: skew_ms * 1e-3, seed };
+        let event = synthesize(&name, &truth, &profile, mva, &noise, &SimOptions::default()).map_err(synth_failure)?;
+        Ok((event, truth))
     });
-    match result {
-        Ok(Ok(e)) => Ok(PyEvent { inner: Arc::new(e) }),
-        Ok(Err(msg)) => Err(PyValueError::new_err(msg)),
-        Err(f) => Err(f.into_pyerr(py)),
+    let (event, truth) = result.map_err(|f| f.into_pyerr(py))?;
+    let event = Bound::new(py, PyEvent { inner: Arc::new(event) })?;
+    if return_truth {
+        let truth = Bound::new(py, PyUnit { inner: truth, path: None })?;
+        Ok(PyTuple::new(py, [event.into_any(), truth.into_any()])?.into_any().unbind())
+    } else {
+        Ok(event.into_any().unbind())
     }
 }
 
+/// A cause to hide and its values in the order given.
+type Hide = (String, Vec<(String, f64)>);
+
+/// The `hide` argument of `synth`: a dict `{cause: {param: value}}` or a list of
+/// `(cause, {param: value})` tuples or cause names.
+fn hide_list(arg: &Bound<'_, PyAny>) -> PyResult<Vec<Hide>> {
+    let values = |cause: &str, v: Option<Bound<'_, PyAny>>| -> PyResult<Vec<(String, f64)>> {
+        let Some(v) = v.filter(|v| !v.is_none()) else { return Ok(vec![]) };
+        let d = v.downcast::<PyDict>().map_err(|_| {
+            PyTypeError::new_err(format!("hide: the values of '{cause}' must be a dict {{param: value}}"))
+        })?;
+        d.iter()
+            .map(|(k, x)| {
+                let k: String = k.extract().map_err(|_| PyTypeError::new_err(format!("hide: '{cause}': parameter names must be str")))?;
+                let x: f64 = x.extract().map_err(|_| PyTypeError::new_err(format!("hide: '{cause}': {k} must be a number")))?;
+                Ok((k, x))
+            })
+            .collect()
+    };
+    let check = |cause: String, vals: Vec<(String, f64)>| -> PyResult<Hide> {
+        if catalog::find(&cause).is_none() {
+            return Err(PyValueError::new_err(format!("hide: unknown cause '{cause}' (known: {})", catalog::ids())));
+        }
+        if let Some((k, x)) = vals.iter().find(|(_, x)| !x.is_finite()) {
+            return Err(PyValueError::new_err(format!("hide: '{cause}': {k} must be finite (got {x})")));
+        }
+        Ok((cause, vals))
+    };
+    if let Ok(d) = arg.downcast::<PyDict>() {
+        return d
+            .iter()
+            .map(|(c, v)| {
+                let c: String = c.extract().map_err(|_| PyTypeError::new_err("hide: causes must be str"))?;
+                let vals = values(&c, Some(v))?;
+                check(c, vals)
+            })
+            .collect();
+    }
+    let bad = || PyTypeError::new_err("hide must be a dict {cause: {param: value}} or a list of (cause, {param: value}) tuples");
+    if arg.extract::<String>().is_ok() {
+        return Err(bad());
+    }
+    let items = arg.try_iter().map_err(|_| bad())?;
+    items
+        .map(|item| {
+            let item = item?;
+            if let Ok(c) = item.extract::<String>() {
+                return check(c, vec![]);
+            }
+            let t = item.downcast::<PyTuple>().map_err(|_| bad())?;
+            if t.len() != 2 {
+                return Err(bad());
+            }
+            let c: String = t.get_item(0)?.extract().map_err(|_| bad())?;
+            let vals = values(&c, Some(t.get_item(1)?))?;
+            check(c, vals)
+        })
+        .collect()
+}
+
+/// The truth with each cause of `hides` hidden in turn ([`catalog::hide`], the catalog's context
+/// taken from `truth` on the noise-free `probe`), as the command line's `synth --hide`: only
+/// the extension's parameters may be set (those it frees and those of the blocks it adds,
+/// except tied ones).
+fn hide_all(truth: &Unit, probe: &Event, hides: &[Hide]) -> Result<Unit, Failure> {
+    let ctx = calib_diagnose::context(truth, probe)
+        .map_err(|e| Failure::Init(format!("the true unit does not simulate on the synthetic profile: {e}")))?;
+    let mut unit = truth.clone();
+    for (cause, values) in hides {
+        let ext = match catalog::extend(cause, &unit, &ctx) {
+            Ok(Ok(ext)) => ext,
+            Ok(Err(why)) => return Err(Failure::Value(format!("hide: cannot hide {cause} in unit '{}': {why}", unit.name))),
+            Err(msg) => return Err(Failure::Value(format!("hide: {cause}: {msg}"))),
+        };
+        let old: Vec<&str> = unit.instances().iter().map(|i| i.name.as_str()).collect();
+        let mut known: Vec<String> = ext.extension_free.iter().chain(&ext.interacting_free).map(|f| f.param.clone()).collect();
+        for (path, _, _) in ext.unit.params() {
+            if !old.contains(&path.split('.').next().unwrap_or("")) && !known.contains(&path) {
+                known.push(path);
+            }
+        }
+        known.retain(|p| !ext.ties.iter().any(|(_, to)| to == p));
+        for (k, _) in values {
+            if let Some((from, _)) = ext.ties.iter().find(|(_, to)| to == k) {
+                return Err(Failure::Value(format!("hide: {k} follows {from} in {cause}; set {from} instead")));
+            }
+            if !known.contains(k) {
+                return Err(Failure::Value(format!(
+                    "hide: unknown parameter '{k}' for {cause} (its parameters: {})",
+                    known.join(", ")
+                )));
+            }
+        }
+        let map: BTreeMap<String, f64> = values.iter().cloned().collect();
+        unit = catalog::hide(cause, &unit, &ctx, &map).map_err(|e| Failure::Value(format!("hide: {e}")))?;
+    }
+    let causes: Vec<&str> = hides.iter().map(|(c, _)| c.as_str()).collect();
+    unit.description = format!("{} (hidden by itaipu_calib.synth: {})", unit.description, causes.join(", "));
+    Ok(unit)
+}
+
+// -------------------------------------------------------------------------------------------
+// Diagnose
+// -------------------------------------------------------------------------------------------
+
+/// A serde_json value as the equivalent Python object (null -> None, numbers -> int or float,
+/// arrays -> lists, objects -> dicts in the JSON's key order).
+fn json_to_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
+    use pyo3::IntoPyObjectExt;
+    use serde_json::Value;
+    Ok(match v {
+        Value::Null => py.None().into_bound(py),
+        Value::Bool(b) => b.into_bound_py_any(py)?,
+        Value::Number(n) => {
+            if let Some(i) = n.as_i64() {
+                i.into_bound_py_any(py)?
+            } else if let Some(u) = n.as_u64() {
+                u.into_bound_py_any(py)?
+            } else {
+                n.as_f64().unwrap_or(f64::NAN).into_bound_py_any(py)?
+            }
+        }
+        Value::String(s) => s.into_bound_py_any(py)?,
+        Value::Array(a) => {
+            let l = PyList::empty(py);
+            for x in a {
+                l.append(json_to_py(py, x)?)?;
+            }
+            l.into_any()
+        }
+        Value::Object(o) => {
+            let d = PyDict::new(py);
+            for (k, x) in o {
+                d.set_item(k, json_to_py(py, x)?)?;
+            }
+            d.into_any()
+        }
+    })
+}
+
+/// Result of `diagnose`: the verdict, every candidate cause tried with its gain, the residual
+/// evidence, the extended and re-fitted unit of the named cause, and traces before and after.
+///
+/// `report` is the whole diagnosis report as a dict (non-finite numbers are None; a new dict on
+/// each access); `to_json()` gives it as JSON text. `verdict` is the report's verdict (cause,
+/// title, statement, key_parameters as `[path, value, unit]` lists, gains, where: `[signal,
+/// window, start_s, end_s]` or None); `cause` its cause id, `none` or `unexplained`.
+#[pyclass(name = "Diagnosis", module = "itaipu_calib", frozen)]
+struct PyDiagnosis {
+    report: serde_json::Value,
+    extended_unit: Option<Arc<Unit>>,
+    before: Vec<(String, Traces)>,
+    after: Vec<(String, Traces)>,
+}
+
+impl PyDiagnosis {
+    fn field<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+        json_to_py(py, self.report.get(key).unwrap_or(&serde_json::Value::Null))
+    }
+}
+
+#[pymethods]
+impl PyDiagnosis {
+    /// The verdict as a dict: cause, title, statement, key_parameters, gains, where.
+    #[getter]
+    fn verdict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mut v = self.report.get("verdict").cloned().unwrap_or(serde_json::Value::Null);
+        // The Rust field is `where_` (a keyword): the dict says `where`.
+        if let Some(o) = v.as_object_mut() {
+            if let Some(w) = o.remove("where_") {
+                o.entry("where").or_insert(w);
+            }
+        }
+        json_to_py(py, &v)
+    }
+
+    /// The named cause id, or `none` / `unexplained`.
+    #[getter]
+    fn cause(&self) -> String {
+        self.report["verdict"]["cause"].as_str().unwrap_or_default().to_string()
+    }
+
+    /// Every cause tried, by decreasing ΔBIC (not applicable ones last): dicts with cause,
+    /// title, applicable, note, extension, parameters, fixed, gains, significant, signature, ...
+    #[getter]
+    fn candidates<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "candidates")
+    }
+
+    /// Residual evidence per event on the unit as given (dicts: event, onset_s, signals).
+    #[getter]
+    fn evidence<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "evidence")
+    }
+
+    /// The whole report as a dict (what the command line writes as JSON).
+    #[getter]
+    fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_to_py(py, &self.report)
+    }
+
+    /// The extended, re-fitted unit of the named cause as unit-file TOML, or None.
+    #[getter]
+    fn extended_unit_toml(&self) -> Option<String> {
+        self.extended_unit.as_deref().map(unit_to_toml)
+    }
+
+    /// The extended, re-fitted unit of the named cause, or None.
+    #[getter]
+    fn extended_unit(&self) -> Option<PyUnit> {
+        self.extended_unit.as_ref().map(|u| PyUnit { inner: u.clone(), path: None })
+    }
+
+    /// Per event name: the traces of the unit as given (`{"time_s": array, column: array}`).
+    #[getter]
+    fn traces_before<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (e, t) in &self.before {
+            d.set_item(e, traces_dict(py, t)?)?;
+        }
+        Ok(d)
+    }
+
+    /// Per event name: the traces of the extended unit (empty when no cause is named).
+    #[getter]
+    fn traces_after<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (e, t) in &self.after {
+            d.set_item(e, traces_dict(py, t)?)?;
+        }
+        Ok(d)
+    }
+
+    /// The report as JSON text (indented).
+    fn to_json(&self) -> PyResult<String> {
+        serde_json::to_string_pretty(&self.report).map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))
+    }
+
+    fn __repr__(&self) -> String {
+        let r = &self.report;
+        format!(
+            "<Diagnosis of '{}' on {}: {} ({} candidates, {:.1} s)>",
+            r["unit"].as_str().unwrap_or_default(),
+            r["events"].as_array().map(|a| a.iter().filter_map(|e| e.as_str()).collect::<Vec<_>>().join(", ")).unwrap_or_default(),
+            r["verdict"]["cause"].as_str().unwrap_or_default(),
+            r["candidates"].as_array().map_or(0, |a| a.len()),
+            r["wall_s"].as_f64().unwrap_or(f64::NAN)
+        )
+    }
+}
+
+/// The `causes` argument: None (the whole catalog), a cause id, a comma-separated string or a
+/// list of ids.
+fn cause_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
+    let Some(arg) = arg else { return Ok(vec![]) };
+    let given: Vec<String> = if let Ok(s) = arg.extract::<String>() {
+        vec![s]
+    } else {
+        arg.extract::<Vec<String>>().map_err(|_| PyTypeError::new_err("causes must be None, a cause id, or a list of cause ids"))?
+    };
+    let names: Vec<String> = given.iter().flat_map(|s| s.split(',')).map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect();
+    if names.is_empty() {
+        return Err(PyValueError::new_err(format!("causes must name at least one cause, or be None for all ({})", catalog::ids())));
+    }
+    Ok(names)
+}
+
+/// Diagnoses what `unit` (normally already calibrated) still gets wrong on `events`: residual
+/// evidence, then each cause of the catalog (or of `causes`) as a model extension re-fitted by
+/// particle swarm and L-BFGS and judged by its gain (ΔBIC, fitted and held-out χ²), then a
+/// verdict, as the command line's `diagnose`.
+///
+/// `unit` is a path or a Unit; `events` and `held_out` paths to event files or Event objects,
+/// or lists of them. Without `held_out`, each event is split into alternating blocks, fitted
+/// and held out. `causes` (ids, see the catalog: torsional_mode, exciter_limit, saturation,
+/// governor, measurement_skew, terminal_load, pss_state, oel) limits the causes tried. `seed`,
+/// `particles`, `pso_iterations` and `lbfgs_iterations` set each re-fit; `threads` the worker
+/// threads (default: all cores). The GIL is released while it runs. Returns a Diagnosis.
+///
+/// Raises CalibrationError (kind 'setup': e.g. an unknown cause), SimulationError (kind
+/// 'simulation': the unit does not simulate on an event as given), EventError,
+/// UnitModelError; ValueError for bad options, TypeError for bad argument types.
+#[pyfunction]
+#[pyo3(
+    signature = (unit, events, held_out = None, *, causes = None, seed = 1, particles = 20, pso_iterations = 25,
+                 lbfgs_iterations = 20, threads = None),
+    text_signature = "(unit, events, held_out=None, *, causes=None, seed=1, particles=20, pso_iterations=25, \
+                      lbfgs_iterations=20, threads=None)"
+)]
+#[allow(clippy::too_many_arguments)]
+fn diagnose(
+    py: Python<'_>,
+    unit: &Bound<'_, PyAny>,
+    events: &Bound<'_, PyAny>,
+    held_out: Option<&Bound<'_, PyAny>>,
+    causes: Option<&Bound<'_, PyAny>>,
+    seed: u64,
+    particles: usize,
+    pso_iterations: usize,
+    lbfgs_iterations: u64,
+    threads: Option<usize>,
+) -> PyResult<PyDiagnosis> {
+    let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
+    let events = event_sources(events, "events")?;
+    let held_out = match held_out {
+        Some(h) if !h.is_none() => event_sources(h, "held_out")?,
+        _ => vec![],
+    };
+    let causes = cause_list(causes)?;
+    if particles < 2 {
+        return Err(PyValueError::new_err(format!("particles must be at least 2 (got {particles})")));
+    }
+    let pool = match threads {
+        None => None,
+        Some(0) => return Err(PyValueError::new_err("threads must be at least 1")),
+        Some(n) => Some(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| PyRuntimeError::new_err(format!("cannot start {n} worker threads: {e}")))?,
+        ),
+    };
+    let opts = DiagnoseOptions { causes, seed, particles, pso_iterations, lbfgs_iterations, ..Default::default() };
+    let result = py.detach(move || -> Result<calib_diagnose::DiagnoseResult, Failure> {
+        let unit = match unit_src {
+            Source::Loaded(u) => u,
+            Source::Path(p) => Arc::new(read_unit(&p)?),
+        };
+        let events = load_events(events)?;
+        let held_out = load_events(held_out)?;
+        let run = || calib_diagnose::diagnose(&unit, &events, &held_out, &opts, &Silent);
+        Ok(match pool {
+            Some(pool) => pool.install(run),
+            None => run(),
+        }?)
+    });
+    let result = result.map_err(|e| e.into_pyerr(py))?;
+    let report = serde_json::to_value(&result.report).map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))?;
+    Ok(PyDiagnosis { report, extended_unit: result.extended_unit.map(Arc::new), before: result.before, after: result.after })
+}
+
+/// The model library (the same catalogue unit files and the command line use): a list of dicts
+/// with name, role ('machine', 'exciter', 'pss', 'governor' or 'block'), summary, parameters
+/// (dicts: name, alias (PSS/E), unit, doc, typical, range = (low, high)), ports (dicts: name,
+/// direction 'in'/'out', doc) and states.
 #[pyfunction]
 fn models<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
     let out = PyList::empty(py);
@@ -978,11 +1372,13 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyUnit>()?;
     m.add_class::<PyTraces>()?;
     m.add_class::<PyFitResult>()?;
+    m.add_class::<PyDiagnosis>()?;
     m.add_function(wrap_pyfunction!(load_event, m)?)?;
     m.add_function(wrap_pyfunction!(load_unit, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(models, m)?)?;
     m.add_function(wrap_pyfunction!(synth, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnose, m)?)?;
     Ok(())
 }

@@ -7,6 +7,7 @@
 //! | [`speed_deadband`] | machine `speed` → `speed_db` → governor `speed` | intentional governor deadband (§12.2, type 1) |
 //! | [`oel`] | machine `xadifd` → OEL → `voel` → exciter | inverse-time over-excitation limiter (§12.4) |
 //! | [`sexs_bus_fed`] | replaces the exciter | SEXS whose ceiling follows V_t and X_adI_fd (§12.3) |
+//! | [`terminal_load`] | none: drawn between the machine and the PMU | unmodelled station or feeder load |
 //! | [`pmu_measurement`] | none: acts on the recorded P, Q | channel skew, VT/CT phase error, ratio errors (§12.5) |
 //!
 //! Each one starts in exact steady state and, with its "off" parameters (stiff shaft, zero
@@ -15,4 +16,5 @@ pub mod oel;
 pub mod pmu_measurement;
 pub mod sexs_bus_fed;
 pub mod speed_deadband;
+pub mod terminal_load;
 pub mod two_mass_shaft;

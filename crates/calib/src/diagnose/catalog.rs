@@ -1,0 +1,414 @@
+//! The catalog of causes: for each, what it looks like in the residual evidence, the extension
+//! block that models it, and which parameters a re-fit frees (the extension's own, then the
+//! unit's parameters it interacts with).
+//!
+//! One definition serves two uses: [`extend`] builds the extended unit that `diagnose` re-fits,
+//! and [`hide`] builds the same extension with chosen values, so that `synth` can hide a cause
+//! in the truth of a synthetic event.
+
+use std::collections::BTreeMap;
+
+use itaipu_dynamics::block::Block;
+use itaipu_dynamics::registry::{self, Role};
+use itaipu_dynamics::unit::Unit;
+use serde::Serialize;
+
+/// One entry of the catalog.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct CauseInfo {
+    /// Identifier (`torsional_mode`, …), as written in verdicts and on the command line.
+    pub id: &'static str,
+    /// A short title for tables.
+    pub title: &'static str,
+    /// What the cause looks like in the residual evidence.
+    pub signature: &'static str,
+    /// The model extension fitted for it.
+    pub extension: &'static str,
+    /// The parameters that characterise it (reported in the verdict), extension-relative
+    /// (`block.param` inside the extended unit).
+    pub key_params: &'static [&'static str],
+}
+
+/// Every cause `diagnose` knows, in the order they are tried.
+pub static CAUSES: &[CauseInfo] = &[
+    CauseInfo {
+        id: "torsional_mode",
+        title: "torsional mode of the turbine-generator shaft",
+        signature: "a lightly damped oscillation in the P residual above the electromechanical modes, \
+                    present after every disturbance",
+        extension: "two_mass_shaft between the governor and the machine (H_t, mode frequency, damping ratio), \
+                    machine.h becomes the generator mass",
+        key_params: &["shaft.f_torsion_hz", "shaft.zeta"],
+    },
+    CauseInfo {
+        id: "exciter_limit",
+        title: "exciter output limits reached",
+        signature: "Q residual confined to the dip and the first recovery seconds (the field voltage \
+                    saturates on its ceiling or floor), small before and long after",
+        extension: "exciter ceiling E_MAX and floor E_MIN freed (with the AVR gain)",
+        key_params: &["exciter.e_max", "exciter.e_min"],
+    },
+    CauseInfo {
+        id: "saturation",
+        title: "magnetic saturation other than modelled",
+        signature: "Q residual that grows with the flux (voltage) level and a Q bias after the event",
+        extension: "machine saturation S(1.0), S(1.2) freed",
+        key_params: &["machine.s10", "machine.s12"],
+    },
+    CauseInfo {
+        id: "governor",
+        title: "governor action missing or mis-modelled",
+        signature: "slow P residual that follows the frequency deviation (seconds), growing through the \
+                    record",
+        extension: "HYGOV (added, or refitted) with a speed deadband and its gate rate limit VELM free",
+        key_params: &["deadband.db", "governor.velm"],
+    },
+    CauseInfo {
+        id: "measurement_skew",
+        title: "power channels skewed against the voltage channel",
+        signature: "P and Q residuals shaped like the time derivative of the response (largest where P and Q \
+                    change fastest), cross-correlated with the input at a lag",
+        extension: "pmu_measurement block: a fractional delay of the P and Q channels",
+        key_params: &["measurement.pq_delay_s"],
+    },
+    CauseInfo {
+        id: "terminal_load",
+        title: "unmodelled load between the machine and the PMU",
+        signature: "P and Q residuals proportional to the voltage deviation (largest in the dip), no lag",
+        extension: "terminal_load block: a constant-impedance P and Q load at the terminal bus",
+        key_params: &["load.p_load", "load.q_load"],
+    },
+    CauseInfo {
+        id: "pss_state",
+        title: "PSS in service other than modelled",
+        signature: "electromechanical swing in the P residual with the wrong damping after the event",
+        extension: "the PSS removed when the model has one; a STAB3 added when it has none",
+        key_params: &["pss.in_service"],
+    },
+    CauseInfo {
+        id: "oel",
+        title: "over-excitation limiter acting after the event",
+        signature: "Q residual that appears seconds after the event, while the field current stays high, \
+                    and grows (the limiter pulls the field back)",
+        extension: "inverse-time OEL on the field current (pickup, I²t capacity, integral gain)",
+        key_params: &["oel.i_pickup", "oel.a_max"],
+    },
+];
+
+/// Looks a cause up by id.
+pub fn find(id: &str) -> Option<&'static CauseInfo> {
+    CAUSES.iter().find(|c| c.id == id)
+}
+
+/// Ids of all causes, for messages.
+pub fn ids() -> String {
+    CAUSES.iter().map(|c| c.id).collect::<Vec<_>>().join(", ")
+}
+
+/// A free parameter of a candidate re-fit.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FreeBound {
+    pub param: String,
+    pub min: f64,
+    pub max: f64,
+    pub start: f64,
+    /// Grid points to scan this parameter over before the swarm (0 = none): for a parameter
+    /// whose objective has narrow valleys (a mode frequency, a delay, a limit that is hit or
+    /// not), the best grid point becomes the start.
+    pub scan: usize,
+}
+
+/// What the operating point and the evidence tell the catalog about a unit on an event.
+#[derive(Debug, Clone, Default)]
+pub struct Context {
+    /// Field voltage at the pre-event operating point [pu], if the unit has an exciter.
+    pub efd0: Option<f64>,
+    /// Field current X_adI_fd at the operating point [pu].
+    pub xadifd0: Option<f64>,
+    /// PMU reporting rate [samples/s].
+    pub rate_hz: f64,
+    /// Frequency of the dominant oscillation in the P residual above 1 Hz, if any [Hz].
+    pub mode_hint_hz: Option<f64>,
+}
+
+/// A unit extended for one cause, with what to free in the re-fit.
+#[derive(Clone)]
+pub struct Extension {
+    pub cause: &'static str,
+    pub unit: Unit,
+    /// The extension's own parameters (counted in the information criterion).
+    pub extension_free: Vec<FreeBound>,
+    /// Parameters of the unit the extension interacts with (freed in the baseline re-fit too).
+    pub interacting_free: Vec<FreeBound>,
+    /// Structural parameters that are not continuous (e.g. a PSS switched out): counted in the
+    /// information criterion on top of `extension_free`.
+    pub discrete_params: usize,
+    /// `(from, to)`: `to` follows `from` (paths in `unit`).
+    pub ties: Vec<(String, String)>,
+    /// Human-readable description of what was changed.
+    pub description: String,
+    /// Fixed results to report (e.g. `pss.in_service = 0`).
+    pub fixed: Vec<(String, f64)>,
+}
+
+fn role_of(block: &dyn Block) -> Role {
+    registry::find(block.model()).map_or(Role::Other, |m| m.role)
+}
+
+/// The instance name of the block with `role`.
+pub fn instance_with_role(unit: &Unit, role: Role) -> Option<String> {
+    unit.instances().iter().find(|i| role_of(i.block.as_ref()) == role).map(|i| i.name.clone())
+}
+
+fn model_of(unit: &Unit, name: &str) -> String {
+    unit.block(name).map(|b| b.model().to_string()).unwrap_or_default()
+}
+
+fn new_block(model: &str, values: &[(&str, f64)]) -> Result<Box<dyn Block>, String> {
+    let info = registry::find(model).ok_or_else(|| format!("model {model} is not in the registry"))?;
+    let mut b = info.create();
+    for (name, v) in values {
+        let ps = b.params_mut();
+        let k = ps.index_of(name).ok_or_else(|| format!("{model} has no parameter {name}"))?;
+        ps.set(k, *v);
+    }
+    Ok(b)
+}
+
+fn value(unit: &Unit, path: &str) -> Result<f64, String> {
+    unit.param(path).map(|r| unit.get(r)).map_err(|e| e.to_string())
+}
+
+fn has_param(unit: &Unit, path: &str) -> bool {
+    unit.param(path).is_ok()
+}
+
+fn fb(param: &str, min: f64, max: f64, start: f64) -> FreeBound {
+    FreeBound { param: param.to_string(), min, max, start: start.clamp(min, max), scan: 0 }
+}
+
+fn scanned(mut b: FreeBound, points: usize) -> FreeBound {
+    b.scan = points;
+    b
+}
+
+/// Adds block `name` (the wiring is resolved once all edits are made).
+fn add_block(unit: &mut Unit, name: &str, block: Box<dyn Block>) -> Result<(), String> {
+    unit.add(name, block, &[]).map_err(|e| e.to_string())
+}
+
+/// Rewires ports of the existing instance `name`, keeping its other connections.
+fn rewire(unit: &mut Unit, name: &str, ports: &[(&str, &str)]) -> Result<(), String> {
+    let rw: Vec<(String, String)> = ports.iter().map(|(a, b)| (a.to_string(), b.to_string())).collect();
+    unit.rewire(name, &rw).map_err(|e| e.to_string())
+}
+
+/// Set-point offsets that every re-fit frees as nuisance parameters (`models.md`: a playback
+/// is open loop, and a small error in the initial voltage or speed reference moves the response).
+pub const NUISANCE: &[&str] = &["v_ref_offset", "n_ref_offset", "pm_offset"];
+
+/// The unit's nuisance offsets, each within its declared range (widened to hold its value).
+pub fn nuisance(unit: &Unit) -> Vec<FreeBound> {
+    unit.params()
+        .into_iter()
+        .filter(|(path, _, _)| NUISANCE.iter().any(|n| path.rsplit('.').next() == Some(*n)))
+        .map(|(path, spec, v)| fb(&path, spec.range.0.min(v), spec.range.1.max(v), v))
+        .collect()
+}
+
+/// Builds the extension of `unit` for `cause`. `Ok(None)` when the cause does not apply to this
+/// unit (e.g. no exciter for `exciter_limit`); the reason is in the string.
+pub fn extend(cause: &str, unit: &Unit, ctx: &Context) -> Result<Result<Extension, String>, String> {
+    let info = find(cause).ok_or_else(|| format!("unknown cause '{cause}' (known: {})", ids()))?;
+    let mut u = unit.clone();
+    u.ensure_finished().map_err(|e| e.to_string())?;
+    let machine = instance_with_role(&u, Role::Machine).ok_or("the unit has no machine")?;
+    let exciter = instance_with_role(&u, Role::Exciter);
+    let pss = instance_with_role(&u, Role::Pss);
+    let governor = instance_with_role(&u, Role::Governor);
+    let mut ext = Extension {
+        cause: info.id,
+        unit: u.clone(),
+        extension_free: vec![],
+        interacting_free: vec![],
+        discrete_params: 0,
+        ties: vec![],
+        description: info.extension.to_string(),
+        fixed: vec![],
+    };
+    let not_applicable = |why: &str| Ok(Err(why.to_string()));
+    match info.id {
+        "torsional_mode" => {
+            if governor.is_none() {
+                return not_applicable("no governor block to feed the turbine mass");
+            }
+            if u.block("shaft").is_some() {
+                return not_applicable("the unit already has a block named 'shaft'");
+            }
+            let h_path = format!("{machine}.h");
+            let h = value(&u, &h_path)?;
+            // Split the calibrated (rigid) inertia: 15 % to the turbine to start with.
+            let h_t = 0.15 * h;
+            let nyquist = 0.5 * ctx.rate_hz;
+            let f_hi = (0.9 * nyquist).clamp(1.0, 25.0);
+            let f_start = ctx.mode_hint_hz.filter(|f| *f > 1.0 && *f < f_hi).unwrap_or(0.5 * f_hi);
+            let shaft = new_block(
+                "two_mass_shaft",
+                &[("h_turbine", h_t), ("h_generator", h - h_t), ("f_torsion_hz", f_start), ("zeta", 0.05), ("d_turbine", 0.0)],
+            )?;
+            let h_r = u.param(&h_path).map_err(|e| e.to_string())?;
+            u.set(h_r, h - h_t);
+            add_block(&mut u, "shaft", shaft)?;
+            rewire(&mut u, &machine, &[("pm", "p_shaft")])?;
+            ext.extension_free = vec![
+                scanned(fb("shaft.f_torsion_hz", 1.0, f_hi, f_start), 48),
+                fb("shaft.zeta", 0.005, 0.5, 0.05),
+                fb("shaft.h_turbine", 0.02 * h, 0.6 * h, h_t),
+            ];
+            ext.interacting_free = vec![fb(&h_path, 0.4 * h, 1.05 * h, h - h_t)];
+            ext.ties = vec![(h_path, "shaft.h_generator".into())];
+        }
+        "exciter_limit" => {
+            let Some(x) = exciter else { return not_applicable("no exciter") };
+            let (pmax, pmin) = (format!("{x}.e_max"), format!("{x}.e_min"));
+            if !has_param(&u, &pmax) || !has_param(&u, &pmin) {
+                return not_applicable(&format!("exciter {} has no E_MAX/E_MIN limits", model_of(&u, &x)));
+            }
+            let efd0 = ctx.efd0.ok_or("the field voltage at the operating point is unknown")?;
+            let (emax, emin) = (value(&u, &pmax)?, value(&u, &pmin)?);
+            let hi = emax.max(efd0 + 3.0).max(2.0 * efd0);
+            ext.extension_free = vec![
+                scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi)), 16),
+                fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05)),
+            ];
+            ext.interacting_free = vec![];
+            let k = format!("{x}.k");
+            if let Ok(kv) = value(&u, &k) {
+                ext.interacting_free.push(fb(&k, 0.5 * kv, 2.0 * kv, kv));
+            }
+        }
+        "saturation" => {
+            let (s10, s12) = (format!("{machine}.s10"), format!("{machine}.s12"));
+            if !has_param(&u, &s10) || !has_param(&u, &s12) {
+                return not_applicable(&format!("machine {} has no S(1.0), S(1.2)", model_of(&u, &machine)));
+            }
+            let (a, b) = (value(&u, &s10)?, value(&u, &s12)?);
+            ext.extension_free = vec![fb(&s10, 0.0, 0.4, a), fb(&s12, 0.02, 1.5, b)];
+        }
+        "governor" => {
+            let Some(g) = governor else { return not_applicable("no governor block") };
+            if u.block("deadband").is_some() {
+                return not_applicable("the unit already has a block named 'deadband'");
+            }
+            let model = model_of(&u, &g);
+            if !model.eq_ignore_ascii_case("HYGOV") {
+                // Governor action missing: put a typical HYGOV in its place.
+                let hygov = registry::find("HYGOV").ok_or("HYGOV is not in the registry")?.create();
+                u.put(&g, hygov, &[]).map_err(|e| e.to_string())?;
+                ext.description = format!("HYGOV (typical values) in place of {model}, with a speed deadband; {}", info.extension);
+            }
+            add_block(&mut u, "deadband", new_block("speed_deadband", &[("db", 0.0)])?)?;
+            rewire(&mut u, &g, &[("speed", "speed_db")])?;
+            let velm = value(&u, &format!("{g}.velm"))?;
+            ext.extension_free = vec![fb("deadband.db", 0.0, 0.002, 0.0), fb(&format!("{g}.velm"), 0.005, 0.5, velm)];
+            let (r, tw) = (value(&u, &format!("{g}.r_perm"))?, value(&u, &format!("{g}.t_w"))?);
+            ext.interacting_free = vec![fb(&format!("{g}.r_perm"), 0.01, 0.15, r), fb(&format!("{g}.t_w"), 0.3, 4.0, tw)];
+            if !model.eq_ignore_ascii_case("HYGOV") {
+                // A new governor: every parameter the fit needs is new, count them all.
+                ext.extension_free.append(&mut ext.interacting_free);
+            }
+        }
+        "measurement_skew" => {
+            if u.block("measurement").is_some() {
+                return not_applicable("the unit already has a measurement block");
+            }
+            add_block(&mut u, "measurement", new_block("pmu_measurement", &[])?)?;
+            let max = 3.0 / ctx.rate_hz.max(1.0);
+            ext.extension_free = vec![scanned(fb("measurement.pq_delay_s", 0.0, max, 0.5 / ctx.rate_hz.max(1.0)), 13)];
+        }
+        "terminal_load" => {
+            if u.block("load").is_some() {
+                return not_applicable("the unit already has a block named 'load'");
+            }
+            add_block(&mut u, "load", new_block("terminal_load", &[])?)?;
+            ext.extension_free = vec![fb("load.p_load", 0.0, 0.15, 0.0), fb("load.q_load", -0.15, 0.15, 0.0)];
+        }
+        "pss_state" => {
+            let Some(x) = exciter else { return not_applicable("no exciter for a PSS to act on") };
+            if let Some(p) = pss {
+                u = u.without(&[p.as_str()]).map_err(|e| e.to_string())?;
+                ext.description = format!("the PSS ({}) taken out of service", model_of(unit, &p));
+                ext.discrete_params = 1;
+                ext.fixed = vec![("pss.in_service".into(), 0.0)];
+            } else {
+                add_block(&mut u, "pss", registry::find("STAB3").ok_or("STAB3 is not in the registry")?.create())?;
+                ext.description = "a STAB3 PSS (typical values) put in service".into();
+                ext.extension_free = vec![fb("pss.k_x", 0.2, 5.0, 1.0), fb("pss.t_x2", 0.5, 8.0, 3.0)];
+                ext.discrete_params = 1;
+                ext.fixed = vec![("pss.in_service".into(), 1.0)];
+            }
+            let k = format!("{x}.k");
+            if let Ok(kv) = value(&u, &k) {
+                ext.interacting_free.push(fb(&k, 0.5 * kv, 2.0 * kv, kv));
+            }
+        }
+        "oel" => {
+            let Some(x) = exciter else { return not_applicable("no exciter for an OEL to act on") };
+            let has_voel = u.block(&x).is_some_and(|b| b.ports().iter().any(|p| p.name == "voel"));
+            if !has_voel {
+                return not_applicable(&format!("exciter {} has no OEL input", model_of(&u, &x)));
+            }
+            if u.block("oel").is_some() {
+                return not_applicable("the unit already has an OEL");
+            }
+            let i0 = ctx.xadifd0.ok_or("the field current at the operating point is unknown")?;
+            if !(i0 > 0.0) {
+                return not_applicable("the field current at the operating point is not positive");
+            }
+            // Rated field current = the pre-event one, so pickup and limit read as multiples of it.
+            let oel = new_block(
+                "oel",
+                &[("ifd_rated", i0), ("i_pickup", 1.2), ("i_limit", 1.2), ("a_max", 2.0), ("k_cool", 0.05), ("k_i", 0.01), ("voel_min", -0.5)],
+            )?;
+            add_block(&mut u, "oel", oel)?;
+            ext.extension_free = vec![scanned(fb("oel.i_pickup", 1.0, 2.0, 1.2), 11), fb("oel.a_max", 0.05, 30.0, 2.0), fb("oel.k_i", 0.001, 0.1, 0.01)];
+            ext.ties = vec![("oel.i_pickup".into(), "oel.i_limit".into())];
+        }
+        _ => unreachable!("every catalog id is handled"),
+    }
+    u.ensure_finished().map_err(|e| e.to_string())?;
+    // Every re-fit also frees the set-point offsets (nuisance parameters).
+    for n in nuisance(&u) {
+        let known = |v: &Vec<FreeBound>| v.iter().any(|f| f.param == n.param);
+        if !known(&ext.extension_free) && !known(&ext.interacting_free) {
+            ext.interacting_free.push(n);
+        }
+    }
+    ext.unit = u;
+    Ok(Ok(ext))
+}
+
+/// The unit with `cause` hidden in it: the extension of [`extend`] with `values` set
+/// (`block.param` paths of the extended unit, e.g. `shaft.f_torsion_hz`), ties applied.
+pub fn hide(cause: &str, unit: &Unit, ctx: &Context, values: &BTreeMap<String, f64>) -> Result<Unit, String> {
+    let ext = extend(cause, unit, ctx)?.map_err(|why| format!("cannot hide {cause} in this unit: {why}"))?;
+    let mut u = ext.unit;
+    // Extension parameters start at their search start unless given.
+    for f in ext.extension_free.iter() {
+        let r = u.param(&f.param).map_err(|e| e.to_string())?;
+        u.set(r, f.start);
+    }
+    for (path, v) in values {
+        let r = u.param(path).map_err(|_| {
+            let known: Vec<&str> = ext.extension_free.iter().chain(&ext.interacting_free).map(|f| f.param.as_str()).collect();
+            format!("{cause}: unknown parameter '{path}' (the extension's: {})", known.join(", "))
+        })?;
+        u.set(r, *v);
+    }
+    for (from, to) in &ext.ties {
+        let (rf, rt) = (u.param(from).map_err(|e| e.to_string())?, u.param(to).map_err(|e| e.to_string())?);
+        let v = u.get(rf);
+        u.set(rt, v);
+    }
+    Ok(u)
+}

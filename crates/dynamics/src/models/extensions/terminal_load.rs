@@ -1,0 +1,80 @@
+//! `terminal_load`: an unmodelled load between the machine terminals and the measurement point
+//! (station service, excitation transformer, a feeder tapped off the generator bus), as a static
+//! voltage-dependent load (`models.md` §12, exponential load model).
+//!
+//! ```text
+//! P_L(V) = P_L0 · V^{n_P},   Q_L(V) = Q_L0 · V^{n_Q}      (pu on the machine base, V in pu)
+//! P_meas = P_e − P_L(V),     Q_meas = Q_e − Q_L(V)
+//! ```
+//!
+//! `n = 2` is a constant impedance, `n = 1` a constant current, `n = 0` a constant power. The
+//! load sits at the played-back bus, so it sees the measured |V| and adds no state. The machine
+//! delivers the measured power plus the load: it initialises at `P0 + P_L(V0)`, `Q0 + Q_L(V0)`
+//! ([`Block::terminal_load`] is read by the unit at initialisation and when it records P and Q).
+//! With `P_L0 = Q_L0 = 0` (the defaults) it changes nothing.
+
+use crate::block::{guard, Block, InitPoint, Io, ModelError, Port};
+use crate::{block_common, param_set};
+
+param_set! {
+    /// Terminal-load parameters.
+    pub struct TerminalLoadParams {
+        p_load: ("PL", "pu", 0.0, (0.0, 0.1), "active power drawn at 1 pu voltage (machine base)"),
+        q_load: ("QL", "pu", 0.0, (-0.1, 0.1), "reactive power drawn at 1 pu voltage (machine base, > 0 inductive)"),
+        n_p: ("nP", "-", 2.0, (0.0, 2.0), "voltage exponent of P (2 = constant impedance)"),
+        n_q: ("nQ", "-", 2.0, (0.0, 2.0), "voltage exponent of Q (2 = constant impedance)"),
+    }
+}
+
+/// Static load between the machine and the PMU.
+#[derive(Debug, Clone, Default)]
+pub struct TerminalLoad {
+    pub p: TerminalLoadParams,
+}
+
+impl Block for TerminalLoad {
+    block_common!();
+
+    fn model(&self) -> &'static str {
+        "terminal_load"
+    }
+    fn ports(&self) -> &'static [Port] {
+        &[]
+    }
+    fn state_names(&self) -> &'static [&'static str] {
+        &[]
+    }
+    fn validate(&self) -> Result<(), ModelError> {
+        guard::finite("p_load", self.p.p_load)?;
+        guard::finite("q_load", self.p.q_load)?;
+        guard::finite("n_p", self.p.n_p)?;
+        guard::finite("n_q", self.p.n_q)
+    }
+    fn init(&mut self, _op: &InitPoint, _x: &mut [f64], _io: &mut Io) -> Result<(), ModelError> {
+        self.validate()
+    }
+    fn outputs(&self, _t: f64, _x: &[f64], _io: &mut Io) {}
+    fn derivatives(&self, _t: f64, _x: &[f64], _io: &Io, _dx: &mut [f64]) {}
+
+    fn terminal_load(&self, v: f64) -> (f64, f64) {
+        let v = v.max(0.0);
+        (self.p.p_load * v.powf(self.p.n_p), self.p.q_load * v.powf(self.p.n_q))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn constant_impedance_scales_with_v_squared() {
+        let mut b = TerminalLoad::default();
+        b.p.p_load = 0.04;
+        b.p.q_load = -0.02;
+        let (p, q) = b.terminal_load(0.5);
+        assert!((p - 0.01).abs() < 1e-15 && (q + 0.005).abs() < 1e-15);
+        b.p.n_p = 0.0;
+        assert!((b.terminal_load(0.5).0 - 0.04).abs() < 1e-15);
+        assert_eq!(TerminalLoad::default().terminal_load(1.1), (0.0, 0.0));
+    }
+}
