@@ -8,7 +8,14 @@ use std::path::{Path, PathBuf};
 use itaipu_calib_e2e::{cli, data, TempDir};
 
 const UNIT: &str = "synthetic/unit_gensae_sexs_stab3_hygov.toml";
-const BUDGET: [&str; 6] = ["--particles", "8", "--pso-iterations", "6", "--lbfgs-iterations", "5"];
+const BUDGET: [&str; 6] = [
+    "--particles",
+    "8",
+    "--pso-iterations",
+    "6",
+    "--lbfgs-iterations",
+    "5",
+];
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
@@ -18,20 +25,42 @@ fn json(path: &Path) -> serde_json::Value {
 /// channels delayed by `skew_ms`; returns the event file.
 fn synth(tmp: &TempDir, skew_ms: &str) -> PathBuf {
     let out = tmp.path().join(format!("synth-{skew_ms}"));
-    assert_eq!(cli(&["synth", "--duration", "10", "--skew-ms", skew_ms, "--out", out.to_str().unwrap()]), 0);
+    assert_eq!(
+        cli(&[
+            "synth",
+            "--duration",
+            "10",
+            "--skew-ms",
+            skew_ms,
+            "--out",
+            out.to_str().unwrap()
+        ]),
+        0
+    );
     out.join("event.toml")
 }
 
 fn diagnose(event: &Path, out: &Path, extra: &[&str]) -> u8 {
     let unit = data(UNIT);
-    let mut args = vec!["diagnose", "--event", event.to_str().unwrap(), "--unit", unit.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    let mut args = vec![
+        "diagnose",
+        "--event",
+        event.to_str().unwrap(),
+        "--unit",
+        unit.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
     args.extend_from_slice(&BUDGET);
     args.extend_from_slice(extra);
     cli(&args)
 }
 
 fn files_in(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
     v.sort();
     v
 }
@@ -45,32 +74,86 @@ fn diagnose_names_a_hidden_pmu_skew_and_writes_the_extended_unit() {
     // An existing folder with a file of the user's: written into with --force, the file kept.
     let out = tmp.path().join("diag");
     let mine = tmp.write("diag/notes.txt", "mine");
-    let code = diagnose(&event, &out, &["--cause", "measurement_skew", "--cause", "saturation", "--no-plot", "--force", "--threads", "1"]);
+    let code = diagnose(
+        &event,
+        &out,
+        &[
+            "--cause",
+            "measurement_skew",
+            "--cause",
+            "saturation",
+            "--no-plot",
+            "--force",
+            "--threads",
+            "1",
+        ],
+    );
     assert_eq!(code, 0);
-    assert_eq!(std::fs::read_to_string(&mine).unwrap(), "mine", "--force must not clear the folder");
-    assert_eq!(files_in(&out), ["diagnosis.json", "extended.toml", "notes.txt", "report.html"], "--no-plot: no svg files");
+    assert_eq!(
+        std::fs::read_to_string(&mine).unwrap(),
+        "mine",
+        "--force must not clear the folder"
+    );
+    assert_eq!(
+        files_in(&out),
+        [
+            "diagnosis.json",
+            "extended.toml",
+            "notes.txt",
+            "report.html"
+        ],
+        "--no-plot: no svg files"
+    );
 
     let d = json(&out.join("diagnosis.json"));
     assert_eq!(d["unit"], "synthetic-gensae-hygov");
     assert_eq!(d["events"], serde_json::json!(["synthetic-dip-1"]));
     assert_eq!(d["threads"], 1, "--threads 1 runs in a pool of one thread");
-    let causes: Vec<&str> = d["candidates"].as_array().unwrap().iter().map(|c| c["cause"].as_str().unwrap()).collect();
-    assert_eq!(causes.len(), 2, "only the requested causes are tried: {causes:?}");
-    assert!(causes.contains(&"measurement_skew") && causes.contains(&"saturation"), "{causes:?}");
+    let causes: Vec<&str> = d["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["cause"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        causes.len(),
+        2,
+        "only the requested causes are tried: {causes:?}"
+    );
+    assert!(
+        causes.contains(&"measurement_skew") && causes.contains(&"saturation"),
+        "{causes:?}"
+    );
     assert_eq!(causes[0], "measurement_skew", "ranked first by ΔBIC");
     let skew = &d["candidates"][0];
     assert_eq!(skew["significant"], true);
-    assert!(skew["gains"]["delta_bic"].as_f64().unwrap() > d["candidates"][1]["gains"]["delta_bic"].as_f64().unwrap_or(f64::NEG_INFINITY));
+    assert!(
+        skew["gains"]["delta_bic"].as_f64().unwrap()
+            > d["candidates"][1]["gains"]["delta_bic"]
+                .as_f64()
+                .unwrap_or(f64::NEG_INFINITY)
+    );
 
     let v = &d["verdict"];
     assert_eq!(v["cause"], "measurement_skew");
     let key = v["key_parameters"].as_array().unwrap();
     assert_eq!(key[0][0], "measurement.pq_delay_s");
     let delay = key[0][1].as_f64().unwrap();
-    assert!((delay - 0.012).abs() < 0.003, "fitted skew {:.2} ms, true 12 ms", delay * 1e3);
+    assert!(
+        (delay - 0.012).abs() < 0.003,
+        "fitted skew {:.2} ms, true 12 ms",
+        delay * 1e3
+    );
     // The extension brings the residual down to near the noise: evidence after < before.
     let rms = |ev: &serde_json::Value, sig: &str| {
-        ev[0]["signals"].as_array().unwrap().iter().find(|s| s["signal"] == sig).unwrap()["rms_over_noise"].as_f64().unwrap()
+        ev[0]["signals"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["signal"] == sig)
+            .unwrap()["rms_over_noise"]
+            .as_f64()
+            .unwrap()
     };
     for sig in ["P", "Q"] {
         let (before, after) = (rms(&d["evidence"], sig), rms(&d["evidence_after"], sig));
@@ -78,14 +161,29 @@ fn diagnose_names_a_hidden_pmu_skew_and_writes_the_extended_unit() {
     }
 
     // extended.toml is a unit file with the measurement block at the fitted delay.
-    let unit = itaipu_dynamics::unit_file::read_unit(&out.join("extended.toml")).expect("extended.toml reads back as a unit");
-    let r = unit.param("measurement.pq_delay_s").expect("the extended unit has the measurement block");
-    assert!((unit.get(r) - delay).abs() < 1e-9 * delay.max(1e-3), "extended.toml delay {} vs verdict {delay}", unit.get(r));
-    assert!(unit.description.contains("measurement_skew"), "{}", unit.description);
+    let unit = itaipu_dynamics::unit_file::read_unit(&out.join("extended.toml"))
+        .expect("extended.toml reads back as a unit");
+    let r = unit
+        .param("measurement.pq_delay_s")
+        .expect("the extended unit has the measurement block");
+    assert!(
+        (unit.get(r) - delay).abs() < 1e-9 * delay.max(1e-3),
+        "extended.toml delay {} vs verdict {delay}",
+        unit.get(r)
+    );
+    assert!(
+        unit.description.contains("measurement_skew"),
+        "{}",
+        unit.description
+    );
 
     // The HTML report is written without plots and says so.
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert!(html.contains("measurement_skew") && html.contains("Plots not drawn") && !html.contains("<svg"));
+    assert!(
+        html.contains("measurement_skew")
+            && html.contains("Plots not drawn")
+            && !html.contains("<svg")
+    );
 }
 
 /// Without --no-plot: the three plots per event, drawn with their decorations, and a report
@@ -99,35 +197,78 @@ fn diagnose_draws_plots_and_a_self_contained_html_report() {
     let svg = |name: &str| {
         let p = out.join(format!("{name}-synthetic-dip-1.svg"));
         let text = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-        assert!(text.trim_start().starts_with("<svg") && text.trim_end().ends_with("</svg>"), "{name}");
+        assert!(
+            text.trim_start().starts_with("<svg") && text.trim_end().ends_with("</svg>"),
+            "{name}"
+        );
         text
     };
     let residual = svg("residual");
-    assert!(residual.contains("±σP noise") && residual.contains("±σQ noise"), "noise bands in the legend");
-    assert!(residual.contains("most SSE: dip"), "the dip window (where the skew's error lives) is shaded");
-    assert!(residual.contains("with measurement_skew"), "the residual after the extension is drawn");
+    assert!(
+        residual.contains("±σP noise") && residual.contains("±σQ noise"),
+        "noise bands in the legend"
+    );
+    assert!(
+        residual.contains("most SSE: dip"),
+        "the dip window (where the skew's error lives) is shaded"
+    );
+    assert!(
+        residual.contains("with measurement_skew"),
+        "the residual after the extension is drawn"
+    );
     let spectrum = svg("spectrum");
-    assert!(spectrum.contains("peak ") && spectrum.contains("<circle"), "the spectral peak is marked");
+    assert!(
+        spectrum.contains("peak ") && spectrum.contains("<circle"),
+        "the spectral peak is marked"
+    );
     let before_after = svg("before-after");
-    assert!(before_after.contains("measured") && before_after.contains("unit as given") && before_after.contains("extended (measurement_skew)"));
+    assert!(
+        before_after.contains("measured")
+            && before_after.contains("unit as given")
+            && before_after.contains("extended (measurement_skew)")
+    );
 
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(html.starts_with("<!DOCTYPE html>") && html.trim_end().ends_with("</html>"));
-    assert_eq!(html.matches("<svg").count(), 3, "the three plots are inlined");
+    assert_eq!(
+        html.matches("<svg").count(),
+        3,
+        "the three plots are inlined"
+    );
     for svg_text in [&residual, &spectrum, &before_after] {
-        let title = svg_text.lines().find(|l| l.starts_with("synthetic-dip-1:")).expect("plot title");
+        let title = svg_text
+            .lines()
+            .find(|l| l.starts_with("synthetic-dip-1:"))
+            .expect("plot title");
         assert!(html.contains(title), "inlined plot with title {title}");
     }
     let lower = html.to_lowercase();
     for banned in ["<script", "src=\"http", "href=\"http", "<link", "@import"] {
-        assert!(!lower.contains(banned), "the report must stand alone: found {banned}");
+        assert!(
+            !lower.contains(banned),
+            "the report must stand alone: found {banned}"
+        );
     }
     // Text is escaped: the verdict statement's "->" arrows appear as "-&gt;".
     let d = json(&out.join("diagnosis.json"));
     let statement = d["verdict"]["statement"].as_str().unwrap();
     assert!(statement.contains("->"));
-    assert!(html.contains(&statement.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")));
-    for section in ["Verdict: measurement_skew", "Candidates", "Noise model and split", "Evidence", "Ljung-Box", "share of SSE", "correlation", "damping ratio"] {
+    assert!(html.contains(
+        &statement
+            .replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;")
+    ));
+    for section in [
+        "Verdict: measurement_skew",
+        "Candidates",
+        "Noise model and split",
+        "Evidence",
+        "Ljung-Box",
+        "share of SSE",
+        "correlation",
+        "damping ratio",
+    ] {
         assert!(html.contains(section), "report lacks {section}");
     }
 }
@@ -138,10 +279,16 @@ fn diagnose_writes_no_extended_unit_when_no_cause_is_named() {
     let tmp = TempDir::new("diag-clean");
     let event = synth(&tmp, "0");
     let out = tmp.path().join("diag");
-    assert_eq!(diagnose(&event, &out, &["--cause", "measurement_skew", "--no-plot"]), 0);
+    assert_eq!(
+        diagnose(&event, &out, &["--cause", "measurement_skew", "--no-plot"]),
+        0
+    );
     let d = json(&out.join("diagnosis.json"));
     let cause = d["verdict"]["cause"].as_str().unwrap();
-    assert!(cause == "none" || cause == "unexplained", "verdict {cause} on a clean record");
+    assert!(
+        cause == "none" || cause == "unexplained",
+        "verdict {cause} on a clean record"
+    );
     assert_eq!(d["candidates"][0]["significant"], false);
     assert!(d["evidence_after"].as_array().unwrap().is_empty());
     assert!(!out.join("extended.toml").exists());
@@ -156,27 +303,115 @@ fn diagnose_refuses_bad_input_before_running() {
     let (event, unit) = (data("itaipu/event.toml"), data("itaipu/unit.toml"));
     let (event, unit) = (event.to_str().unwrap(), unit.to_str().unwrap());
     // Usage errors: an unknown cause (also next to a known one), no threads.
-    assert_eq!(cli(&["diagnose", "--event", event, "--unit", unit, "--cause", "gremlins", "--out", o]), 2);
-    assert_eq!(cli(&["diagnose", "--event", event, "--unit", unit, "--cause", "saturation,gremlins", "--out", o]), 2);
-    assert_eq!(cli(&["diagnose", "--event", event, "--unit", unit, "--threads", "0", "--out", o]), 2);
+    assert_eq!(
+        cli(&["diagnose", "--event", event, "--unit", unit, "--cause", "gremlins", "--out", o]),
+        2
+    );
+    assert_eq!(
+        cli(&[
+            "diagnose",
+            "--event",
+            event,
+            "--unit",
+            unit,
+            "--cause",
+            "saturation,gremlins",
+            "--out",
+            o
+        ]),
+        2
+    );
+    assert_eq!(
+        cli(&[
+            "diagnose",
+            "--event",
+            event,
+            "--unit",
+            unit,
+            "--threads",
+            "0",
+            "--out",
+            o
+        ]),
+        2
+    );
     // Bad event data, bad unit.
     let missing = tmp.path().join("missing.toml");
-    assert_eq!(cli(&["diagnose", "--event", missing.to_str().unwrap(), "--unit", unit, "--out", o]), 3);
-    assert_eq!(cli(&["diagnose", "--event", event, "--held-out", missing.to_str().unwrap(), "--unit", unit, "--out", o]), 3);
+    assert_eq!(
+        cli(&[
+            "diagnose",
+            "--event",
+            missing.to_str().unwrap(),
+            "--unit",
+            unit,
+            "--out",
+            o
+        ]),
+        3
+    );
+    assert_eq!(
+        cli(&[
+            "diagnose",
+            "--event",
+            event,
+            "--held-out",
+            missing.to_str().unwrap(),
+            "--unit",
+            unit,
+            "--out",
+            o
+        ]),
+        3
+    );
     let bad_unit = tmp.write("bad_unit.toml", "name = \"x\"\nmachine_mva = 100.0\n");
-    assert_eq!(cli(&["diagnose", "--event", event, "--unit", bad_unit.to_str().unwrap(), "--out", o]), 4);
+    assert_eq!(
+        cli(&[
+            "diagnose",
+            "--event",
+            event,
+            "--unit",
+            bad_unit.to_str().unwrap(),
+            "--out",
+            o
+        ]),
+        4
+    );
     // A unit that cannot initialise on the event (E_fd0 above the exciter ceiling): the
     // simulation failure code, as fit uses.
     let text = std::fs::read_to_string(data(UNIT)).unwrap();
     assert!(text.contains("e_max = 4.5"));
     let stuck = tmp.write("stuck.toml", &text.replace("e_max = 4.5", "e_max = 0.5"));
     let synth_event = synth(&tmp, "0");
-    assert_eq!(cli(&["diagnose", "--event", synth_event.to_str().unwrap(), "--unit", stuck.to_str().unwrap(), "--cause", "saturation", "--out", o]), 6);
+    assert_eq!(
+        cli(&[
+            "diagnose",
+            "--event",
+            synth_event.to_str().unwrap(),
+            "--unit",
+            stuck.to_str().unwrap(),
+            "--cause",
+            "saturation",
+            "--out",
+            o
+        ]),
+        6
+    );
     assert!(!out.exists(), "no output folder for a refused run");
     // An existing, non-empty --out folder is left alone without --force.
     let keep = tmp.write("full/mine.txt", "mine");
     let full = keep.parent().unwrap();
-    assert_eq!(cli(&["diagnose", "--event", event, "--unit", unit, "--out", full.to_str().unwrap()]), 7);
+    assert_eq!(
+        cli(&[
+            "diagnose",
+            "--event",
+            event,
+            "--unit",
+            unit,
+            "--out",
+            full.to_str().unwrap()
+        ]),
+        7
+    );
     assert_eq!(files_in(full), ["mine.txt"]);
     assert_eq!(std::fs::read_to_string(&keep).unwrap(), "mine");
 }

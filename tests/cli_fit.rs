@@ -14,26 +14,64 @@ fn json(path: &std::path::Path) -> serde_json::Value {
 fn fit_beats_rapid_on_the_itaipu_record() {
     let tmp = TempDir::new("fit");
     let out = tmp.path().join("fit");
-    assert_eq!(cli(&["fit", "--stage", "gen,avr,pss", "--out", out.to_str().unwrap()]), 0);
+    assert_eq!(
+        cli(&[
+            "fit",
+            "--stage",
+            "gen,avr,pss",
+            "--out",
+            out.to_str().unwrap()
+        ]),
+        0
+    );
     let report = json(&out.join("report.json"));
     let stages = report["stages"].as_array().unwrap();
-    let names: Vec<&str> = stages.iter().map(|s| s["stage"].as_str().unwrap()).collect();
+    let names: Vec<&str> = stages
+        .iter()
+        .map(|s| s["stage"].as_str().unwrap())
+        .collect();
     assert_eq!(names, ["gen", "avr", "pss", "joint"]);
-    let free: usize = stages[..3].iter().map(|s| s["parameters"].as_array().unwrap().len()).sum();
+    let free: usize = stages[..3]
+        .iter()
+        .map(|s| s["parameters"].as_array().unwrap().len())
+        .sum();
     assert_eq!(free, 18, "RaPId's 18 free parameters");
     let j = |s: &serde_json::Value| s["fitness"][0]["j_pq"].as_f64().unwrap();
     let j_start = report["start_fitness"][0]["j_pq"].as_f64().unwrap();
     let j_final = j(stages.last().unwrap());
-    assert_eq!(stages.last().unwrap()["fitness"][0]["samples"].as_u64(), Some(280));
-    assert!(j_final < 1.0, "J = {j_final} (RaPId: 2.097, start {j_start})");
+    assert_eq!(
+        stages.last().unwrap()["fitness"][0]["samples"].as_u64(),
+        Some(280)
+    );
+    assert!(
+        j_final < 1.0,
+        "J = {j_final} (RaPId: 2.097, start {j_start})"
+    );
     for s in stages {
-        assert!(s["objective_after"].as_f64().unwrap() <= s["objective_before"].as_f64().unwrap() + 1e-12);
+        assert!(
+            s["objective_after"].as_f64().unwrap()
+                <= s["objective_before"].as_f64().unwrap() + 1e-12
+        );
         assert!(s["wall_s"].as_f64().unwrap() > 0.0 && s["simulations"].as_u64().unwrap() > 0);
     }
     // The calibrated unit file simulates to the same J.
     let sim_out = tmp.path().join("sim");
     let unit = out.join("calibrated.toml");
-    assert_eq!(cli(&["simulate", "--unit", unit.to_str().unwrap(), "--out", sim_out.to_str().unwrap(), "--no-plot", "--rtol", "1e-9", "--atol", "1e-10"]), 0);
+    assert_eq!(
+        cli(&[
+            "simulate",
+            "--unit",
+            unit.to_str().unwrap(),
+            "--out",
+            sim_out.to_str().unwrap(),
+            "--no-plot",
+            "--rtol",
+            "1e-9",
+            "--atol",
+            "1e-10"
+        ]),
+        0
+    );
     let text = std::fs::read_to_string(sim_out.join("traces.csv")).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
@@ -41,9 +79,13 @@ fn fit_beats_rapid_on_the_itaipu_record() {
     let mut j_sim = 0.0;
     for l in lines {
         let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
-        j_sim += (v[col("p_pu")] - v[col("p_meas_pu")]).powi(2) + (v[col("q_pu")] - v[col("q_meas_pu")]).powi(2);
+        j_sim += (v[col("p_pu")] - v[col("p_meas_pu")]).powi(2)
+            + (v[col("q_pu")] - v[col("q_meas_pu")]).powi(2);
     }
-    assert!((j_sim - j_final).abs() < 1e-4 * j_final, "calibrated.toml gives J = {j_sim}, the report {j_final}");
+    assert!(
+        (j_sim - j_final).abs() < 1e-4 * j_final,
+        "calibrated.toml gives J = {j_sim}, the report {j_final}"
+    );
     for stage in ["gen", "avr", "pss", "joint"] {
         for f in ["unit.toml", "traces.csv", "traces_start.csv", "plot.svg"] {
             assert!(out.join(stage).join(f).is_file(), "{stage}/{f} missing");
@@ -63,21 +105,58 @@ fn bad_calibration_specs_exit_with_code_4_before_fitting() {
     let out = tmp.path().join("o");
     let out = out.to_str().unwrap();
     let cases = [
-        ("upside-down bounds", spec_with("{ param = \"machine.x_d\", min = 0.6, max = 2.0 }", "{ param = \"machine.x_d\", min = 2.0, max = 0.6 }")),
-        ("unknown parameter", spec_with("param = \"machine.x_d\",", "param = \"machine.x_dd\",")),
-        ("parameter of a removed block", spec_with("param = \"machine.h\",", "param = \"exciter.k\",")),
+        (
+            "upside-down bounds",
+            spec_with(
+                "{ param = \"machine.x_d\", min = 0.6, max = 2.0 }",
+                "{ param = \"machine.x_d\", min = 2.0, max = 0.6 }",
+            ),
+        ),
+        (
+            "unknown parameter",
+            spec_with("param = \"machine.x_d\",", "param = \"machine.x_dd\","),
+        ),
+        (
+            "parameter of a removed block",
+            spec_with("param = \"machine.h\",", "param = \"exciter.k\","),
+        ),
         ("unknown key", spec_with("seed = 1", "seed = 1\nseeds = 2")),
-        ("unknown stage", spec_with("name = \"pss\"", "name = \"pssx\"")),
+        (
+            "unknown stage",
+            spec_with("name = \"pss\"", "name = \"pssx\""),
+        ),
         ("no calibration table", "name = \"x\"\n".to_string()),
     ];
     for (what, text) in cases {
         let spec = tmp.write("spec.toml", &text);
-        let code = cli(&["fit", "--calib", spec.to_str().unwrap(), "--out", out, "--pso-iterations", "1", "--lbfgs-iterations", "1"]);
+        let code = cli(&[
+            "fit",
+            "--calib",
+            spec.to_str().unwrap(),
+            "--out",
+            out,
+            "--pso-iterations",
+            "1",
+            "--lbfgs-iterations",
+            "1",
+        ]);
         assert_eq!(code, 4, "{what}");
-        assert!(!std::path::Path::new(out).exists(), "{what}: no output for a refused spec");
+        assert!(
+            !std::path::Path::new(out).exists(),
+            "{what}: no output for a refused spec"
+        );
     }
     // An existing output folder is refused before the fit runs.
     let keep = tmp.write("o2/mine.txt", "x");
     let _ = keep;
-    assert_eq!(cli(&["fit", "--out", tmp.path().join("o2").to_str().unwrap(), "--stage", "pss"]), 7);
+    assert_eq!(
+        cli(&[
+            "fit",
+            "--out",
+            tmp.path().join("o2").to_str().unwrap(),
+            "--stage",
+            "pss"
+        ]),
+        7
+    );
 }

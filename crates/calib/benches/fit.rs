@@ -3,7 +3,10 @@
 //! * `itaipu_fit_gen_avr_pss`: the whole bundled fit (RaPId's 18-parameter problem: generator,
 //!   AVR and PSS stages, then the joint refinement) on the Itaipu record, all threads;
 //! * `itaipu_gen_swarm`: the generator stage's swarm alone (40 particles, 10 iterations,
-//!   440 objective evaluations) in a pool of 1 and of 2 threads, for the parallel speed-up.
+//!   440 objective evaluations) in a pool of 1 and of 2 threads, for the parallel speed-up;
+//! * `diagnose_full_catalog_20s`: `diagnose` with the whole catalog (default options) on a 20 s
+//!   synthetic fault-dip event at 60 samples/s with PMU noise, on the generic hydro unit (the
+//!   issue's target: within 60 s on this 2-core machine).
 
 use std::path::PathBuf;
 
@@ -32,7 +35,17 @@ fn itaipu_fit_gen_avr_pss(bencher: Bencher) {
     let (unit, event, spec) = inputs();
     let mut opts = FitOptions::from_spec(&spec);
     opts.stages = vec!["gen".into(), "avr".into(), "pss".into()];
-    bencher.bench_local(|| fit(&unit, &spec, std::slice::from_ref(&event), &[], &opts, &Silent).unwrap());
+    bencher.bench_local(|| {
+        fit(
+            &unit,
+            &spec,
+            std::slice::from_ref(&event),
+            &[],
+            &opts,
+            &Silent,
+        )
+        .unwrap()
+    });
 }
 
 #[divan::bench(args = [1, 2], sample_count = 3, sample_size = 1)]
@@ -43,6 +56,39 @@ fn itaipu_gen_swarm(bencher: Bencher, threads: usize) {
     opts.pso_iterations = 10;
     opts.lbfgs_iterations = 0;
     opts.polish = false;
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-    bencher.bench_local(|| pool.install(|| fit(&unit, &spec, std::slice::from_ref(&event), &[], &opts, &Silent).unwrap()));
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    bencher.bench_local(|| {
+        pool.install(|| {
+            fit(
+                &unit,
+                &spec,
+                std::slice::from_ref(&event),
+                &[],
+                &opts,
+                &Silent,
+            )
+            .unwrap()
+        })
+    });
+}
+
+#[divan::bench(sample_count = 1, sample_size = 1)]
+fn diagnose_full_catalog_20s(bencher: Bencher) {
+    use itaipu_calib::diagnose::trial::{base_unit, scenario, truth_and_event};
+    use itaipu_calib::diagnose::{diagnose, DiagnoseOptions};
+    let (_, event) = truth_and_event(&scenario("none", 101, None)).unwrap();
+    let unit = base_unit();
+    bencher.bench_local(|| {
+        diagnose(
+            &unit,
+            std::slice::from_ref(&event),
+            &[],
+            &DiagnoseOptions::default(),
+            &Silent,
+        )
+        .unwrap()
+    });
 }

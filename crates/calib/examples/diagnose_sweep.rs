@@ -22,17 +22,46 @@ fn main() {
         for seed in 1..=seeds {
             // The canonical event, and for the clean case every event type.
             let kinds: Vec<Option<EventKind>> = if cause == "none" {
-                vec![None, Some(EventKind::FrequencyExcursion), Some(EventKind::VoltageStep), Some(EventKind::Ambient)]
+                vec![
+                    None,
+                    Some(EventKind::FrequencyExcursion),
+                    Some(EventKind::VoltageStep),
+                    Some(EventKind::Ambient),
+                ]
             } else {
                 vec![None]
             };
             for kind in kinds {
                 let t = scenario(cause, 100 + seed, kind);
                 let t0 = std::time::Instant::now();
-                match run(&t, &DiagnoseOptions { seed: t.seed, ..Default::default() }) {
+                match run(
+                    &t,
+                    &DiagnoseOptions {
+                        seed: t.seed,
+                        lbfgs_iterations: std::env::var("LBFGS")
+                            .ok()
+                            .and_then(|v| v.parse().ok())
+                            .unwrap_or(15),
+                        ..Default::default()
+                    },
+                ) {
                     Ok(o) => {
-                        let key = o.key.as_ref().map(|(p, tv, got)| format!("{p}: truth {tv:.5} got {}", got.map_or("-".into(), |g| format!("{g:.5}")))).unwrap_or_default();
-                        let second = o.report.candidates.get(1).map(|c| c.cause.clone()).unwrap_or_default();
+                        let key = o
+                            .key
+                            .as_ref()
+                            .map(|(p, tv, got)| {
+                                format!(
+                                    "{p}: truth {tv:.5} got {}",
+                                    got.map_or("-".into(), |g| format!("{g:.5}"))
+                                )
+                            })
+                            .unwrap_or_default();
+                        let second = o
+                            .report
+                            .candidates
+                            .get(1)
+                            .map(|c| c.cause.clone())
+                            .unwrap_or_default();
                         let top = o.report.candidates.first().and_then(|c| c.gains.as_ref());
                         let top_bic = top.map_or(f64::NAN, |g| g.delta_bic);
                         let chi2n = top.map_or(f64::NAN, |g| g.chi2_fit_base / g.n_fit as f64);
@@ -46,6 +75,25 @@ fn main() {
                             top_bic,
                             t0.elapsed().as_secs_f64()
                         );
+                        if std::env::var("VERBOSE").is_ok() {
+                            for c in &o.report.candidates {
+                                if let Some(g) = &c.gains {
+                                    println!(
+                                        "    {:<17} ΔBIC {:>9.1} fit {:>6.1} % held {:>6.1} % null {:>6.1} {} [{}] {}",
+                                        c.cause,
+                                        g.delta_bic,
+                                        100.0 * g.fit_drop,
+                                        100.0 * g.held_drop,
+                                        g.null_gain_fit,
+                                        if c.significant { "*" } else { " " },
+                                        c.parameters.iter().filter(|p| p.extension).map(|p| format!("{}={:.4}", p.param, p.result)).collect::<Vec<_>>().join(" "),
+                                        c.note
+                                    );
+                                } else {
+                                    println!("    {:<17} {}", c.cause, c.note);
+                                }
+                            }
+                        }
                         rows.push((cause.clone(), o.hit));
                     }
                     Err(e) => {
@@ -56,8 +104,16 @@ fn main() {
             }
         }
     }
-    let effect: Vec<bool> = rows.iter().filter(|(c, _)| c != "none").map(|(_, h)| *h).collect();
-    let clean: Vec<bool> = rows.iter().filter(|(c, _)| c == "none").map(|(_, h)| *h).collect();
+    let effect: Vec<bool> = rows
+        .iter()
+        .filter(|(c, _)| c != "none")
+        .map(|(_, h)| *h)
+        .collect();
+    let clean: Vec<bool> = rows
+        .iter()
+        .filter(|(c, _)| c == "none")
+        .map(|(_, h)| *h)
+        .collect();
     println!(
         "hit rate {}/{} on hidden causes; false alarms {}/{} on clean events",
         effect.iter().filter(|h| **h).count(),

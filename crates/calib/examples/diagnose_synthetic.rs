@@ -42,7 +42,15 @@ fn main() {
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data");
     let base = read_unit(&data.join("synthetic/unit_gensae_sexs_stab3_hygov.toml")).unwrap();
     let profile = VoltageProfile::preset(kind, 20.0, 60.0, seed);
-    let probe = synthesize("probe", &base, &profile, 737.0, &PmuNoise::none(), &SimOptions::default()).unwrap();
+    let probe = synthesize(
+        "probe",
+        &base,
+        &profile,
+        737.0,
+        &PmuNoise::none(),
+        &SimOptions::default(),
+    )
+    .unwrap();
     let truth = if cause == "none" {
         base.clone()
     } else {
@@ -61,18 +69,42 @@ fn main() {
         noise.v_sigma *= k;
         noise.angle_sigma *= k;
     }
-    let event = synthesize("synthetic", &truth, &profile, 737.0, &noise, &SimOptions::default()).unwrap();
-    let causes: Vec<String> = std::env::var("CAUSES").map(|c| c.split(',').map(String::from).collect()).unwrap_or_default();
+    let event = synthesize(
+        "synthetic",
+        &truth,
+        &profile,
+        737.0,
+        &noise,
+        &SimOptions::default(),
+    )
+    .unwrap();
+    let causes: Vec<String> = std::env::var("CAUSES")
+        .map(|c| c.split(',').map(String::from).collect())
+        .unwrap_or_default();
     let t0 = std::time::Instant::now();
-    let res = diagnose(&base, &[event], &[], &DiagnoseOptions { seed, causes, ..Default::default() }, &Print).unwrap();
+    let res = diagnose(
+        &base,
+        &[event],
+        &[],
+        &DiagnoseOptions {
+            seed,
+            causes,
+            ..Default::default()
+        },
+        &Print,
+    )
+    .unwrap();
     let r = &res.report;
-    println!("noise σP {:.5} σQ {:.5}; {}", r.noise.sigma_p, r.noise.sigma_q, r.noise.split);
+    println!(
+        "noise σP {:.5} σQ {:.5}; {}",
+        r.noise.sigma_p, r.noise.sigma_q, r.noise.split
+    );
     for c in &r.candidates {
         match &c.gains {
             Some(g) => println!(
-                "{:<17} VIF {:.2} ΔBIC {:>10.1}  fit {:>6.1} %  held {:>6.1} %  {}  {:>5.1} s {:>6} sims [{}]",
+                "{:<17} null {:>7.1} ΔBIC {:>10.1}  fit {:>6.1} %  held {:>6.1} %  {}  {:>5.1} s {:>6} sims [{}]",
                 c.cause,
-                g.vif,
+                g.null_gain_fit,
                 g.delta_bic,
                 100.0 * g.fit_drop,
                 100.0 * g.held_drop,

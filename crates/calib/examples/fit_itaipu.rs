@@ -41,11 +41,28 @@ fn main() {
     for s in &res.report.stages {
         println!(
             "{}: objective {:.4} -> {:.4}, J_pq = {:.4}, {} simulations, {} failed, {:.1} s",
-            s.stage, s.objective_before, s.objective_after, s.fitness[0].j_pq, s.simulations, s.failed_candidates, s.wall_s
+            s.stage,
+            s.objective_before,
+            s.objective_after,
+            s.fitness[0].j_pq,
+            s.simulations,
+            s.failed_candidates,
+            s.wall_s
         );
         for p in &s.parameters {
-            println!("    {:<22} {:>10.4} -> {:>10.4}  [{}, {}]{}", p.param, p.start, p.result, p.min, p.max, if p.at_bound { "  AT BOUND" } else { "" });
+            println!(
+                "    {:<22} {:>10.4} -> {:>10.4}  [{}, {}]{}",
+                p.param,
+                p.start,
+                p.result,
+                p.min,
+                p.max,
+                if p.at_bound { "  AT BOUND" } else { "" }
+            );
         }
     }
-    println!("total {:.1} s on {} threads", res.report.wall_s, res.report.threads);
+    println!(
+        "total {:.1} s on {} threads",
+        res.report.wall_s, res.report.threads
+    );
 }

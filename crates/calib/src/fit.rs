@@ -19,7 +19,9 @@ use serde::Serialize;
 
 use crate::identify;
 use crate::local;
-use crate::problem::{accurate_integrator, objective_weights, search_integrator, EventData, FreeParam, Problem};
+use crate::problem::{
+    accurate_integrator, objective_weights, search_integrator, EventData, FreeParam, Problem,
+};
 use crate::pso::{self, PsoOptions};
 use crate::spec::{removed_blocks, CalibSpec, Objective, StageSpec, Strategy, Weights, STAGES};
 
@@ -206,10 +208,15 @@ pub struct FitResult {
 }
 
 /// P+Q fitness of `unit` on `event` (accurate integrator); `None` if it fails.
-pub fn fitness(unit: &Unit, event: &Event, held_out: bool) -> Result<(EventFitness, Traces), String> {
+pub fn fitness(
+    unit: &Unit,
+    event: &Event,
+    held_out: bool,
+) -> Result<(EventFitness, Traces), String> {
     let data = EventData::new(event, None, None)?;
     let mut u = unit.clone();
-    let tr = simulate_prepared(&mut u, &data.prepared, event, &accurate_integrator()).map_err(|e| e.to_string())?;
+    let tr = simulate_prepared(&mut u, &data.prepared, event, &accurate_integrator())
+        .map_err(|e| e.to_string())?;
     let (p, q) = (tr.get("p_pu").unwrap(), tr.get("q_pu").unwrap());
     let (mut sp, mut sq, mut n) = (0.0, 0.0, 0usize);
     for k in 0..p.len() {
@@ -221,33 +228,59 @@ pub fn fitness(unit: &Unit, event: &Event, held_out: bool) -> Result<(EventFitne
     }
     let nn = n.max(1) as f64;
     Ok((
-        EventFitness { event: event.name.clone(), j_pq: sp + sq, rms_p: (sp / nn).sqrt(), rms_q: (sq / nn).sqrt(), samples: n, held_out },
+        EventFitness {
+            event: event.name.clone(),
+            j_pq: sp + sq,
+            rms_p: (sp / nn).sqrt(),
+            rms_q: (sq / nn).sqrt(),
+            samples: n,
+            held_out,
+        },
         tr,
     ))
 }
 
 fn stage_err(stage: &str, msg: impl Into<String>) -> FitError {
-    FitError::Stage { stage: stage.to_string(), msg: msg.into() }
+    FitError::Stage {
+        stage: stage.to_string(),
+        msg: msg.into(),
+    }
 }
 
 /// Applies a stage's `set` and `replace` entries to the master unit.
 fn apply_stage_edits(master: &mut Unit, spec: &StageSpec) -> Result<(), FitError> {
     for (section, table) in &spec.replace {
         let block = build_block(section, table).map_err(|m| stage_err(&spec.name, m))?;
-        master.put(section, block, &[]).map_err(|e| stage_err(&spec.name, e.to_string()))?;
+        master
+            .put(section, block, &[])
+            .map_err(|e| stage_err(&spec.name, e.to_string()))?;
     }
     for (path, v) in &spec.set {
-        let r = master.param(path).map_err(|e| stage_err(&spec.name, format!("set: {e}")))?;
+        let r = master
+            .param(path)
+            .map_err(|e| stage_err(&spec.name, format!("set: {e}")))?;
         master.set(r, *v);
     }
     Ok(())
 }
 
 /// Builds a replacement block from a unit-file table (the unit-file parser's own function).
-fn build_block(section: &str, table: &toml::Table) -> Result<Box<dyn itaipu_dynamics::block::Block>, String> {
-    let model = table.get("model").and_then(|v| v.as_str()).ok_or_else(|| format!("replace.{section}: needs model = \"...\""))?;
-    let info = registry::find(model).ok_or_else(|| format!("replace.{section}: unknown model '{model}' (known: {})", registry::names()))?;
-    let (block, _) = unit_file::build_block(info, &format!("replace.{section}"), table).map_err(|(f, m)| format!("{f}: {m}"))?;
+fn build_block(
+    section: &str,
+    table: &toml::Table,
+) -> Result<Box<dyn itaipu_dynamics::block::Block>, String> {
+    let model = table
+        .get("model")
+        .and_then(|v| v.as_str())
+        .ok_or_else(|| format!("replace.{section}: needs model = \"...\""))?;
+    let info = registry::find(model).ok_or_else(|| {
+        format!(
+            "replace.{section}: unknown model '{model}' (known: {})",
+            registry::names()
+        )
+    })?;
+    let (block, _) = unit_file::build_block(info, &format!("replace.{section}"), table)
+        .map_err(|(f, m)| format!("{f}: {m}"))?;
     Ok(block)
 }
 
@@ -279,17 +312,36 @@ fn free_params(unit: &Unit, spec: &StageSpec) -> Result<Vec<FreeParam>, FitError
         .iter()
         .map(|f| {
             let r = unit.param(&f.param).map_err(|e| {
-                stage_err(&spec.name, format!("free parameter {}: {e} (is its block part of this stage?)", f.param))
+                stage_err(
+                    &spec.name,
+                    format!(
+                        "free parameter {}: {e} (is its block part of this stage?)",
+                        f.param
+                    ),
+                )
             })?;
             let start = f.start.unwrap_or(unit.get(r));
-            Ok(FreeParam::new(unit.param_path(r), r, f.min, f.max, start, unit.param_spec(r).unit))
+            Ok(FreeParam::new(
+                unit.param_path(r),
+                r,
+                f.min,
+                f.max,
+                start,
+                unit.param_spec(r).unit,
+            ))
         })
         .collect()
 }
 
 /// Runs the swarm then L-BFGS on `problem` from its start; returns the best physical values,
 /// the phase reports, and the objective at the best (accurate integrator).
-pub(crate) fn search(problem: &Problem, opts: &FitOptions, stage: &str, progress: &dyn Progress, use_pso: bool) -> (Vec<f64>, Vec<PhaseReport>) {
+pub(crate) fn search(
+    problem: &Problem,
+    opts: &FitOptions,
+    stage: &str,
+    progress: &dyn Progress,
+    use_pso: bool,
+) -> (Vec<f64>, Vec<PhaseReport>) {
     let n = problem.dim();
     let start = problem.start();
     let mut phases = vec![];
@@ -340,7 +392,9 @@ pub(crate) fn search(problem: &Problem, opts: &FitOptions, stage: &str, progress
         .enumerate()
         .map(|(k, x)| (problem.cost(x, &acc), k))
         .collect();
-    let (_, k) = scored.into_iter().fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
+    let (_, k) = scored
+        .into_iter()
+        .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
     (candidates[k].clone(), phases)
 }
 
@@ -367,12 +421,21 @@ fn jacobian(problem: &Problem, x: &[f64]) -> Option<Vec<Vec<f64>>> {
             } else {
                 (at(x[j] + h)?, at(x[j] - h)?, 2.0 * h)
             };
-            Some(plus.iter().zip(&minus).map(|(a, b)| (a - b) / span).collect())
+            Some(
+                plus.iter()
+                    .zip(&minus)
+                    .map(|(a, b)| (a - b) / span)
+                    .collect(),
+            )
         })
         .collect();
     let cols: Vec<Vec<f64>> = cols.into_iter().collect::<Option<_>>()?;
     let rows = cols.first().map_or(0, |c| c.len());
-    Some((0..rows).map(|k| cols.iter().map(|c| c[k]).collect()).collect())
+    Some(
+        (0..rows)
+            .map(|k| cols.iter().map(|c| c[k]).collect())
+            .collect(),
+    )
 }
 
 /// Identifiability results in parameter names.
@@ -409,9 +472,10 @@ fn run_stage(
     let problem = Problem::new(unit, free, data, weights);
     let acc = accurate_integrator();
     let start = problem.start();
-    let objective_before = problem.residuals(&start, &acc).map(|r| r.iter().map(|v| v * v).sum::<f64>()).map_err(|m| {
-        stage_err(name, format!("the starting unit does not simulate: {m}"))
-    })?;
+    let objective_before = problem
+        .residuals(&start, &acc)
+        .map(|r| r.iter().map(|v| v * v).sum::<f64>())
+        .map_err(|m| stage_err(name, format!("the starting unit does not simulate: {m}")))?;
     let mut phases = vec![];
     let best = if opts.strategy == Strategy::Incremental && name == "gen" {
         // Free the parameters one at a time in the listed order, each step from the last.
@@ -419,14 +483,30 @@ fn run_stage(
         for i in 1..=problem.dim() {
             let mut sub = Problem::new(
                 problem.unit_at(&x),
-                problem.free[..i].iter().zip(&x).map(|(f, v)| FreeParam { start: *v, ..f.clone() }).collect(),
+                problem.free[..i]
+                    .iter()
+                    .zip(&x)
+                    .map(|(f, v)| FreeParam {
+                        start: *v,
+                        ..f.clone()
+                    })
+                    .collect(),
                 problem.events.clone(),
                 weights,
             );
             sub.penalty = problem.penalty;
-            let (b, ph) = search(&sub, opts, &format!("{label} {i}/{}", problem.dim()), progress, false);
+            let (b, ph) = search(
+                &sub,
+                opts,
+                &format!("{label} {i}/{}", problem.dim()),
+                progress,
+                false,
+            );
             x[..i].copy_from_slice(&b);
-            phases.extend(ph.into_iter().map(|p| PhaseReport { phase: format!("step {i} ({}): {}", problem.free[i - 1].path, p.phase), ..p }));
+            phases.extend(ph.into_iter().map(|p| PhaseReport {
+                phase: format!("step {i} ({}): {}", problem.free[i - 1].path, p.phase),
+                ..p
+            }));
         }
         x
     } else {
@@ -434,19 +514,38 @@ fn run_stage(
         phases = ph;
         b
     };
-    let r_best = problem.residuals(&best, &acc).map_err(|m| stage_err(name, format!("the calibrated unit does not simulate: {m}")))?;
+    let r_best = problem
+        .residuals(&best, &acc)
+        .map_err(|m| stage_err(name, format!("the calibrated unit does not simulate: {m}")))?;
     let objective_after: f64 = r_best.iter().map(|v| v * v).sum();
-    progress.message(&format!("{label}: objective {objective_before:.5} -> {objective_after:.5}"));
+    progress.message(&format!(
+        "{label}: objective {objective_before:.5} -> {objective_after:.5}"
+    ));
 
     // Identifiability at the optimum.
-    let ident = jacobian(&problem, &best).map(|j| identify::analyse(&j, objective_after, CORRELATION_LIMIT));
+    let ident = jacobian(&problem, &best)
+        .map(|j| identify::analyse(&j, objective_after, CORRELATION_LIMIT));
     let n = problem.dim();
     let id = match &ident {
         Some(id) => Ident {
             std_errors: id.std_errors.clone(),
             correlation: id.correlation.clone(),
-            pairs: id.correlated_pairs.iter().map(|&(i, j, r)| (problem.free[i].path.clone(), problem.free[j].path.clone(), r)).collect(),
-            unidentified: id.unidentified.iter().map(|&i| problem.free[i].path.clone()).collect(),
+            pairs: id
+                .correlated_pairs
+                .iter()
+                .map(|&(i, j, r)| {
+                    (
+                        problem.free[i].path.clone(),
+                        problem.free[j].path.clone(),
+                        r,
+                    )
+                })
+                .collect(),
+            unidentified: id
+                .unidentified
+                .iter()
+                .map(|&i| problem.free[i].path.clone())
+                .collect(),
             sigma2: id.sigma2,
             condition: id.condition,
         },
@@ -459,7 +558,14 @@ fn run_stage(
             condition: f64::NAN,
         },
     };
-    let Ident { std_errors, correlation, pairs, unidentified, sigma2, condition: cond } = id;
+    let Ident {
+        std_errors,
+        correlation,
+        pairs,
+        unidentified,
+        sigma2,
+        condition: cond,
+    } = id;
     let parameters = problem
         .free
         .iter()
@@ -494,7 +600,12 @@ fn run_stage(
             Err(m) => progress.message(&format!("{label}: held-out event {}: {m}", e.name)),
         }
     }
-    let flagged = |p: &String| unidentified.contains(p) || pairs.iter().any(|(a, b, _): &(String, String, f64)| a == p || b == p);
+    let flagged = |p: &String| {
+        unidentified.contains(p)
+            || pairs
+                .iter()
+                .any(|(a, b, _): &(String, String, f64)| a == p || b == p)
+    };
     let rel_se = |i: usize| std_errors[i] / best[i].abs().max(1e-12);
     let weakly_determined: Vec<String> = problem
         .free
@@ -516,7 +627,12 @@ fn run_stage(
         weights: spec.weights,
         window: spec.window,
         lowpass_hz: spec.lowpass_hz,
-        models: problem.unit.instances().iter().map(|i| format!("{}={}", i.name, i.block.model())).collect(),
+        models: problem
+            .unit
+            .instances()
+            .iter()
+            .map(|i| format!("{}={}", i.name, i.block.model()))
+            .collect(),
         parameters,
         objective_before,
         objective_after,
@@ -535,7 +651,16 @@ fn run_stage(
         identifiable,
         condition_number: cond,
     };
-    Ok((report, StageOutput { stage: label.to_string(), start_unit, calibrated_unit, traces }, best))
+    Ok((
+        report,
+        StageOutput {
+            stage: label.to_string(),
+            start_unit,
+            calibrated_unit,
+            traces,
+        },
+        best,
+    ))
 }
 
 /// Checks, before any simulation, that every `set`, `replace` and `free` entry of the stages to
@@ -543,12 +668,19 @@ fn run_stage(
 pub fn check_spec(unit: &Unit, spec: &CalibSpec, stages: &[String]) -> Result<(), FitError> {
     let mut u = unit.clone();
     for s in stages {
-        let st = spec.stage(s).ok_or_else(|| FitError::Spec(format!("stage '{s}' is not in the spec")))?;
+        let st = spec
+            .stage(s)
+            .ok_or_else(|| FitError::Spec(format!("stage '{s}' is not in the spec")))?;
         apply_stage_edits(&mut u, st).map_err(|e| FitError::Spec(e.to_string()))?;
-        let stage_unit = u.without(removed_blocks(s)).map_err(|e| FitError::Spec(format!("stage {s}: {e}")))?;
+        let stage_unit = u
+            .without(removed_blocks(s))
+            .map_err(|e| FitError::Spec(format!("stage {s}: {e}")))?;
         for f in &st.free {
             stage_unit.param(&f.param).map_err(|e| {
-                FitError::Spec(format!("stage {s}: free parameter {}: {e} (is its block part of this stage?)", f.param))
+                FitError::Spec(format!(
+                    "stage {s}: free parameter {}: {e} (is its block part of this stage?)",
+                    f.param
+                ))
             })?;
         }
     }
@@ -570,17 +702,25 @@ pub fn fit(
     }
     for s in &opts.stages {
         if !STAGES.contains(&s.as_str()) {
-            return Err(FitError::Setup(format!("unknown stage '{s}' (gen, avr, pss, tg)")));
+            return Err(FitError::Setup(format!(
+                "unknown stage '{s}' (gen, avr, pss, tg)"
+            )));
         }
         if spec.stage(s).is_none() {
-            return Err(FitError::Setup(format!("stage '{s}' is not in the calibration spec")));
+            return Err(FitError::Setup(format!(
+                "stage '{s}' is not in the calibration spec"
+            )));
         }
     }
     check_spec(unit, spec, &opts.stages)?;
     let mut master = unit.clone();
     let mut start_fitness = vec![];
     for e in events {
-        start_fitness.push(fitness(&master, e, false).map_err(|m| FitError::Setup(format!("the starting unit: {m}")))?.0);
+        start_fitness.push(
+            fitness(&master, e, false)
+                .map_err(|m| FitError::Setup(format!("the starting unit: {m}")))?
+                .0,
+        );
     }
     for e in held_out {
         if let Ok((f, _)) = fitness(&master, e, true) {
@@ -598,7 +738,18 @@ pub fn fit(
         }
         let all = combined_stage("all", spec, &opts.stages);
         let free = free_params(&full, &all)?;
-        let (rep, out, best) = run_stage("all", "simultaneous", full.clone(), free.clone(), &all, events, held_out, opts, progress, true)?;
+        let (rep, out, best) = run_stage(
+            "all",
+            "simultaneous",
+            full.clone(),
+            free.clone(),
+            &all,
+            events,
+            held_out,
+            opts,
+            progress,
+            true,
+        )?;
         // The full unit (with every stage's replacements) carries on with the joint result.
         master = full;
         for (f, v) in free.iter().zip(&best) {
@@ -611,11 +762,26 @@ pub fn fit(
     for s in &opts.stages {
         let st = spec.stage(s).expect("checked");
         apply_stage_edits(&mut master, st)?;
-        let stage_unit = master.without(removed_blocks(s)).map_err(|e| stage_err(s, e.to_string()))?;
+        let stage_unit = master
+            .without(removed_blocks(s))
+            .map_err(|e| stage_err(s, e.to_string()))?;
         let free = free_params(&stage_unit, st)?;
-        let (rep, out, best) = run_stage(s, s, stage_unit, free.clone(), st, events, held_out, opts, progress, true)?;
+        let (rep, out, best) = run_stage(
+            s,
+            s,
+            stage_unit,
+            free.clone(),
+            st,
+            events,
+            held_out,
+            opts,
+            progress,
+            true,
+        )?;
         for (f, v) in free.iter().zip(&best) {
-            let r = master.param(&f.path).map_err(|e| stage_err(s, e.to_string()))?;
+            let r = master
+                .param(&f.path)
+                .map_err(|e| stage_err(s, e.to_string()))?;
             master.set(r, *v);
         }
         reports.push(rep);
@@ -629,8 +795,25 @@ pub fn fit(
         let full = master.clone();
         let free = free_params(&full, &joint)?;
         // Start from the current values, not the spec's starting values.
-        let free: Vec<FreeParam> = free.into_iter().map(|f| FreeParam { start: full.get(f.r).clamp(f.lo, f.hi), ..f }).collect();
-        let (rep, out, best) = run_stage("joint", "joint", full, free.clone(), &joint, events, held_out, opts, progress, false)?;
+        let free: Vec<FreeParam> = free
+            .into_iter()
+            .map(|f| FreeParam {
+                start: full.get(f.r).clamp(f.lo, f.hi),
+                ..f
+            })
+            .collect();
+        let (rep, out, best) = run_stage(
+            "joint",
+            "joint",
+            full,
+            free.clone(),
+            &joint,
+            events,
+            held_out,
+            opts,
+            progress,
+            false,
+        )?;
         for (f, v) in free.iter().zip(&best) {
             master.set(f.r, *v);
         }
@@ -649,7 +832,11 @@ pub fn fit(
         stages: reports,
         wall_s: t0.elapsed().as_secs_f64(),
     };
-    Ok(FitResult { report, unit: master, stages: outputs })
+    Ok(FitResult {
+        report,
+        unit: master,
+        stages: outputs,
+    })
 }
 
 /// Search options used by tests and benchmarks that want a quick, reproducible fit.

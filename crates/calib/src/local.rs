@@ -7,7 +7,9 @@
 //! objective is then a smooth function of the parameters. The 2n gradient evaluations run in
 //! parallel (rayon); the result does not depend on the number of threads.
 
-use argmin::core::{CostFunction, Error, Executor, Gradient, State, TerminationReason, TerminationStatus};
+use argmin::core::{
+    CostFunction, Error, Executor, Gradient, State, TerminationReason, TerminationStatus,
+};
 use argmin::solver::linesearch::MoreThuenteLineSearch;
 use argmin::solver::quasinewton::LBFGS;
 use itaipu_dynamics::integrate::Method;
@@ -38,7 +40,9 @@ pub fn smallest_time_constant(unit: &Unit) -> f64 {
 pub fn gradient_integrator(problem: &Problem, x: &[f64]) -> SimOptions {
     let tau = smallest_time_constant(&problem.unit_at(x));
     let h = (0.5 * tau).clamp(5e-5, 2e-3);
-    SimOptions { method: Method::Rk4 { h } }
+    SimOptions {
+        method: Method::Rk4 { h },
+    }
 }
 
 /// The problem in `z` coordinates, as argmin sees it. It remembers the best point it has
@@ -52,14 +56,19 @@ pub struct LocalProblem<'a> {
 
 impl<'a> LocalProblem<'a> {
     pub fn new(problem: &'a Problem, sim: SimOptions) -> Self {
-        Self { problem, sim, best: std::sync::Mutex::new((f64::INFINITY, vec![])) }
+        Self {
+            problem,
+            sim,
+            best: std::sync::Mutex::new((f64::INFINITY, vec![])),
+        }
     }
 
     /// Objective at `z`.
     pub fn cost_z(&self, z: &[f64]) -> f64 {
         let c = self.problem.cost(&self.problem.from_z(z), &self.sim);
         let mut best = self.best.lock().expect("best point");
-        let better = c < best.0 || (c == best.0 && z.partial_cmp(best.1.as_slice()) == Some(std::cmp::Ordering::Less));
+        let better = c < best.0
+            || (c == best.0 && z.partial_cmp(best.1.as_slice()) == Some(std::cmp::Ordering::Less));
         if better {
             *best = (c, z.to_vec());
         }
@@ -89,7 +98,11 @@ impl<'a> LocalProblem<'a> {
                 (self.cost_z(&zp), self.cost_z(&zm))
             })
             .collect();
-        let c0 = if pairs.iter().any(|(p, m)| failed(*p) || failed(*m)) { self.cost_z(z) } else { f64::NAN };
+        let c0 = if pairs.iter().any(|(p, m)| failed(*p) || failed(*m)) {
+            self.cost_z(z)
+        } else {
+            f64::NAN
+        };
         pairs
             .iter()
             .map(|&(p, m)| match (failed(p), failed(m)) {
@@ -142,18 +155,36 @@ pub fn refine(problem: &Problem, x0: &[f64], iterations: u64, memory: usize) -> 
         Method::Rk4 { h } => h,
         _ => f64::NAN,
     };
-    let z0: Vec<f64> = problem.to_unit(x0).into_iter().map(crate::problem::logit).collect();
+    let z0: Vec<f64> = problem
+        .to_unit(x0)
+        .into_iter()
+        .map(crate::problem::logit)
+        .collect();
     let local = LocalProblem::new(problem, sim);
     let start_cost = local.cost_z(&z0);
     if problem.dim() == 0 || iterations == 0 {
-        return LocalResult { best: x0.to_vec(), best_cost: start_cost, iterations: 0, stopped_by: "nothing to do".into(), step_s };
+        return LocalResult {
+            best: x0.to_vec(),
+            best_cost: start_cost,
+            iterations: 0,
+            stopped_by: "nothing to do".into(),
+            step_s,
+        };
     }
     let solver = LBFGS::new(MoreThuenteLineSearch::new(), memory.max(1));
-    let solver = solver.with_tolerance_grad(1e-9).and_then(|s| s.with_tolerance_cost(1e-12));
+    let solver = solver
+        .with_tolerance_grad(1e-9)
+        .and_then(|s| s.with_tolerance_cost(1e-12));
     let solver = match solver {
         Ok(s) => s,
         Err(e) => {
-            return LocalResult { best: x0.to_vec(), best_cost: start_cost, iterations: 0, stopped_by: e.to_string(), step_s }
+            return LocalResult {
+                best: x0.to_vec(),
+                best_cost: start_cost,
+                iterations: 0,
+                stopped_by: e.to_string(),
+                step_s,
+            }
         }
     };
     let local = std::sync::Arc::new(local);
@@ -164,7 +195,9 @@ pub fn refine(problem: &Problem, x0: &[f64], iterations: u64, memory: usize) -> 
         Ok(res) => {
             let state = res.state();
             let why = match state.get_termination_status() {
-                TerminationStatus::Terminated(TerminationReason::MaxItersReached) => "max iterations".to_string(),
+                TerminationStatus::Terminated(TerminationReason::MaxItersReached) => {
+                    "max iterations".to_string()
+                }
                 TerminationStatus::Terminated(r) => r.to_string(),
                 TerminationStatus::NotTerminated => "not terminated".to_string(),
             };
@@ -174,5 +207,11 @@ pub fn refine(problem: &Problem, x0: &[f64], iterations: u64, memory: usize) -> 
         Err(e) => (0, format!("stopped: {e}")),
     };
     let (best_cost, best_z) = local.best();
-    LocalResult { best: problem.from_z(&best_z), best_cost, iterations, stopped_by, step_s }
+    LocalResult {
+        best: problem.from_z(&best_z),
+        best_cost,
+        iterations,
+        stopped_by,
+        step_s,
+    }
 }

@@ -42,14 +42,33 @@ pub struct FreeParam {
 }
 
 impl FreeParam {
-    pub fn new(path: String, r: ParamRef, lo: f64, hi: f64, start: f64, unit: &'static str) -> Self {
+    pub fn new(
+        path: String,
+        r: ParamRef,
+        lo: f64,
+        hi: f64,
+        start: f64,
+        unit: &'static str,
+    ) -> Self {
         let log = lo > 0.0 && hi / lo >= 10.0;
-        Self { path, r, lo, hi, log, start: start.clamp(lo, hi), unit }
+        Self {
+            path,
+            r,
+            lo,
+            hi,
+            log,
+            start: start.clamp(lo, hi),
+            unit,
+        }
     }
     /// Physical value at box coordinate `u ∈ [0, 1]`.
     pub fn from_unit(&self, u: f64) -> f64 {
         let u = u.clamp(0.0, 1.0);
-        let x = if self.log { self.lo * (self.hi / self.lo).powf(u) } else { self.lo + (self.hi - self.lo) * u };
+        let x = if self.log {
+            self.lo * (self.hi / self.lo).powf(u)
+        } else {
+            self.lo + (self.hi - self.lo) * u
+        };
         x.clamp(self.lo, self.hi)
     }
     /// Box coordinate of physical value `x`.
@@ -94,20 +113,40 @@ pub struct EventData {
 impl EventData {
     /// Prepares `event` with the window `window` (default: the event's fit window) and an
     /// optional zero-phase low-pass of the measurement.
-    pub fn new(event: &Event, window: Option<[f64; 2]>, lowpass_hz: Option<f64>) -> Result<Self, String> {
+    pub fn new(
+        event: &Event,
+        window: Option<[f64; 2]>,
+        lowpass_hz: Option<f64>,
+    ) -> Result<Self, String> {
         let r = &event.record;
         let [a, b] = window.unwrap_or([event.fit.start_s, event.fit.end_s]);
-        let in_window: Vec<bool> = r.time_s.iter().map(|&t| t >= a - 1e-9 && t <= b + 1e-9).collect();
+        let in_window: Vec<bool> = r
+            .time_s
+            .iter()
+            .map(|&t| t >= a - 1e-9 && t <= b + 1e-9)
+            .collect();
         if in_window.iter().filter(|w| **w).count() < 3 {
-            return Err(format!("event '{}': fewer than 3 samples in the fit window [{a}, {b}] s", event.name));
+            return Err(format!(
+                "event '{}': fewer than 3 samples in the fit window [{a}, {b}] s",
+                event.name
+            ));
         }
         let (mut p, mut q) = (r.p_pu.clone(), r.q_pu.clone());
         if let Some(fc) = lowpass_hz {
-            let fs = crate::filter::sample_rate(&r.time_s).map_err(|e| format!("event '{}': {e}", event.name))?;
-            p = crate::filter::lowpass_zero_phase(&p, fs, fc).map_err(|e| format!("event '{}': {e}", event.name))?;
-            q = crate::filter::lowpass_zero_phase(&q, fs, fc).map_err(|e| format!("event '{}': {e}", event.name))?;
+            let fs = crate::filter::sample_rate(&r.time_s)
+                .map_err(|e| format!("event '{}': {e}", event.name))?;
+            p = crate::filter::lowpass_zero_phase(&p, fs, fc)
+                .map_err(|e| format!("event '{}': {e}", event.name))?;
+            q = crate::filter::lowpass_zero_phase(&q, fs, fc)
+                .map_err(|e| format!("event '{}': {e}", event.name))?;
         }
-        Ok(Self { name: event.name.clone(), prepared: PreparedEvent::new(event), p_meas: p, q_meas: q, in_window })
+        Ok(Self {
+            name: event.name.clone(),
+            prepared: PreparedEvent::new(event),
+            p_meas: p,
+            q_meas: q,
+            in_window,
+        })
     }
 
     /// Number of samples in the window.
@@ -127,12 +166,28 @@ pub fn objective_weights(objective: Objective, w: Weights) -> (f64, f64) {
 
 /// Integrator used for objective evaluations during the search (robust for stiff candidates).
 pub fn search_integrator() -> SimOptions {
-    SimOptions { method: Method::Dopri5(Dopri5Options { rtol: 1e-6, atol: 1e-7, h_max: 0.05, max_steps: 400_000, ..Default::default() }) }
+    SimOptions {
+        method: Method::Dopri5(Dopri5Options {
+            rtol: 1e-6,
+            atol: 1e-7,
+            h_max: 0.05,
+            max_steps: 400_000,
+            ..Default::default()
+        }),
+    }
 }
 
 /// Integrator used for reported objectives and the Fisher matrix (tight tolerances).
 pub fn accurate_integrator() -> SimOptions {
-    SimOptions { method: Method::Dopri5(Dopri5Options { rtol: 1e-9, atol: 1e-10, h_max: 0.02, max_steps: 2_000_000, ..Default::default() }) }
+    SimOptions {
+        method: Method::Dopri5(Dopri5Options {
+            rtol: 1e-9,
+            atol: 1e-10,
+            h_max: 0.02,
+            max_steps: 2_000_000,
+            ..Default::default()
+        }),
+    }
 }
 
 /// Largest |P| or |Q| [pu] a sane simulation produces; beyond it a candidate has diverged.
@@ -162,7 +217,12 @@ pub struct Problem {
 }
 
 impl Problem {
-    pub fn new(unit: Unit, free: Vec<FreeParam>, events: Vec<EventData>, weights: (f64, f64)) -> Self {
+    pub fn new(
+        unit: Unit,
+        free: Vec<FreeParam>,
+        events: Vec<EventData>,
+        weights: (f64, f64),
+    ) -> Self {
         Self {
             unit,
             free,
@@ -183,15 +243,27 @@ impl Problem {
 
     /// Physical values at box coordinates `u`.
     pub fn from_unit(&self, u: &[f64]) -> Vec<f64> {
-        self.free.iter().zip(u).map(|(f, u)| f.from_unit(*u)).collect()
+        self.free
+            .iter()
+            .zip(u)
+            .map(|(f, u)| f.from_unit(*u))
+            .collect()
     }
     /// Box coordinates of physical values `x`.
     pub fn to_unit(&self, x: &[f64]) -> Vec<f64> {
-        self.free.iter().zip(x).map(|(f, x)| f.to_unit(*x)).collect()
+        self.free
+            .iter()
+            .zip(x)
+            .map(|(f, x)| f.to_unit(*x))
+            .collect()
     }
     /// Physical values at unbounded coordinates `z`.
     pub fn from_z(&self, z: &[f64]) -> Vec<f64> {
-        self.free.iter().zip(z).map(|(f, z)| f.from_unit(logistic(*z))).collect()
+        self.free
+            .iter()
+            .zip(z)
+            .map(|(f, z)| f.from_unit(logistic(*z)))
+            .collect()
     }
     /// Starting values.
     pub fn start(&self) -> Vec<f64> {
@@ -218,13 +290,17 @@ impl Problem {
         let (sp, sq) = (self.weights.0.sqrt(), self.weights.1.sqrt());
         let mut r = Vec::new();
         for ev in &self.events {
-            let (p, q) = simulate_pq(&mut unit, &ev.prepared, sim).map_err(|e| format!("{}: {e}", ev.name))?;
+            let (p, q) = simulate_pq(&mut unit, &ev.prepared, sim)
+                .map_err(|e| format!("{}: {e}", ev.name))?;
             for k in 0..p.len() {
                 if !ev.in_window[k] {
                     continue;
                 }
                 if !(p[k].abs() < DIVERGED_PU && q[k].abs() < DIVERGED_PU) {
-                    return Err(format!("{}: simulation diverged at t = {:.3} s", ev.name, ev.prepared.input.time_s[k]));
+                    return Err(format!(
+                        "{}: simulation diverged at t = {:.3} s",
+                        ev.name, ev.prepared.input.time_s[k]
+                    ));
                 }
                 if sp > 0.0 {
                     r.push(sp * (p[k] - ev.p_meas[k]));
@@ -239,7 +315,8 @@ impl Problem {
 
     /// The objective at physical values `x`; the penalty (counted and logged) on failure.
     pub fn cost(&self, x: &[f64], sim: &SimOptions) -> f64 {
-        self.evaluations.fetch_add(self.events.len(), Ordering::Relaxed);
+        self.evaluations
+            .fetch_add(self.events.len(), Ordering::Relaxed);
         match self.residuals(x, sim) {
             Ok(r) => r.iter().map(|v| v * v).sum(),
             Err(msg) => {
@@ -253,7 +330,12 @@ impl Problem {
         self.failures.fetch_add(1, Ordering::Relaxed);
         let mut log = self.failure_log.lock().expect("failure log");
         if log.len() < FAILURE_LOG {
-            let at: Vec<String> = self.free.iter().zip(x).map(|(f, v)| format!("{}={v:.4}", f.path)).collect();
+            let at: Vec<String> = self
+                .free
+                .iter()
+                .zip(x)
+                .map(|(f, v)| format!("{}={v:.4}", f.path))
+                .collect();
             log.push(format!("{msg} [{}]", at.join(", ")));
         }
     }

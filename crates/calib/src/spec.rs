@@ -160,7 +160,10 @@ fn default_pso_iterations() -> usize {
 
 impl Default for PsoSpec {
     fn default() -> Self {
-        Self { particles: default_particles(), iterations: default_pso_iterations() }
+        Self {
+            particles: default_particles(),
+            iterations: default_pso_iterations(),
+        }
     }
 }
 
@@ -183,7 +186,10 @@ fn default_memory() -> usize {
 
 impl Default for LbfgsSpec {
     fn default() -> Self {
-        Self { iterations: default_lbfgs_iterations(), memory: default_memory() }
+        Self {
+            iterations: default_lbfgs_iterations(),
+            memory: default_memory(),
+        }
     }
 }
 
@@ -226,13 +232,20 @@ struct FileWithCalibration {
 #[derive(Debug, thiserror::Error)]
 pub enum SpecError {
     #[error("{}: cannot read: {source}", path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{}: {msg}", path.display())]
     Syntax { path: PathBuf, msg: String },
     #[error("{}: no [calibration] table (give one in the unit file or with --calib)", path.display())]
     Missing { path: PathBuf },
     #[error("{}: {field}: {msg}", path.display())]
-    Field { path: PathBuf, field: String, msg: String },
+    Field {
+        path: PathBuf,
+        field: String,
+        msg: String,
+    },
 }
 
 impl SpecError {
@@ -250,43 +263,68 @@ impl SpecError {
 impl CalibSpec {
     /// Reads the `[calibration]` table of a file.
     pub fn from_file(path: &Path) -> Result<CalibSpec, SpecError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SpecError::Io { path: path.into(), source: e })?;
+        let text = std::fs::read_to_string(path).map_err(|e| SpecError::Io {
+            path: path.into(),
+            source: e,
+        })?;
         Self::parse(&text, path)
     }
 
     /// Parses text (`path` is used in messages).
     pub fn parse(text: &str, path: &Path) -> Result<CalibSpec, SpecError> {
-        let f: FileWithCalibration = toml::from_str(text)
-            .map_err(|e| SpecError::Syntax { path: path.into(), msg: e.to_string().trim().replace('\n', " ") })?;
-        let spec = f.calibration.ok_or_else(|| SpecError::Missing { path: path.into() })?;
+        let f: FileWithCalibration = toml::from_str(text).map_err(|e| SpecError::Syntax {
+            path: path.into(),
+            msg: e.to_string().trim().replace('\n', " "),
+        })?;
+        let spec = f
+            .calibration
+            .ok_or_else(|| SpecError::Missing { path: path.into() })?;
         spec.validate(path)?;
         Ok(spec)
     }
 
     fn validate(&self, path: &Path) -> Result<(), SpecError> {
-        let err = |field: String, msg: String| SpecError::Field { path: path.into(), field, msg };
+        let err = |field: String, msg: String| SpecError::Field {
+            path: path.into(),
+            field,
+            msg,
+        };
         if self.pso.particles < 2 {
-            return Err(err("calibration.pso.particles".into(), "needs at least 2".into()));
+            return Err(err(
+                "calibration.pso.particles".into(),
+                "needs at least 2".into(),
+            ));
         }
         let mut last = None;
         for (k, s) in self.stages.iter().enumerate() {
             let ctx = format!("calibration.stage[{k}]");
-            let pos = STAGES
-                .iter()
-                .position(|n| *n == s.name)
-                .ok_or_else(|| err(format!("{ctx}.name"), format!("'{}' is not one of gen, avr, pss, tg", s.name)))?;
+            let pos = STAGES.iter().position(|n| *n == s.name).ok_or_else(|| {
+                err(
+                    format!("{ctx}.name"),
+                    format!("'{}' is not one of gen, avr, pss, tg", s.name),
+                )
+            })?;
             if last.is_some_and(|l| pos <= l) {
-                return Err(err(format!("{ctx}.name"), "stages must be listed once each, in the order gen, avr, pss, tg".into()));
+                return Err(err(
+                    format!("{ctx}.name"),
+                    "stages must be listed once each, in the order gen, avr, pss, tg".into(),
+                ));
             }
             last = Some(pos);
             if let Some([a, b]) = s.window {
                 if !(a < b) {
-                    return Err(err(format!("{ctx}.window"), format!("start {a} must be before end {b}")));
+                    return Err(err(
+                        format!("{ctx}.window"),
+                        format!("start {a} must be before end {b}"),
+                    ));
                 }
             }
             if let Some(fc) = s.lowpass_hz {
                 if !(fc > 0.0) {
-                    return Err(err(format!("{ctx}.lowpass_hz"), format!("must be > 0 (got {fc})")));
+                    return Err(err(
+                        format!("{ctx}.lowpass_hz"),
+                        format!("must be > 0 (got {fc})"),
+                    ));
                 }
             }
             if !(s.weights.p >= 0.0 && s.weights.q >= 0.0) {
@@ -298,11 +336,20 @@ impl CalibSpec {
                     return Err(err(fctx, "bounds must be finite".into()));
                 }
                 if !(f.min < f.max) {
-                    return Err(err(fctx, format!("bounds upside down or empty: min {} >= max {}", f.min, f.max)));
+                    return Err(err(
+                        fctx,
+                        format!(
+                            "bounds upside down or empty: min {} >= max {}",
+                            f.min, f.max
+                        ),
+                    ));
                 }
                 if let Some(x) = f.start {
                     if !(x >= f.min && x <= f.max) {
-                        return Err(err(fctx, format!("start {x} lies outside [{}, {}]", f.min, f.max)));
+                        return Err(err(
+                            fctx,
+                            format!("start {x} lies outside [{}, {}]", f.min, f.max),
+                        ));
                     }
                 }
                 if s.free[..j].iter().any(|g| g.param == f.param) {

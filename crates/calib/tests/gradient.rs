@@ -14,12 +14,24 @@ fn gradient_matches_a_five_point_stencil() {
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/itaipu");
     let unit = read_unit(&data.join("unit.toml")).unwrap();
     let event = Event::from_toml_file(&data.join("event.toml")).unwrap();
-    let params = [("machine.h", 1.0, 10.0), ("machine.x_d_prime", 0.23, 0.6), ("exciter.k", 10.0, 1000.0), ("pss.t_x2", 0.5, 10.0)];
+    let params = [
+        ("machine.h", 1.0, 10.0),
+        ("machine.x_d_prime", 0.23, 0.6),
+        ("exciter.k", 10.0, 1000.0),
+        ("pss.t_x2", 0.5, 10.0),
+    ];
     let free: Vec<FreeParam> = params
         .iter()
         .map(|(p, lo, hi)| {
             let r = unit.param(p).unwrap();
-            FreeParam::new(p.to_string(), r, *lo, *hi, unit.get(r), unit.param_spec(r).unit)
+            FreeParam::new(
+                p.to_string(),
+                r,
+                *lo,
+                *hi,
+                unit.get(r),
+                unit.param_spec(r).unit,
+            )
         })
         .collect();
     let events = vec![EventData::new(&event, None, None).unwrap()];
@@ -38,8 +50,21 @@ fn gradient_matches_a_five_point_stencil() {
         };
         let five = (-at(2.0 * h) + 8.0 * at(h) - 8.0 * at(-h) + at(-2.0 * h)) / (12.0 * h);
         let rel = (g[i] - five).abs() / five.abs().max(1e-9);
-        println!("{}: gradient {:.6e}, five-point {:.6e}, relative difference {rel:.1e}", params[i].0, g[i], five);
-        assert!(five.abs() > 1e-6, "{}: the test point should not be stationary", params[i].0);
-        assert!(rel < 1e-4, "{}: gradient {:e} vs five-point stencil {:e}", params[i].0, g[i], five);
+        println!(
+            "{}: gradient {:.6e}, five-point {:.6e}, relative difference {rel:.1e}",
+            params[i].0, g[i], five
+        );
+        assert!(
+            five.abs() > 1e-6,
+            "{}: the test point should not be stationary",
+            params[i].0
+        );
+        assert!(
+            rel < 1e-4,
+            "{}: gradient {:e} vs five-point stencil {:e}",
+            params[i].0,
+            g[i],
+            five
+        );
     }
 }

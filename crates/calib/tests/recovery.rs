@@ -19,12 +19,17 @@ use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::read_unit;
 
 fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data").join(rel)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data")
+        .join(rel)
 }
 
 /// The generic GENSAE unit without the named blocks.
 fn truth(without: &[&str]) -> Unit {
-    read_unit(&data("synthetic/unit_gensae_sexs_stab3_hygov.toml")).unwrap().without(without).unwrap()
+    read_unit(&data("synthetic/unit_gensae_sexs_stab3_hygov.toml"))
+        .unwrap()
+        .without(without)
+        .unwrap()
 }
 
 /// PMU noise of the recovery tests: 0.002 pu on P and Q with 0.0014 pu quantisation (as in the
@@ -32,12 +37,28 @@ fn truth(without: &[&str]) -> Unit {
 /// its input (input noise is an errors-in-variables effect that biases every estimate; the
 /// Fisher standard errors account only for output noise).
 fn noise(seed: u64) -> PmuNoise {
-    PmuNoise { v_sigma: 1e-4, angle_sigma: 1e-4, ..PmuNoise::typical(seed) }
+    PmuNoise {
+        v_sigma: 1e-4,
+        angle_sigma: 1e-4,
+        ..PmuNoise::typical(seed)
+    }
 }
 
 fn event(truth: &Unit, seed: u64, duration_s: f64) -> Event {
-    let profile = VoltageProfile { duration_s, dip_start_s: 3.0, ..Default::default() };
-    synthesize("synthetic", truth, &profile, 737.0, &noise(seed), &SimOptions::default()).unwrap()
+    let profile = VoltageProfile {
+        duration_s,
+        dip_start_s: 3.0,
+        ..Default::default()
+    };
+    synthesize(
+        "synthetic",
+        truth,
+        &profile,
+        737.0,
+        &noise(seed),
+        &SimOptions::default(),
+    )
+    .unwrap()
 }
 
 /// Sets `path` of `unit` to `factor × its value`.
@@ -51,9 +72,15 @@ fn scale(unit: &mut Unit, path: &str, factor: f64) {
 fn check_recovery(res: &FitResult, truth: &Unit, min_identified: usize) -> Vec<String> {
     let stage = res.report.stages.last().unwrap();
     for ph in &stage.phases {
-        println!("{}: {} iterations, best {:.6e}, {}", ph.phase, ph.iterations, ph.best_objective, ph.stopped_by);
+        println!(
+            "{}: {} iterations, best {:.6e}, {}",
+            ph.phase, ph.iterations, ph.best_objective, ph.stopped_by
+        );
     }
-    println!("objective {:.6e} -> {:.6e}", stage.objective_before, stage.objective_after);
+    println!(
+        "objective {:.6e} -> {:.6e}",
+        stage.objective_before, stage.objective_after
+    );
     println!(
         "identifiable {:?}; weak {:?}; unidentified {:?}; correlated {:?}",
         stage.identifiable, stage.weakly_determined, stage.unidentified, stage.correlated_pairs
@@ -62,17 +89,30 @@ fn check_recovery(res: &FitResult, truth: &Unit, min_identified: usize) -> Vec<S
     for p in &stage.parameters {
         let t = truth.get(truth.param(&p.param).unwrap());
         let rel = (p.result - t).abs() / t.abs();
-        println!("{:<22} truth {t:>9.5} start {:>9.5} result {:>9.5} (rel err {rel:.2e}) std err {:.2e}", p.param, p.start, p.result, p.std_error);
+        println!(
+            "{:<22} truth {t:>9.5} start {:>9.5} result {:>9.5} (rel err {rel:.2e}) std err {:.2e}",
+            p.param, p.start, p.result, p.std_error
+        );
         if !stage.identifiable.contains(&p.param) {
             // Flagged as unidentified, correlated or weakly determined: its standard error
             // must still cover the truth when it is finite.
             if p.std_error.is_finite() {
-                assert!((p.result - t).abs() < 3.0 * p.std_error, "{}: weakly determined but off by more than 3σ", p.param);
+                assert!(
+                    (p.result - t).abs() < 3.0 * p.std_error,
+                    "{}: weakly determined but off by more than 3σ",
+                    p.param
+                );
             }
             continue;
         }
         identified.push(p.param.clone());
-        assert!(rel < 0.02, "{} came back {:.5} for truth {t:.5} ({:.1} %)", p.param, p.result, rel * 100.0);
+        assert!(
+            rel < 0.02,
+            "{} came back {:.5} for truth {t:.5} ({:.1} %)",
+            p.param,
+            p.result,
+            rel * 100.0
+        );
         assert!(
             (p.result - t).abs() < 3.0 * p.std_error,
             "{}: the standard error {:.2e} does not cover the truth (error {:.2e})",
@@ -81,7 +121,10 @@ fn check_recovery(res: &FitResult, truth: &Unit, min_identified: usize) -> Vec<S
             (p.result - t).abs()
         );
     }
-    assert!(identified.len() >= min_identified, "only {identified:?} identifiable");
+    assert!(
+        identified.len() >= min_identified,
+        "only {identified:?} identifiable"
+    );
     identified
 }
 
@@ -109,21 +152,49 @@ fn generator_stage_recovers_the_identifiable_machine_parameters() {
     truth.set(r, 1.0);
     let ev = event(&truth, 11, 10.0);
     let mut start = truth.clone();
-    for (p, f) in [("machine.h", 1.3), ("machine.x_d", 0.75), ("machine.x_d_prime", 1.4), ("machine.x_q", 1.25), ("machine.t_d0_prime", 0.7)] {
+    for (p, f) in [
+        ("machine.h", 1.3),
+        ("machine.x_d", 0.75),
+        ("machine.x_d_prime", 1.4),
+        ("machine.x_q", 1.25),
+        ("machine.t_d0_prime", 0.7),
+    ] {
         scale(&mut start, p, f);
     }
     scale(&mut start, "machine.d", 0.5);
     let spec = CalibSpec::parse(GEN_SPEC, std::path::Path::new("gen.toml")).unwrap();
     let mut opts = quick_options(&["gen"], 3);
     opts.lbfgs_iterations = 150;
-    let res = fit(&start, &spec, std::slice::from_ref(&ev), &[], &opts, &Silent).unwrap();
-    let j_truth = itaipu_calib::fit::fitness(&truth, &ev, false).unwrap().0.j_pq;
-    let j_est = itaipu_calib::fit::fitness(&res.unit, &ev, false).unwrap().0.j_pq;
+    let res = fit(
+        &start,
+        &spec,
+        std::slice::from_ref(&ev),
+        &[],
+        &opts,
+        &Silent,
+    )
+    .unwrap();
+    let j_truth = itaipu_calib::fit::fitness(&truth, &ev, false)
+        .unwrap()
+        .0
+        .j_pq;
+    let j_est = itaipu_calib::fit::fitness(&res.unit, &ev, false)
+        .unwrap()
+        .0
+        .j_pq;
     println!("J at truth {j_truth:.6e}, at estimate {j_est:.6e}");
     let stage = &res.report.stages[0];
-    assert!(stage.objective_after < 0.05 * stage.objective_before, "objective {} -> {}", stage.objective_before, stage.objective_after);
+    assert!(
+        stage.objective_after < 0.05 * stage.objective_before,
+        "objective {} -> {}",
+        stage.objective_before,
+        stage.objective_after
+    );
     let ids = check_recovery(&res, &truth, 3);
-    assert!(ids.contains(&"machine.h".to_string()), "inertia must be identifiable from a dip and a swing: {ids:?}");
+    assert!(
+        ids.contains(&"machine.h".to_string()),
+        "inertia must be identifiable from a dip and a swing: {ids:?}"
+    );
 }
 
 const AVR_SPEC: &str = r#"
@@ -147,7 +218,15 @@ fn avr_stage_recovers_the_exciter_from_q() {
         scale(&mut start, p, f);
     }
     let spec = CalibSpec::parse(AVR_SPEC, std::path::Path::new("avr.toml")).unwrap();
-    let res = fit(&start, &spec, &[ev], &[], &quick_options(&["avr"], 5), &Silent).unwrap();
+    let res = fit(
+        &start,
+        &spec,
+        &[ev],
+        &[],
+        &quick_options(&["avr"], 5),
+        &Silent,
+    )
+    .unwrap();
     // K and T_B act together as K/(T_B s) at mid frequencies: the report is expected to call
     // them correlated (|ρ| ≈ 0.97), which leaves T_E to meet the 2 % requirement.
     check_recovery(&res, &truth, 1);
@@ -165,8 +244,21 @@ fn a_seed_gives_the_same_numbers_on_one_and_two_threads() {
     opts.pso_iterations = 8;
     opts.lbfgs_iterations = 5;
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| fit(&start, &spec, std::slice::from_ref(&ev), &[], &opts, &Silent).unwrap())
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            fit(
+                &start,
+                &spec,
+                std::slice::from_ref(&ev),
+                &[],
+                &opts,
+                &Silent,
+            )
+            .unwrap()
+        })
     };
     let (a, b) = (run(1), run(2));
     let (sa, sb) = (&a.report.stages[0], &b.report.stages[0]);
@@ -182,7 +274,10 @@ fn a_seed_gives_the_same_numbers_on_one_and_two_threads() {
     let mut other = opts.clone();
     other.seed = 10;
     let c = fit(&start, &spec, &[ev], &[], &other, &Silent).unwrap();
-    assert_ne!(c.report.stages[0].phases[0].best_objective.to_bits(), sa.phases[0].best_objective.to_bits());
+    assert_ne!(
+        c.report.stages[0].phases[0].best_objective.to_bits(),
+        sa.phases[0].best_objective.to_bits()
+    );
 }
 
 #[test]
@@ -200,33 +295,100 @@ fn incremental_strategy_frees_the_machine_parameters_one_at_a_time() {
     let stage = &res.report.stages[0];
     let steps: Vec<&str> = stage.phases.iter().map(|p| p.phase.as_str()).collect();
     assert_eq!(steps.len(), 6, "one L-BFGS step per parameter: {steps:?}");
-    assert!(steps[0].starts_with("step 1 (machine.h)") && steps[5].starts_with("step 6 (machine.d)"), "{steps:?}");
-    assert!(stage.phases.iter().all(|p| !p.phase.contains("pso")), "incremental steps use no swarm");
-    assert!(stage.objective_after < 0.2 * stage.objective_before, "{} -> {}", stage.objective_before, stage.objective_after);
+    assert!(
+        steps[0].starts_with("step 1 (machine.h)") && steps[5].starts_with("step 6 (machine.d)"),
+        "{steps:?}"
+    );
+    assert!(
+        stage.phases.iter().all(|p| !p.phase.contains("pso")),
+        "incremental steps use no swarm"
+    );
+    assert!(
+        stage.objective_after < 0.2 * stage.objective_before,
+        "{} -> {}",
+        stage.objective_before,
+        stage.objective_after
+    );
 }
 
 #[test]
 fn several_events_are_fitted_together_and_a_held_out_event_is_reported() {
     let truth = truth(&["exciter", "pss", "governor"]);
-    let other = VoltageProfile { duration_s: 6.0, dip_start_s: 3.0, dip_v: 0.8, swing_hz: 1.2, freq_dev_hz: 0.1, ..Default::default() };
+    let other = VoltageProfile {
+        duration_s: 6.0,
+        dip_start_s: 3.0,
+        dip_v: 0.8,
+        swing_hz: 1.2,
+        freq_dev_hz: 0.1,
+        ..Default::default()
+    };
     let ev1 = event(&truth, 61, 6.0);
-    let ev2 = synthesize("synthetic-2", &truth, &other, 737.0, &noise(62), &SimOptions::default()).unwrap();
-    let held = synthesize("held-out", &truth, &VoltageProfile { swing_hz: 0.6, ..other.clone() }, 737.0, &noise(63), &SimOptions::default()).unwrap();
+    let ev2 = synthesize(
+        "synthetic-2",
+        &truth,
+        &other,
+        737.0,
+        &noise(62),
+        &SimOptions::default(),
+    )
+    .unwrap();
+    let held = synthesize(
+        "held-out",
+        &truth,
+        &VoltageProfile {
+            swing_hz: 0.6,
+            ..other.clone()
+        },
+        737.0,
+        &noise(63),
+        &SimOptions::default(),
+    )
+    .unwrap();
     let mut start = truth.clone();
     scale(&mut start, "machine.h", 1.3);
     scale(&mut start, "machine.x_q", 1.2);
     let spec = CalibSpec::parse(GEN_SPEC, std::path::Path::new("gen.toml")).unwrap();
-    let res = fit(&start, &spec, &[ev1, ev2], std::slice::from_ref(&held), &quick_options(&["gen"], 6), &Silent).unwrap();
+    let res = fit(
+        &start,
+        &spec,
+        &[ev1, ev2],
+        std::slice::from_ref(&held),
+        &quick_options(&["gen"], 6),
+        &Silent,
+    )
+    .unwrap();
     assert_eq!(res.report.events, ["synthetic", "synthetic-2"]);
     assert_eq!(res.report.held_out, ["held-out"]);
     let rows = &res.report.stages[0].fitness;
-    assert_eq!(rows.iter().map(|r| (r.event.as_str(), r.held_out)).collect::<Vec<_>>(), [("synthetic", false), ("synthetic-2", false), ("held-out", true)]);
-    let before = res.report.start_fitness.iter().find(|r| r.held_out).unwrap().j_pq;
+    assert_eq!(
+        rows.iter()
+            .map(|r| (r.event.as_str(), r.held_out))
+            .collect::<Vec<_>>(),
+        [
+            ("synthetic", false),
+            ("synthetic-2", false),
+            ("held-out", true)
+        ]
+    );
+    let before = res
+        .report
+        .start_fitness
+        .iter()
+        .find(|r| r.held_out)
+        .unwrap()
+        .j_pq;
     let after = rows[2].j_pq;
-    assert!(after < 0.2 * before, "the calibration should carry over to the held-out event: {before} -> {after}");
+    assert!(
+        after < 0.2 * before,
+        "the calibration should carry over to the held-out event: {before} -> {after}"
+    );
     // The summed objective is the sum over the fitted events.
     let sum: f64 = rows[..2].iter().map(|r| r.j_pq).sum();
-    assert!((sum - res.report.stages[0].objective_after).abs() < 1e-9 * sum.max(1.0), "{sum} vs {}", res.report.stages[0].objective_after);
+    assert!(
+        (sum - res.report.stages[0].objective_after).abs() < 1e-9 * sum.max(1.0),
+        "{sum} vs {}",
+        res.report.stages[0].objective_after
+    );
 }
 
 const SKEW_SPEC: &str = r#"
@@ -242,15 +404,57 @@ free = [ { param = "measurement.pq_delay_s", min = 0.0, max = 0.05 } ]
 #[test]
 fn a_hidden_power_channel_skew_is_recovered_within_half_a_sample() {
     let truth = truth(&[]);
-    let profile = VoltageProfile { duration_s: 6.0, dip_start_s: 3.0, ..Default::default() };
-    let noise = PmuNoise { pq_delay_s: 0.012, ..noise(71) };
-    let ev = synthesize("skewed", &truth, &profile, 737.0, &noise, &SimOptions::default()).unwrap();
+    let profile = VoltageProfile {
+        duration_s: 6.0,
+        dip_start_s: 3.0,
+        ..Default::default()
+    };
+    let noise = PmuNoise {
+        pq_delay_s: 0.012,
+        ..noise(71)
+    };
+    let ev = synthesize(
+        "skewed",
+        &truth,
+        &profile,
+        737.0,
+        &noise,
+        &SimOptions::default(),
+    )
+    .unwrap();
     let mut start = truth.clone();
-    start.put("measurement", itaipu_dynamics::registry::find("pmu_measurement").unwrap().create(), &[]).unwrap();
+    start
+        .put(
+            "measurement",
+            itaipu_dynamics::registry::find("pmu_measurement")
+                .unwrap()
+                .create(),
+            &[],
+        )
+        .unwrap();
     let spec = CalibSpec::parse(SKEW_SPEC, std::path::Path::new("skew.toml")).unwrap();
-    let res = fit(&start, &spec, &[ev], &[], &quick_options(&["tg"], 7), &Silent).unwrap();
+    let res = fit(
+        &start,
+        &spec,
+        &[ev],
+        &[],
+        &quick_options(&["tg"], 7),
+        &Silent,
+    )
+    .unwrap();
     let p = &res.report.stages[0].parameters[0];
-    println!("delay: truth 0.012 s, result {:.5} s, std err {:.1e}", p.result, p.std_error);
-    assert!((p.result - 0.012).abs() < 0.5 / 60.0, "delay {} s", p.result);
-    assert!((p.result - 0.012).abs() < 0.001, "delay {} s should be within 1 ms", p.result);
+    println!(
+        "delay: truth 0.012 s, result {:.5} s, std err {:.1e}",
+        p.result, p.std_error
+    );
+    assert!(
+        (p.result - 0.012).abs() < 0.5 / 60.0,
+        "delay {} s",
+        p.result
+    );
+    assert!(
+        (p.result - 0.012).abs() < 0.001,
+        "delay {} s should be within 1 ms",
+        p.result
+    );
 }

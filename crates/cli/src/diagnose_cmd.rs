@@ -6,7 +6,9 @@ use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use itaipu_calib::diagnose::{catalog, diagnose, CandidateReport, DiagnoseError, DiagnoseOptions, Diagnosis, EventEvidence};
+use itaipu_calib::diagnose::{
+    catalog, diagnose, CandidateReport, DiagnoseError, DiagnoseOptions, Diagnosis, EventEvidence,
+};
 use itaipu_calib::evidence::{SignalEvidence, WindowStats};
 use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit_file::unit_to_toml;
@@ -80,7 +82,10 @@ fn causes(requested: &[String]) -> Result<Vec<String>, CliError> {
     for c in requested {
         let c = c.trim();
         if catalog::find(c).is_none() {
-            return Err(CliError::new(2, format!("--cause: unknown cause '{c}' (known: {})", catalog::ids())));
+            return Err(CliError::new(
+                2,
+                format!("--cause: unknown cause '{c}' (known: {})", catalog::ids()),
+            ));
         }
         if seen.insert(c.to_string()) {
             out.push(c.to_string());
@@ -91,7 +96,10 @@ fn causes(requested: &[String]) -> Result<Vec<String>, CliError> {
 
 pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     // Usage errors first, then the input files, then the output folder, then the (long) run.
-    let mut opts = DiagnoseOptions { causes: causes(&a.cause)?, ..Default::default() };
+    let mut opts = DiagnoseOptions {
+        causes: causes(&a.cause)?,
+        ..Default::default()
+    };
     if let Some(s) = a.seed {
         opts.seed = s;
     }
@@ -113,15 +121,32 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         Some(p) => p.clone(),
         None => bundled("itaipu/unit.toml")?,
     };
-    let event_paths = if a.event.is_empty() { vec![bundled("itaipu/event.toml")?] } else { a.event.clone() };
+    let event_paths = if a.event.is_empty() {
+        vec![bundled("itaipu/event.toml")?]
+    } else {
+        a.event.clone()
+    };
     let unit = load_unit(&unit_path)?;
-    let events = event_paths.iter().map(|p| load_event(p)).collect::<Result<Vec<_>, _>>()?;
-    let held_out = a.held_out.iter().map(|p| load_event(p)).collect::<Result<Vec<_>, _>>()?;
+    let events = event_paths
+        .iter()
+        .map(|p| load_event(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let held_out = a
+        .held_out
+        .iter()
+        .map(|p| load_event(p))
+        .collect::<Result<Vec<_>, _>>()?;
     let name = events.first().map(|e| e.name.clone()).unwrap_or_default();
     if let Some(d) = &a.out {
-        let nonempty = d.is_dir() && std::fs::read_dir(d).map(|mut r| r.next().is_some()).unwrap_or(false);
+        let nonempty = d.is_dir()
+            && std::fs::read_dir(d)
+                .map(|mut r| r.next().is_some())
+                .unwrap_or(false);
         if d.exists() && !d.is_dir() {
-            return Err(CliError::new(7, format!("{} exists and is not a folder", d.display())));
+            return Err(CliError::new(
+                7,
+                format!("{} exists and is not a folder", d.display()),
+            ));
         }
         if nonempty && !a.force {
             return Err(CliError::new(
@@ -130,16 +155,31 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
             ));
         }
     }
-    let tried = if opts.causes.is_empty() { format!("all {} causes", catalog::CAUSES.len()) } else { opts.causes.join(", ") };
+    let tried = if opts.causes.is_empty() {
+        format!("all {} causes", catalog::CAUSES.len())
+    } else {
+        opts.causes.join(", ")
+    };
     let header = format!(
         "unit {} ({}), events {}{}, causes {tried}, seed {}, {threads} threads",
         unit.name,
         unit_path.display(),
-        events.iter().map(|e| e.name.as_str()).collect::<Vec<_>>().join(", "),
+        events
+            .iter()
+            .map(|e| e.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
         if held_out.is_empty() {
             String::new()
         } else {
-            format!(" (held out: {})", held_out.iter().map(|e| e.name.as_str()).collect::<Vec<_>>().join(", "))
+            format!(
+                " (held out: {})",
+                held_out
+                    .iter()
+                    .map(|e| e.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
         },
         opts.seed,
     );
@@ -156,24 +196,44 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     let report = &result.report;
 
     let out = prepare_out(a.out.as_deref(), &format!("diagnose-{name}"), a.force)?;
-    let write = |p: &Path, text: &str| std::fs::write(p, text).map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())));
+    let write = |p: &Path, text: &str| {
+        std::fs::write(p, text)
+            .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))
+    };
     let json = serde_json::to_string_pretty(report).map_err(|e| CliError::new(7, e.to_string()))?;
     write(&out.join("diagnosis.json"), &json)?;
     let mut written = vec!["diagnosis.json".to_string()];
     let extended_note = match &result.extended_unit {
         Some(u) => {
             let mut u = u.clone();
-            let note = format!("extended for {} and re-fitted by itaipu-calib diagnose, seed {}", report.verdict.cause, opts.seed);
-            u.description = if unit.description.trim().is_empty() { note } else { format!("{} ({note})", unit.description) };
+            let note = format!(
+                "extended for {} and re-fitted by itaipu-calib diagnose, seed {}",
+                report.verdict.cause, opts.seed
+            );
+            u.description = if unit.description.trim().is_empty() {
+                note
+            } else {
+                format!("{} ({note})", unit.description)
+            };
             write(&out.join("extended.toml"), &unit_to_toml(&u))?;
             written.push("extended.toml".into());
             None
         }
-        None => Some(format!("no cause named ({}): extended.toml not written", report.verdict.cause)),
+        None => Some(format!(
+            "no cause named ({}): extended.toml not written",
+            report.verdict.cause
+        )),
     };
-    let plots = if a.no_plot { vec![] } else { draw_plots(&out, &result.report, &result.before, &result.after)? };
+    let plots = if a.no_plot {
+        vec![]
+    } else {
+        draw_plots(&out, &result.report, &result.before, &result.after)?
+    };
     written.extend(plots.iter().map(|p| p.file.clone()));
-    write(&out.join("report.html"), &html_report(report, &unit_path, &event_paths, &out, &plots))?;
+    write(
+        &out.join("report.html"),
+        &html_report(report, &unit_path, &event_paths, &out, &plots),
+    )?;
     written.push("report.html".into());
 
     print_report(report);
@@ -182,7 +242,10 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     }
     println!("wrote    {}/", out.display());
     let files: Vec<&str> = written.iter().map(String::as_str).collect();
-    println!("{}", wrap_items(&files, ", ", WIDTH, "         ", "         "));
+    println!(
+        "{}",
+        wrap_items(&files, ", ", WIDTH, "         ", "         ")
+    );
     Ok(())
 }
 
@@ -235,7 +298,11 @@ fn wrap_items(items: &[&str], sep: &str, width: usize, first: &str, indent: &str
     let mut line = first.to_string();
     let mut fresh = true;
     for (k, item) in items.iter().enumerate() {
-        let piece = if k + 1 == items.len() { item.to_string() } else { format!("{item}{sep_trim}") };
+        let piece = if k + 1 == items.len() {
+            item.to_string()
+        } else {
+            format!("{item}{sep_trim}")
+        };
         if !fresh && len(&line) + 1 + len(&piece) > width {
             out.push(std::mem::replace(&mut line, indent.to_string()));
             fresh = true;
@@ -258,7 +325,10 @@ fn wrap_items(items: &[&str], sep: &str, width: usize, first: &str, indent: &str
         }
     }
     out.push(line);
-    out.iter().map(|l| l.trim_end()).collect::<Vec<_>>().join("\n")
+    out.iter()
+        .map(|l| l.trim_end())
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 /// A value with its unit (none for dimensionless parameters).
@@ -278,7 +348,14 @@ fn key_params(c: &CandidateReport) -> Vec<String> {
         .parameters
         .iter()
         .filter(|p| p.extension)
-        .map(|p| format!("{} = {}{}", p.param, with_unit(p.result, &p.unit), if p.at_bound { " (at bound)" } else { "" }))
+        .map(|p| {
+            format!(
+                "{} = {}{}",
+                p.param,
+                with_unit(p.result, &p.unit),
+                if p.at_bound { " (at bound)" } else { "" }
+            )
+        })
         .collect();
     v.extend(c.fixed.iter().map(|(p, x)| format!("{p} = {x}")));
     if v.is_empty() {
@@ -289,7 +366,9 @@ fn key_params(c: &CandidateReport) -> Vec<String> {
 
 /// The window holding the largest share of the squared error.
 fn top_window(s: &SignalEvidence) -> Option<&WindowStats> {
-    s.windows.iter().max_by(|a, b| a.share_of_sse.total_cmp(&b.share_of_sse))
+    s.windows
+        .iter()
+        .max_by(|a, b| a.share_of_sse.total_cmp(&b.share_of_sse))
 }
 
 /// The oscillatory mode (above 0.1 Hz) with the largest energy share, as text.
@@ -304,8 +383,19 @@ fn dominant_mode(s: &SignalEvidence) -> String {
 
 fn print_report(r: &Diagnosis) {
     println!();
-    println!("{}", wrap(&format!("{}: {}", r.verdict.cause, r.verdict.title), WIDTH, "verdict  ", "         "));
-    println!("{}", wrap(&r.verdict.statement, WIDTH, "         ", "         "));
+    println!(
+        "{}",
+        wrap(
+            &format!("{}: {}", r.verdict.cause, r.verdict.title),
+            WIDTH,
+            "verdict  ",
+            "         "
+        )
+    );
+    println!(
+        "{}",
+        wrap(&r.verdict.statement, WIDTH, "         ", "         ")
+    );
     println!();
     let noise = format!(
         "σP {} pu, σQ {} pu (pre-event residual); split: {} ({} fitted, {} held-out samples)",
@@ -318,7 +408,10 @@ fn print_report(r: &Diagnosis) {
     println!("{}", wrap(&noise, WIDTH, "noise    ", "         "));
     println!();
     println!("candidates by ΔBIC (* = significant: named if first)");
-    println!("  {:<18} {:>9} {:>9} {:>9} {:>2} {:1}  key parameters / note", "cause", "ΔBIC", "fit χ²↓", "held χ²↓", "k", "");
+    println!(
+        "  {:<18} {:>9} {:>9} {:>9} {:>2} {:1}  key parameters / note",
+        "cause", "ΔBIC", "fit χ²↓", "held χ²↓", "k", ""
+    );
     let indent = " ".repeat(2 + 18 + 1 + 9 + 1 + 9 + 1 + 9 + 1 + 2 + 1 + 1 + 2);
     for c in &r.candidates {
         let head = match &c.gains {
@@ -331,7 +424,10 @@ fn print_report(r: &Diagnosis) {
                 g.k,
                 if c.significant { "*" } else { "" }
             ),
-            None => format!("  {:<18} {:>9} {:>9} {:>9} {:>2} {:1}  ", c.cause, "-", "-", "-", "-", ""),
+            None => format!(
+                "  {:<18} {:>9} {:>9} {:>9} {:>2} {:1}  ",
+                c.cause, "-", "-", "-", "-", ""
+            ),
         };
         let items = key_params(c);
         if !c.applicable || c.gains.is_none() {
@@ -343,7 +439,10 @@ fn print_report(r: &Diagnosis) {
     }
     println!();
     let after_of = |event: &str, signal: &str| {
-        r.evidence_after.iter().find(|e| e.event == event).and_then(|e| e.signals.iter().find(|s| s.signal == signal))
+        r.evidence_after
+            .iter()
+            .find(|e| e.event == event)
+            .and_then(|e| e.signals.iter().find(|s| s.signal == signal))
     };
     let with_after = !r.evidence_after.is_empty();
     for e in &r.evidence {
@@ -352,16 +451,33 @@ fn print_report(r: &Diagnosis) {
             "  {:<4} {:>9}{} {:>11}  {:<32} dominant mode",
             "sig",
             "RMS/noise",
-            if with_after { format!(" {:>9}", "extended") } else { String::new() },
+            if with_after {
+                format!(" {:>9}", "extended")
+            } else {
+                String::new()
+            },
             "Ljung-Box p",
             "window with most SSE",
         );
         for s in &e.signals {
             let w = top_window(s)
-                .map(|w| format!("{} {:.2}-{:.2} s ({:.0} %)", w.label, w.start_s, w.end_s, 100.0 * w.share_of_sse))
+                .map(|w| {
+                    format!(
+                        "{} {:.2}-{:.2} s ({:.0} %)",
+                        w.label,
+                        w.start_s,
+                        w.end_s,
+                        100.0 * w.share_of_sse
+                    )
+                })
                 .unwrap_or_else(|| "-".into());
             let after = if with_after {
-                format!(" {:>9}", after_of(&e.event, &s.signal).map(|a| format!("{:.2}", a.rms_over_noise)).unwrap_or_else(|| "-".into()))
+                format!(
+                    " {:>9}",
+                    after_of(&e.event, &s.signal)
+                        .map(|a| format!("{:.2}", a.rms_over_noise))
+                        .unwrap_or_else(|| "-".into())
+                )
             } else {
                 String::new()
             };
@@ -375,7 +491,10 @@ fn print_report(r: &Diagnosis) {
             );
         }
     }
-    println!("total {:.1} s on {} threads, seed {}", r.wall_s, r.threads, r.seed);
+    println!(
+        "total {:.1} s on {} threads, seed {}",
+        r.wall_s, r.threads, r.seed
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -391,7 +510,16 @@ pub struct PlotFile {
 
 /// `name` made safe as part of a file name.
 fn file_stem(name: &str) -> String {
-    let s: String = name.chars().map(|c| if c.is_ascii_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect();
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
     if s.is_empty() {
         "event".into()
     } else {
@@ -406,7 +534,12 @@ fn residual(tr: &Traces, sim: &str, meas: &str) -> Vec<f64> {
     }
 }
 
-fn draw_plots(out: &Path, r: &Diagnosis, before: &[(String, Traces)], after: &[(String, Traces)]) -> Result<Vec<PlotFile>, CliError> {
+fn draw_plots(
+    out: &Path,
+    r: &Diagnosis,
+    before: &[(String, Traces)],
+    after: &[(String, Traces)],
+) -> Result<Vec<PlotFile>, CliError> {
     let mut files = vec![];
     let mut stems = BTreeSet::new();
     let named = Some(r.verdict.cause.as_str()).filter(|c| *c != "none" && *c != "unexplained");
@@ -419,30 +552,72 @@ fn draw_plots(out: &Path, r: &Diagnosis, before: &[(String, Traces)], after: &[(
         let ev = r.evidence.iter().find(|e| &e.event == event);
         let tr_after = after.iter().find(|(e, _)| e == event).map(|(_, t)| t);
         let t = &tr.time_s;
-        let draw = |file: &str, title: &str, x_label: &str, panels: &[plot::Panel], decor: &[plot::Decor]| {
-            plot::draw_with(&out.join(file), title, x_label, panels, decor).map_err(|e| CliError::new(7, e))
+        let draw = |file: &str,
+                    title: &str,
+                    x_label: &str,
+                    panels: &[plot::Panel],
+                    decor: &[plot::Decor]| {
+            plot::draw_with(&out.join(file), title, x_label, panels, decor)
+                .map_err(|e| CliError::new(7, e))
         };
 
         // Residuals with the implicated window and the noise band.
-        let (rp, rq) = (residual(tr, "p_pu", "p_meas_pu"), residual(tr, "q_pu", "q_meas_pu"));
-        let after_res = tr_after.map(|ta| (residual(ta, "p_pu", "p_meas_pu"), residual(ta, "q_pu", "q_meas_pu")));
+        let (rp, rq) = (
+            residual(tr, "p_pu", "p_meas_pu"),
+            residual(tr, "q_pu", "q_meas_pu"),
+        );
+        let after_res = tr_after.map(|ta| {
+            (
+                residual(ta, "p_pu", "p_meas_pu"),
+                residual(ta, "q_pu", "q_meas_pu"),
+            )
+        });
         let mut panels = vec![];
         let mut decor = vec![];
-        for (signal, res, sigma, k) in [("P", &rp, r.noise.sigma_p, 0), ("Q", &rq, r.noise.sigma_q, 1)] {
-            let mut series = vec![plot::Series { label: "as given".into(), x: t, y: res, color: plot::START, thin: false }];
+        for (signal, res, sigma, k) in [
+            ("P", &rp, r.noise.sigma_p, 0),
+            ("Q", &rq, r.noise.sigma_q, 1),
+        ] {
+            let mut series = vec![plot::Series {
+                label: "as given".into(),
+                x: t,
+                y: res,
+                color: plot::START,
+                thin: false,
+            }];
             if let (Some(ta), Some((ap, aq)), Some(cause)) = (tr_after, &after_res, named) {
                 let y = if k == 0 { ap } else { aq };
-                series.push(plot::Series { label: format!("with {cause}"), x: &ta.time_s, y, color: plot::SIMULATED, thin: false });
+                series.push(plot::Series {
+                    label: format!("with {cause}"),
+                    x: &ta.time_s,
+                    y,
+                    color: plot::SIMULATED,
+                    thin: false,
+                });
             }
-            panels.push(plot::Panel { y_label: format!("{signal} residual (sim − meas) [pu]"), series });
+            panels.push(plot::Panel {
+                y_label: format!("{signal} residual (sim − meas) [pu]"),
+                series,
+            });
             decor.push(plot::Decor {
                 spans: implicated_window(r, ev, signal).into_iter().collect(),
-                y_bands: vec![plot::YBand { label: format!("±σ{signal} noise {}", num(sigma)), y0: -sigma, y1: sigma, color: plot::NOISE }],
+                y_bands: vec![plot::YBand {
+                    label: format!("±σ{signal} noise {}", num(sigma)),
+                    y0: -sigma,
+                    y1: sigma,
+                    color: plot::NOISE,
+                }],
                 markers: vec![],
             });
         }
         let file = format!("residual-{stem}.svg");
-        draw(&file, &format!("{event}: residuals; verdict {}", r.verdict.cause), "time [s]", &panels, &decor)?;
+        draw(
+            &file,
+            &format!("{event}: residuals; verdict {}", r.verdict.cause),
+            "time [s]",
+            &panels,
+            &decor,
+        )?;
         files.push(PlotFile { file, event: event.clone(), caption: "P and Q residuals (simulated − measured), the implicated window shaded, ±σ noise band".into() });
 
         // Residual spectra with the peak marked.
@@ -450,11 +625,22 @@ fn draw_plots(out: &Path, r: &Diagnosis, before: &[(String, Traces)], after: &[(
             let mut panels = vec![];
             let mut decor = vec![];
             for signal in ["P", "Q"] {
-                let Some(s) = ev.signals.iter().find(|s| s.signal == signal) else { continue };
+                let Some(s) = ev.signals.iter().find(|s| s.signal == signal) else {
+                    continue;
+                };
                 let sp = &s.spectrum;
-                let mut series =
-                    vec![plot::Series { label: "as given".into(), x: &sp.freq_hz, y: &sp.amplitude, color: plot::START, thin: false }];
-                let sa = r.evidence_after.iter().find(|e| &e.event == event).and_then(|e| e.signals.iter().find(|x| x.signal == signal));
+                let mut series = vec![plot::Series {
+                    label: "as given".into(),
+                    x: &sp.freq_hz,
+                    y: &sp.amplitude,
+                    color: plot::START,
+                    thin: false,
+                }];
+                let sa = r
+                    .evidence_after
+                    .iter()
+                    .find(|e| &e.event == event)
+                    .and_then(|e| e.signals.iter().find(|x| x.signal == signal));
                 if let (Some(sa), Some(cause)) = (sa, named) {
                     series.push(plot::Series {
                         label: format!("with {cause}"),
@@ -464,12 +650,19 @@ fn draw_plots(out: &Path, r: &Diagnosis, before: &[(String, Traces)], after: &[(
                         thin: true,
                     });
                 }
-                panels.push(plot::Panel { y_label: format!("{signal} residual amplitude [pu]"), series });
+                panels.push(plot::Panel {
+                    y_label: format!("{signal} residual amplitude [pu]"),
+                    series,
+                });
                 decor.push(plot::Decor {
                     markers: sp
                         .peak_hz
                         .map(|f| plot::Marker {
-                            label: format!("peak {f:.2} Hz, {} pu ({:.1}× median)", num(sp.peak_amplitude), sp.peak_significance),
+                            label: format!(
+                                "peak {f:.2} Hz, {} pu ({:.1}× median)",
+                                num(sp.peak_amplitude),
+                                sp.peak_significance
+                            ),
                             x: f,
                             y: sp.peak_amplitude,
                             color: plot::SIMULATED,
@@ -481,14 +674,35 @@ fn draw_plots(out: &Path, r: &Diagnosis, before: &[(String, Traces)], after: &[(
             }
             if !panels.is_empty() {
                 let file = format!("spectrum-{stem}.svg");
-                draw(&file, &format!("{event}: residual amplitude spectra"), "frequency [Hz]", &panels, &decor)?;
-                files.push(PlotFile { file, event: event.clone(), caption: "amplitude spectra of the P and Q residuals (Hann window), the peak marked".into() });
+                draw(
+                    &file,
+                    &format!("{event}: residual amplitude spectra"),
+                    "frequency [Hz]",
+                    &panels,
+                    &decor,
+                )?;
+                files.push(PlotFile {
+                    file,
+                    event: event.clone(),
+                    caption:
+                        "amplitude spectra of the P and Q residuals (Hann window), the peak marked"
+                            .into(),
+                });
             }
         }
 
         // Measured against simulated, before and after the extension.
-        let col = |tr: &Traces, n: &str| tr.get(n).map(|c| c.to_vec()).unwrap_or_else(|| vec![f64::NAN; tr.time_s.len()]);
-        let (pm, qm, pb, qb) = (col(tr, "p_meas_pu"), col(tr, "q_meas_pu"), col(tr, "p_pu"), col(tr, "q_pu"));
+        let col = |tr: &Traces, n: &str| {
+            tr.get(n)
+                .map(|c| c.to_vec())
+                .unwrap_or_else(|| vec![f64::NAN; tr.time_s.len()])
+        };
+        let (pm, qm, pb, qb) = (
+            col(tr, "p_meas_pu"),
+            col(tr, "q_meas_pu"),
+            col(tr, "p_pu"),
+            col(tr, "q_pu"),
+        );
         let (pa, qa) = match tr_after {
             Some(ta) => (col(ta, "p_pu"), col(ta, "q_pu")),
             None => (vec![], vec![]),
@@ -496,13 +710,34 @@ fn draw_plots(out: &Path, r: &Diagnosis, before: &[(String, Traces)], after: &[(
         let mut panels = vec![];
         for (signal, m, b, af) in [("P", &pm, &pb, &pa), ("Q", &qm, &qb, &qa)] {
             let mut series = vec![
-                plot::Series { label: "measured".into(), x: t, y: m, color: plot::MEASURED, thin: true },
-                plot::Series { label: "unit as given".into(), x: t, y: b, color: plot::START, thin: false },
+                plot::Series {
+                    label: "measured".into(),
+                    x: t,
+                    y: m,
+                    color: plot::MEASURED,
+                    thin: true,
+                },
+                plot::Series {
+                    label: "unit as given".into(),
+                    x: t,
+                    y: b,
+                    color: plot::START,
+                    thin: false,
+                },
             ];
             if let (Some(ta), Some(cause)) = (tr_after, named) {
-                series.push(plot::Series { label: format!("extended ({cause}), re-fitted"), x: &ta.time_s, y: af, color: plot::SIMULATED, thin: false });
+                series.push(plot::Series {
+                    label: format!("extended ({cause}), re-fitted"),
+                    x: &ta.time_s,
+                    y: af,
+                    color: plot::SIMULATED,
+                    thin: false,
+                });
             }
-            panels.push(plot::Panel { y_label: format!("{signal} [pu, system base]"), series });
+            panels.push(plot::Panel {
+                y_label: format!("{signal} [pu, system base]"),
+                series,
+            });
         }
         let file = format!("before-after-{stem}.svg");
         let title = match named {
@@ -510,7 +745,11 @@ fn draw_plots(out: &Path, r: &Diagnosis, before: &[(String, Traces)], after: &[(
             None => format!("{event}: measured and simulated (no cause named, no extension)"),
         };
         draw(&file, &title, "time [s]", &panels, &[])?;
-        files.push(PlotFile { file, event: event.clone(), caption: "measured and simulated P and Q, before and after the extension".into() });
+        files.push(PlotFile {
+            file,
+            event: event.clone(),
+            caption: "measured and simulated P and Q, before and after the extension".into(),
+        });
     }
     Ok(files)
 }
@@ -518,14 +757,23 @@ fn draw_plots(out: &Path, r: &Diagnosis, before: &[(String, Traces)], after: &[(
 /// The window to shade in the `signal` residual panel of an event: the verdict's (the same
 /// labelled window of this event when it has one), otherwise the signal's window with the
 /// largest share of the squared error.
-fn implicated_window(r: &Diagnosis, ev: Option<&EventEvidence>, signal: &str) -> Option<plot::Span> {
+fn implicated_window(
+    r: &Diagnosis,
+    ev: Option<&EventEvidence>,
+    signal: &str,
+) -> Option<plot::Span> {
     if let Some((sig, label, a, b)) = &r.verdict.where_ {
         let own = ev
             .and_then(|e| e.signals.iter().find(|s| &s.signal == sig))
             .and_then(|s| s.windows.iter().find(|w| &w.label == label))
             .map(|w| (w.start_s, w.end_s));
         let (a, b) = own.unwrap_or((*a, *b));
-        return Some(plot::Span { label: format!("verdict's window: {sig} residual, {label}"), x0: a, x1: b, color: plot::HIGHLIGHT });
+        return Some(plot::Span {
+            label: format!("verdict's window: {sig} residual, {label}"),
+            x0: a,
+            x1: b,
+            color: plot::HIGHLIGHT,
+        });
     }
     let s = ev?.signals.iter().find(|s| s.signal == signal)?;
     let w = top_window(s)?;
@@ -571,7 +819,10 @@ fn inline_svg(text: &str) -> String {
             Some(v[..v.find('"')?].to_string())
         };
         if let (Some(w), Some(h)) = (attr("width"), attr("height")) {
-            svg.insert_str(4, &format!(" viewBox=\"0 0 {} {}\"", escape(&w), escape(&h)));
+            svg.insert_str(
+                4,
+                &format!(" viewBox=\"0 0 {} {}\"", escape(&w), escape(&h)),
+            );
         }
     }
     svg
@@ -587,7 +838,13 @@ padding:.8em 1.1em;margin:1em 0;background:#f7f7f7}.verdict.named{border-color:#
 .sig{font-weight:bold;color:#2c7a2c}ul.tight{margin:.2em 0;padding-left:1.2em}figure{margin:1em 0}\
 figure svg{max-width:100%;height:auto;border:1px solid #e3e3e3}figcaption{color:#555;font-size:.9em}code{font-size:.95em}";
 
-fn html_report(r: &Diagnosis, unit_path: &Path, event_paths: &[PathBuf], out: &Path, plots: &[PlotFile]) -> String {
+fn html_report(
+    r: &Diagnosis,
+    unit_path: &Path,
+    event_paths: &[PathBuf],
+    out: &Path,
+    plots: &[PlotFile],
+) -> String {
     let e = escape;
     let mut h = String::new();
     let _ = write!(
@@ -595,7 +852,12 @@ fn html_report(r: &Diagnosis, unit_path: &Path, event_paths: &[PathBuf], out: &P
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{}</title>\n<style>{CSS}</style>\n</head>\n<body>\n",
         e(&format!("Diagnosis of {} on {}", r.unit, r.events.join(", ")))
     );
-    let _ = writeln!(h, "<h1>Diagnosis of {} on {}</h1>", e(&r.unit), e(&r.events.join(", ")));
+    let _ = writeln!(
+        h,
+        "<h1>Diagnosis of {} on {}</h1>",
+        e(&r.unit),
+        e(&r.events.join(", "))
+    );
     let _ = writeln!(
         h,
         "<p class=\"muted\">itaipu-calib {} diagnose. Unit file <code>{}</code>; event file(s) {}{}. Seed {}, {} threads, {:.1} s.</p>",
@@ -615,12 +877,31 @@ fn html_report(r: &Diagnosis, unit_path: &Path, event_paths: &[PathBuf], out: &P
         "unexplained" => "verdict unexplained",
         _ => "verdict named",
     };
-    let _ = writeln!(h, "<div class=\"{class}\">\n<h2>Verdict: {} — {}</h2>\n<p>{}</p>", e(&v.cause), e(&v.title), e(&v.statement));
+    let _ = writeln!(
+        h,
+        "<div class=\"{class}\">\n<h2>Verdict: {} — {}</h2>\n<p>{}</p>",
+        e(&v.cause),
+        e(&v.title),
+        e(&v.statement)
+    );
     if !v.key_parameters.is_empty() {
-        let _ = writeln!(h, "<p>Key parameters: {}</p>", v.key_parameters.iter().map(|(p, x, u)| format!("<code>{}</code> = {}", e(p), e(&with_unit(*x, u)))).collect::<Vec<_>>().join(", "));
+        let _ = writeln!(
+            h,
+            "<p>Key parameters: {}</p>",
+            v.key_parameters
+                .iter()
+                .map(|(p, x, u)| format!("<code>{}</code> = {}", e(p), e(&with_unit(*x, u))))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
     }
     if let Some((sig, w, a, b)) = &v.where_ {
-        let _ = writeln!(h, "<p>Where the residual lives: {} in the {} window, {a:.2}–{b:.2} s.</p>", e(sig), e(w));
+        let _ = writeln!(
+            h,
+            "<p>Where the residual lives: {} in the {} window, {a:.2}–{b:.2} s.</p>",
+            e(sig),
+            e(w)
+        );
     }
     if v.cause == "none" || v.cause == "unexplained" {
         h.push_str("<p class=\"muted\">No cause named: no extended unit was written.</p>\n");
@@ -633,7 +914,13 @@ fn html_report(r: &Diagnosis, unit_path: &Path, event_paths: &[PathBuf], out: &P
     h.push_str("<h2>Candidates</h2>\n<p>Ranked by ΔBIC = Δχ² − k ln N (fitted samples); a cause is significant when ΔBIC, the fitted and the held-out χ² drops all pass their thresholds.</p>\n");
     h.push_str("<table>\n<tr><th>#</th><th>cause</th><th>ΔBIC</th><th>fit χ² (base → ext)</th><th>fit drop</th><th>held-out χ² (base → ext)</th><th>held-out drop</th><th>k</th><th>significant</th><th>RMS P, Q (base → ext) [pu]</th></tr>\n");
     for (i, c) in r.candidates.iter().enumerate() {
-        let _ = write!(h, "<tr><td class=\"n\">{}</td><td><b>{}</b><br><span class=\"muted\">{}</span></td>", i + 1, e(&c.cause), e(&c.title));
+        let _ = write!(
+            h,
+            "<tr><td class=\"n\">{}</td><td><b>{}</b><br><span class=\"muted\">{}</span></td>",
+            i + 1,
+            e(&c.cause),
+            e(&c.title)
+        );
         match &c.gains {
             Some(g) => {
                 let _ = writeln!(
@@ -655,13 +942,27 @@ fn html_report(r: &Diagnosis, unit_path: &Path, event_paths: &[PathBuf], out: &P
                 );
             }
             None => {
-                let _ = writeln!(h, "<td colspan=\"8\" class=\"muted\">{}</td></tr>", e(&c.note));
+                let _ = writeln!(
+                    h,
+                    "<td colspan=\"8\" class=\"muted\">{}</td></tr>",
+                    e(&c.note)
+                );
             }
         }
     }
     h.push_str("</table>\n");
     for c in r.candidates.iter().filter(|c| c.applicable) {
-        let _ = writeln!(h, "<h3>{}</h3>\n<p>Extension: {}.{}</p>", e(&c.cause), e(&c.extension), if c.note.is_empty() { String::new() } else { format!(" {}", e(&c.note)) });
+        let _ = writeln!(
+            h,
+            "<h3>{}</h3>\n<p>Extension: {}.{}</p>",
+            e(&c.cause),
+            e(&c.extension),
+            if c.note.is_empty() {
+                String::new()
+            } else {
+                format!(" {}", e(&c.note))
+            }
+        );
         if !c.parameters.is_empty() {
             h.push_str("<table>\n<tr><th>parameter</th><th>role</th><th>unit</th><th>start</th><th>bounds</th><th>result</th><th></th></tr>\n");
             for p in &c.parameters {
@@ -681,12 +982,31 @@ fn html_report(r: &Diagnosis, unit_path: &Path, event_paths: &[PathBuf], out: &P
             h.push_str("</table>\n");
         }
         if !c.fixed.is_empty() {
-            let _ = writeln!(h, "<p>Fixed: {}</p>", c.fixed.iter().map(|(p, x)| format!("<code>{}</code> = {x}", e(p))).collect::<Vec<_>>().join(", "));
+            let _ = writeln!(
+                h,
+                "<p>Fixed: {}</p>",
+                c.fixed
+                    .iter()
+                    .map(|(p, x)| format!("<code>{}</code> = {x}", e(p)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
         }
         if !c.signature.is_empty() {
-            let _ = writeln!(h, "<p>Evidence pointing to it:</p>\n<ul class=\"tight\">{}</ul>", c.signature.iter().map(|s| format!("<li>{}</li>", e(s))).collect::<String>());
+            let _ = writeln!(
+                h,
+                "<p>Evidence pointing to it:</p>\n<ul class=\"tight\">{}</ul>",
+                c.signature
+                    .iter()
+                    .map(|s| format!("<li>{}</li>", e(s)))
+                    .collect::<String>()
+            );
         }
-        let _ = writeln!(h, "<p class=\"muted\">{} simulations, {} failed candidates, {:.1} s.</p>", c.simulations, c.failed_candidates, c.wall_s);
+        let _ = writeln!(
+            h,
+            "<p class=\"muted\">{} simulations, {} failed candidates, {:.1} s.</p>",
+            c.simulations, c.failed_candidates, c.wall_s
+        );
     }
 
     // Noise and split.
@@ -702,9 +1022,16 @@ fn html_report(r: &Diagnosis, unit_path: &Path, event_paths: &[PathBuf], out: &P
     );
 
     // Evidence.
-    h.push_str("<h2>Evidence</h2>\n<p>Residuals r = simulated − measured of the unit as given.</p>\n");
+    h.push_str(
+        "<h2>Evidence</h2>\n<p>Residuals r = simulated − measured of the unit as given.</p>\n",
+    );
     for ev in &r.evidence {
-        let _ = writeln!(h, "<h3>{} (event onset {:.2} s)</h3>", e(&ev.event), ev.onset_s);
+        let _ = writeln!(
+            h,
+            "<h3>{} (event onset {:.2} s)</h3>",
+            e(&ev.event),
+            ev.onset_s
+        );
         h.push_str("<table>\n<tr><th>signal</th><th>samples</th><th>bias</th><th>RMS</th><th>noise floor</th><th>RMS/noise</th><th>Ljung-Box Q (lags)</th><th>p</th><th>white</th><th>ACF lags outside band</th><th>spectral peak</th></tr>\n");
         for s in &ev.signals {
             let w = &s.whiteness;
@@ -727,7 +1054,11 @@ fn html_report(r: &Diagnosis, unit_path: &Path, event_paths: &[PathBuf], out: &P
         }
         h.push_str("</table>\n");
         for s in &ev.signals {
-            let _ = writeln!(h, "<p><b>{}</b> residual by window, cross-correlation with the inputs, modes:</p>", e(&s.signal));
+            let _ = writeln!(
+                h,
+                "<p><b>{}</b> residual by window, cross-correlation with the inputs, modes:</p>",
+                e(&s.signal)
+            );
             h.push_str("<table>\n<tr><th>window</th><th>start [s]</th><th>end [s]</th><th>samples</th><th>bias</th><th>RMS</th><th>share of SSE</th></tr>\n");
             for w in &s.windows {
                 let _ = writeln!(
@@ -781,7 +1112,9 @@ fn html_report(r: &Diagnosis, unit_path: &Path, event_paths: &[PathBuf], out: &P
         h.push_str("<table>\n<tr><th>event</th><th>signal</th><th>RMS</th><th>RMS/noise</th><th>Ljung-Box p</th><th>window with most SSE</th></tr>\n");
         for ev in &r.evidence_after {
             for s in &ev.signals {
-                let w = top_window(s).map(|w| format!("{} ({})", w.label, pct(w.share_of_sse))).unwrap_or_default();
+                let w = top_window(s)
+                    .map(|w| format!("{} ({})", w.label, pct(w.share_of_sse)))
+                    .unwrap_or_default();
                 let _ = writeln!(
                     h,
                     "<tr><td>{}</td><td>{}</td><td class=\"n\">{}</td><td class=\"n\">{:.2}</td><td class=\"n\">{:.3}</td><td>{}</td></tr>",
@@ -806,7 +1139,12 @@ fn html_report(r: &Diagnosis, unit_path: &Path, event_paths: &[PathBuf], out: &P
                     let _ = writeln!(h, "<figure>\n{}\n<figcaption>{}: {} (<code>{}</code>)</figcaption>\n</figure>", inline_svg(&svg), e(&p.event), e(&p.caption), e(&p.file));
                 }
                 Err(err) => {
-                    let _ = writeln!(h, "<p class=\"muted\">{} could not be read: {}</p>", e(&p.file), e(&err.to_string()));
+                    let _ = writeln!(
+                        h,
+                        "<p class=\"muted\">{} could not be read: {}</p>",
+                        e(&p.file),
+                        e(&err.to_string())
+                    );
                 }
             }
         }
@@ -823,14 +1161,20 @@ mod tests {
 
     #[test]
     fn escape_covers_markup_and_quotes() {
-        assert_eq!(escape("a<b & \"c\" 'd'>"), "a&lt;b &amp; &quot;c&quot; &#39;d&#39;&gt;");
+        assert_eq!(
+            escape("a<b & \"c\" 'd'>"),
+            "a&lt;b &amp; &quot;c&quot; &#39;d&#39;&gt;"
+        );
         assert_eq!(escape("Δχ² ζ"), "Δχ² ζ");
     }
 
     #[test]
     fn inline_svg_drops_the_declaration_and_adds_a_viewbox() {
         let s = inline_svg("<?xml version=\"1.0\"?>\n<svg width=\"1000\" height=\"580\" xmlns=\"http://www.w3.org/2000/svg\"><g/></svg>");
-        assert!(s.starts_with("<svg viewBox=\"0 0 1000 580\" width=\"1000\""), "{s}");
+        assert!(
+            s.starts_with("<svg viewBox=\"0 0 1000 580\" width=\"1000\""),
+            "{s}"
+        );
         let kept = inline_svg("<svg viewBox=\"0 0 1 1\" width=\"5\" height=\"5\"></svg>");
         assert_eq!(kept.matches("viewBox").count(), 1);
     }
@@ -848,18 +1192,34 @@ mod tests {
 
     #[test]
     fn causes_are_checked_and_deduplicated() {
-        let ok = causes(&["saturation".into(), "measurement_skew".into(), "saturation".into()]).unwrap();
+        let ok = causes(&[
+            "saturation".into(),
+            "measurement_skew".into(),
+            "saturation".into(),
+        ])
+        .unwrap();
         assert_eq!(ok, ["saturation", "measurement_skew"]);
         let e = causes(&["saturation".into(), "gremlins".into()]).unwrap_err();
         assert_eq!(e.code, 2);
-        assert!(e.msg.contains("gremlins") && e.msg.contains("measurement_skew"), "{}", e.msg);
+        assert!(
+            e.msg.contains("gremlins") && e.msg.contains("measurement_skew"),
+            "{}",
+            e.msg
+        );
     }
 
     #[test]
     fn wrap_items_breaks_between_items_only() {
-        let items = ["machine.s10 = 0.1184", "machine.s12 = 0.4004", "x.y = 1.0000 s"];
+        let items = [
+            "machine.s10 = 0.1184",
+            "machine.s12 = 0.4004",
+            "x.y = 1.0000 s",
+        ];
         let w = wrap_items(&items, ", ", 30, "  head  ", "        ");
-        assert_eq!(w, "  head  machine.s10 = 0.1184,\n        machine.s12 = 0.4004,\n        x.y = 1.0000 s");
+        assert_eq!(
+            w,
+            "  head  machine.s10 = 0.1184,\n        machine.s12 = 0.4004,\n        x.y = 1.0000 s"
+        );
         assert_eq!(with_unit(0.012, "s"), "0.0120 s");
         assert_eq!(with_unit(0.005, "s"), "5.000e-3 s");
         assert_eq!(with_unit(0.5, "-"), "0.5000");
@@ -867,8 +1227,17 @@ mod tests {
 
     #[test]
     fn a_long_item_is_broken_between_words() {
-        let w = wrap_items(&["short", "a much longer item that does not fit"], ", ", 20, "hd ", "   ");
-        assert_eq!(w, "hd short,\n   a much longer\n   item that does\n   not fit");
+        let w = wrap_items(
+            &["short", "a much longer item that does not fit"],
+            ", ",
+            20,
+            "hd ",
+            "   ",
+        );
+        assert_eq!(
+            w,
+            "hd short,\n   a much longer\n   item that does\n   not fit"
+        );
         for l in w.lines() {
             assert!(l.chars().count() <= 20, "{l}");
         }

@@ -93,7 +93,10 @@ pub(crate) struct Reporter {
 
 impl Reporter {
     pub(crate) fn new() -> Self {
-        Self { bar: Mutex::new(None), terminal: std::io::stderr().is_terminal() }
+        Self {
+            bar: Mutex::new(None),
+            terminal: std::io::stderr().is_terminal(),
+        }
     }
 
     /// Finishes the current bar, if any.
@@ -113,8 +116,10 @@ impl Progress for Reporter {
         if self.terminal {
             let b = ProgressBar::new(total);
             b.set_style(
-                ProgressStyle::with_template("{prefix:>12} {bar:30} {pos}/{len} best {msg} [{elapsed}]")
-                    .expect("template"),
+                ProgressStyle::with_template(
+                    "{prefix:>12} {bar:30} {pos}/{len} best {msg} [{elapsed}]",
+                )
+                .expect("template"),
             );
             b.set_prefix(format!("{stage} {phase}"));
             *bar = Some(b);
@@ -152,7 +157,11 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         Some(p) => p.clone(),
         None => bundled("itaipu/unit.toml")?,
     };
-    let event_paths = if a.event.is_empty() { vec![bundled("itaipu/event.toml")?] } else { a.event.clone() };
+    let event_paths = if a.event.is_empty() {
+        vec![bundled("itaipu/event.toml")?]
+    } else {
+        a.event.clone()
+    };
     let calib_path = match (&a.calib, bundled_unit) {
         (Some(p), _) => p.clone(),
         (None, true) => bundled("itaipu/calibration.toml")?,
@@ -160,16 +169,31 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     };
     let unit = load_unit(&unit_path)?;
     let spec = CalibSpec::from_file(&calib_path).map_err(|e| CliError::new(4, e.to_string()))?;
-    let events = event_paths.iter().map(|p| load_event(p)).collect::<Result<Vec<_>, _>>()?;
-    let held_out = a.held_out.iter().map(|p| load_event(p)).collect::<Result<Vec<_>, _>>()?;
+    let events = event_paths
+        .iter()
+        .map(|p| load_event(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let held_out = a
+        .held_out
+        .iter()
+        .map(|p| load_event(p))
+        .collect::<Result<Vec<_>, _>>()?;
 
     let mut opts = FitOptions::from_spec(&spec);
     if let Some(s) = a.strategy {
         opts.strategy = strategy(s);
     }
     if !a.stage.contains(&StageArg::All) {
-        let wanted: Vec<String> = a.stage.iter().map(|s| format!("{s:?}").to_lowercase()).collect();
-        opts.stages = itaipu_calib::spec::STAGES.iter().filter(|s| wanted.iter().any(|w| w == *s)).map(|s| s.to_string()).collect();
+        let wanted: Vec<String> = a
+            .stage
+            .iter()
+            .map(|s| format!("{s:?}").to_lowercase())
+            .collect();
+        opts.stages = itaipu_calib::spec::STAGES
+            .iter()
+            .filter(|s| wanted.iter().any(|w| w == *s))
+            .map(|s| s.to_string())
+            .collect();
     }
     if let Some(s) = a.seed {
         opts.seed = s;
@@ -191,12 +215,17 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
             return Err(CliError::new(2, "--threads must be at least 1"));
         }
         // The global pool can be set once per process; a second call (in tests) keeps the first.
-        let _ = rayon::ThreadPoolBuilder::new().num_threads(t).build_global();
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build_global();
     }
     let name = events.first().map(|e| e.name.clone()).unwrap_or_default();
     // Check the output folder before the (long) fit, create it after.
     if let Some(d) = &a.out {
-        let nonempty = d.is_dir() && std::fs::read_dir(d).map(|mut r| r.next().is_some()).unwrap_or(false);
+        let nonempty = d.is_dir()
+            && std::fs::read_dir(d)
+                .map(|mut r| r.next().is_some())
+                .unwrap_or(false);
         if nonempty && !a.force {
             return Err(CliError::new(
                 7,
@@ -208,7 +237,11 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         "fit    unit {} ({}), events {}, spec {}, stages {}, strategy {}, seed {}, {} threads",
         unit.name,
         unit_path.display(),
-        events.iter().map(|e| e.name.as_str()).collect::<Vec<_>>().join(", "),
+        events
+            .iter()
+            .map(|e| e.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
         calib_path.display(),
         opts.stages.join(" -> "),
         opts.strategy,
@@ -217,56 +250,129 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     );
     let reporter = Reporter::new();
     let result = fit(&unit, &spec, &events, &held_out, &opts, &reporter).map_err(|e| {
-        let code = if matches!(e, itaipu_calib::fit::FitError::Spec(_)) { 4 } else { 6 };
+        let code = if matches!(e, itaipu_calib::fit::FitError::Spec(_)) {
+            4
+        } else {
+            6
+        };
         CliError::new(code, e.to_string())
     })?;
     reporter.finish();
     let out = prepare_out(a.out.as_deref(), &format!("fit-{name}"), a.force)?;
-    let write = |p: &Path, text: &str| std::fs::write(p, text).map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())));
-    let json = serde_json::to_string_pretty(&result.report).map_err(|e| CliError::new(7, e.to_string()))?;
+    let write = |p: &Path, text: &str| {
+        std::fs::write(p, text)
+            .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))
+    };
+    let json = serde_json::to_string_pretty(&result.report)
+        .map_err(|e| CliError::new(7, e.to_string()))?;
     write(&out.join("report.json"), &json)?;
     let mut calibrated = result.unit.clone();
-    calibrated.description = format!("{} (calibrated by itaipu-calib fit, stages {}, seed {})", unit.description, opts.stages.join("+"), opts.seed);
+    calibrated.description = format!(
+        "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
+        unit.description,
+        opts.stages.join("+"),
+        opts.seed
+    );
     write(&out.join("calibrated.toml"), &unit_to_toml(&calibrated))?;
     for st in &result.stages {
         let dir = out.join(&st.stage);
-        std::fs::create_dir_all(&dir).map_err(|e| CliError::new(7, format!("cannot create {}: {e}", dir.display())))?;
+        std::fs::create_dir_all(&dir)
+            .map_err(|e| CliError::new(7, format!("cannot create {}: {e}", dir.display())))?;
         write(&dir.join("unit.toml"), &unit_to_toml(&st.calibrated_unit))?;
         for (ev, start, end) in &st.traces {
-            let suffix = if st.traces.len() > 1 { format!("_{ev}") } else { String::new() };
+            let suffix = if st.traces.len() > 1 {
+                format!("_{ev}")
+            } else {
+                String::new()
+            };
             let p = dir.join(format!("traces{suffix}.csv"));
-            end.write_csv(&p).map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))?;
+            end.write_csv(&p)
+                .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))?;
             let p = dir.join(format!("traces_start{suffix}.csv"));
-            start.write_csv(&p).map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))?;
+            start
+                .write_csv(&p)
+                .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))?;
             if !a.no_plot {
                 let t = &end.time_s;
-                let g = |tr: &itaipu_dynamics::simulate::Traces, n: &str| tr.get(n).unwrap().to_vec();
-                let (pm, qm, ps, qs, pe, qe) =
-                    (g(end, "p_meas_pu"), g(end, "q_meas_pu"), g(start, "p_pu"), g(start, "q_pu"), g(end, "p_pu"), g(end, "q_pu"));
+                let g =
+                    |tr: &itaipu_dynamics::simulate::Traces, n: &str| tr.get(n).unwrap().to_vec();
+                let (pm, qm, ps, qs, pe, qe) = (
+                    g(end, "p_meas_pu"),
+                    g(end, "q_meas_pu"),
+                    g(start, "p_pu"),
+                    g(start, "q_pu"),
+                    g(end, "p_pu"),
+                    g(end, "q_pu"),
+                );
                 let panels = vec![
                     plot::Panel {
                         y_label: "P [pu, system base]".into(),
                         series: vec![
-                            plot::Series { label: "measured".into(), x: t, y: &pm, color: plot::MEASURED, thin: true },
-                            plot::Series { label: "start".into(), x: t, y: &ps, color: plot::START, thin: true },
-                            plot::Series { label: "calibrated".into(), x: t, y: &pe, color: plot::SIMULATED, thin: false },
+                            plot::Series {
+                                label: "measured".into(),
+                                x: t,
+                                y: &pm,
+                                color: plot::MEASURED,
+                                thin: true,
+                            },
+                            plot::Series {
+                                label: "start".into(),
+                                x: t,
+                                y: &ps,
+                                color: plot::START,
+                                thin: true,
+                            },
+                            plot::Series {
+                                label: "calibrated".into(),
+                                x: t,
+                                y: &pe,
+                                color: plot::SIMULATED,
+                                thin: false,
+                            },
                         ],
                     },
                     plot::Panel {
                         y_label: "Q [pu, system base]".into(),
                         series: vec![
-                            plot::Series { label: "measured".into(), x: t, y: &qm, color: plot::MEASURED, thin: true },
-                            plot::Series { label: "start".into(), x: t, y: &qs, color: plot::START, thin: true },
-                            plot::Series { label: "calibrated".into(), x: t, y: &qe, color: plot::SIMULATED, thin: false },
+                            plot::Series {
+                                label: "measured".into(),
+                                x: t,
+                                y: &qm,
+                                color: plot::MEASURED,
+                                thin: true,
+                            },
+                            plot::Series {
+                                label: "start".into(),
+                                x: t,
+                                y: &qs,
+                                color: plot::START,
+                                thin: true,
+                            },
+                            plot::Series {
+                                label: "calibrated".into(),
+                                x: t,
+                                y: &qe,
+                                color: plot::SIMULATED,
+                                thin: false,
+                            },
                         ],
                     },
                 ];
                 let rep = result.report.stages.iter().find(|r| r.stage == st.stage);
                 let title = match rep {
-                    Some(r) => format!("{ev}, stage {}: objective {:.4} -> {:.4}", st.stage, r.objective_before, r.objective_after),
+                    Some(r) => format!(
+                        "{ev}, stage {}: objective {:.4} -> {:.4}",
+                        st.stage, r.objective_before, r.objective_after
+                    ),
                     None => format!("{ev}, stage {}", st.stage),
                 };
-                plot::draw(&dir.join(format!("plot{suffix}.svg")), &title, "time [s]", &panels).map_err(|e| CliError::new(7, e))?;
+                plot::draw(
+                    &dir.join(format!("plot{suffix}.svg")),
+                    &title,
+                    "time [s]",
+                    &panels,
+                )
+                .map_err(|e| CliError::new(7, e))?;
             }
         }
     }
@@ -283,9 +389,15 @@ fn print_report(r: &FitReport) {
             s.stage, s.strategy, s.objective, s.objective_before, s.objective_after, s.simulations, s.failed_candidates, s.wall_s
         );
         for ph in &s.phases {
-            println!("  {:<28} {:>4} iterations, best {:.5} ({})", ph.phase, ph.iterations, ph.best_objective, ph.stopped_by);
+            println!(
+                "  {:<28} {:>4} iterations, best {:.5} ({})",
+                ph.phase, ph.iterations, ph.best_objective, ph.stopped_by
+            );
         }
-        println!("  {:<22} {:>10} {:>21} {:>10} {:>10}", "parameter", "start", "bounds", "result", "std err");
+        println!(
+            "  {:<22} {:>10} {:>21} {:>10} {:>10}",
+            "parameter", "start", "bounds", "result", "std err"
+        );
         for p in &s.parameters {
             println!(
                 "  {:<22} {:>10.4} {:>10}-{:<10} {:>10.4} {:>10.2e}{}",
@@ -305,17 +417,43 @@ fn print_report(r: &FitReport) {
             println!("  not determined by the data: {u}");
         }
         if !s.weakly_determined.is_empty() {
-            println!("  weakly determined (std err > 1 %): {}", s.weakly_determined.join(", "));
+            println!(
+                "  weakly determined (std err > 1 %): {}",
+                s.weakly_determined.join(", ")
+            );
         }
-        println!("  identifiable: {}", if s.identifiable.is_empty() { "none".to_string() } else { s.identifiable.join(", ") });
+        println!(
+            "  identifiable: {}",
+            if s.identifiable.is_empty() {
+                "none".to_string()
+            } else {
+                s.identifiable.join(", ")
+            }
+        );
     }
     println!();
     println!("fitness J = sum(dP^2 + dQ^2) per event (system base; * = held out)");
     let mut header = vec!["stage".to_string()];
-    header.extend(r.start_fitness.iter().map(|f| format!("{}{}", f.event, if f.held_out { "*" } else { "" })));
-    println!("  {}", header.iter().map(|h| format!("{h:>22}")).collect::<String>());
+    header.extend(
+        r.start_fitness
+            .iter()
+            .map(|f| format!("{}{}", f.event, if f.held_out { "*" } else { "" })),
+    );
+    println!(
+        "  {}",
+        header
+            .iter()
+            .map(|h| format!("{h:>22}"))
+            .collect::<String>()
+    );
     let row = |name: &str, f: &[itaipu_calib::fit::EventFitness]| {
-        println!("  {:>22}{}", name, f.iter().map(|x| format!("{:>22.4}", x.j_pq)).collect::<String>());
+        println!(
+            "  {:>22}{}",
+            name,
+            f.iter()
+                .map(|x| format!("{:>22.4}", x.j_pq))
+                .collect::<String>()
+        );
     };
     row("start", &r.start_fitness);
     for s in &r.stages {

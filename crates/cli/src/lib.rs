@@ -24,7 +24,8 @@ pub mod fit_cmd;
 pub mod plot;
 pub mod synth_cmd;
 
-pub const EXIT_CODES: &str = "Exit codes: 0 success, 2 usage error, 3 bad event data (event TOML or CSV), \
+pub const EXIT_CODES: &str =
+    "Exit codes: 0 success, 2 usage error, 3 bad event data (event TOML or CSV), \
 4 bad unit model or calibration spec, 5 model cannot initialise at the measured operating point, \
 6 simulation or fit failed, 7 output could not be written (or would overwrite an existing folder).";
 
@@ -118,7 +119,10 @@ pub struct CliError {
 
 impl CliError {
     pub fn new(code: u8, msg: impl Into<String>) -> Self {
-        Self { code, msg: msg.into() }
+        Self {
+            code,
+            msg: msg.into(),
+        }
     }
 }
 
@@ -195,9 +199,15 @@ pub fn load_unit(path: &Path) -> Result<Unit, CliError> {
 pub fn prepare_out(out: Option<&Path>, name: &str, force: bool) -> Result<PathBuf, CliError> {
     let dir = match out {
         Some(d) => {
-            let nonempty = d.is_dir() && std::fs::read_dir(d).map(|mut r| r.next().is_some()).unwrap_or(false);
+            let nonempty = d.is_dir()
+                && std::fs::read_dir(d)
+                    .map(|mut r| r.next().is_some())
+                    .unwrap_or(false);
             if d.exists() && !d.is_dir() {
-                return Err(CliError::new(7, format!("{} exists and is not a folder", d.display())));
+                return Err(CliError::new(
+                    7,
+                    format!("{} exists and is not a folder", d.display()),
+                ));
             }
             if nonempty && !force {
                 return Err(CliError::new(
@@ -218,7 +228,8 @@ pub fn prepare_out(out: Option<&Path>, name: &str, force: bool) -> Result<PathBu
             d
         }
     };
-    std::fs::create_dir_all(&dir).map_err(|e| CliError::new(7, format!("cannot create {}: {e}", dir.display())))?;
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| CliError::new(7, format!("cannot create {}: {e}", dir.display())))?;
     Ok(dir)
 }
 
@@ -226,7 +237,10 @@ fn sim_options(a: &SimulateArgs) -> Result<SimOptions, CliError> {
     let method = match a.method {
         MethodArg::Rk4 => {
             if !(a.step > 0.0 && a.step.is_finite()) {
-                return Err(CliError::new(2, format!("--step must be > 0 (got {})", a.step)));
+                return Err(CliError::new(
+                    2,
+                    format!("--step must be > 0 (got {})", a.step),
+                ));
             }
             Method::Rk4 { h: a.step }
         }
@@ -234,7 +248,12 @@ fn sim_options(a: &SimulateArgs) -> Result<SimOptions, CliError> {
             if !(a.rtol > 0.0 && a.atol >= 0.0) {
                 return Err(CliError::new(2, "--rtol must be > 0 and --atol >= 0"));
             }
-            Method::Dopri5(Dopri5Options { rtol: a.rtol, atol: a.atol, h_max: 0.05, ..Default::default() })
+            Method::Dopri5(Dopri5Options {
+                rtol: a.rtol,
+                atol: a.atol,
+                h_max: 0.05,
+                ..Default::default()
+            })
         }
     };
     Ok(SimOptions { method })
@@ -259,7 +278,11 @@ pub fn misfit(event: &Event, traces: &Traces) -> (f64, f64, f64, usize) {
 }
 
 fn describe_unit(u: &Unit) -> String {
-    u.instances().iter().map(|i| i.block.model()).collect::<Vec<_>>().join(" + ")
+    u.instances()
+        .iter()
+        .map(|i| i.block.model())
+        .collect::<Vec<_>>()
+        .join(" + ")
 }
 
 fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
@@ -277,9 +300,15 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     let t0 = Instant::now();
     let traces = simulate(&unit, &event, &opts)?;
     let wall = t0.elapsed();
-    let out = prepare_out(a.out.as_deref(), &format!("simulate-{}", event.name), a.force)?;
+    let out = prepare_out(
+        a.out.as_deref(),
+        &format!("simulate-{}", event.name),
+        a.force,
+    )?;
     let csv_path = out.join("traces.csv");
-    traces.write_csv(&csv_path).map_err(|e| CliError::new(7, format!("cannot write {}: {e}", csv_path.display())))?;
+    traces
+        .write_csv(&csv_path)
+        .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", csv_path.display())))?;
 
     let op = event.operating_point();
     let r = &event.record;
@@ -295,7 +324,13 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
         event.system_mva,
         event.nominal_hz
     );
-    println!("unit   {} ({}): {}, machine base {} MVA", unit.name, unit_path.display(), describe_unit(&unit), unit.machine_mva);
+    println!(
+        "unit   {} ({}): {}, machine base {} MVA",
+        unit.name,
+        unit_path.display(),
+        describe_unit(&unit),
+        unit.machine_mva
+    );
     println!(
         "init   from {:.2}-{:.2} s: |V| {:.5} pu, P {:.5} pu, Q {:.5} pu (system base), f {:.4} Hz; E_fd0 {:.4} pu, δ0 {:.2}°, P_m0 {:.4} pu (machine base)",
         event.init.start_s,
@@ -330,20 +365,50 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
         let panels = vec![
             plot::Panel {
                 y_label: "|V| [pu] (played back)".into(),
-                series: vec![plot::Series { label: "measured |V|".into(), x: t, y: get("v_term"), color: plot::MEASURED, thin: false }],
+                series: vec![plot::Series {
+                    label: "measured |V|".into(),
+                    x: t,
+                    y: get("v_term"),
+                    color: plot::MEASURED,
+                    thin: false,
+                }],
             },
             plot::Panel {
                 y_label: format!("P [pu on {} MVA]", event.system_mva),
                 series: vec![
-                    plot::Series { label: "measured".into(), x: t, y: get("p_meas_pu"), color: plot::MEASURED, thin: true },
-                    plot::Series { label: "simulated".into(), x: t, y: get("p_pu"), color: plot::SIMULATED, thin: false },
+                    plot::Series {
+                        label: "measured".into(),
+                        x: t,
+                        y: get("p_meas_pu"),
+                        color: plot::MEASURED,
+                        thin: true,
+                    },
+                    plot::Series {
+                        label: "simulated".into(),
+                        x: t,
+                        y: get("p_pu"),
+                        color: plot::SIMULATED,
+                        thin: false,
+                    },
                 ],
             },
             plot::Panel {
                 y_label: format!("Q [pu on {} MVA]", event.system_mva),
                 series: vec![
-                    plot::Series { label: "measured".into(), x: t, y: get("q_meas_pu"), color: plot::MEASURED, thin: true },
-                    plot::Series { label: "simulated".into(), x: t, y: get("q_pu"), color: plot::SIMULATED, thin: false },
+                    plot::Series {
+                        label: "measured".into(),
+                        x: t,
+                        y: get("q_meas_pu"),
+                        color: plot::MEASURED,
+                        thin: true,
+                    },
+                    plot::Series {
+                        label: "simulated".into(),
+                        x: t,
+                        y: get("q_pu"),
+                        color: plot::SIMULATED,
+                        thin: false,
+                    },
                 ],
             },
         ];
@@ -357,15 +422,33 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
 
 fn cmd_models(name: Option<&str>) -> Result<(), CliError> {
     let models: Vec<_> = match name {
-        Some(n) => vec![registry::find(n).ok_or_else(|| CliError::new(2, format!("unknown model '{n}' (known: {})", registry::names())))?],
+        Some(n) => vec![registry::find(n).ok_or_else(|| {
+            CliError::new(
+                2,
+                format!("unknown model '{n}' (known: {})", registry::names()),
+            )
+        })?],
         None => registry::MODELS.iter().collect(),
     };
     for m in models {
         let b = m.create();
         println!("{} [{}]: {}", m.name, m.role.section(), m.summary);
         println!("  states: {}", b.state_names().join(", "));
-        let ports: Vec<String> =
-            b.ports().iter().map(|p| format!("{}{}", p.name, if p.dir == itaipu_dynamics::block::Dir::In { "(in)" } else { "(out)" })).collect();
+        let ports: Vec<String> = b
+            .ports()
+            .iter()
+            .map(|p| {
+                format!(
+                    "{}{}",
+                    p.name,
+                    if p.dir == itaipu_dynamics::block::Dir::In {
+                        "(in)"
+                    } else {
+                        "(out)"
+                    }
+                )
+            })
+            .collect();
         println!("  ports:  {}", ports.join(", "));
         for s in b.params().specs() {
             println!(

@@ -79,7 +79,13 @@ fn range(panel: &Panel, decor: Option<&Decor>) -> (f64, f64) {
             v
         })
         .unwrap_or_default();
-    for v in panel.series.iter().flat_map(|s| s.y.iter()).chain(extra.iter()).filter(|v| v.is_finite()) {
+    for v in panel
+        .series
+        .iter()
+        .flat_map(|s| s.y.iter())
+        .chain(extra.iter())
+        .filter(|v| v.is_finite())
+    {
         lo = lo.min(*v);
         hi = hi.max(*v);
     }
@@ -91,7 +97,11 @@ fn range(panel: &Panel, decor: Option<&Decor>) -> (f64, f64) {
     let pad = ((hi - lo) * 0.08).max(1e-3 * hi.abs().max(lo.abs()));
     let pad = if pad > 0.0 { pad } else { 1e-3 };
     // Room above for marker labels.
-    let top = if decor.is_some_and(|d| !d.markers.is_empty()) { 0.12 * (hi - lo + 2.0 * pad) } else { 0.0 };
+    let top = if decor.is_some_and(|d| !d.markers.is_empty()) {
+        0.12 * (hi - lo + 2.0 * pad)
+    } else {
+        0.0
+    };
     (lo - pad, hi + pad + top)
 }
 
@@ -112,18 +122,28 @@ pub fn draw(path: &Path, title: &str, x_label: &str, panels: &[Panel]) -> Result
 
 /// Draws stacked panels into an SVG file, panel `k` decorated by `decor[k]` (panels beyond
 /// `decor.len()` are drawn plain).
-pub fn draw_with(path: &Path, title: &str, x_label: &str, panels: &[Panel], decor: &[Decor]) -> Result<(), String> {
+pub fn draw_with(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    panels: &[Panel],
+    decor: &[Decor],
+) -> Result<(), String> {
     let height = 60 + 260 * panels.len() as u32;
     let root = SVGBackend::new(path, (1000, height)).into_drawing_area();
     let err = |e: &dyn std::fmt::Display| format!("plot {}: {e}", path.display());
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    let root = root.titled(title, ("sans-serif", 22)).map_err(|e| err(&e))?;
+    let root = root
+        .titled(title, ("sans-serif", 22))
+        .map_err(|e| err(&e))?;
     let areas = root.split_evenly((panels.len(), 1));
     let (x0, x1) = panels
         .iter()
         .flat_map(|p| p.series.iter())
         .flat_map(|s| s.x.iter().copied())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
     let (x0, x1) = if x0 < x1 { (x0, x1) } else { (0.0, 1.0) };
     for (k, (panel, area)) in panels.iter().zip(areas.iter()).enumerate() {
         let d = decor.get(k);
@@ -141,17 +161,32 @@ pub fn draw_with(path: &Path, title: &str, x_label: &str, panels: &[Panel], deco
             .y_desc(panel.y_label.as_str())
             .light_line_style(RGBColor(235, 235, 235))
             .label_style(("sans-serif", 14))
-            .y_label_formatter(&|v| format!("{:.*}", decimals, if v.abs() < 1e-12 * (y1 - y0).max(1e-300) { 0.0 } else { *v }))
+            .y_label_formatter(&|v| {
+                format!(
+                    "{:.*}",
+                    decimals,
+                    if v.abs() < 1e-12 * (y1 - y0).max(1e-300) {
+                        0.0
+                    } else {
+                        *v
+                    }
+                )
+            })
             .draw()
             .map_err(|e| err(&e))?;
         if let Some(d) = d {
             for b in &d.y_bands {
                 let c = b.color;
                 chart
-                    .draw_series(std::iter::once(Rectangle::new([(x0, b.y0), (x1, b.y1)], c.mix(0.25).filled())))
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(x0, b.y0), (x1, b.y1)],
+                        c.mix(0.25).filled(),
+                    )))
                     .map_err(|e| err(&e))?
                     .label(b.label.as_str())
-                    .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 22, y + 5)], c.mix(0.4).filled()));
+                    .legend(move |(x, y)| {
+                        Rectangle::new([(x, y - 5), (x + 22, y + 5)], c.mix(0.4).filled())
+                    });
             }
             for s in &d.spans {
                 let c = s.color;
@@ -160,33 +195,59 @@ pub fn draw_with(path: &Path, title: &str, x_label: &str, panels: &[Panel], deco
                     continue;
                 }
                 chart
-                    .draw_series(std::iter::once(Rectangle::new([(a, y0), (b, y1)], c.mix(0.18).filled())))
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(a, y0), (b, y1)],
+                        c.mix(0.18).filled(),
+                    )))
                     .map_err(|e| err(&e))?
                     .label(s.label.as_str())
-                    .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 22, y + 5)], c.mix(0.35).filled()));
+                    .legend(move |(x, y)| {
+                        Rectangle::new([(x, y - 5), (x + 22, y + 5)], c.mix(0.35).filled())
+                    });
             }
         }
         for s in &panel.series {
-            let style = ShapeStyle { color: s.color.to_rgba(), filled: false, stroke_width: if s.thin { 1 } else { 2 } };
+            let style = ShapeStyle {
+                color: s.color.to_rgba(),
+                filled: false,
+                stroke_width: if s.thin { 1 } else { 2 },
+            };
             let pts: Vec<(f64, f64)> =
-                s.x.iter().zip(s.y).filter(|(x, y)| x.is_finite() && y.is_finite()).map(|(x, y)| (*x, *y)).collect();
+                s.x.iter()
+                    .zip(s.y)
+                    .filter(|(x, y)| x.is_finite() && y.is_finite())
+                    .map(|(x, y)| (*x, *y))
+                    .collect();
             let color = s.color;
             chart
                 .draw_series(LineSeries::new(pts, style))
                 .map_err(|e| err(&e))?
                 .label(s.label.as_str())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], color.stroke_width(2)));
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 22, y)], color.stroke_width(2))
+                });
         }
         if let Some(d) = d {
-            for m in d.markers.iter().filter(|m| m.x.is_finite() && m.y.is_finite()) {
+            for m in d
+                .markers
+                .iter()
+                .filter(|m| m.x.is_finite() && m.y.is_finite())
+            {
                 let c = m.color;
                 // The label reads away from the right edge, where the legend is.
                 let right = m.x > x0 + 0.4 * (x1 - x0);
                 let font = ("sans-serif", 15).into_font().color(&c);
-                let (font, dx) =
-                    if right { (font.pos(Pos::new(HPos::Right, VPos::Bottom)), -8) } else { (font.pos(Pos::new(HPos::Left, VPos::Bottom)), 8) };
-                let el = EmptyElement::at((m.x, m.y)) + Circle::new((0, 0), 5, c.filled()) + Text::new(m.label.clone(), (dx, -4), font);
-                chart.draw_series(std::iter::once(el)).map_err(|e| err(&e))?;
+                let (font, dx) = if right {
+                    (font.pos(Pos::new(HPos::Right, VPos::Bottom)), -8)
+                } else {
+                    (font.pos(Pos::new(HPos::Left, VPos::Bottom)), 8)
+                };
+                let el = EmptyElement::at((m.x, m.y))
+                    + Circle::new((0, 0), 5, c.filled())
+                    + Text::new(m.label.clone(), (dx, -4), font);
+                chart
+                    .draw_series(std::iter::once(el))
+                    .map_err(|e| err(&e))?;
             }
         }
         chart

@@ -87,12 +87,23 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
     };
     let truth = load_unit(&unit_path)?;
     if !(a.duration > 1.5 && a.duration.is_finite()) {
-        return Err(CliError::new(2, format!("--duration must exceed 1.5 s (got {})", a.duration)));
+        return Err(CliError::new(
+            2,
+            format!("--duration must exceed 1.5 s (got {})", a.duration),
+        ));
     }
     if !(a.rate >= 10.0 && a.rate <= 1000.0) {
-        return Err(CliError::new(2, format!("--rate must lie in 10-1000 samples/s (got {})", a.rate)));
+        return Err(CliError::new(
+            2,
+            format!("--rate must lie in 10-1000 samples/s (got {})", a.rate),
+        ));
     }
-    for (name, v) in [("--pq-sigma", a.pq_sigma), ("--v-sigma", a.v_sigma), ("--quantum", a.quantum), ("--skew-ms", a.skew_ms)] {
+    for (name, v) in [
+        ("--pq-sigma", a.pq_sigma),
+        ("--v-sigma", a.v_sigma),
+        ("--quantum", a.quantum),
+        ("--skew-ms", a.skew_ms),
+    ] {
         if !(v >= 0.0 && v.is_finite()) {
             return Err(CliError::new(2, format!("{name} must be >= 0 (got {v})")));
         }
@@ -104,7 +115,10 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
         KindArg::Ambient => EventKind::Ambient,
     };
     let kind_name = format!("{:?}", a.kind).to_lowercase();
-    let name = a.name.clone().unwrap_or_else(|| format!("synthetic-{kind_name}-{}", a.seed));
+    let name = a
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("synthetic-{kind_name}-{}", a.seed));
     let profile = VoltageProfile::preset(kind, a.duration, a.rate, a.seed);
     let noise = PmuNoise {
         pq_sigma: a.pq_sigma,
@@ -118,7 +132,11 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
     if !(system_mva > 0.0) {
         return Err(CliError::new(2, "--system-mva must be > 0"));
     }
-    let hides = a.hide.iter().map(|h| parse_hide(h)).collect::<Result<Vec<_>, _>>()?;
+    let hides = a
+        .hide
+        .iter()
+        .map(|h| parse_hide(h))
+        .collect::<Result<Vec<_>, _>>()?;
     let mut hidden = if a.skew_ms > 0.0 {
         vec![serde_json::json!({
             "cause": "measurement_skew",
@@ -134,25 +152,48 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
     } else {
         // The catalog's context (operating-point field voltage and current, PMU rate) comes from
         // the truth as given on a noise-free run of the same profile.
-        let probe = synthesize(&name, &truth, &profile, system_mva, &PmuNoise::none(), &SimOptions::default())
-            .map_err(|e| synth_error(&unit_path, e))?;
+        let probe = synthesize(
+            &name,
+            &truth,
+            &profile,
+            system_mva,
+            &PmuNoise::none(),
+            &SimOptions::default(),
+        )
+        .map_err(|e| synth_error(&unit_path, e))?;
         let (extended, entries) = hide_all(&truth, &probe, &hides, &unit_path)?;
         hidden.extend(entries);
         extended
     };
-    let event = synthesize(&name, &truth, &profile, system_mva, &noise, &SimOptions::default()).map_err(|e| {
+    let event = synthesize(
+        &name,
+        &truth,
+        &profile,
+        system_mva,
+        &noise,
+        &SimOptions::default(),
+    )
+    .map_err(|e| {
         let e = synth_error(&unit_path, e);
         if hides.is_empty() {
             e
         } else {
-            CliError::new(e.code, format!("{} (with the hidden cause(s) {})", e.msg, a.hide.join(" ")))
+            CliError::new(
+                e.code,
+                format!("{} (with the hidden cause(s) {})", e.msg, a.hide.join(" ")),
+            )
         }
     })?;
     let out = prepare_out(a.out.as_deref(), &format!("synth-{name}"), a.force)?;
     let csv_name = format!("{name}.csv");
     let csv_path = out.join(&csv_name);
-    event.write_csv(&csv_path).map_err(|e| CliError::new(7, e.to_string()))?;
-    let write = |p: PathBuf, text: String| std::fs::write(&p, text).map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())));
+    event
+        .write_csv(&csv_path)
+        .map_err(|e| CliError::new(7, e.to_string()))?;
+    let write = |p: PathBuf, text: String| {
+        std::fs::write(&p, text)
+            .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))
+    };
     write(
         out.join("event.toml"),
         format!(
@@ -165,8 +206,11 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
         ),
     )?;
     write(out.join("truth.toml"), unit_to_toml(&truth))?;
-    let params: serde_json::Map<String, serde_json::Value> =
-        truth.params().into_iter().map(|(p, _, v)| (p, serde_json::json!(v))).collect();
+    let params: serde_json::Map<String, serde_json::Value> = truth
+        .params()
+        .into_iter()
+        .map(|(p, _, v)| (p, serde_json::json!(v)))
+        .collect();
     let truth_json = serde_json::json!({
         "event": name,
         "kind": kind_name,
@@ -180,7 +224,10 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
         "hidden_effects": hidden,
         "parameters": params,
     });
-    write(out.join("truth.json"), serde_json::to_string_pretty(&truth_json).expect("json"))?;
+    write(
+        out.join("truth.json"),
+        serde_json::to_string_pretty(&truth_json).expect("json"),
+    )?;
     println!(
         "synth  {name}: {kind_name}, {} samples at {} samples/s over {} s from {} ({}), noise P/Q {} pu, |V| {} pu, quantum {} pu{}",
         event.record.time_s.len(),
@@ -196,7 +243,10 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
     for h in &a.hide {
         println!("hidden {h}");
     }
-    println!("wrote  {}/event.toml, {csv_name}, truth.toml, truth.json", out.display());
+    println!(
+        "wrote  {}/event.toml, {csv_name}, truth.toml, truth.json",
+        out.display()
+    );
     Ok(())
 }
 
@@ -212,15 +262,23 @@ fn parse_hide(spec: &str) -> Result<Hide, CliError> {
         None => (spec.trim(), None),
     };
     if cause.is_empty() {
-        return Err(usage(format!("no cause before ':' (known: {})", catalog::ids())));
+        return Err(usage(format!(
+            "no cause before ':' (known: {})",
+            catalog::ids()
+        )));
     }
     if catalog::find(cause).is_none() {
-        return Err(usage(format!("unknown cause '{cause}' (known: {})", catalog::ids())));
+        return Err(usage(format!(
+            "unknown cause '{cause}' (known: {})",
+            catalog::ids()
+        )));
     }
     let mut values: Vec<(String, f64)> = vec![];
     if let Some(rest) = rest {
         if rest.trim().is_empty() {
-            return Err(usage("nothing after ':' (expected PARAM=VALUE[,PARAM=VALUE...])".into()));
+            return Err(usage(
+                "nothing after ':' (expected PARAM=VALUE[,PARAM=VALUE...])".into(),
+            ));
         }
         for item in rest.split(',') {
             let (k, v) = item
@@ -230,7 +288,9 @@ fn parse_hide(spec: &str) -> Result<Hide, CliError> {
             if k.is_empty() {
                 return Err(usage(format!("'{}' has no parameter name", item.trim())));
             }
-            let x: f64 = v.parse().map_err(|_| usage(format!("{k}: '{v}' is not a number")))?;
+            let x: f64 = v
+                .parse()
+                .map_err(|_| usage(format!("{k}: '{v}' is not a number")))?;
             if !x.is_finite() {
                 return Err(usage(format!("{k}: '{v}' is not a finite number")));
             }
@@ -256,36 +316,74 @@ fn synth_error(unit_path: &Path, e: SynthError) -> CliError {
 /// Hides each cause in turn in `truth` ([`catalog::hide`], the catalog's context taken from the
 /// truth as given on `probe`); returns the extended unit and one `hidden_effects` entry per cause
 /// (its parameters with their values in the extended unit).
-fn hide_all(truth: &Unit, probe: &Event, hides: &[Hide], unit_path: &Path) -> Result<(Unit, Vec<serde_json::Value>), CliError> {
-    let ctx = diagnose::context(truth, probe)
-        .map_err(|e| CliError::new(5, format!("{}: the true unit does not simulate on the synthetic profile: {e}", unit_path.display())))?;
+fn hide_all(
+    truth: &Unit,
+    probe: &Event,
+    hides: &[Hide],
+    unit_path: &Path,
+) -> Result<(Unit, Vec<serde_json::Value>), CliError> {
+    let ctx = diagnose::context(truth, probe).map_err(|e| {
+        CliError::new(
+            5,
+            format!(
+                "{}: the true unit does not simulate on the synthetic profile: {e}",
+                unit_path.display()
+            ),
+        )
+    })?;
     let mut unit = truth.clone();
     let mut entries = vec![];
     for (spec, cause, values) in hides {
         let ext = match catalog::extend(cause, &unit, &ctx) {
             Ok(Ok(ext)) => ext,
-            Ok(Err(why)) => return Err(CliError::new(2, format!("--hide {spec}: cannot hide {cause} in unit '{}': {why}", unit.name))),
-            Err(msg) => return Err(CliError::new(4, format!("{}: --hide {spec}: {msg}", unit_path.display()))),
+            Ok(Err(why)) => {
+                return Err(CliError::new(
+                    2,
+                    format!(
+                        "--hide {spec}: cannot hide {cause} in unit '{}': {why}",
+                        unit.name
+                    ),
+                ))
+            }
+            Err(msg) => {
+                return Err(CliError::new(
+                    4,
+                    format!("{}: --hide {spec}: {msg}", unit_path.display()),
+                ))
+            }
         };
         let known = extension_params(&unit, &ext);
         if let Some((bad, _)) = values.iter().find(|(p, _)| !known.contains(p)) {
             if let Some((from, _)) = ext.ties.iter().find(|(_, to)| to == bad) {
-                return Err(CliError::new(2, format!("--hide {spec}: {bad} follows {from} in {cause}; set {from} instead")));
+                return Err(CliError::new(
+                    2,
+                    format!("--hide {spec}: {bad} follows {from} in {cause}; set {from} instead"),
+                ));
             }
             return Err(CliError::new(
                 2,
-                format!("--hide {spec}: unknown parameter '{bad}' for {cause} (its parameters: {})", known.join(", ")),
+                format!(
+                    "--hide {spec}: unknown parameter '{bad}' for {cause} (its parameters: {})",
+                    known.join(", ")
+                ),
             ));
         }
         let map: BTreeMap<String, f64> = values.iter().cloned().collect();
-        unit = catalog::hide(cause, &unit, &ctx, &map).map_err(|e| CliError::new(2, format!("--hide {spec}: {e}")))?;
-        let mut shown: Vec<&str> = ext.extension_free.iter().map(|f| f.param.as_str()).collect();
+        unit = catalog::hide(cause, &unit, &ctx, &map)
+            .map_err(|e| CliError::new(2, format!("--hide {spec}: {e}")))?;
+        let mut shown: Vec<&str> = ext
+            .extension_free
+            .iter()
+            .map(|f| f.param.as_str())
+            .collect();
         shown.extend(ext.ties.iter().map(|(_, to)| to.as_str()));
         shown.extend(values.iter().map(|(p, _)| p.as_str()));
         let mut params = serde_json::Map::new();
         for p in shown {
             if let Ok(r) = unit.param(p) {
-                params.entry(p.to_string()).or_insert(serde_json::json!(unit.get(r)));
+                params
+                    .entry(p.to_string())
+                    .or_insert(serde_json::json!(unit.get(r)));
             }
         }
         let info = catalog::find(cause).expect("checked by parse_hide");
@@ -298,7 +396,11 @@ fn hide_all(truth: &Unit, probe: &Event, hides: &[Hide], unit_path: &Path) -> Re
         }));
     }
     let causes: Vec<&str> = hides.iter().map(|(_, c, _)| c.as_str()).collect();
-    unit.description = format!("{} (hidden by itaipu-calib synth: {})", unit.description, causes.join(", "));
+    unit.description = format!(
+        "{} (hidden by itaipu-calib synth: {})",
+        unit.description,
+        causes.join(", ")
+    );
     Ok((unit, entries))
 }
 

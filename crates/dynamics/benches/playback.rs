@@ -21,12 +21,22 @@ fn main() {
 }
 
 fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data").join(rel)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data")
+        .join(rel)
 }
 
 fn synthetic() -> (Unit, PreparedEvent) {
     let unit = read_unit(&data("synthetic/unit_gensae_sexs_stab3_hygov.toml")).unwrap();
-    let event = synthesize("bench", &unit, &VoltageProfile::default(), 737.0, &PmuNoise::typical(1), &SimOptions::default()).unwrap();
+    let event = synthesize(
+        "bench",
+        &unit,
+        &VoltageProfile::default(),
+        737.0,
+        &PmuNoise::typical(1),
+        &SimOptions::default(),
+    )
+    .unwrap();
     (unit, PreparedEvent::new(&event))
 }
 
@@ -37,7 +47,14 @@ fn itaipu() -> (Unit, PreparedEvent) {
 }
 
 fn dopri5() -> SimOptions {
-    SimOptions { method: Method::Dopri5(Dopri5Options { rtol: 1e-6, atol: 1e-7, h_max: 0.05, ..Default::default() }) }
+    SimOptions {
+        method: Method::Dopri5(Dopri5Options {
+            rtol: 1e-6,
+            atol: 1e-7,
+            h_max: 0.05,
+            ..Default::default()
+        }),
+    }
 }
 
 fn bench(bencher: Bencher, (unit, ev): (Unit, PreparedEvent), opts: SimOptions) {
@@ -47,7 +64,13 @@ fn bench(bencher: Bencher, (unit, ev): (Unit, PreparedEvent), opts: SimOptions) 
 
 #[divan::bench(sample_count = 30)]
 fn synthetic_20s_rk4_1ms(bencher: Bencher) {
-    bench(bencher, synthetic(), SimOptions { method: Method::Rk4 { h: 1e-3 } });
+    bench(
+        bencher,
+        synthetic(),
+        SimOptions {
+            method: Method::Rk4 { h: 1e-3 },
+        },
+    );
 }
 
 #[divan::bench(sample_count = 100)]
@@ -62,5 +85,11 @@ fn itaipu_record_dopri5_rtol_1e6(bencher: Bencher) {
 
 #[divan::bench(sample_count = 30)]
 fn itaipu_record_rk4_1ms(bencher: Bencher) {
-    bench(bencher, itaipu(), SimOptions { method: Method::Rk4 { h: 1e-3 } });
+    bench(
+        bencher,
+        itaipu(),
+        SimOptions {
+            method: Method::Rk4 { h: 1e-3 },
+        },
+    );
 }

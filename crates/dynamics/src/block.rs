@@ -55,14 +55,38 @@ pub struct Port {
 
 impl Port {
     pub const fn input(name: &'static str, init: PortInit, doc: &'static str) -> Self {
-        Self { name, signal: name, optional: false, dir: Dir::In, init, feedthrough: false, doc }
+        Self {
+            name,
+            signal: name,
+            optional: false,
+            dir: Dir::In,
+            init,
+            feedthrough: false,
+            doc,
+        }
     }
     /// An input with a direct (algebraic) path to an output.
     pub const fn input_ft(name: &'static str, init: PortInit, doc: &'static str) -> Self {
-        Self { name, signal: name, optional: false, dir: Dir::In, init, feedthrough: true, doc }
+        Self {
+            name,
+            signal: name,
+            optional: false,
+            dir: Dir::In,
+            init,
+            feedthrough: true,
+            doc,
+        }
     }
     pub const fn output(name: &'static str, init: PortInit, doc: &'static str) -> Self {
-        Self { name, signal: name, optional: false, dir: Dir::Out, init, feedthrough: false, doc }
+        Self {
+            name,
+            signal: name,
+            optional: false,
+            dir: Dir::Out,
+            init,
+            feedthrough: false,
+            doc,
+        }
     }
     /// Wires the port to `signal` by default.
     pub const fn wired(mut self, signal: &'static str) -> Self {
@@ -126,7 +150,10 @@ pub enum ModelError {
 
 impl ModelError {
     pub fn param(param: &str, msg: impl Into<String>) -> Self {
-        ModelError::BadParam { param: param.to_string(), msg: msg.into() }
+        ModelError::BadParam {
+            param: param.to_string(),
+            msg: msg.into(),
+        }
     }
 }
 
@@ -247,14 +274,20 @@ pub mod guard {
         if a > b {
             Ok(())
         } else {
-            Err(ModelError::param(a_name, format!("must exceed {b_name} ({a} <= {b})")))
+            Err(ModelError::param(
+                a_name,
+                format!("must exceed {b_name} ({a} <= {b})"),
+            ))
         }
     }
     pub fn greater_eq(a_name: &str, a: f64, b_name: &str, b: f64) -> Result<(), ModelError> {
         if a >= b {
             Ok(())
         } else {
-            Err(ModelError::param(a_name, format!("must be >= {b_name} ({a} < {b})")))
+            Err(ModelError::param(
+                a_name,
+                format!("must be >= {b_name} ({a} < {b})"),
+            ))
         }
     }
 }

@@ -34,7 +34,11 @@ pub trait ParamSet {
         specs
             .iter()
             .position(|s| s.name == name)
-            .or_else(|| specs.iter().position(|s| s.alias.eq_ignore_ascii_case(name)))
+            .or_else(|| {
+                specs
+                    .iter()
+                    .position(|s| s.alias.eq_ignore_ascii_case(name))
+            })
             .or_else(|| specs.iter().position(|s| s.name.eq_ignore_ascii_case(name)))
     }
 

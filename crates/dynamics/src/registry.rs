@@ -2,9 +2,14 @@
 
 use crate::block::Block;
 use crate::models::exciter::sexs::Sexs;
-use crate::models::extensions::{oel::Oel, pmu_measurement::PmuMeasurement, sexs_bus_fed::SexsBusFed, speed_deadband::SpeedDeadband, terminal_load::TerminalLoad, two_mass_shaft::TwoMassShaft};
+use crate::models::extensions::{
+    oel::Oel, pmu_measurement::PmuMeasurement, sexs_bus_fed::SexsBusFed,
+    speed_deadband::SpeedDeadband, terminal_load::TerminalLoad, two_mass_shaft::TwoMassShaft,
+};
 use crate::models::governor::{constant_pm::ConstantPm, hygov::Hygov};
-use crate::models::machine::{gencls::Gencls, genrou::Genrou, gensae::Gensae, gensal::Gensal, Machine};
+use crate::models::machine::{
+    gencls::Gencls, genrou::Genrou, gensae::Gensae, gensal::Gensal, Machine,
+};
 use crate::models::pss::{ieeest::Ieeest, stab3::Stab3};
 
 /// What a model is for; the unit file section it normally goes in.

@@ -23,7 +23,14 @@ impl Default for SimOptions {
     /// Dormand-Prince 5(4), rtol 1e-6, atol 1e-7, largest step 50 ms (within 2e-6 pu of an
     /// RK4 0.1 ms reference on the 20 s benchmark event; see `tests/integrator_convergence.rs`).
     fn default() -> Self {
-        Self { method: Method::Dopri5(Dopri5Options { rtol: 1e-6, atol: 1e-7, h_max: 0.05, ..Default::default() }) }
+        Self {
+            method: Method::Dopri5(Dopri5Options {
+                rtol: 1e-6,
+                atol: 1e-7,
+                h_max: 0.05,
+                ..Default::default()
+            }),
+        }
     }
 }
 
@@ -31,7 +38,12 @@ impl Default for SimOptions {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SimError {
     #[error("unit '{unit}' is for {unit_hz} Hz but event '{event}' is at {event_hz} Hz")]
-    Frequency { unit: String, unit_hz: f64, event: String, event_hz: f64 },
+    Frequency {
+        unit: String,
+        unit_hz: f64,
+        event: String,
+        event_hz: f64,
+    },
     #[error("initialisation failed: {0}")]
     Init(#[from] UnitError),
     #[error("integration failed: {0}")]
@@ -66,7 +78,11 @@ impl PreparedEvent {
         let r = &event.record;
         Self {
             name: event.name.clone(),
-            input: PlaybackInput { time_s: r.time_s.clone(), v_mag: r.v_mag_pu.clone(), v_ang: r.v_ang_rad.clone() },
+            input: PlaybackInput {
+                time_s: r.time_s.clone(),
+                v_mag: r.v_mag_pu.clone(),
+                v_ang: r.v_ang_rad.clone(),
+            },
             op_system: event.operating_point(),
             system_mva: event.system_mva,
             nominal_hz: event.nominal_hz,
@@ -89,7 +105,12 @@ impl PreparedEvent {
 
 /// Runs one playback; `record(k, unit)` is called at every sample `k` with the bus evaluated
 /// there (read signals with [`Unit::bus`]). Returns the integrator statistics.
-pub fn run_playback<F>(unit: &mut Unit, ev: &PreparedEvent, opts: &SimOptions, mut record: F) -> Result<Stats, SimError>
+pub fn run_playback<F>(
+    unit: &mut Unit,
+    ev: &PreparedEvent,
+    opts: &SimOptions,
+    mut record: F,
+) -> Result<Stats, SimError>
 where
     F: FnMut(usize, &Unit, &[f64]),
 {
@@ -108,20 +129,34 @@ where
     op.q += ql;
     let mut x = unit.initialise(&op)?;
     let mut sys = Playback::new(unit, &ev.input);
-    let stats = integrate::solve(&opts.method, &mut sys, &mut x, &ev.input.time_s, |k, t, x, sys| {
-        sys.eval_signals(t, x);
-        record(k, sys.unit, x);
-    })?;
+    let stats = integrate::solve(
+        &opts.method,
+        &mut sys,
+        &mut x,
+        &ev.input.time_s,
+        |k, t, x, sys| {
+            sys.eval_signals(t, x);
+            record(k, sys.unit, x);
+        },
+    )?;
     Ok(stats)
 }
 
 /// Simulated P and Q on the system base at every sample (the quantities a fit compares).
-pub fn simulate_pq(unit: &mut Unit, ev: &PreparedEvent, opts: &SimOptions) -> Result<(Vec<f64>, Vec<f64>), SimError> {
+pub fn simulate_pq(
+    unit: &mut Unit,
+    ev: &PreparedEvent,
+    opts: &SimOptions,
+) -> Result<(Vec<f64>, Vec<f64>), SimError> {
     let n = ev.input.time_s.len();
     let (mut p, mut q) = (vec![0.0; n], vec![0.0; n]);
     let to_sys = unit.machine_mva / ev.system_mva;
-    let ip = unit.signal_index("pe").ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?;
-    let iq = unit.signal_index("qe").ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?;
+    let ip = unit
+        .signal_index("pe")
+        .ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?;
+    let iq = unit
+        .signal_index("qe")
+        .ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?;
     run_playback(unit, ev, opts, |k, u, _| {
         let (pk, qk) = u.measured_pq_now(ip, iq);
         p[k] = pk * to_sys;
@@ -145,7 +180,10 @@ pub struct Traces {
 impl Traces {
     /// A column by name.
     pub fn get(&self, name: &str) -> Option<&[f64]> {
-        self.names.iter().position(|n| n == name).map(|k| self.columns[k].as_slice())
+        self.names
+            .iter()
+            .position(|n| n == name)
+            .map(|k| self.columns[k].as_slice())
     }
 
     /// Writes `time_s` and every column as CSV.
@@ -182,7 +220,12 @@ pub fn simulate(unit: &Unit, event: &Event, opts: &SimOptions) -> Result<Traces,
 }
 
 /// [`simulate`] with a prepared event and a unit that may be reused.
-pub fn simulate_prepared(unit: &mut Unit, ev: &PreparedEvent, event: &Event, opts: &SimOptions) -> Result<Traces, SimError> {
+pub fn simulate_prepared(
+    unit: &mut Unit,
+    ev: &PreparedEvent,
+    event: &Event,
+    opts: &SimOptions,
+) -> Result<Traces, SimError> {
     let n = ev.input.time_s.len();
     let to_sys = unit.machine_mva / ev.system_mva;
     // The column layout is fixed once the wiring is resolved (run_playback initialises).
@@ -192,9 +235,22 @@ pub fn simulate_prepared(unit: &mut Unit, ev: &PreparedEvent, event: &Event, opt
     unit.ensure_finished()?;
     let signals: Vec<String> = unit.signal_names().to_vec();
     let states = unit.state_names();
-    let ip = unit.signal_index("pe").ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?;
-    let iq = unit.signal_index("qe").ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?;
-    let mut names: Vec<String> = ["p_pu", "q_pu", "p_meas_pu", "q_meas_pu", "p_mach_pu", "q_mach_pu"].map(String::from).to_vec();
+    let ip = unit
+        .signal_index("pe")
+        .ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?;
+    let iq = unit
+        .signal_index("qe")
+        .ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?;
+    let mut names: Vec<String> = [
+        "p_pu",
+        "q_pu",
+        "p_meas_pu",
+        "q_meas_pu",
+        "p_mach_pu",
+        "q_mach_pu",
+    ]
+    .map(String::from)
+    .to_vec();
     names.extend(signals.iter().cloned());
     names.extend(states.iter().cloned());
     let mut cols: Vec<Vec<f64>> = vec![Vec::with_capacity(n); names.len()];
@@ -220,11 +276,20 @@ pub fn simulate_prepared(unit: &mut Unit, ev: &PreparedEvent, event: &Event, opt
     cols[2] = event.record.p_pu.clone();
     cols[3] = event.record.q_pu.clone();
     let r = &event.record;
-    for (name, col) in [("efd_meas_pu", &r.efd_pu), ("ifd_meas_pu", &r.ifd_pu), ("freq_meas_hz", &r.freq_hz)] {
+    for (name, col) in [
+        ("efd_meas_pu", &r.efd_pu),
+        ("ifd_meas_pu", &r.ifd_pu),
+        ("freq_meas_hz", &r.freq_hz),
+    ] {
         if let Some(c) = col {
             names.push(name.to_string());
             cols.push(c.clone());
         }
     }
-    Ok(Traces { time_s: ev.input.time_s.clone(), names, columns: cols, stats })
+    Ok(Traces {
+        time_s: ev.input.time_s.clone(),
+        names,
+        columns: cols,
+        stats,
+    })
 }

@@ -83,7 +83,9 @@ pub enum EventKind {
     FaultDip,
     /// No dip: a 0.3 Hz frequency fall (τ = 4 s) with a small 0.6 Hz swing.
     FrequencyExcursion,
-    /// A +2 % step of the grid voltage with a small swing.
+    /// A +0.5 % step of the terminal voltage (a nearby tap change) with a small swing. (A
+    /// persistent step much larger than 1/K_AVR of E_fd0 drives a high-gain AVR without
+    /// integral action onto its floor, and the unit then slips: not an event a PMU records.)
     VoltageStep,
     /// Ambient: only small random fluctuations of |V| and angle (no discrete event).
     Ambient,
@@ -92,7 +94,12 @@ pub enum EventKind {
 impl VoltageProfile {
     /// A preset for `kind`, `duration_s` long at `rate_hz`, with the event at 1 s.
     pub fn preset(kind: EventKind, duration_s: f64, rate_hz: f64, seed: u64) -> Self {
-        let base = Self { duration_s, rate_hz, seed, ..Default::default() };
+        let base = Self {
+            duration_s,
+            rate_hz,
+            seed,
+            ..Default::default()
+        };
         match kind {
             EventKind::FaultDip => base,
             EventKind::FrequencyExcursion => Self {
@@ -111,7 +118,7 @@ impl VoltageProfile {
                 angle_step: 0.0,
                 swing_amp: 0.01,
                 freq_dev_hz: 0.0,
-                v_step: 0.02,
+                v_step: 0.005,
                 ..base
             },
             EventKind::Ambient => Self {
@@ -139,7 +146,11 @@ impl VoltageProfile {
         let t_clear = self.dip_start_s + self.dip_duration_s;
         let mut rng = Normal::new(self.seed ^ 0xA5A5_5A5A);
         let dt = 1.0 / self.rate_hz;
-        let phi = if self.ambient_tau_s > 0.0 { (-dt / self.ambient_tau_s).exp() } else { 0.0 };
+        let phi = if self.ambient_tau_s > 0.0 {
+            (-dt / self.ambient_tau_s).exp()
+        } else {
+            0.0
+        };
         let innov = (1.0 - phi * phi).sqrt();
         let (mut ou_v, mut ou_a) = (0.0, 0.0);
         for k in 0..n {
@@ -156,7 +167,10 @@ impl VoltageProfile {
                 mag += 0.02 * decay * (wd * s).cos();
                 // Frequency ramp f(t) = Δf (1 − e^{−s/τ}); the angle is its integral × 2π.
                 let tau = self.freq_tau_s.max(1e-6);
-                ang += 2.0 * std::f64::consts::PI * self.freq_dev_hz * (s - tau * (1.0 - (-s / tau).exp()));
+                ang += 2.0
+                    * std::f64::consts::PI
+                    * self.freq_dev_hz
+                    * (s - tau * (1.0 - (-s / tau).exp()));
                 mag += self.v_step;
             }
             if self.ambient_v_sigma > 0.0 || self.ambient_angle_sigma > 0.0 {
@@ -192,12 +206,26 @@ pub struct PmuNoise {
 impl PmuNoise {
     /// No noise.
     pub fn none() -> Self {
-        Self { pq_sigma: 0.0, v_sigma: 0.0, angle_sigma: 0.0, pq_quantum: 0.0, pq_delay_s: 0.0, seed: 0 }
+        Self {
+            pq_sigma: 0.0,
+            v_sigma: 0.0,
+            angle_sigma: 0.0,
+            pq_quantum: 0.0,
+            pq_delay_s: 0.0,
+            seed: 0,
+        }
     }
     /// Typical M-class PMU: 0.002 pu on P and Q, 0.0005 pu on |V|, 0.0005 rad on the angle,
     /// P and Q quantised at 0.0014 pu (as in the Itaipu record).
     pub fn typical(seed: u64) -> Self {
-        Self { pq_sigma: 0.002, v_sigma: 0.0005, angle_sigma: 0.0005, pq_quantum: 0.0014, pq_delay_s: 0.0, seed }
+        Self {
+            pq_sigma: 0.002,
+            v_sigma: 0.0005,
+            angle_sigma: 0.0005,
+            pq_quantum: 0.0014,
+            pq_delay_s: 0.0,
+            seed,
+        }
     }
 }
 
@@ -210,7 +238,10 @@ pub struct Normal {
 
 impl Normal {
     pub fn new(seed: u64) -> Self {
-        Self { state: seed ^ 0x9E37_79B9_7F4A_7C15, spare: None }
+        Self {
+            state: seed ^ 0x9E37_79B9_7F4A_7C15,
+            spare: None,
+        }
     }
     fn next_u64(&mut self) -> u64 {
         self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
@@ -280,13 +311,25 @@ pub fn synthesize(
         efd_pu: None,
         ifd_pu: None,
     };
-    let init = Window { start_s: 0.0, end_s: pre };
+    let init = Window {
+        start_s: 0.0,
+        end_s: pre,
+    };
     let ev = Event::from_record(name, record, system_mva, truth.nominal_hz, Some(init), None)?;
     let prepared = PreparedEvent::new(&ev);
     let (p, q) = simulate_pq(&mut unit, &prepared, opts)?;
     let mut rng = Normal::new(noise.seed);
-    let quant = |x: f64| if noise.pq_quantum > 0.0 { (x / noise.pq_quantum).round() * noise.pq_quantum } else { x };
-    let (p, q) = (delayed(&t, &p, noise.pq_delay_s), delayed(&t, &q, noise.pq_delay_s));
+    let quant = |x: f64| {
+        if noise.pq_quantum > 0.0 {
+            (x / noise.pq_quantum).round() * noise.pq_quantum
+        } else {
+            x
+        }
+    };
+    let (p, q) = (
+        delayed(&t, &p, noise.pq_delay_s),
+        delayed(&t, &q, noise.pq_delay_s),
+    );
     let mut rec = ev.record.clone();
     for k in 0..n {
         rec.p_pu[k] = quant(p[k] + noise.pq_sigma * rng.sample());
@@ -294,7 +337,14 @@ pub fn synthesize(
         rec.v_mag_pu[k] += noise.v_sigma * rng.sample();
         rec.v_ang_rad[k] += noise.angle_sigma * rng.sample();
     }
-    Ok(Event::from_record(name, rec, system_mva, truth.nominal_hz, Some(init), None)?)
+    Ok(Event::from_record(
+        name,
+        rec,
+        system_mva,
+        truth.nominal_hz,
+        Some(init),
+        None,
+    )?)
 }
 
 /// `y` delayed by `tau` seconds on the sample times `t`: y(t_k − τ) by linear interpolation,
@@ -334,10 +384,16 @@ mod tests {
         let mut a = Normal::new(7);
         let mut b = Normal::new(7);
         let xs: Vec<f64> = (0..20000).map(|_| a.sample()).collect();
-        assert!(xs.iter().zip((0..20000).map(|_| b.sample())).all(|(x, y)| *x == y));
+        assert!(xs
+            .iter()
+            .zip((0..20000).map(|_| b.sample()))
+            .all(|(x, y)| *x == y));
         let mean = xs.iter().sum::<f64>() / xs.len() as f64;
         let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / xs.len() as f64;
-        assert!(mean.abs() < 0.03 && (var - 1.0).abs() < 0.04, "mean {mean} var {var}");
+        assert!(
+            mean.abs() < 0.03 && (var - 1.0).abs() < 0.04,
+            "mean {mean} var {var}"
+        );
     }
 
     #[test]
@@ -354,9 +410,10 @@ mod tests {
     #[test]
     fn presets_make_their_event() {
         let (_, v, a) = VoltageProfile::preset(EventKind::VoltageStep, 5.0, 60.0, 1).samples();
-        assert!((v[0] - 1.0).abs() < 1e-12 && (v[v.len() - 1] - 1.02).abs() < 1e-3);
+        assert!((v[0] - 1.0).abs() < 1e-12 && (v[v.len() - 1] - 1.005).abs() < 1e-3);
         assert!(a.iter().all(|x| (x - 0.3).abs() < 0.02));
-        let (t, v, a) = VoltageProfile::preset(EventKind::FrequencyExcursion, 10.0, 30.0, 1).samples();
+        let (t, v, a) =
+            VoltageProfile::preset(EventKind::FrequencyExcursion, 10.0, 30.0, 1).samples();
         assert_eq!(t.len(), 301);
         assert!(v.iter().all(|x| (x - 1.0).abs() < 0.03), "no dip");
         let n = t.len();
@@ -367,7 +424,11 @@ mod tests {
             let m = x.iter().sum::<f64>() / x.len() as f64;
             (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / x.len() as f64).sqrt()
         };
-        assert!(sd(&v) > 0.001 && sd(&v) < 0.006, "ambient |V| spread {}", sd(&v));
+        assert!(
+            sd(&v) > 0.001 && sd(&v) < 0.006,
+            "ambient |V| spread {}",
+            sd(&v)
+        );
         assert!(sd(&a) > 0.003, "ambient angle spread {}", sd(&a));
     }
 
@@ -381,6 +442,9 @@ mod tests {
         // Late slope of the angle: 2π Δf.
         let n = t.len();
         let slope = (a[n - 1] - a[n - 61]) / (t[n - 1] - t[n - 61]);
-        assert!((slope / (2.0 * std::f64::consts::PI) + 0.2).abs() < 0.01, "slope {slope}");
+        assert!(
+            (slope / (2.0 * std::f64::consts::PI) + 0.2).abs() < 0.01,
+            "slope {slope}"
+        );
     }
 }

@@ -57,7 +57,11 @@ impl Instance {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum UnitError {
     #[error("{block} ({model}): {source}")]
-    Model { block: String, model: String, source: ModelError },
+    Model {
+        block: String,
+        model: String,
+        source: ModelError,
+    },
     #[error("wiring: {0}")]
     Wiring(String),
     #[error("unknown parameter '{0}' (use block.name, e.g. machine.h; see `itaipu-calib models`)")]
@@ -69,7 +73,10 @@ impl UnitError {
     /// point), `bad_param`, `wiring` or `unknown_param`.
     pub fn kind(&self) -> &'static str {
         match self {
-            UnitError::Model { source: ModelError::Init(_), .. } => "init",
+            UnitError::Model {
+                source: ModelError::Init(_),
+                ..
+            } => "init",
             UnitError::Model { .. } => "bad_param",
             UnitError::Wiring(_) => "wiring",
             UnitError::UnknownParam(_) => "unknown_param",
@@ -126,7 +133,12 @@ impl Unit {
     }
 
     /// Adds a block under `name`, with optional `(port, signal)` rewiring.
-    pub fn add(&mut self, name: &str, block: Box<dyn Block>, rewire: &[(String, String)]) -> Result<(), UnitError> {
+    pub fn add(
+        &mut self,
+        name: &str,
+        block: Box<dyn Block>,
+        rewire: &[(String, String)],
+    ) -> Result<(), UnitError> {
         if self.instances.iter().any(|i| i.name == name) {
             return Err(UnitError::Wiring(format!("two blocks are named '{name}'")));
         }
@@ -143,7 +155,14 @@ impl Unit {
             };
             wiring[k] = signal.clone();
         }
-        self.instances.push(Instance { name: name.to_string(), block, wiring, map: vec![], x_offset: 0, ev_offset: 0 });
+        self.instances.push(Instance {
+            name: name.to_string(),
+            block,
+            wiring,
+            map: vec![],
+            x_offset: 0,
+            ev_offset: 0,
+        });
         self.finished = false;
         Ok(())
     }
@@ -159,10 +178,17 @@ impl Unit {
             .ok_or_else(|| UnitError::Wiring(format!("no block named '{name}'")))?;
         let block_ports = inst.block.ports();
         for (port, signal) in ports {
-            let k = block_ports.iter().position(|p| p.name == port).ok_or_else(|| {
-                let names: Vec<_> = block_ports.iter().map(|p| p.name).collect();
-                UnitError::Wiring(format!("{name} ({}) has no port '{port}' (ports: {})", inst.block.model(), names.join(", ")))
-            })?;
+            let k = block_ports
+                .iter()
+                .position(|p| p.name == port)
+                .ok_or_else(|| {
+                    let names: Vec<_> = block_ports.iter().map(|p| p.name).collect();
+                    UnitError::Wiring(format!(
+                        "{name} ({}) has no port '{port}' (ports: {})",
+                        inst.block.model(),
+                        names.join(", ")
+                    ))
+                })?;
             inst.wiring[k] = signal.clone();
         }
         self.finished = false;
@@ -174,7 +200,11 @@ impl Unit {
     pub fn without(&self, names: &[&str]) -> Result<Unit, UnitError> {
         let mut u = Unit::new(&self.name, self.machine_mva, self.nominal_hz);
         u.description = self.description.clone();
-        for inst in self.instances.iter().filter(|i| !names.contains(&i.name.as_str())) {
+        for inst in self
+            .instances
+            .iter()
+            .filter(|i| !names.contains(&i.name.as_str()))
+        {
             u.add(&inst.name, inst.block.clone(), &inst.rewiring())?;
         }
         u.finish()?;
@@ -182,7 +212,12 @@ impl Unit {
     }
 
     /// Replaces the block named `name` (keeping its place in the state order) or appends it.
-    pub fn put(&mut self, name: &str, block: Box<dyn Block>, rewire: &[(String, String)]) -> Result<(), UnitError> {
+    pub fn put(
+        &mut self,
+        name: &str,
+        block: Box<dyn Block>,
+        rewire: &[(String, String)],
+    ) -> Result<(), UnitError> {
         match self.instances.iter().position(|i| i.name == name) {
             Some(k) => {
                 let mut tmp = Unit::new(&self.name, self.machine_mva, self.nominal_hz);
@@ -259,7 +294,12 @@ impl Unit {
         for inst in &self.instances {
             for (port, &s) in inst.block.ports().iter().zip(&inst.map) {
                 let external = s == self.sig_v || s == self.sig_theta;
-                if port.dir == Dir::In && !port.optional && !external && writer[s].is_none() && giver[s].is_none() {
+                if port.dir == Dir::In
+                    && !port.optional
+                    && !external
+                    && writer[s].is_none()
+                    && giver[s].is_none()
+                {
                     return Err(UnitError::Wiring(format!(
                         "{} input '{}' reads signal '{}', which no block writes (rewire it with wiring = {{ {} = \"...\" }})",
                         inst.name, port.name, self.signals[s], port.name
@@ -296,8 +336,9 @@ impl Unit {
         };
         self.eval_order = topo_order(&edges(true, &writer))
             .map_err(|c| UnitError::Wiring(format!("algebraic loop through {}", self.names(&c))))?;
-        self.init_order = topo_order(&edges(false, &giver))
-            .map_err(|c| UnitError::Wiring(format!("initialisation cycle through {}", self.names(&c))))?;
+        self.init_order = topo_order(&edges(false, &giver)).map_err(|c| {
+            UnitError::Wiring(format!("initialisation cycle through {}", self.names(&c)))
+        })?;
         for inst in &self.instances {
             inst.block.validate().map_err(|e| self.model_err(inst, e))?;
         }
@@ -306,11 +347,18 @@ impl Unit {
     }
 
     fn names(&self, idx: &[usize]) -> String {
-        idx.iter().map(|&i| self.instances[i].name.as_str()).collect::<Vec<_>>().join(" -> ")
+        idx.iter()
+            .map(|&i| self.instances[i].name.as_str())
+            .collect::<Vec<_>>()
+            .join(" -> ")
     }
 
     fn model_err(&self, inst: &Instance, e: ModelError) -> UnitError {
-        UnitError::Model { block: inst.name.clone(), model: inst.block.model().to_string(), source: e }
+        UnitError::Model {
+            block: inst.name.clone(),
+            model: inst.block.model().to_string(),
+            source: e,
+        }
     }
 
     /// Number of states.
@@ -323,11 +371,17 @@ impl Unit {
     }
     /// Mutable access to the block named `name`.
     pub fn block_mut(&mut self, name: &str) -> Option<&mut Box<dyn Block>> {
-        self.instances.iter_mut().find(|i| i.name == name).map(|i| &mut i.block)
+        self.instances
+            .iter_mut()
+            .find(|i| i.name == name)
+            .map(|i| &mut i.block)
     }
     /// The block named `name`.
     pub fn block(&self, name: &str) -> Option<&dyn Block> {
-        self.instances.iter().find(|i| i.name == name).map(|i| i.block.as_ref())
+        self.instances
+            .iter()
+            .find(|i| i.name == name)
+            .map(|i| i.block.as_ref())
     }
     /// Signal names in bus order.
     pub fn signal_names(&self) -> &[String] {
@@ -345,23 +399,40 @@ impl Unit {
     pub fn state_names(&self) -> Vec<String> {
         self.instances
             .iter()
-            .flat_map(|i| i.block.state_names().iter().map(move |s| format!("{}.{}", i.name, s)))
+            .flat_map(|i| {
+                i.block
+                    .state_names()
+                    .iter()
+                    .map(move |s| format!("{}.{}", i.name, s))
+            })
             .collect()
     }
 
     /// Finds a parameter by `block.name` (name or PSS/E alias).
     pub fn param(&self, path: &str) -> Result<ParamRef, UnitError> {
-        let (b, p) = path.split_once('.').ok_or_else(|| UnitError::UnknownParam(path.to_string()))?;
-        let block = self.instances.iter().position(|i| i.name == b).ok_or_else(|| UnitError::UnknownParam(path.to_string()))?;
-        let index =
-            self.instances[block].block.params().index_of(p).ok_or_else(|| UnitError::UnknownParam(path.to_string()))?;
+        let (b, p) = path
+            .split_once('.')
+            .ok_or_else(|| UnitError::UnknownParam(path.to_string()))?;
+        let block = self
+            .instances
+            .iter()
+            .position(|i| i.name == b)
+            .ok_or_else(|| UnitError::UnknownParam(path.to_string()))?;
+        let index = self.instances[block]
+            .block
+            .params()
+            .index_of(p)
+            .ok_or_else(|| UnitError::UnknownParam(path.to_string()))?;
         Ok(ParamRef { block, index })
     }
     pub fn get(&self, r: ParamRef) -> f64 {
         self.instances[r.block].block.params().get(r.index)
     }
     pub fn set(&mut self, r: ParamRef, value: f64) {
-        self.instances[r.block].block.params_mut().set(r.index, value)
+        self.instances[r.block]
+            .block
+            .params_mut()
+            .set(r.index, value)
     }
     /// Canonical `block.name` of a parameter.
     pub fn param_path(&self, r: ParamRef) -> String {
@@ -434,7 +505,8 @@ impl Unit {
         for inst in &self.instances {
             let (o, n) = (inst.x_offset, inst.block.state_names().len());
             let io = Io::new(&mut self.bus, &inst.map);
-            inst.block.derivatives(t, &x[o..o + n], &io, &mut dx[o..o + n]);
+            inst.block
+                .derivatives(t, &x[o..o + n], &io, &mut dx[o..o + n]);
         }
     }
 
@@ -478,7 +550,11 @@ impl Unit {
             }
             let (o, n) = (inst.x_offset, inst.nx());
             let io = Io::new(&mut self.bus, &inst.map);
-            inst.block.events(&x[o..o + n], &io, &mut g[inst.ev_offset..inst.ev_offset + ne]);
+            inst.block.events(
+                &x[o..o + n],
+                &io,
+                &mut g[inst.ev_offset..inst.ev_offset + ne],
+            );
         }
     }
 
@@ -574,7 +650,14 @@ pub struct Playback<'a> {
 impl<'a> Playback<'a> {
     pub fn new(unit: &'a mut Unit, input: &'a PlaybackInput) -> Self {
         let n = unit.n_states;
-        Self { unit, input, cursor: 0, bus_t: f64::NAN, bus_x: vec![0.0; n], bus_valid: false }
+        Self {
+            unit,
+            input,
+            cursor: 0,
+            bus_t: f64::NAN,
+            bus_x: vec![0.0; n],
+            bus_valid: false,
+        }
     }
     /// Evaluates all signals at `(t, x)` (for recording).
     #[inline]

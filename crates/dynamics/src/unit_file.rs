@@ -43,11 +43,18 @@ const FOREIGN_SECTIONS: [&str; 1] = ["calibration"];
 #[derive(Debug, thiserror::Error)]
 pub enum UnitFileError {
     #[error("{}: cannot read: {source}", path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{}: TOML syntax: {msg}", path.display())]
     Syntax { path: PathBuf, msg: String },
     #[error("{}: {field}: {msg}", path.display())]
-    Field { path: PathBuf, field: String, msg: String },
+    Field {
+        path: PathBuf,
+        field: String,
+        msg: String,
+    },
     #[error("{}: {source}", path.display())]
     Unit { path: PathBuf, source: UnitError },
 }
@@ -59,7 +66,10 @@ impl UnitFileError {
             UnitFileError::Io { .. } => "io",
             UnitFileError::Syntax { .. } => "syntax",
             UnitFileError::Field { .. } => "field",
-            UnitFileError::Unit { source: UnitError::Model { .. }, .. } => "model",
+            UnitFileError::Unit {
+                source: UnitError::Model { .. },
+                ..
+            } => "model",
             UnitFileError::Unit { .. } => "wiring",
         }
     }
@@ -67,27 +77,42 @@ impl UnitFileError {
 
 /// Reads a unit file.
 pub fn read_unit(path: &Path) -> Result<Unit, UnitFileError> {
-    let text = std::fs::read_to_string(path).map_err(|e| UnitFileError::Io { path: path.into(), source: e })?;
+    let text = std::fs::read_to_string(path).map_err(|e| UnitFileError::Io {
+        path: path.into(),
+        source: e,
+    })?;
     parse_unit(&text, path)
 }
 
 /// Parses unit-file text; `path` is used in messages.
 pub fn parse_unit(text: &str, path: &Path) -> Result<Unit, UnitFileError> {
-    let field = |f: &str, msg: String| UnitFileError::Field { path: path.into(), field: f.to_string(), msg };
-    let table: toml::Table = text.parse().map_err(|e: toml::de::Error| UnitFileError::Syntax {
+    let field = |f: &str, msg: String| UnitFileError::Field {
         path: path.into(),
-        msg: e.to_string().trim().replace('\n', " "),
-    })?;
+        field: f.to_string(),
+        msg,
+    };
+    let table: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| UnitFileError::Syntax {
+            path: path.into(),
+            msg: e.to_string().trim().replace('\n', " "),
+        })?;
     for key in table.keys() {
         let known = ["name", "description", "machine_mva", "nominal_hz", "block"];
-        if !known.contains(&key.as_str()) && !ROLE_SECTIONS.contains(&key.as_str()) && !FOREIGN_SECTIONS.contains(&key.as_str()) {
+        if !known.contains(&key.as_str())
+            && !ROLE_SECTIONS.contains(&key.as_str())
+            && !FOREIGN_SECTIONS.contains(&key.as_str())
+        {
             return Err(field(key, "unknown key (expected name, description, machine_mva, nominal_hz, [machine], [exciter], [pss], [governor], [[block]], [calibration])".into()));
         }
     }
     let name = match table.get("name") {
         Some(toml::Value::String(s)) => s.clone(),
         Some(_) => return Err(field("name", "must be a string".into())),
-        None => path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+        None => path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
     };
     let number = |key: &str| -> Result<f64, UnitFileError> {
         match table.get(key) {
@@ -97,33 +122,57 @@ pub fn parse_unit(text: &str, path: &Path) -> Result<Unit, UnitFileError> {
     };
     let machine_mva = number("machine_mva")?;
     if !(machine_mva > 0.0 && machine_mva.is_finite()) {
-        return Err(field("machine_mva", format!("must be > 0 (got {machine_mva})")));
+        return Err(field(
+            "machine_mva",
+            format!("must be > 0 (got {machine_mva})"),
+        ));
     }
     let nominal_hz = number("nominal_hz")?;
     if !(nominal_hz > 0.0 && nominal_hz.is_finite()) {
-        return Err(field("nominal_hz", format!("must be > 0 (got {nominal_hz})")));
+        return Err(field(
+            "nominal_hz",
+            format!("must be > 0 (got {nominal_hz})"),
+        ));
     }
     let mut unit = Unit::new(&name, machine_mva, nominal_hz);
     if let Some(d) = table.get("description") {
-        unit.description = d.as_str().ok_or_else(|| field("description", "must be a string".into()))?.to_string();
+        unit.description = d
+            .as_str()
+            .ok_or_else(|| field("description", "must be a string".into()))?
+            .to_string();
     }
     if !table.contains_key("machine") {
-        return Err(field("machine", "missing: a unit needs a [machine] section".into()));
+        return Err(field(
+            "machine",
+            "missing: a unit needs a [machine] section".into(),
+        ));
     }
     for section in ROLE_SECTIONS {
         if let Some(v) = table.get(section) {
-            let t = v.as_table().ok_or_else(|| field(section, "must be a table".into()))?;
+            let t = v
+                .as_table()
+                .ok_or_else(|| field(section, "must be a table".into()))?;
             add_block(&mut unit, section, section, t, path)?;
         }
     }
     if let Some(v) = table.get("block") {
-        let arr = v.as_array().ok_or_else(|| field("block", "must be an array of tables ([[block]])".into()))?;
+        let arr = v
+            .as_array()
+            .ok_or_else(|| field("block", "must be an array of tables ([[block]])".into()))?;
         for (k, item) in arr.iter().enumerate() {
             let ctx = format!("block[{k}]");
-            let t = item.as_table().ok_or_else(|| field(&ctx, "must be a table".into()))?;
-            let bname = t.get("name").and_then(|v| v.as_str()).ok_or_else(|| field(&ctx, "needs name = \"...\"".into()))?;
+            let t = item
+                .as_table()
+                .ok_or_else(|| field(&ctx, "must be a table".into()))?;
+            let bname = t
+                .get("name")
+                .and_then(|v| v.as_str())
+                .ok_or_else(|| field(&ctx, "needs name = \"...\"".into()))?;
             if ROLE_SECTIONS.contains(&bname) {
-                return Err(field(&ctx, format!("name '{bname}' is reserved for the [{bname}] section")));
+                return Err(field(
+                    &ctx,
+                    format!("name '{bname}' is reserved for the [{bname}] section"),
+                ));
             }
             add_block(&mut unit, bname, &ctx, t, path)?;
         }
@@ -131,10 +180,16 @@ pub fn parse_unit(text: &str, path: &Path) -> Result<Unit, UnitFileError> {
     // GENCLS has no field winding.
     if let (Some(m), Some(_)) = (unit.block("machine"), unit.block("exciter")) {
         if m.model() == "GENCLS" {
-            return Err(field("exciter", "GENCLS has no field winding: an exciter cannot be attached".into()));
+            return Err(field(
+                "exciter",
+                "GENCLS has no field winding: an exciter cannot be attached".into(),
+            ));
         }
     }
-    unit.finish().map_err(|e| UnitFileError::Unit { path: path.into(), source: e })?;
+    unit.finish().map_err(|e| UnitFileError::Unit {
+        path: path.into(),
+        source: e,
+    })?;
     Ok(unit)
 }
 
@@ -146,14 +201,30 @@ fn as_f64(v: &toml::Value) -> Option<f64> {
     }
 }
 
-fn add_block(unit: &mut Unit, name: &str, ctx: &str, t: &toml::Table, path: &Path) -> Result<(), UnitFileError> {
-    let field = |f: String, msg: String| UnitFileError::Field { path: path.into(), field: f, msg };
-    let model = t
-        .get("model")
-        .and_then(|v| v.as_str())
-        .ok_or_else(|| field(format!("{ctx}.model"), format!("missing (one of: {})", registry::names())))?;
-    let info = registry::find(model)
-        .ok_or_else(|| field(format!("{ctx}.model"), format!("unknown model '{model}' (known: {})", registry::names())))?;
+fn add_block(
+    unit: &mut Unit,
+    name: &str,
+    ctx: &str,
+    t: &toml::Table,
+    path: &Path,
+) -> Result<(), UnitFileError> {
+    let field = |f: String, msg: String| UnitFileError::Field {
+        path: path.into(),
+        field: f,
+        msg,
+    };
+    let model = t.get("model").and_then(|v| v.as_str()).ok_or_else(|| {
+        field(
+            format!("{ctx}.model"),
+            format!("missing (one of: {})", registry::names()),
+        )
+    })?;
+    let info = registry::find(model).ok_or_else(|| {
+        field(
+            format!("{ctx}.model"),
+            format!("unknown model '{model}' (known: {})", registry::names()),
+        )
+    })?;
     let expected_role = match name {
         "machine" => Some(Role::Machine),
         "exciter" => Some(Role::Exciter),
@@ -165,15 +236,27 @@ fn add_block(unit: &mut Unit, name: &str, ctx: &str, t: &toml::Table, path: &Pat
         if info.role != r {
             return Err(field(
                 format!("{ctx}.model"),
-                format!("{} is a {} model, not a {} model", info.name, info.role.section(), r.section()),
+                format!(
+                    "{} is a {} model, not a {} model",
+                    info.name,
+                    info.role.section(),
+                    r.section()
+                ),
             ));
         }
     }
     if expected_role.is_none() && info.role == Role::Machine {
-        return Err(field(format!("{ctx}.model"), "a machine goes in the [machine] section".into()));
+        return Err(field(
+            format!("{ctx}.model"),
+            "a machine goes in the [machine] section".into(),
+        ));
     }
     let (block, rewire) = build_block(info, ctx, t).map_err(|(f, msg)| field(f, msg))?;
-    unit.add(name, block, &rewire).map_err(|e| UnitFileError::Unit { path: path.into(), source: e })
+    unit.add(name, block, &rewire)
+        .map_err(|e| UnitFileError::Unit {
+            path: path.into(),
+            source: e,
+        })
 }
 
 /// A block built from a table, with its `(port, signal)` rewiring.
@@ -195,19 +278,35 @@ pub fn build_block(
         match key.as_str() {
             "model" | "name" => {}
             "wiring" => {
-                let w = value.as_table().ok_or_else(|| (f.clone(), "must be a table { port = \"signal\" }".to_string()))?;
+                let w = value.as_table().ok_or_else(|| {
+                    (
+                        f.clone(),
+                        "must be a table { port = \"signal\" }".to_string(),
+                    )
+                })?;
                 for (port, sig) in w {
-                    let s = sig.as_str().ok_or_else(|| (format!("{f}.{port}"), "must be a signal name".to_string()))?;
+                    let s = sig.as_str().ok_or_else(|| {
+                        (format!("{f}.{port}"), "must be a signal name".to_string())
+                    })?;
                     rewire.push((port.clone(), s.to_string()));
                 }
             }
             _ => match value {
-                toml::Value::String(s) => block.set_option(key, s).map_err(|e| (f.clone(), e.to_string()))?,
+                toml::Value::String(s) => block
+                    .set_option(key, s)
+                    .map_err(|e| (f.clone(), e.to_string()))?,
                 v => {
                     let x = as_f64(v).ok_or_else(|| (f.clone(), "must be a number".to_string()))?;
                     let idx = block.params().index_of(key).ok_or_else(|| {
                         let names: Vec<_> = block.params().specs().iter().map(|s| s.name).collect();
-                        (f.clone(), format!("unknown parameter of {} (parameters: {})", info.name, names.join(", ")))
+                        (
+                            f.clone(),
+                            format!(
+                                "unknown parameter of {} (parameters: {})",
+                                info.name,
+                                names.join(", ")
+                            ),
+                        )
                     })?;
                     if given[idx] {
                         return Err((f.clone(), "given twice (by name and by alias?)".to_string()));
@@ -229,9 +328,18 @@ pub fn build_block(
         .map(|(s, _)| format!("{} ({}, {} [{}])", s.name, s.alias, s.doc, s.unit))
         .collect();
     if !missing.is_empty() {
-        return Err((ctx.to_string(), format!("{} needs these parameters: {}", info.name, missing.join("; "))));
+        return Err((
+            ctx.to_string(),
+            format!(
+                "{} needs these parameters: {}",
+                info.name,
+                missing.join("; ")
+            ),
+        ));
     }
-    block.validate().map_err(|e| (ctx.to_string(), format!("{}: {e}", info.name)))?;
+    block
+        .validate()
+        .map_err(|e| (ctx.to_string(), format!("{}: {e}", info.name)))?;
     Ok((block, rewire))
 }
 
@@ -258,7 +366,14 @@ pub fn unit_to_toml(unit: &Unit) -> String {
         }
         let ps = b.params();
         for (i, spec) in ps.specs().iter().enumerate() {
-            let _ = writeln!(s, "{} = {:?}  # {} [{}]", spec.name, ps.get(i), spec.doc, spec.unit);
+            let _ = writeln!(
+                s,
+                "{} = {:?}  # {} [{}]",
+                spec.name,
+                ps.get(i),
+                spec.doc,
+                spec.unit
+            );
         }
         let rew: Vec<String> = b
             .ports()
@@ -308,9 +423,14 @@ model = "constant_pm"
         let u = parse_unit(GOOD, Path::new("u.toml")).unwrap();
         let text = unit_to_toml(&u);
         let v = parse_unit(&text, Path::new("again.toml")).unwrap();
-        assert_eq!(u.params().iter().map(|p| p.2).collect::<Vec<_>>(), v.params().iter().map(|p| p.2).collect::<Vec<_>>());
+        assert_eq!(
+            u.params().iter().map(|p| p.2).collect::<Vec<_>>(),
+            v.params().iter().map(|p| p.2).collect::<Vec<_>>()
+        );
         // PSS/E aliases are accepted.
-        let aliased = GOOD.replace("x_d_prime = 0.3", "Xpd = 0.3").replace("h = 4.0", "H = 4.0");
+        let aliased = GOOD
+            .replace("x_d_prime = 0.3", "Xpd = 0.3")
+            .replace("h = 4.0", "H = 4.0");
         parse_unit(&aliased, Path::new("u.toml")).unwrap();
     }
 
@@ -341,7 +461,10 @@ model = "constant_pm"
             let msg = e.to_string();
             assert_eq!(e.kind(), kind, "{what}: {msg}");
             assert!(msg.starts_with("u.toml"), "{what}: {msg}");
-            assert!(msg.contains(mention), "{what}: '{msg}' should mention {mention}");
+            assert!(
+                msg.contains(mention),
+                "{what}: '{msg}' should mention {mention}"
+            );
         }
     }
 

@@ -15,7 +15,9 @@ use itaipu_dynamics::simulate::{simulate, SimOptions, Traces};
 use itaipu_dynamics::unit_file::read_unit;
 
 fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data").join(rel)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data")
+        .join(rel)
 }
 
 struct Reference {
@@ -28,7 +30,9 @@ impl Reference {
         let text = std::fs::read_to_string(data(&format!("andes/{case}_ref.csv"))).unwrap();
         let mut lines = text.lines();
         let names = lines.next().unwrap().split(',').map(String::from).collect();
-        let rows = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+        let rows = lines
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect();
         Self { names, rows }
     }
     fn col(&self, name: &str) -> Vec<f64> {
@@ -72,15 +76,37 @@ struct Errors {
 fn compare(case: &str, unit_file: &str, guard_s: Option<f64>) -> Errors {
     let event = Event::from_toml_file(&data(&format!("andes/{case}.toml"))).unwrap();
     let unit = read_unit(&data(&format!("andes/{unit_file}"))).unwrap();
-    let opts = SimOptions { method: Method::Dopri5(Dopri5Options { rtol: 1e-8, atol: 1e-10, h_max: 0.01, ..Default::default() }) };
+    let opts = SimOptions {
+        method: Method::Dopri5(Dopri5Options {
+            rtol: 1e-8,
+            atol: 1e-10,
+            h_max: 0.01,
+            ..Default::default()
+        }),
+    };
     let tr: Traces = simulate(&unit, &event, &opts).unwrap();
     let reference = Reference::load(case);
     assert_eq!(reference.rows.len(), tr.time_s.len());
     let switches = switching_instants(&reference);
-    let (speed, efd, pm, vpss, delta) =
-        (reference.col("speed_pu"), reference.col("efd_pu"), reference.col("pm_pu"), reference.col("vpss_pu"), reference.col("delta_deg"));
+    let (speed, efd, pm, vpss, delta) = (
+        reference.col("speed_pu"),
+        reference.col("efd_pu"),
+        reference.col("pm_pu"),
+        reference.col("vpss_pu"),
+        reference.col("delta_deg"),
+    );
     let g = |n: &str| tr.get(n).unwrap();
-    let mut e = Errors { p: 0.0, q: 0.0, speed: 0.0, efd: 0.0, pm: 0.0, vpss: 0.0, delta_deg: 0.0, compared: 0, excluded: 0 };
+    let mut e = Errors {
+        p: 0.0,
+        q: 0.0,
+        speed: 0.0,
+        efd: 0.0,
+        pm: 0.0,
+        vpss: 0.0,
+        delta_deg: 0.0,
+        compared: 0,
+        excluded: 0,
+    };
     for k in 0..tr.time_s.len() {
         let t = tr.time_s[k];
         if guard_s.is_some_and(|g| switches.iter().any(|s| t >= s - 0.002 && t <= s + g)) {
@@ -94,7 +120,9 @@ fn compare(case: &str, unit_file: &str, guard_s: Option<f64>) -> Errors {
         e.efd = e.efd.max((g("efd")[k] - efd[k]).abs());
         e.pm = e.pm.max((g("pm")[k] - pm[k]).abs());
         e.vpss = e.vpss.max((g("vs")[k] - vpss[k]).abs());
-        e.delta_deg = e.delta_deg.max((g("delta")[k].to_degrees() - delta[k]).abs());
+        e.delta_deg = e
+            .delta_deg
+            .max((g("delta")[k].to_degrees() - delta[k]).abs());
     }
     println!(
         "{case} {unit_file}: max |dP| {:.2e}, |dQ| {:.2e}, |dspeed| {:.2e}, |dEfd| {:.2e}, |dPm| {:.2e}, |dVpss| {:.2e}, |ddelta| {:.3} deg ({} rows compared, {} excluded)",
@@ -111,16 +139,46 @@ fn compare(case: &str, unit_file: &str, guard_s: Option<f64>) -> Errors {
 fn check(case: &str) {
     for unit in ["unit_genrou.toml", "unit_gensal.toml"] {
         let e = compare(case, unit, Some(0.005));
-        assert!(e.p < 4e-4 && e.q < 4e-4, "{case} {unit}: P/Q vs ANDES: {:e} {:e}", e.p, e.q);
-        assert!(e.speed < 3e-6, "{case} {unit}: speed vs ANDES: {:e}", e.speed);
+        assert!(
+            e.p < 4e-4 && e.q < 4e-4,
+            "{case} {unit}: P/Q vs ANDES: {:e} {:e}",
+            e.p,
+            e.q
+        );
+        assert!(
+            e.speed < 3e-6,
+            "{case} {unit}: speed vs ANDES: {:e}",
+            e.speed
+        );
         assert!(e.efd < 2e-3, "{case} {unit}: Efd vs ANDES: {:e}", e.efd);
         assert!(e.pm < 1e-5, "{case} {unit}: Pm vs ANDES: {:e}", e.pm);
-        assert!(e.vpss < 3e-4, "{case} {unit}: PSS output vs ANDES: {:e}", e.vpss);
-        assert!(e.delta_deg < 0.01, "{case} {unit}: delta vs ANDES: {} deg", e.delta_deg);
-        assert!(e.compared > 9_900, "{case}: too many rows excluded ({})", e.excluded);
+        assert!(
+            e.vpss < 3e-4,
+            "{case} {unit}: PSS output vs ANDES: {:e}",
+            e.vpss
+        );
+        assert!(
+            e.delta_deg < 0.01,
+            "{case} {unit}: delta vs ANDES: {} deg",
+            e.delta_deg
+        );
+        assert!(
+            e.compared > 9_900,
+            "{case}: too many rows excluded ({})",
+            e.excluded
+        );
         let all = compare(case, unit, None);
-        assert!(all.p < 4e-4 && all.q < 4e-4, "{case} {unit}: P/Q vs ANDES over every row: {:e} {:e}", all.p, all.q);
-        assert!(all.efd < 1e-2, "{case} {unit}: Efd vs ANDES over every row: {:e}", all.efd);
+        assert!(
+            all.p < 4e-4 && all.q < 4e-4,
+            "{case} {unit}: P/Q vs ANDES over every row: {:e} {:e}",
+            all.p,
+            all.q
+        );
+        assert!(
+            all.efd < 1e-2,
+            "{case} {unit}: Efd vs ANDES over every row: {:e}",
+            all.efd
+        );
     }
 }
 
@@ -141,10 +199,18 @@ fn the_swing_convention_is_visible_in_the_fault_case() {
     let text = std::fs::read_to_string(data("andes/unit_genrou.toml")).unwrap();
     let pss_e = text.replace("swing = \"pm_is_torque\"", "swing = \"pm_over_speed\"");
     assert_ne!(text, pss_e);
-    let unit = itaipu_dynamics::unit_file::parse_unit(&pss_e, std::path::Path::new("pss_e.toml")).unwrap();
+    let unit =
+        itaipu_dynamics::unit_file::parse_unit(&pss_e, std::path::Path::new("pss_e.toml")).unwrap();
     let event = Event::from_toml_file(&data("andes/fault.toml")).unwrap();
     let tr = simulate(&unit, &event, &SimOptions::default()).unwrap();
     let (p, pm) = (tr.get("p_pu").unwrap(), tr.get("p_meas_pu").unwrap());
-    let worst = p.iter().zip(pm).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-    assert!(worst > 5e-3, "the torque convention should matter here (max dP {worst:e})");
+    let worst = p
+        .iter()
+        .zip(pm)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        worst > 5e-3,
+        "the torque convention should matter here (max dP {worst:e})"
+    );
 }

@@ -26,7 +26,11 @@ const BASE: &str = include_str!("../../../data/synthetic/unit_gensae_sexs_stab3_
 
 /// Replaces exactly one occurrence of `from` in `text`.
 fn edit(text: &str, from: &str, to: &str) -> String {
-    assert_eq!(text.matches(from).count(), 1, "'{from}' must occur once in the unit text");
+    assert_eq!(
+        text.matches(from).count(),
+        1,
+        "'{from}' must occur once in the unit text"
+    );
     text.replacen(from, to, 1)
 }
 
@@ -37,7 +41,11 @@ fn unit(text: &str) -> Unit {
 /// The base unit with the machine inertia split: machine.h = H_g, plus the shaft block.
 fn shaft_text(h_t: f64, f_hz: f64, zeta: f64, d_t: f64) -> String {
     let h_g = 4.5 - h_t;
-    let t = edit(BASE, "h = 4.5\n", &format!("h = {h_g}\nwiring = {{ pm = \"p_shaft\" }}\n"));
+    let t = edit(
+        BASE,
+        "h = 4.5\n",
+        &format!("h = {h_g}\nwiring = {{ pm = \"p_shaft\" }}\n"),
+    );
     format!(
         "{t}\n[[block]]\nname = \"shaft\"\nmodel = \"two_mass_shaft\"\nh_turbine = {h_t}\nh_generator = {h_g}\n\
          f_torsion_hz = {f_hz}\nzeta = {zeta}\nd_turbine = {d_t}\n"
@@ -45,12 +53,24 @@ fn shaft_text(h_t: f64, f_hz: f64, zeta: f64, d_t: f64) -> String {
 }
 
 fn deadband_text(db: f64) -> String {
-    let t = edit(BASE, "model = \"HYGOV\"\n", "model = \"HYGOV\"\nwiring = { speed = \"speed_db\" }\n");
+    let t = edit(
+        BASE,
+        "model = \"HYGOV\"\n",
+        "model = \"HYGOV\"\nwiring = { speed = \"speed_db\" }\n",
+    );
     format!("{t}\n[[block]]\nname = \"deadband\"\nmodel = \"speed_deadband\"\ndb = {db}\n")
 }
 
 #[allow(clippy::too_many_arguments)]
-fn oel_text(ifd_rated: f64, i_pickup: f64, i_limit: f64, a_max: f64, k_cool: f64, k_i: f64, voel_min: f64) -> String {
+fn oel_text(
+    ifd_rated: f64,
+    i_pickup: f64,
+    i_limit: f64,
+    a_max: f64,
+    k_cool: f64,
+    k_i: f64,
+    voel_min: f64,
+) -> String {
     format!(
         "{BASE}\n[[block]]\nname = \"oel\"\nmodel = \"oel\"\nifd_rated = {ifd_rated}\ni_pickup = {i_pickup}\n\
          i_limit = {i_limit}\na_max = {a_max}\nk_cool = {k_cool}\nk_i = {k_i}\nvoel_min = {voel_min}\n"
@@ -59,16 +79,30 @@ fn oel_text(ifd_rated: f64, i_pickup: f64, i_limit: f64, a_max: f64, k_cool: f64
 
 /// The base unit with SEXS's constant limits replaced.
 fn sexs_text(e_min: f64, e_max: f64) -> String {
-    edit(BASE, "e_min = 0.0\ne_max = 4.5\n", &format!("e_min = {e_min}\ne_max = {e_max}\n"))
+    edit(
+        BASE,
+        "e_min = 0.0\ne_max = 4.5\n",
+        &format!("e_min = {e_min}\ne_max = {e_max}\n"),
+    )
 }
 
 fn bus_fed_text(vr_min: f64, vr_max: f64, k_c: f64) -> String {
     let t = edit(BASE, "model = \"SEXS\"\n", "model = \"SEXS_bus_fed\"\n");
-    edit(&t, "e_min = 0.0\ne_max = 4.5\n", &format!("vr_min = {vr_min}\nvr_max = {vr_max}\nk_c = {k_c}\n"))
+    edit(
+        &t,
+        "e_min = 0.0\ne_max = 4.5\n",
+        &format!("vr_min = {vr_min}\nvr_max = {vr_max}\nk_c = {k_c}\n"),
+    )
 }
 
 fn op(p: f64, q: f64, v: f64, ang_deg: f64, f_hz: f64) -> InitPoint {
-    InitPoint { v_mag: v, v_ang: ang_deg.to_radians(), p, q, speed_dev: (f_hz - 60.0) / 60.0 }
+    InitPoint {
+        v_mag: v,
+        v_ang: ang_deg.to_radians(),
+        p,
+        q,
+        speed_dev: (f_hz - 60.0) / 60.0,
+    }
 }
 
 fn operating_points() -> Vec<(&'static str, InitPoint)> {
@@ -82,7 +116,9 @@ fn operating_points() -> Vec<(&'static str, InitPoint)> {
 
 /// Max |dx/dt| at t = 0 (δ: minus its exact ramp ω_b Δω0) and the worst state.
 fn worst_derivative(u: &mut Unit, op: &InitPoint) -> (f64, String) {
-    let x = u.initialise(op).unwrap_or_else(|e| panic!("init failed: {e}"));
+    let x = u
+        .initialise(op)
+        .unwrap_or_else(|e| panic!("init failed: {e}"));
     let w_b = 2.0 * std::f64::consts::PI * 60.0;
     let input = PlaybackInput {
         time_s: vec![0.0, 1.0],
@@ -95,7 +131,11 @@ fn worst_derivative(u: &mut Unit, op: &InitPoint) -> (f64, String) {
     sys.rhs(0.0, &x, &mut dx);
     let mut worst = (0.0, String::new());
     for (k, d) in dx.iter().enumerate() {
-        let d = if names[k] == "machine.delta" { d - w_b * op.speed_dev } else { *d };
+        let d = if names[k] == "machine.delta" {
+            d - w_b * op.speed_dev
+        } else {
+            *d
+        };
         assert!(d.is_finite(), "{} derivative is not finite", names[k]);
         if d.abs() > worst.0 {
             worst = (d.abs(), names[k].clone());
@@ -105,18 +145,33 @@ fn worst_derivative(u: &mut Unit, op: &InitPoint) -> (f64, String) {
 }
 
 fn rk4() -> SimOptions {
-    SimOptions { method: Method::Rk4 { h: 1e-3 } }
+    SimOptions {
+        method: Method::Rk4 { h: 1e-3 },
+    }
 }
 
 fn tight() -> SimOptions {
     SimOptions {
-        method: Method::Dopri5(Dopri5Options { rtol: 1e-9, atol: 1e-11, h_max: 0.01, ..Default::default() }),
+        method: Method::Dopri5(Dopri5Options {
+            rtol: 1e-9,
+            atol: 1e-11,
+            h_max: 0.01,
+            ..Default::default()
+        }),
     }
 }
 
 /// An event made by playing `profile` into the base unit (no noise).
 fn event(profile: &VoltageProfile) -> Event {
-    synthesize("ext", &unit(BASE), profile, 1000.0, &PmuNoise::none(), &SimOptions::default()).unwrap()
+    synthesize(
+        "ext",
+        &unit(BASE),
+        profile,
+        1000.0,
+        &PmuNoise::none(),
+        &SimOptions::default(),
+    )
+    .unwrap()
 }
 
 fn sim(text: &str, ev: &Event, opts: &SimOptions) -> Traces {
@@ -128,7 +183,10 @@ fn col<'a>(tr: &'a Traces, name: &str) -> &'a [f64] {
 }
 
 fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
 }
 
 /// Max |ΔP|, |ΔQ| (system base) between two trace sets.
@@ -182,9 +240,15 @@ fn extension_outputs_start_at_their_steady_values() {
 #[test]
 fn an_oel_already_above_pickup_or_an_unreachable_ceiling_is_an_init_error() {
     let (_, op0) = operating_points()[0];
-    let err = unit(&oel_text(1.0, 1.05, 1.02, 0.7, 0.05, 0.02, -0.3)).initialise(&op0).unwrap_err().to_string();
+    let err = unit(&oel_text(1.0, 1.05, 1.02, 0.7, 0.05, 0.02, -0.3))
+        .initialise(&op0)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("oel") && err.contains("pickup"), "{err}");
-    let err = unit(&bus_fed_text(0.0, 1.5, 0.15)).initialise(&op0).unwrap_err().to_string();
+    let err = unit(&bus_fed_text(0.0, 1.5, 0.15))
+        .initialise(&op0)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("exciter") && err.contains("VRMAX"), "{err}");
 }
 
@@ -201,7 +265,14 @@ fn inert_extensions_reproduce_the_base_unit() {
     eprintln!("speed_deadband db = 0: max |ΔP|, |ΔQ| = {d:.2e}");
     assert!(d < 1e-6, "deadband {d:e}");
 
-    let d = pq_diff(&sim(&oel_text(2.6, 3.0, 2.9, 100.0, 0.05, 0.02, -0.3), &ev, &opts), &base);
+    let d = pq_diff(
+        &sim(
+            &oel_text(2.6, 3.0, 2.9, 100.0, 0.05, 0.02, -0.3),
+            &ev,
+            &opts,
+        ),
+        &base,
+    );
     eprintln!("oel, pickup far above: max |ΔP|, |ΔQ| = {d:.2e}");
     assert!(d < 1e-6, "oel {d:e}");
 
@@ -212,7 +283,10 @@ fn inert_extensions_reproduce_the_base_unit() {
     assert!(d < 1e-6, "bus-fed {d:e}");
     // And the base unit does reach its ceiling on this event, so the comparison above is the
     // honest one (a constant E_MAX = 4.5 clips).
-    assert!(col(&base, "efd").iter().any(|&e| e >= 4.5 - 1e-9), "base unit never reaches E_MAX");
+    assert!(
+        col(&base, "efd").iter().any(|&e| e >= 4.5 - 1e-9),
+        "base unit never reaches E_MAX"
+    );
 
     // A light, very stiff shaft (H_t = 0.01 s of the 4.5 s, ζ = 0.7): the two masses move as one.
     // Stiffness is what makes it inert, not lightness: the turbine's own self-regulation
@@ -223,9 +297,14 @@ fn inert_extensions_reproduce_the_base_unit() {
     let base = sim(BASE, &ev, &opts);
     let d200 = pq_diff(&sim(&shaft_text(0.01, 200.0, 0.7, 0.0), &ev, &opts), &base);
     let d400 = pq_diff(&sim(&shaft_text(0.01, 400.0, 0.7, 0.0), &ev, &opts), &base);
-    eprintln!("two_mass_shaft, H_t = 0.01 s: max |ΔP|, |ΔQ| = {d200:.2e} at 200 Hz, {d400:.2e} at 400 Hz");
+    eprintln!(
+        "two_mass_shaft, H_t = 0.01 s: max |ΔP|, |ΔQ| = {d200:.2e} at 200 Hz, {d400:.2e} at 400 Hz"
+    );
     assert!(d400 < 1e-6, "shaft {d400:e}");
-    assert!(d400 < d200 / 3.0, "the difference must vanish as the shaft stiffens (∝ 1/f²)");
+    assert!(
+        d400 < d200 / 3.0,
+        "the difference must vanish as the shaft stiffens (∝ 1/f²)"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -277,13 +356,23 @@ fn torsional_mode_appears_at_the_designed_frequency() {
              (error {:+.2} %), max |Δω_t − Δω_g| = {amp:.2e} pu",
             100.0 * err
         );
-        assert!(err.abs() < 0.03, "torsional frequency {f} Hz vs designed {f_tor} Hz");
+        assert!(
+            err.abs() < 0.03,
+            "torsional frequency {f} Hz vs designed {f_tor} Hz"
+        );
         assert!(amp > 1e-6, "the dip must excite the mode");
         // The mode is damped: the late oscillation is smaller than the early one.
         let window_max = |a: f64, b: f64| {
-            tr.time_s.iter().zip(&rel).filter(|(t, _)| **t >= a && **t < b).fold(0.0f64, |m, (_, v)| m.max(v.abs()))
+            tr.time_s
+                .iter()
+                .zip(&rel)
+                .filter(|(t, _)| **t >= a && **t < b)
+                .fold(0.0f64, |m, (_, v)| m.max(v.abs()))
         };
-        assert!(window_max(3.0, 3.5) < window_max(1.2, 1.7), "torsional oscillation must decay");
+        assert!(
+            window_max(3.0, 3.5) < window_max(1.2, 1.7),
+            "torsional oscillation must decay"
+        );
     }
 }
 
@@ -310,11 +399,17 @@ fn pm_change(text: &str, freq_dev_hz: f64) -> f64 {
 #[test]
 fn deadband_removes_governor_action_for_small_deviations_only() {
     let db = 0.0003; // 0.018 Hz at 60 Hz
-    // Small: −0.01 Hz (Δω = −1.7e-4 pu, inside the band).
+                     // Small: −0.01 Hz (Δω = −1.7e-4 pu, inside the band).
     let (free, banded) = (pm_change(BASE, -0.01), pm_change(&deadband_text(db), -0.01));
     eprintln!("speed_deadband, −0.01 Hz: ΔP_m without {free:.3e}, with {banded:.3e}");
-    assert!(free > 2e-3, "the governor must respond without a deadband ({free:e})");
-    assert!(banded.abs() < 1e-9, "inside the band the governor must not act ({banded:e})");
+    assert!(
+        free > 2e-3,
+        "the governor must respond without a deadband ({free:e})"
+    );
+    assert!(
+        banded.abs() < 1e-9,
+        "inside the band the governor must not act ({banded:e})"
+    );
     // Large: −0.2 Hz (Δω = −3.3e-3 pu): the response shrinks only by the band's share.
     let dw: f64 = 0.2 / 60.0;
     let (free, banded) = (pm_change(BASE, -0.2), pm_change(&deadband_text(db), -0.2));
@@ -322,7 +417,10 @@ fn deadband_removes_governor_action_for_small_deviations_only() {
     let expected = (dw - db) / dw;
     eprintln!("speed_deadband, −0.2 Hz: ΔP_m without {free:.4e}, with {banded:.4e}, ratio {ratio:.4} (expected {expected:.4})");
     assert!(free > 0.04, "{free:e}");
-    assert!((ratio - expected).abs() < 0.02, "ratio {ratio} vs {expected}");
+    assert!(
+        (ratio - expected).abs() < 0.02,
+        "ratio {ratio} vs {expected}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -352,10 +450,18 @@ fn oel_acts_only_on_a_sustained_overload_and_pulls_the_field_current_back() {
     let tr = sim(&text, &ev, &SimOptions::default());
     let i_max = col(&tr, "xadifd").iter().fold(0.0f64, |m, v| m.max(*v)) / rated;
     let a_peak = col(&tr, "oel.a").iter().fold(0.0f64, |m, v| m.max(*v));
-    eprintln!("oel, short dip: max I = {i_max:.3} pu of rated, peak A = {a_peak:.3} (A_max {a_max})");
-    assert!(i_max > i_pu, "the short dip must cross the pickup ({i_max})");
+    eprintln!(
+        "oel, short dip: max I = {i_max:.3} pu of rated, peak A = {a_peak:.3} (A_max {a_max})"
+    );
+    assert!(
+        i_max > i_pu,
+        "the short dip must cross the pickup ({i_max})"
+    );
     assert!(a_peak > 0.0 && a_peak < a_max);
-    assert!(col(&tr, "voel").iter().all(|&v| v == 0.0), "a short overload must not activate the OEL");
+    assert!(
+        col(&tr, "voel").iter().all(|&v| v == 0.0),
+        "a short overload must not activate the OEL"
+    );
     // Only the heating/cooling events (extra step ends) distinguish it from the base unit.
     let d = pq_diff(&sim(&text, &ev, &rk4()), &sim(BASE, &ev, &rk4()));
     eprintln!("oel, short dip: max |ΔP|, |ΔQ| against the base unit = {d:.2e}");
@@ -382,12 +488,20 @@ fn oel_acts_only_on_a_sustained_overload_and_pulls_the_field_current_back() {
     let i_with: Vec<f64> = col(&with, "xadifd").iter().map(|v| v / rated).collect();
     let i_without: Vec<f64> = col(&without, "xadifd").iter().map(|v| v / rated).collect();
     let voel = col(&with, "voel");
-    let k_pick = i_with.iter().position(|&i| i > i_pu).expect("overload must cross the pickup");
-    let k_act = voel.iter().position(|&v| v < 0.0).expect("the OEL must activate");
+    let k_pick = i_with
+        .iter()
+        .position(|&i| i > i_pu)
+        .expect("overload must cross the pickup");
+    let k_act = voel
+        .iter()
+        .position(|&v| v < 0.0)
+        .expect("the OEL must activate");
     // I²t between pickup and activation: A_max (the accumulator starts at 0).
     let mut a = 0.0;
     for k in k_pick..k_act {
-        a += 0.5 * (t[k + 1] - t[k]) * (i_with[k].powi(2) + i_with[k + 1].powi(2) - 2.0 * i_pu * i_pu).max(0.0);
+        a += 0.5
+            * (t[k + 1] - t[k])
+            * (i_with[k].powi(2) + i_with[k + 1].powi(2) - 2.0 * i_pu * i_pu).max(0.0);
     }
     let k_end = t.iter().position(|&s| s >= 40.9).unwrap();
     eprintln!(
@@ -400,13 +514,32 @@ fn oel_acts_only_on_a_sustained_overload_and_pulls_the_field_current_back() {
         i_without[k_end],
         voel.iter().fold(0.0f64, |m, v| m.min(*v))
     );
-    assert!(t[k_act] > t[k_pick] + 0.1, "activation must wait for the I²t capacity");
-    assert!((a - a_max).abs() < 0.1 * a_max, "activated after ∫ = {a}, A_max = {a_max}");
-    assert!(i_without[k_end] > i_lim + 0.1, "without the OEL the overload persists");
-    assert!((i_with[k_end] - i_lim).abs() < 0.1, "the OEL must pull I back to I_lim ({})", i_with[k_end]);
+    assert!(
+        t[k_act] > t[k_pick] + 0.1,
+        "activation must wait for the I²t capacity"
+    );
+    assert!(
+        (a - a_max).abs() < 0.1 * a_max,
+        "activated after ∫ = {a}, A_max = {a_max}"
+    );
+    assert!(
+        i_without[k_end] > i_lim + 0.1,
+        "without the OEL the overload persists"
+    );
+    assert!(
+        (i_with[k_end] - i_lim).abs() < 0.1,
+        "the OEL must pull I back to I_lim ({})",
+        i_with[k_end]
+    );
     let k_mid = t.iter().position(|&s| s >= 30.0).unwrap();
-    assert!(i_with[k_mid] > i_with[k_end] && i_with[k_mid] < i_without[k_mid], "I must fall toward I_lim");
-    assert!(voel.iter().all(|&v| (-0.3..=0.0).contains(&v)), "V_OEL must stay in [V_OEL,min, 0]");
+    assert!(
+        i_with[k_mid] > i_with[k_end] && i_with[k_mid] < i_without[k_mid],
+        "I must fall toward I_lim"
+    );
+    assert!(
+        voel.iter().all(|&v| (-0.3..=0.0).contains(&v)),
+        "V_OEL must stay in [V_OEL,min, 0]"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -431,22 +564,45 @@ fn bus_fed_ceiling_clips_efd_in_a_dip_where_the_constant_ceiling_does_not() {
     let bus_fed = sim(&bus_fed_text(0.0, vr_max, k_c), &ev, &SimOptions::default());
     let efd_c = col(&constant, "efd");
     let efd_b = col(&bus_fed, "efd");
-    let ceiling: Vec<f64> =
-        col(&bus_fed, "v_term").iter().zip(col(&bus_fed, "xadifd")).map(|(v, i)| v * vr_max - k_c * i).collect();
+    let ceiling: Vec<f64> = col(&bus_fed, "v_term")
+        .iter()
+        .zip(col(&bus_fed, "xadifd"))
+        .map(|(v, i)| v * vr_max - k_c * i)
+        .collect();
     let max_c = efd_c.iter().fold(0.0f64, |m, v| m.max(*v));
     let max_b = efd_b.iter().fold(0.0f64, |m, v| m.max(*v));
-    let on_ceiling = efd_b.iter().zip(&ceiling).filter(|(e, c)| (*e - *c).abs() < 1e-9).count();
-    let above = efd_b.iter().zip(&ceiling).map(|(e, c)| e - c).fold(f64::MIN, f64::max);
+    let on_ceiling = efd_b
+        .iter()
+        .zip(&ceiling)
+        .filter(|(e, c)| (*e - *c).abs() < 1e-9)
+        .count();
+    let above = efd_b
+        .iter()
+        .zip(&ceiling)
+        .map(|(e, c)| e - c)
+        .fold(f64::MIN, f64::max);
     let ceiling_min = ceiling.iter().fold(f64::MAX, |m, v| m.min(*v));
     eprintln!(
         "SEXS_bus_fed, dip to {}: max E_fd {max_b:.4} (bus-fed) vs {max_c:.4} (constant E_MAX {vr_max}); \
          {on_ceiling} samples on the ceiling (lowest {ceiling_min:.4}); max E_fd − ceiling {above:.2e}",
         profile.dip_v
     );
-    assert!(max_c < vr_max - 0.05, "the constant ceiling must not clip ({max_c})");
-    assert!(max_c > ceiling_min + 0.1, "the dip must ask for more than the bus-fed ceiling");
-    assert!(on_ceiling >= 5, "the bus-fed exciter must sit on its ceiling during the dip");
-    assert!(above <= 1e-9, "E_fd must never exceed the bus-fed ceiling ({above:e})");
+    assert!(
+        max_c < vr_max - 0.05,
+        "the constant ceiling must not clip ({max_c})"
+    );
+    assert!(
+        max_c > ceiling_min + 0.1,
+        "the dip must ask for more than the bus-fed ceiling"
+    );
+    assert!(
+        on_ceiling >= 5,
+        "the bus-fed exciter must sit on its ceiling during the dip"
+    );
+    assert!(
+        above <= 1e-9,
+        "E_fd must never exceed the bus-fed ceiling ({above:e})"
+    );
     assert!(max_b < max_c - 0.1);
 }
 
@@ -456,14 +612,31 @@ fn pmu_measurement_applies_skew_phase_and_ratio() {
     use itaipu_dynamics::registry;
     use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
     use itaipu_dynamics::synthetic::{delayed, synthesize, PmuNoise, VoltageProfile};
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/synthetic/unit_gensae_sexs_stab3_hygov.toml");
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data/synthetic/unit_gensae_sexs_stab3_hygov.toml");
     let base = itaipu_dynamics::unit_file::read_unit(&path).unwrap();
-    let profile = VoltageProfile { duration_s: 5.0, ..Default::default() };
-    let ev = synthesize("m", &base, &profile, 737.0, &PmuNoise::none(), &SimOptions::default()).unwrap();
+    let profile = VoltageProfile {
+        duration_s: 5.0,
+        ..Default::default()
+    };
+    let ev = synthesize(
+        "m",
+        &base,
+        &profile,
+        737.0,
+        &PmuNoise::none(),
+        &SimOptions::default(),
+    )
+    .unwrap();
     let prep = PreparedEvent::new(&ev);
     let (p0, q0) = simulate_pq(&mut base.clone(), &prep, &SimOptions::default()).unwrap();
     let mut with = base.clone();
-    with.put("measurement", registry::find("pmu_measurement").unwrap().create(), &[]).unwrap();
+    with.put(
+        "measurement",
+        registry::find("pmu_measurement").unwrap().create(),
+        &[],
+    )
+    .unwrap();
     let (p1, q1) = simulate_pq(&mut with.clone(), &prep, &SimOptions::default()).unwrap();
     assert_eq!((&p0, &q0), (&p1, &q1), "defaults change nothing");
     let set = |u: &mut itaipu_dynamics::unit::Unit, name: &str, v: f64| {
@@ -483,7 +656,11 @@ fn pmu_measurement_applies_skew_phase_and_ratio() {
         assert!((q2[k] - 0.99 * (qd[k] * c - pd[k] * s)).abs() < 1e-12);
     }
     // The skew is visible after the dip: a 12 ms delay of a fast power swing.
-    let worst = p0.iter().zip(&pd).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let worst = p0
+        .iter()
+        .zip(&pd)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
     assert!(worst > 0.01, "skew effect {worst}");
 }
 
@@ -491,13 +668,30 @@ fn pmu_measurement_applies_skew_phase_and_ratio() {
 fn terminal_load_is_delivered_by_the_machine_and_missing_from_the_recording() {
     // A 4 % P, 2 % Q constant-impedance load between the machine and the PMU.
     let text = format!("{BASE}\n[[block]]\nname = \"load\"\nmodel = \"terminal_load\"\np_load = 0.04\nq_load = 0.02\nn_p = 2.0\nn_q = 2.0\n");
-    let ev = event(&VoltageProfile::preset(itaipu_dynamics::synthetic::EventKind::FaultDip, 5.0, 60.0, 1));
+    let ev = event(&VoltageProfile::preset(
+        itaipu_dynamics::synthetic::EventKind::FaultDip,
+        5.0,
+        60.0,
+        1,
+    ));
     let tr = sim(&text, &ev, &tight());
-    let (p, pe, qe, q, v) = (col(&tr, "p_mach_pu"), col(&tr, "pe"), col(&tr, "qe"), col(&tr, "q_mach_pu"), col(&tr, "v_term"));
+    let (p, pe, qe, q, v) = (
+        col(&tr, "p_mach_pu"),
+        col(&tr, "pe"),
+        col(&tr, "qe"),
+        col(&tr, "q_mach_pu"),
+        col(&tr, "v_term"),
+    );
     // The recording is the machine's output minus the load at the played-back voltage, exactly.
     for k in 0..p.len() {
-        assert!((pe[k] - p[k] - 0.04 * v[k] * v[k]).abs() < 1e-12, "P at sample {k}");
-        assert!((qe[k] - q[k] - 0.02 * v[k] * v[k]).abs() < 1e-12, "Q at sample {k}");
+        assert!(
+            (pe[k] - p[k] - 0.04 * v[k] * v[k]).abs() < 1e-12,
+            "P at sample {k}"
+        );
+        assert!(
+            (qe[k] - q[k] - 0.02 * v[k] * v[k]).abs() < 1e-12,
+            "Q at sample {k}"
+        );
     }
     // It starts at the measured operating point (the machine delivers P0 + P_L(V0)).
     let op = ev.operating_point();
@@ -505,7 +699,10 @@ fn terminal_load_is_delivered_by_the_machine_and_missing_from_the_recording() {
     assert!((p[0] - op.p_pu * to_mach).abs() < 1e-9 && (q[0] - op.q_pu * to_mach).abs() < 1e-9);
     // In the dip the load falls with V²: the recording differs from the base unit's.
     let base = sim(BASE, &ev, &tight());
-    assert!(pq_diff(&tr, &base) > 0.01, "the load must change what the PMU sees in a dip");
+    assert!(
+        pq_diff(&tr, &base) > 0.01,
+        "the load must change what the PMU sees in a dip"
+    );
     // And the unit with the load starts in exact steady state at any operating point.
     let mut u = unit(&text);
     for (at, op) in operating_points() {

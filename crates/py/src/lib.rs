@@ -13,7 +13,9 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use numpy::PyArray1;
-use pyo3::exceptions::{PyAttributeError, PyException, PyKeyError, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::exceptions::{
+    PyAttributeError, PyException, PyKeyError, PyRuntimeError, PyTypeError, PyValueError,
+};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use pyo3::{create_exception, PyTypeInfo};
@@ -60,7 +62,12 @@ create_exception!(
     "The unit cannot initialise at the event's measured operating point (or the unit and the \
      event have different nominal frequencies)."
 );
-create_exception!(itaipu_calib, SimulationError, ItaipuError, "The time integration failed.");
+create_exception!(
+    itaipu_calib,
+    SimulationError,
+    ItaipuError,
+    "The time integration failed."
+);
 create_exception!(
     itaipu_calib,
     CalibrationError,
@@ -132,10 +139,14 @@ impl Failure {
             Failure::Sim(e @ (SimError::Init(_) | SimError::Frequency { .. })) => {
                 raise::<InitError>(py, e.to_string(), Some(e.kind()))
             }
-            Failure::Sim(e @ SimError::Solve(_)) => raise::<SimulationError>(py, e.to_string(), Some(e.kind())),
+            Failure::Sim(e @ SimError::Solve(_)) => {
+                raise::<SimulationError>(py, e.to_string(), Some(e.kind()))
+            }
             Failure::Spec(e) => raise::<CalibrationError>(py, e.to_string(), Some(e.kind())),
             Failure::Fit(e) => raise::<CalibrationError>(py, e.to_string(), Some(e.kind())),
-            Failure::Diagnose(e @ DiagnoseError::Setup(_)) => raise::<CalibrationError>(py, e.to_string(), Some(e.kind())),
+            Failure::Diagnose(e @ DiagnoseError::Setup(_)) => {
+                raise::<CalibrationError>(py, e.to_string(), Some(e.kind()))
+            }
             Failure::Diagnose(e @ DiagnoseError::Simulation { .. }) => {
                 raise::<SimulationError>(py, e.to_string(), Some(e.kind()))
             }
@@ -159,7 +170,11 @@ enum Source<T> {
     Path(PathBuf),
 }
 
-fn source<'py, C, T>(arg: &Bound<'py, PyAny>, what: &str, inner: impl Fn(&C) -> Arc<T>) -> PyResult<Source<T>>
+fn source<'py, C, T>(
+    arg: &Bound<'py, PyAny>,
+    what: &str,
+    inner: impl Fn(&C) -> Arc<T>,
+) -> PyResult<Source<T>>
 where
     C: pyo3::PyClass<Frozen = pyo3::pyclass::boolean_struct::True> + Sync,
 {
@@ -169,7 +184,11 @@ where
     match arg.extract::<PathBuf>() {
         Ok(p) => Ok(Source::Path(p)),
         Err(_) => {
-            let ty = arg.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".into());
+            let ty = arg
+                .get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_else(|_| "?".into());
             Err(PyTypeError::new_err(format!(
                 "{what} must be a path (str or os.PathLike) or an {} object, not {ty}",
                 C::NAME
@@ -378,7 +397,11 @@ impl PyUnit {
 
     /// Model names of the blocks in state order, e.g. `["GENSAE", "SEXS", "STAB3", "constant_pm"]`.
     fn models(&self) -> Vec<&'static str> {
-        self.inner.instances().iter().map(|i| i.block.model()).collect()
+        self.inner
+            .instances()
+            .iter()
+            .map(|i| i.block.model())
+            .collect()
     }
 
     /// Block instance names mapped to their model, e.g. `{"machine": "GENSAE", ...}`.
@@ -411,7 +434,10 @@ impl PyUnit {
 #[pyfunction]
 fn load_unit(py: Python<'_>, path: PathBuf) -> PyResult<PyUnit> {
     py.detach(|| read_unit(&path))
-        .map(|u| PyUnit { inner: Arc::new(u), path: Some(path) })
+        .map(|u| PyUnit {
+            inner: Arc::new(u),
+            path: Some(path),
+        })
         .map_err(|e| Failure::from(e).into_pyerr(py))
 }
 
@@ -474,7 +500,9 @@ impl PyTraces {
         if name == "time_s" {
             return Ok(array(py, &self.inner.time_s));
         }
-        self.column(name).map(|c| array(py, c)).ok_or_else(|| PyKeyError::new_err(name.to_string()))
+        self.column(name)
+            .map(|c| array(py, c))
+            .ok_or_else(|| PyKeyError::new_err(name.to_string()))
     }
 
     fn __getattr__<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
@@ -511,8 +539,17 @@ impl PyTraces {
 
     fn __repr__(&self) -> String {
         let t = &self.inner.time_s;
-        let (t0, t1) = (t.first().copied().unwrap_or(f64::NAN), t.last().copied().unwrap_or(f64::NAN));
-        format!("<Traces: {} samples, {} .. {} s, {} columns>", t.len(), t0, t1, self.inner.names.len())
+        let (t0, t1) = (
+            t.first().copied().unwrap_or(f64::NAN),
+            t.last().copied().unwrap_or(f64::NAN),
+        );
+        format!(
+            "<Traces: {} samples, {} .. {} s, {} columns>",
+            t.len(),
+            t0,
+            t1,
+            self.inner.names.len()
+        )
     }
 }
 
@@ -560,7 +597,9 @@ fn simulate(
         };
         Ok(itaipu_dynamics::simulate(&unit, &event, &opts)?)
     });
-    result.map(|t| PyTraces { inner: t }).map_err(|e| e.into_pyerr(py))
+    result
+        .map(|t| PyTraces { inner: t })
+        .map_err(|e| e.into_pyerr(py))
 }
 
 /// Integrator options, checked as the command line checks them.
@@ -568,13 +607,17 @@ fn sim_options(method: &str, rtol: f64, atol: f64, step: f64) -> PyResult<SimOpt
     let method = match method.to_ascii_lowercase().as_str() {
         "rk4" => {
             if !(step > 0.0 && step.is_finite()) {
-                return Err(PyValueError::new_err(format!("step must be > 0 (got {step})")));
+                return Err(PyValueError::new_err(format!(
+                    "step must be > 0 (got {step})"
+                )));
             }
             Method::Rk4 { h: step }
         }
         "dopri5" => {
             if !(rtol > 0.0 && atol >= 0.0) {
-                return Err(PyValueError::new_err(format!("rtol must be > 0 and atol >= 0 (got rtol={rtol}, atol={atol})")));
+                return Err(PyValueError::new_err(format!(
+                    "rtol must be > 0 and atol >= 0 (got rtol={rtol}, atol={atol})"
+                )));
             }
             // Everything but the tolerances as in the library's default options.
             let base = match SimOptions::default().method {
@@ -583,7 +626,11 @@ fn sim_options(method: &str, rtol: f64, atol: f64, step: f64) -> PyResult<SimOpt
             };
             Method::Dopri5(Dopri5Options { rtol, atol, ..base })
         }
-        _ => return Err(PyValueError::new_err(format!("method must be 'dopri5' or 'rk4' (got '{method}')"))),
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "method must be 'dopri5' or 'rk4' (got '{method}')"
+            )))
+        }
     };
     Ok(SimOptions { method })
 }
@@ -611,7 +658,10 @@ struct PyFitResult {
 impl PyFitResult {
     fn unknown_stage(&self, stage: &str) -> PyErr {
         let names: Vec<&str> = self.stages.iter().map(|s| s.stage.as_str()).collect();
-        PyKeyError::new_err(format!("no stage '{stage}' in this fit (stages: {})", names.join(", ")))
+        PyKeyError::new_err(format!(
+            "no stage '{stage}' in this fit (stages: {})",
+            names.join(", ")
+        ))
     }
 
     /// J = Σ(ΔP² + ΔQ²) summed over the fitted (not held-out) events.
@@ -627,13 +677,17 @@ impl PyFitResult {
     /// fitness, phases, identifiability, ...; wall_s).
     #[getter]
     fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        py.import("json")?.call_method1("loads", (&self.report_json,))
+        py.import("json")?
+            .call_method1("loads", (&self.report_json,))
     }
 
     /// The calibrated full unit (every block, with every stage's results).
     #[getter]
     fn unit(&self) -> PyUnit {
-        PyUnit { inner: self.unit.clone(), path: None }
+        PyUnit {
+            inner: self.unit.clone(),
+            path: None,
+        }
     }
 
     /// Names of the stages run, in order.
@@ -645,7 +699,12 @@ impl PyFitResult {
     /// Calibrated values of the free parameters of `stage`: `{"block.name": value}` in the
     /// spec's order. Raises KeyError for a stage that did not run.
     fn parameters<'py>(&self, py: Python<'py>, stage: &str) -> PyResult<Bound<'py, PyDict>> {
-        let rep = self.report.stages.iter().find(|s| s.stage == stage).ok_or_else(|| self.unknown_stage(stage))?;
+        let rep = self
+            .report
+            .stages
+            .iter()
+            .find(|s| s.stage == stage)
+            .ok_or_else(|| self.unknown_stage(stage))?;
         let d = PyDict::new(py);
         for p in &rep.parameters {
             d.set_item(&p.param, p.result)?;
@@ -658,8 +717,16 @@ impl PyFitResult {
     /// fitted events (per-event and held-out values are in `report`).
     #[getter]
     fn fitness(&self) -> Vec<(String, f64)> {
-        let mut rows = vec![("start".to_string(), Self::j_fitted(&self.report.start_fitness))];
-        rows.extend(self.report.stages.iter().map(|s| (s.stage.clone(), Self::j_fitted(&s.fitness))));
+        let mut rows = vec![(
+            "start".to_string(),
+            Self::j_fitted(&self.report.start_fitness),
+        )];
+        rows.extend(
+            self.report
+                .stages
+                .iter()
+                .map(|s| (s.stage.clone(), Self::j_fitted(&s.fitness))),
+        );
         rows
     }
 
@@ -668,22 +735,38 @@ impl PyFitResult {
     /// event.
     #[pyo3(signature = (stage, event = None))]
     fn traces(&self, stage: &str, event: Option<&str>) -> PyResult<(PyTraces, PyTraces)> {
-        let st = self.stages.iter().find(|s| s.stage == stage).ok_or_else(|| self.unknown_stage(stage))?;
+        let st = self
+            .stages
+            .iter()
+            .find(|s| s.stage == stage)
+            .ok_or_else(|| self.unknown_stage(stage))?;
         let found = match event {
             None => st.traces.first(),
             Some(name) => st.traces.iter().find(|(e, _, _)| e == name),
         };
         let (_, start, end) = found.ok_or_else(|| {
             let names: Vec<&str> = st.traces.iter().map(|(e, _, _)| e.as_str()).collect();
-            PyKeyError::new_err(format!("no event '{}' in this fit (events: {})", event.unwrap_or(""), names.join(", ")))
+            PyKeyError::new_err(format!(
+                "no event '{}' in this fit (events: {})",
+                event.unwrap_or(""),
+                names.join(", ")
+            ))
         })?;
-        Ok((PyTraces { inner: start.clone() }, PyTraces { inner: end.clone() }))
+        Ok((
+            PyTraces {
+                inner: start.clone(),
+            },
+            PyTraces { inner: end.clone() },
+        ))
     }
 
     fn __repr__(&self) -> String {
         let r = &self.report;
         let rows = self.fitness();
-        let (j0, j1) = (rows.first().map_or(f64::NAN, |r| r.1), rows.last().map_or(f64::NAN, |r| r.1));
+        let (j0, j1) = (
+            rows.first().map_or(f64::NAN, |r| r.1),
+            rows.last().map_or(f64::NAN, |r| r.1),
+        );
         format!(
             "<FitResult '{}' on {}: stages {}, J {:.5} -> {:.5}, {:.1} s>",
             r.unit,
@@ -704,10 +787,16 @@ fn event_sources(arg: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Source<Even
     match arg.try_iter() {
         Ok(items) => items
             .enumerate()
-            .map(|(k, item)| source::<PyEvent, _>(&item?, &format!("{what}[{k}]"), |e| e.inner.clone()))
+            .map(|(k, item)| {
+                source::<PyEvent, _>(&item?, &format!("{what}[{k}]"), |e| e.inner.clone())
+            })
             .collect(),
         Err(_) => {
-            let ty = arg.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".into());
+            let ty = arg
+                .get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_else(|_| "?".into());
             Err(PyTypeError::new_err(format!(
                 "{what} must be a path (str or os.PathLike), an Event object, or a list of them, not {ty}"
             )))
@@ -727,17 +816,34 @@ fn stage_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Vec<String>>> {
             PyTypeError::new_err("stages must be 'all', a stage name, a comma-separated string or a list of stage names")
         })?
     };
-    let names: Vec<String> = given.iter().flat_map(|s| s.split(',')).map(|s| s.trim().to_ascii_lowercase()).collect();
+    let names: Vec<String> = given
+        .iter()
+        .flat_map(|s| s.split(','))
+        .map(|s| s.trim().to_ascii_lowercase())
+        .collect();
     if names.is_empty() {
-        return Err(PyValueError::new_err("stages must name at least one stage (gen, avr, pss, tg) or be 'all'"));
+        return Err(PyValueError::new_err(
+            "stages must name at least one stage (gen, avr, pss, tg) or be 'all'",
+        ));
     }
-    if let Some(bad) = names.iter().find(|n| *n != "all" && !STAGES.contains(&n.as_str())) {
-        return Err(PyValueError::new_err(format!("stages: unknown stage '{bad}' (gen, avr, pss, tg or all)")));
+    if let Some(bad) = names
+        .iter()
+        .find(|n| *n != "all" && !STAGES.contains(&n.as_str()))
+    {
+        return Err(PyValueError::new_err(format!(
+            "stages: unknown stage '{bad}' (gen, avr, pss, tg or all)"
+        )));
     }
     if names.iter().any(|n| n == "all") {
         return Ok(None);
     }
-    Ok(Some(STAGES.iter().filter(|s| names.iter().any(|n| n == *s)).map(|s| s.to_string()).collect()))
+    Ok(Some(
+        STAGES
+            .iter()
+            .filter(|s| names.iter().any(|n| n == *s))
+            .map(|s| s.to_string())
+            .collect(),
+    ))
 }
 
 fn strategy(s: &str) -> PyResult<Strategy> {
@@ -821,7 +927,9 @@ fn fit(
     let strategy = strategy.map(self::strategy).transpose()?;
     if let Some(n) = particles {
         if n < 2 {
-            return Err(PyValueError::new_err(format!("particles must be at least 2 (got {n})")));
+            return Err(PyValueError::new_err(format!(
+                "particles must be at least 2 (got {n})"
+            )));
         }
     }
     let result = py.detach(move || -> Result<calib_fit::FitResult, Failure> {
@@ -865,9 +973,14 @@ fn fit(
         Ok(result)
     });
     let result = result.map_err(|e| e.into_pyerr(py))?;
-    let report_json =
-        serde_json::to_string(&result.report).map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
-    Ok(PyFitResult { report: result.report, report_json, unit: Arc::new(result.unit), stages: result.stages })
+    let report_json = serde_json::to_string(&result.report)
+        .map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
+    Ok(PyFitResult {
+        report: result.report,
+        report_json,
+        unit: Arc::new(result.unit),
+        stages: result.stages,
+    })
 }
 
 // -------------------------------------------------------------------------------------------
@@ -915,22 +1028,37 @@ fn synth(
         "frequency" => EventKind::FrequencyExcursion,
         "step" => EventKind::VoltageStep,
         "ambient" => EventKind::Ambient,
-        k => return Err(PyValueError::new_err(format!("kind '{k}' is not one of dip, frequency, step, ambient"))),
+        k => {
+            return Err(PyValueError::new_err(format!(
+                "kind '{k}' is not one of dip, frequency, step, ambient"
+            )))
+        }
     };
     if !(duration > 1.5 && duration.is_finite()) {
-        return Err(PyValueError::new_err(format!("duration must exceed 1.5 s (got {duration})")));
+        return Err(PyValueError::new_err(format!(
+            "duration must exceed 1.5 s (got {duration})"
+        )));
     }
     if !(10.0..=1000.0).contains(&rate) {
-        return Err(PyValueError::new_err(format!("rate must lie in 10-1000 samples/s (got {rate})")));
+        return Err(PyValueError::new_err(format!(
+            "rate must lie in 10-1000 samples/s (got {rate})"
+        )));
     }
-    for (n, v) in [("pq_sigma", pq_sigma), ("v_sigma", v_sigma), ("quantum", quantum), ("skew_ms", skew_ms)] {
+    for (n, v) in [
+        ("pq_sigma", pq_sigma),
+        ("v_sigma", v_sigma),
+        ("quantum", quantum),
+        ("skew_ms", skew_ms),
+    ] {
         if !(v >= 0.0 && v.is_finite()) {
             return Err(PyValueError::new_err(format!("{n} must be >= 0 (got {v})")));
         }
     }
     if let Some(m) = system_mva {
         if !(m > 0.0 && m.is_finite()) {
-            return Err(PyValueError::new_err(format!("system_mva must be > 0 (got {m})")));
+            return Err(PyValueError::new_err(format!(
+                "system_mva must be > 0 (got {m})"
+            )));
         }
     }
     let hides = match hide {
@@ -954,18 +1082,47 @@ fn synth(
             unit
         } else {
             // The catalog's context comes from the truth as given on a noise-free run.
-            let probe = synthesize(&name, &unit, &profile, mva, &PmuNoise::none(), &SimOptions::default()).map_err(synth_failure)?;
+            let probe = synthesize(
+                &name,
+                &unit,
+                &profile,
+                mva,
+                &PmuNoise::none(),
+                &SimOptions::default(),
+            )
+            .map_err(synth_failure)?;
             Arc::new(hide_all(&unit, &probe, &hides)?)
         };
-        let noise = PmuNoise { pq_sigma, v_sigma, angle_sigma: v_sigma, pq_quantum: quantum, pq_delay_s: skew_ms * 1e-3, seed };
-        let event = synthesize(&name, &truth, &profile, mva, &noise, &SimOptions::default()).map_err(synth_failure)?;
+        let noise = PmuNoise {
+            pq_sigma,
+            v_sigma,
+            angle_sigma: v_sigma,
+            pq_quantum: quantum,
+            pq_delay_s: skew_ms * 1e-3,
+            seed,
+        };
+        let event = synthesize(&name, &truth, &profile, mva, &noise, &SimOptions::default())
+            .map_err(synth_failure)?;
         Ok((event, truth))
     });
     let (event, truth) = result.map_err(|f| f.into_pyerr(py))?;
-    let event = Bound::new(py, PyEvent { inner: Arc::new(event) })?;
+    let event = Bound::new(
+        py,
+        PyEvent {
+            inner: Arc::new(event),
+        },
+    )?;
     if return_truth {
-        let truth = Bound::new(py, PyUnit { inner: truth, path: None })?;
-        Ok(PyTuple::new(py, [event.into_any(), truth.into_any()])?.into_any().unbind())
+        let truth = Bound::new(
+            py,
+            PyUnit {
+                inner: truth,
+                path: None,
+            },
+        )?;
+        Ok(PyTuple::new(py, [event.into_any(), truth.into_any()])?
+            .into_any()
+            .unbind())
     } else {
         Ok(event.into_any().unbind())
     }
@@ -978,24 +1135,37 @@ type Hide = (String, Vec<(String, f64)>);
 /// `(cause, {param: value})` tuples or cause names.
 fn hide_list(arg: &Bound<'_, PyAny>) -> PyResult<Vec<Hide>> {
     let values = |cause: &str, v: Option<Bound<'_, PyAny>>| -> PyResult<Vec<(String, f64)>> {
-        let Some(v) = v.filter(|v| !v.is_none()) else { return Ok(vec![]) };
+        let Some(v) = v.filter(|v| !v.is_none()) else {
+            return Ok(vec![]);
+        };
         let d = v.downcast::<PyDict>().map_err(|_| {
-            PyTypeError::new_err(format!("hide: the values of '{cause}' must be a dict {{param: value}}"))
+            PyTypeError::new_err(format!(
+                "hide: the values of '{cause}' must be a dict {{param: value}}"
+            ))
         })?;
         d.iter()
             .map(|(k, x)| {
-                let k: String = k.extract().map_err(|_| PyTypeError::new_err(format!("hide: '{cause}': parameter names must be str")))?;
-                let x: f64 = x.extract().map_err(|_| PyTypeError::new_err(format!("hide: '{cause}': {k} must be a number")))?;
+                let k: String = k.extract().map_err(|_| {
+                    PyTypeError::new_err(format!("hide: '{cause}': parameter names must be str"))
+                })?;
+                let x: f64 = x.extract().map_err(|_| {
+                    PyTypeError::new_err(format!("hide: '{cause}': {k} must be a number"))
+                })?;
                 Ok((k, x))
             })
             .collect()
     };
     let check = |cause: String, vals: Vec<(String, f64)>| -> PyResult<Hide> {
         if catalog::find(&cause).is_none() {
-            return Err(PyValueError::new_err(format!("hide: unknown cause '{cause}' (known: {})", catalog::ids())));
+            return Err(PyValueError::new_err(format!(
+                "hide: unknown cause '{cause}' (known: {})",
+                catalog::ids()
+            )));
         }
         if let Some((k, x)) = vals.iter().find(|(_, x)| !x.is_finite()) {
-            return Err(PyValueError::new_err(format!("hide: '{cause}': {k} must be finite (got {x})")));
+            return Err(PyValueError::new_err(format!(
+                "hide: '{cause}': {k} must be finite (got {x})"
+            )));
         }
         Ok((cause, vals))
     };
@@ -1003,13 +1173,17 @@ fn hide_list(arg: &Bound<'_, PyAny>) -> PyResult<Vec<Hide>> {
         return d
             .iter()
             .map(|(c, v)| {
-                let c: String = c.extract().map_err(|_| PyTypeError::new_err("hide: causes must be str"))?;
+                let c: String = c
+                    .extract()
+                    .map_err(|_| PyTypeError::new_err("hide: causes must be str"))?;
                 let vals = values(&c, Some(v))?;
                 check(c, vals)
             })
             .collect();
     }
-    let bad = || PyTypeError::new_err("hide must be a dict {cause: {param: value}} or a list of (cause, {param: value}) tuples");
+    let bad = || {
+        PyTypeError::new_err("hide must be a dict {cause: {param: value}} or a list of (cause, {param: value}) tuples")
+    };
     if arg.extract::<String>().is_ok() {
         return Err(bad());
     }
@@ -1036,17 +1210,30 @@ fn hide_list(arg: &Bound<'_, PyAny>) -> PyResult<Vec<Hide>> {
 /// the extension's parameters may be set (those it frees and those of the blocks it adds,
 /// except tied ones).
 fn hide_all(truth: &Unit, probe: &Event, hides: &[Hide]) -> Result<Unit, Failure> {
-    let ctx = calib_diagnose::context(truth, probe)
-        .map_err(|e| Failure::Init(format!("the true unit does not simulate on the synthetic profile: {e}")))?;
+    let ctx = calib_diagnose::context(truth, probe).map_err(|e| {
+        Failure::Init(format!(
+            "the true unit does not simulate on the synthetic profile: {e}"
+        ))
+    })?;
     let mut unit = truth.clone();
     for (cause, values) in hides {
         let ext = match catalog::extend(cause, &unit, &ctx) {
             Ok(Ok(ext)) => ext,
-            Ok(Err(why)) => return Err(Failure::Value(format!("hide: cannot hide {cause} in unit '{}': {why}", unit.name))),
+            Ok(Err(why)) => {
+                return Err(Failure::Value(format!(
+                    "hide: cannot hide {cause} in unit '{}': {why}",
+                    unit.name
+                )))
+            }
             Err(msg) => return Err(Failure::Value(format!("hide: {cause}: {msg}"))),
         };
         let old: Vec<&str> = unit.instances().iter().map(|i| i.name.as_str()).collect();
-        let mut known: Vec<String> = ext.extension_free.iter().chain(&ext.interacting_free).map(|f| f.param.clone()).collect();
+        let mut known: Vec<String> = ext
+            .extension_free
+            .iter()
+            .chain(&ext.interacting_free)
+            .map(|f| f.param.clone())
+            .collect();
         for (path, _, _) in ext.unit.params() {
             if !old.contains(&path.split('.').next().unwrap_or("")) && !known.contains(&path) {
                 known.push(path);
@@ -1055,7 +1242,9 @@ fn hide_all(truth: &Unit, probe: &Event, hides: &[Hide]) -> Result<Unit, Failure
         known.retain(|p| !ext.ties.iter().any(|(_, to)| to == p));
         for (k, _) in values {
             if let Some((from, _)) = ext.ties.iter().find(|(_, to)| to == k) {
-                return Err(Failure::Value(format!("hide: {k} follows {from} in {cause}; set {from} instead")));
+                return Err(Failure::Value(format!(
+                    "hide: {k} follows {from} in {cause}; set {from} instead"
+                )));
             }
             if !known.contains(k) {
                 return Err(Failure::Value(format!(
@@ -1065,10 +1254,15 @@ fn hide_all(truth: &Unit, probe: &Event, hides: &[Hide]) -> Result<Unit, Failure
             }
         }
         let map: BTreeMap<String, f64> = values.iter().cloned().collect();
-        unit = catalog::hide(cause, &unit, &ctx, &map).map_err(|e| Failure::Value(format!("hide: {e}")))?;
+        unit = catalog::hide(cause, &unit, &ctx, &map)
+            .map_err(|e| Failure::Value(format!("hide: {e}")))?;
     }
     let causes: Vec<&str> = hides.iter().map(|(c, _)| c.as_str()).collect();
-    unit.description = format!("{} (hidden by itaipu_calib.synth: {})", unit.description, causes.join(", "));
+    unit.description = format!(
+        "{} (hidden by itaipu_calib.synth: {})",
+        unit.description,
+        causes.join(", ")
+    );
     Ok(unit)
 }
 
@@ -1137,7 +1331,11 @@ impl PyDiagnosis {
     /// The verdict as a dict: cause, title, statement, key_parameters, gains, where.
     #[getter]
     fn verdict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let mut v = self.report.get("verdict").cloned().unwrap_or(serde_json::Value::Null);
+        let mut v = self
+            .report
+            .get("verdict")
+            .cloned()
+            .unwrap_or(serde_json::Value::Null);
         // The Rust field is `where_` (a keyword): the dict says `where`.
         if let Some(o) = v.as_object_mut() {
             if let Some(w) = o.remove("where_") {
@@ -1150,7 +1348,10 @@ impl PyDiagnosis {
     /// The named cause id, or `none` / `unexplained`.
     #[getter]
     fn cause(&self) -> String {
-        self.report["verdict"]["cause"].as_str().unwrap_or_default().to_string()
+        self.report["verdict"]["cause"]
+            .as_str()
+            .unwrap_or_default()
+            .to_string()
     }
 
     /// Every cause tried, by decreasing ΔBIC (not applicable ones last): dicts with cause,
@@ -1181,7 +1382,10 @@ impl PyDiagnosis {
     /// The extended, re-fitted unit of the named cause, or None.
     #[getter]
     fn extended_unit(&self) -> Option<PyUnit> {
-        self.extended_unit.as_ref().map(|u| PyUnit { inner: u.clone(), path: None })
+        self.extended_unit.as_ref().map(|u| PyUnit {
+            inner: u.clone(),
+            path: None,
+        })
     }
 
     /// Per event name: the traces of the unit as given (`{"time_s": array, column: array}`).
@@ -1206,7 +1410,8 @@ impl PyDiagnosis {
 
     /// The report as JSON text (indented).
     fn to_json(&self) -> PyResult<String> {
-        serde_json::to_string_pretty(&self.report).map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))
+        serde_json::to_string_pretty(&self.report)
+            .map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))
     }
 
     fn __repr__(&self) -> String {
@@ -1214,7 +1419,14 @@ impl PyDiagnosis {
         format!(
             "<Diagnosis of '{}' on {}: {} ({} candidates, {:.1} s)>",
             r["unit"].as_str().unwrap_or_default(),
-            r["events"].as_array().map(|a| a.iter().filter_map(|e| e.as_str()).collect::<Vec<_>>().join(", ")).unwrap_or_default(),
+            r["events"]
+                .as_array()
+                .map(|a| a
+                    .iter()
+                    .filter_map(|e| e.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "))
+                .unwrap_or_default(),
             r["verdict"]["cause"].as_str().unwrap_or_default(),
             r["candidates"].as_array().map_or(0, |a| a.len()),
             r["wall_s"].as_f64().unwrap_or(f64::NAN)
@@ -1229,11 +1441,21 @@ fn cause_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
     let given: Vec<String> = if let Ok(s) = arg.extract::<String>() {
         vec![s]
     } else {
-        arg.extract::<Vec<String>>().map_err(|_| PyTypeError::new_err("causes must be None, a cause id, or a list of cause ids"))?
+        arg.extract::<Vec<String>>().map_err(|_| {
+            PyTypeError::new_err("causes must be None, a cause id, or a list of cause ids")
+        })?
     };
-    let names: Vec<String> = given.iter().flat_map(|s| s.split(',')).map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect();
+    let names: Vec<String> = given
+        .iter()
+        .flat_map(|s| s.split(','))
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect();
     if names.is_empty() {
-        return Err(PyValueError::new_err(format!("causes must name at least one cause, or be None for all ({})", catalog::ids())));
+        return Err(PyValueError::new_err(format!(
+            "causes must name at least one cause, or be None for all ({})",
+            catalog::ids()
+        )));
     }
     Ok(names)
 }
@@ -1281,7 +1503,9 @@ fn diagnose(
     };
     let causes = cause_list(causes)?;
     if particles < 2 {
-        return Err(PyValueError::new_err(format!("particles must be at least 2 (got {particles})")));
+        return Err(PyValueError::new_err(format!(
+            "particles must be at least 2 (got {particles})"
+        )));
     }
     let pool = match threads {
         None => None,
@@ -1290,10 +1514,19 @@ fn diagnose(
             rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
                 .build()
-                .map_err(|e| PyRuntimeError::new_err(format!("cannot start {n} worker threads: {e}")))?,
+                .map_err(|e| {
+                    PyRuntimeError::new_err(format!("cannot start {n} worker threads: {e}"))
+                })?,
         ),
     };
-    let opts = DiagnoseOptions { causes, seed, particles, pso_iterations, lbfgs_iterations, ..Default::default() };
+    let opts = DiagnoseOptions {
+        causes,
+        seed,
+        particles,
+        pso_iterations,
+        lbfgs_iterations,
+        ..Default::default()
+    };
     let result = py.detach(move || -> Result<calib_diagnose::DiagnoseResult, Failure> {
         let unit = match unit_src {
             Source::Loaded(u) => u,
@@ -1308,8 +1541,14 @@ fn diagnose(
         }?)
     });
     let result = result.map_err(|e| e.into_pyerr(py))?;
-    let report = serde_json::to_value(&result.report).map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))?;
-    Ok(PyDiagnosis { report, extended_unit: result.extended_unit.map(Arc::new), before: result.before, after: result.after })
+    let report = serde_json::to_value(&result.report)
+        .map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))?;
+    Ok(PyDiagnosis {
+        report,
+        extended_unit: result.extended_unit.map(Arc::new),
+        before: result.before,
+        after: result.after,
+    })
 }
 
 /// The model library (the same catalogue unit files and the command line use): a list of dicts

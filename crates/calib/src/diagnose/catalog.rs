@@ -116,6 +116,9 @@ pub struct FreeBound {
     /// whose objective has narrow valleys (a mode frequency, a delay, a limit that is hit or
     /// not), the best grid point becomes the start.
     pub scan: usize,
+    /// Held at its start during the global search and freed only in the final L-BFGS polish
+    /// (for the many calibrated parameters re-freed with [`super::DiagnoseOptions::refit`]).
+    pub polish_only: bool,
 }
 
 /// What the operating point and the evidence tell the catalog about a unit on an event.
@@ -149,6 +152,9 @@ pub struct Extension {
     pub description: String,
     /// Fixed results to report (e.g. `pss.in_service = 0`).
     pub fixed: Vec<(String, f64)>,
+    /// Multiplier of the swarm's iterations for this candidate (a structural change that moves
+    /// many interacting parameters at once needs a longer search).
+    pub search_factor: usize,
 }
 
 fn role_of(block: &dyn Block) -> Role {
@@ -157,26 +163,36 @@ fn role_of(block: &dyn Block) -> Role {
 
 /// The instance name of the block with `role`.
 pub fn instance_with_role(unit: &Unit, role: Role) -> Option<String> {
-    unit.instances().iter().find(|i| role_of(i.block.as_ref()) == role).map(|i| i.name.clone())
+    unit.instances()
+        .iter()
+        .find(|i| role_of(i.block.as_ref()) == role)
+        .map(|i| i.name.clone())
 }
 
 fn model_of(unit: &Unit, name: &str) -> String {
-    unit.block(name).map(|b| b.model().to_string()).unwrap_or_default()
+    unit.block(name)
+        .map(|b| b.model().to_string())
+        .unwrap_or_default()
 }
 
 fn new_block(model: &str, values: &[(&str, f64)]) -> Result<Box<dyn Block>, String> {
-    let info = registry::find(model).ok_or_else(|| format!("model {model} is not in the registry"))?;
+    let info =
+        registry::find(model).ok_or_else(|| format!("model {model} is not in the registry"))?;
     let mut b = info.create();
     for (name, v) in values {
         let ps = b.params_mut();
-        let k = ps.index_of(name).ok_or_else(|| format!("{model} has no parameter {name}"))?;
+        let k = ps
+            .index_of(name)
+            .ok_or_else(|| format!("{model} has no parameter {name}"))?;
         ps.set(k, *v);
     }
     Ok(b)
 }
 
 fn value(unit: &Unit, path: &str) -> Result<f64, String> {
-    unit.param(path).map(|r| unit.get(r)).map_err(|e| e.to_string())
+    unit.param(path)
+        .map(|r| unit.get(r))
+        .map_err(|e| e.to_string())
 }
 
 fn has_param(unit: &Unit, path: &str) -> bool {
@@ -184,7 +200,14 @@ fn has_param(unit: &Unit, path: &str) -> bool {
 }
 
 fn fb(param: &str, min: f64, max: f64, start: f64) -> FreeBound {
-    FreeBound { param: param.to_string(), min, max, start: start.clamp(min, max), scan: 0 }
+    FreeBound {
+        param: param.to_string(),
+        min,
+        max,
+        start: start.clamp(min, max),
+        scan: 0,
+        polish_only: false,
+    }
 }
 
 fn scanned(mut b: FreeBound, points: usize) -> FreeBound {
@@ -199,7 +222,10 @@ fn add_block(unit: &mut Unit, name: &str, block: Box<dyn Block>) -> Result<(), S
 
 /// Rewires ports of the existing instance `name`, keeping its other connections.
 fn rewire(unit: &mut Unit, name: &str, ports: &[(&str, &str)]) -> Result<(), String> {
-    let rw: Vec<(String, String)> = ports.iter().map(|(a, b)| (a.to_string(), b.to_string())).collect();
+    let rw: Vec<(String, String)> = ports
+        .iter()
+        .map(|(a, b)| (a.to_string(), b.to_string()))
+        .collect();
     unit.rewire(name, &rw).map_err(|e| e.to_string())
 }
 
@@ -216,9 +242,28 @@ pub fn nuisance(unit: &Unit) -> Vec<FreeBound> {
         .collect()
 }
 
+/// The AVR-stage parameters of exciter `x` that exist in `u` (gain and time constants), each
+/// free within a factor of two of its value.
+fn avr_stage(u: &Unit, x: &str) -> Vec<FreeBound> {
+    ["k", "te", "tb"]
+        .iter()
+        .filter_map(|p| {
+            let path = format!("{x}.{p}");
+            value(u, &path)
+                .ok()
+                .filter(|v| *v > 0.0)
+                .map(|v| fb(&path, 0.5 * v, 2.0 * v, v))
+        })
+        .collect()
+}
+
 /// Builds the extension of `unit` for `cause`. `Ok(None)` when the cause does not apply to this
 /// unit (e.g. no exciter for `exciter_limit`); the reason is in the string.
-pub fn extend(cause: &str, unit: &Unit, ctx: &Context) -> Result<Result<Extension, String>, String> {
+pub fn extend(
+    cause: &str,
+    unit: &Unit,
+    ctx: &Context,
+) -> Result<Result<Extension, String>, String> {
     let info = find(cause).ok_or_else(|| format!("unknown cause '{cause}' (known: {})", ids()))?;
     let mut u = unit.clone();
     u.ensure_finished().map_err(|e| e.to_string())?;
@@ -235,6 +280,7 @@ pub fn extend(cause: &str, unit: &Unit, ctx: &Context) -> Result<Result<Extensio
         ties: vec![],
         description: info.extension.to_string(),
         fixed: vec![],
+        search_factor: 1,
     };
     let not_applicable = |why: &str| Ok(Err(why.to_string()));
     match info.id {
@@ -251,10 +297,19 @@ pub fn extend(cause: &str, unit: &Unit, ctx: &Context) -> Result<Result<Extensio
             let h_t = 0.15 * h;
             let nyquist = 0.5 * ctx.rate_hz;
             let f_hi = (0.9 * nyquist).clamp(1.0, 25.0);
-            let f_start = ctx.mode_hint_hz.filter(|f| *f > 1.0 && *f < f_hi).unwrap_or(0.5 * f_hi);
+            let f_start = ctx
+                .mode_hint_hz
+                .filter(|f| *f > 1.0 && *f < f_hi)
+                .unwrap_or(0.5 * f_hi);
             let shaft = new_block(
                 "two_mass_shaft",
-                &[("h_turbine", h_t), ("h_generator", h - h_t), ("f_torsion_hz", f_start), ("zeta", 0.05), ("d_turbine", 0.0)],
+                &[
+                    ("h_turbine", h_t),
+                    ("h_generator", h - h_t),
+                    ("f_torsion_hz", f_start),
+                    ("zeta", 0.05),
+                    ("d_turbine", 0.0),
+                ],
             )?;
             let h_r = u.param(&h_path).map_err(|e| e.to_string())?;
             u.set(h_r, h - h_t);
@@ -269,50 +324,83 @@ pub fn extend(cause: &str, unit: &Unit, ctx: &Context) -> Result<Result<Extensio
             ext.ties = vec![(h_path, "shaft.h_generator".into())];
         }
         "exciter_limit" => {
-            let Some(x) = exciter else { return not_applicable("no exciter") };
+            let Some(x) = exciter else {
+                return not_applicable("no exciter");
+            };
             let (pmax, pmin) = (format!("{x}.e_max"), format!("{x}.e_min"));
             if !has_param(&u, &pmax) || !has_param(&u, &pmin) {
-                return not_applicable(&format!("exciter {} has no E_MAX/E_MIN limits", model_of(&u, &x)));
+                return not_applicable(&format!(
+                    "exciter {} has no E_MAX/E_MIN limits",
+                    model_of(&u, &x)
+                ));
             }
-            let efd0 = ctx.efd0.ok_or("the field voltage at the operating point is unknown")?;
+            let efd0 = ctx
+                .efd0
+                .ok_or("the field voltage at the operating point is unknown")?;
             let (emax, emin) = (value(&u, &pmax)?, value(&u, &pmin)?);
             let hi = emax.max(efd0 + 3.0).max(2.0 * efd0);
             ext.extension_free = vec![
                 scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi)), 16),
                 fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05)),
             ];
-            ext.interacting_free = vec![];
-            let k = format!("{x}.k");
-            if let Ok(kv) = value(&u, &k) {
-                ext.interacting_free.push(fb(&k, 0.5 * kv, 2.0 * kv, kv));
+            // The AVR stage's parameters, and the field's open-circuit time constant: on the
+            // ceiling the field flux rises at about E_MAX/T'_d0, the pair a calibration without
+            // the right limit trades against each other.
+            ext.interacting_free = avr_stage(&u, &x);
+            let td0 = format!("{machine}.t_d0_prime");
+            if let Ok(v) = value(&u, &td0) {
+                ext.interacting_free.push(fb(&td0, 0.6 * v, 1.6 * v, v));
             }
         }
         "saturation" => {
             let (s10, s12) = (format!("{machine}.s10"), format!("{machine}.s12"));
             if !has_param(&u, &s10) || !has_param(&u, &s12) {
-                return not_applicable(&format!("machine {} has no S(1.0), S(1.2)", model_of(&u, &machine)));
+                return not_applicable(&format!(
+                    "machine {} has no S(1.0), S(1.2)",
+                    model_of(&u, &machine)
+                ));
             }
             let (a, b) = (value(&u, &s10)?, value(&u, &s12)?);
             ext.extension_free = vec![fb(&s10, 0.0, 0.4, a), fb(&s12, 0.02, 1.5, b)];
         }
         "governor" => {
-            let Some(g) = governor else { return not_applicable("no governor block") };
+            let Some(g) = governor else {
+                return not_applicable("no governor block");
+            };
             if u.block("deadband").is_some() {
                 return not_applicable("the unit already has a block named 'deadband'");
             }
             let model = model_of(&u, &g);
             if !model.eq_ignore_ascii_case("HYGOV") {
                 // Governor action missing: put a typical HYGOV in its place.
-                let hygov = registry::find("HYGOV").ok_or("HYGOV is not in the registry")?.create();
+                let hygov = registry::find("HYGOV")
+                    .ok_or("HYGOV is not in the registry")?
+                    .create();
                 u.put(&g, hygov, &[]).map_err(|e| e.to_string())?;
-                ext.description = format!("HYGOV (typical values) in place of {model}, with a speed deadband; {}", info.extension);
+                ext.description = format!(
+                    "HYGOV (typical values) in place of {model}, with a speed deadband; {}",
+                    info.extension
+                );
             }
-            add_block(&mut u, "deadband", new_block("speed_deadband", &[("db", 0.0)])?)?;
+            add_block(
+                &mut u,
+                "deadband",
+                new_block("speed_deadband", &[("db", 0.0)])?,
+            )?;
             rewire(&mut u, &g, &[("speed", "speed_db")])?;
             let velm = value(&u, &format!("{g}.velm"))?;
-            ext.extension_free = vec![fb("deadband.db", 0.0, 0.002, 0.0), fb(&format!("{g}.velm"), 0.005, 0.5, velm)];
-            let (r, tw) = (value(&u, &format!("{g}.r_perm"))?, value(&u, &format!("{g}.t_w"))?);
-            ext.interacting_free = vec![fb(&format!("{g}.r_perm"), 0.01, 0.15, r), fb(&format!("{g}.t_w"), 0.3, 4.0, tw)];
+            ext.extension_free = vec![
+                scanned(fb("deadband.db", 0.0, 0.002, 0.0), 9),
+                scanned(fb(&format!("{g}.velm"), 0.005, 0.5, velm), 9),
+            ];
+            let (r, tw) = (
+                value(&u, &format!("{g}.r_perm"))?,
+                value(&u, &format!("{g}.t_w"))?,
+            );
+            ext.interacting_free = vec![
+                fb(&format!("{g}.r_perm"), 0.01, 0.15, r),
+                fb(&format!("{g}.t_w"), 0.3, 4.0, tw),
+            ];
             if !model.eq_ignore_ascii_case("HYGOV") {
                 // A new governor: every parameter the fit needs is new, count them all.
                 ext.extension_free.append(&mut ext.interacting_free);
@@ -324,54 +412,109 @@ pub fn extend(cause: &str, unit: &Unit, ctx: &Context) -> Result<Result<Extensio
             }
             add_block(&mut u, "measurement", new_block("pmu_measurement", &[])?)?;
             let max = 3.0 / ctx.rate_hz.max(1.0);
-            ext.extension_free = vec![scanned(fb("measurement.pq_delay_s", 0.0, max, 0.5 / ctx.rate_hz.max(1.0)), 13)];
+            ext.extension_free = vec![scanned(
+                fb(
+                    "measurement.pq_delay_s",
+                    0.0,
+                    max,
+                    0.5 / ctx.rate_hz.max(1.0),
+                ),
+                13,
+            )];
         }
         "terminal_load" => {
             if u.block("load").is_some() {
                 return not_applicable("the unit already has a block named 'load'");
             }
             add_block(&mut u, "load", new_block("terminal_load", &[])?)?;
-            ext.extension_free = vec![fb("load.p_load", 0.0, 0.15, 0.0), fb("load.q_load", -0.15, 0.15, 0.0)];
+            ext.extension_free = vec![
+                fb("load.p_load", 0.0, 0.15, 0.0),
+                fb("load.q_load", -0.15, 0.15, 0.0),
+            ];
         }
         "pss_state" => {
-            let Some(x) = exciter else { return not_applicable("no exciter for a PSS to act on") };
+            let Some(x) = exciter else {
+                return not_applicable("no exciter for a PSS to act on");
+            };
             if let Some(p) = pss {
                 u = u.without(&[p.as_str()]).map_err(|e| e.to_string())?;
                 ext.description = format!("the PSS ({}) taken out of service", model_of(unit, &p));
                 ext.discrete_params = 1;
                 ext.fixed = vec![("pss.in_service".into(), 0.0)];
             } else {
-                add_block(&mut u, "pss", registry::find("STAB3").ok_or("STAB3 is not in the registry")?.create())?;
+                add_block(
+                    &mut u,
+                    "pss",
+                    registry::find("STAB3")
+                        .ok_or("STAB3 is not in the registry")?
+                        .create(),
+                )?;
                 ext.description = "a STAB3 PSS (typical values) put in service".into();
-                ext.extension_free = vec![fb("pss.k_x", 0.2, 5.0, 1.0), fb("pss.t_x2", 0.5, 8.0, 3.0)];
+                ext.extension_free =
+                    vec![fb("pss.k_x", 0.2, 5.0, 1.0), fb("pss.t_x2", 0.5, 8.0, 3.0)];
                 ext.discrete_params = 1;
                 ext.fixed = vec![("pss.in_service".into(), 1.0)];
             }
-            let k = format!("{x}.k");
-            if let Ok(kv) = value(&u, &k) {
-                ext.interacting_free.push(fb(&k, 0.5 * kv, 2.0 * kv, kv));
+            // A calibration with the PSS as modelled tuned the AVR, the inertia and the field
+            // dynamics to make up for it: they move with the PSS's state (a longer search).
+            ext.search_factor = 3;
+            for (p, lo, hi) in [
+                (format!("{x}.k"), 0.5, 2.0),
+                (format!("{x}.te"), 0.5, 2.0),
+                (format!("{machine}.h"), 0.7, 1.4),
+                (format!("{machine}.d"), 0.0, 0.0),
+                (format!("{machine}.x_d_prime"), 0.7, 1.4),
+                (format!("{machine}.t_d0_prime"), 0.6, 1.6),
+            ] {
+                if let Ok(v) = value(&u, &p) {
+                    let (a, b) = if p.ends_with(".d") {
+                        (0.0, v.max(0.0) + 3.0)
+                    } else {
+                        (lo * v, hi * v)
+                    };
+                    ext.interacting_free.push(fb(&p, a, b, v));
+                }
             }
         }
         "oel" => {
-            let Some(x) = exciter else { return not_applicable("no exciter for an OEL to act on") };
-            let has_voel = u.block(&x).is_some_and(|b| b.ports().iter().any(|p| p.name == "voel"));
+            let Some(x) = exciter else {
+                return not_applicable("no exciter for an OEL to act on");
+            };
+            let has_voel = u
+                .block(&x)
+                .is_some_and(|b| b.ports().iter().any(|p| p.name == "voel"));
             if !has_voel {
                 return not_applicable(&format!("exciter {} has no OEL input", model_of(&u, &x)));
             }
             if u.block("oel").is_some() {
                 return not_applicable("the unit already has an OEL");
             }
-            let i0 = ctx.xadifd0.ok_or("the field current at the operating point is unknown")?;
+            let i0 = ctx
+                .xadifd0
+                .ok_or("the field current at the operating point is unknown")?;
             if !(i0 > 0.0) {
                 return not_applicable("the field current at the operating point is not positive");
             }
-            // Rated field current = the pre-event one, so pickup and limit read as multiples of it.
+            // Rated field current = the pre-event one, so pickup and limit read as multiples of it
+            // (the pickup stays at least 1 % above, so the limiter starts inactive).
             let oel = new_block(
                 "oel",
-                &[("ifd_rated", i0), ("i_pickup", 1.2), ("i_limit", 1.2), ("a_max", 2.0), ("k_cool", 0.05), ("k_i", 0.01), ("voel_min", -0.5)],
+                &[
+                    ("ifd_rated", i0),
+                    ("i_pickup", 1.2),
+                    ("i_limit", 1.2),
+                    ("a_max", 2.0),
+                    ("k_cool", 0.05),
+                    ("k_i", 0.01),
+                    ("voel_min", -0.5),
+                ],
             )?;
             add_block(&mut u, "oel", oel)?;
-            ext.extension_free = vec![scanned(fb("oel.i_pickup", 1.0, 2.0, 1.2), 11), fb("oel.a_max", 0.05, 30.0, 2.0), fb("oel.k_i", 0.001, 0.1, 0.01)];
+            ext.extension_free = vec![
+                scanned(fb("oel.i_pickup", 1.01, 1.6, 1.2), 12),
+                fb("oel.a_max", 0.02, 30.0, 0.3),
+                fb("oel.k_i", 0.002, 0.2, 0.03),
+            ];
             ext.ties = vec![("oel.i_pickup".into(), "oel.i_limit".into())];
         }
         _ => unreachable!("every catalog id is handled"),
@@ -390,8 +533,14 @@ pub fn extend(cause: &str, unit: &Unit, ctx: &Context) -> Result<Result<Extensio
 
 /// The unit with `cause` hidden in it: the extension of [`extend`] with `values` set
 /// (`block.param` paths of the extended unit, e.g. `shaft.f_torsion_hz`), ties applied.
-pub fn hide(cause: &str, unit: &Unit, ctx: &Context, values: &BTreeMap<String, f64>) -> Result<Unit, String> {
-    let ext = extend(cause, unit, ctx)?.map_err(|why| format!("cannot hide {cause} in this unit: {why}"))?;
+pub fn hide(
+    cause: &str,
+    unit: &Unit,
+    ctx: &Context,
+    values: &BTreeMap<String, f64>,
+) -> Result<Unit, String> {
+    let ext = extend(cause, unit, ctx)?
+        .map_err(|why| format!("cannot hide {cause} in this unit: {why}"))?;
     let mut u = ext.unit;
     // Extension parameters start at their search start unless given.
     for f in ext.extension_free.iter() {
@@ -400,13 +549,24 @@ pub fn hide(cause: &str, unit: &Unit, ctx: &Context, values: &BTreeMap<String, f
     }
     for (path, v) in values {
         let r = u.param(path).map_err(|_| {
-            let known: Vec<&str> = ext.extension_free.iter().chain(&ext.interacting_free).map(|f| f.param.as_str()).collect();
-            format!("{cause}: unknown parameter '{path}' (the extension's: {})", known.join(", "))
+            let known: Vec<&str> = ext
+                .extension_free
+                .iter()
+                .chain(&ext.interacting_free)
+                .map(|f| f.param.as_str())
+                .collect();
+            format!(
+                "{cause}: unknown parameter '{path}' (the extension's: {})",
+                known.join(", ")
+            )
         })?;
         u.set(r, *v);
     }
     for (from, to) in &ext.ties {
-        let (rf, rt) = (u.param(from).map_err(|e| e.to_string())?, u.param(to).map_err(|e| e.to_string())?);
+        let (rf, rt) = (
+            u.param(from).map_err(|e| e.to_string())?,
+            u.param(to).map_err(|e| e.to_string())?,
+        );
         let v = u.get(rf);
         u.set(rt, v);
     }

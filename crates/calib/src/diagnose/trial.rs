@@ -34,8 +34,13 @@ free = [
 "#;
 
 /// How far the nominal unit starts from the truth (factor per parameter).
-pub const NOMINAL_OFFSETS: &[(&str, f64)] =
-    &[("machine.h", 1.3), ("machine.x_d_prime", 0.75), ("machine.t_d0_prime", 1.4), ("exciter.k", 0.7), ("exciter.te", 1.5)];
+/// (T'_d0 starts right but is free in the calibration.)
+pub const NOMINAL_OFFSETS: &[(&str, f64)] = &[
+    ("machine.h", 1.3),
+    ("machine.x_d_prime", 0.75),
+    ("exciter.k", 0.7),
+    ("exciter.te", 1.5),
+];
 
 /// One synthetic trial.
 #[derive(Debug, Clone)]
@@ -84,8 +89,27 @@ pub fn base_unit() -> Unit {
     .expect("the bundled synthetic unit parses")
 }
 
-/// A trial with the defaults of the tests: 20 s at 60 samples/s, typical PMU noise.
-pub fn trial(cause: &str, values: &[(&str, f64)], key: Option<(&str, Tolerance)>, kind: EventKind, seed: u64) -> Trial {
+/// PMU noise of the trials: 0.002 pu white noise on P and Q with 0.0014 pu quantisation (as in
+/// the Itaipu record) and 1e-4 pu / 1e-4 rad on the voltage phasor (TVE about 0.014 %, a good
+/// M-class PMU). The voltage is the playback's input: its noise reaches the simulated P and Q
+/// through the model (errors in variables), and at 5 × this level the bias it leaves is large
+/// enough for flexible extensions (saturation, terminal load) to fit it (see the README).
+pub fn trial_noise(seed: u64) -> PmuNoise {
+    PmuNoise {
+        v_sigma: 1e-4,
+        angle_sigma: 1e-4,
+        ..PmuNoise::typical(seed)
+    }
+}
+
+/// A trial with the defaults of the tests: 20 s at 60 samples/s, [`trial_noise`].
+pub fn trial(
+    cause: &str,
+    values: &[(&str, f64)],
+    key: Option<(&str, Tolerance)>,
+    kind: EventKind,
+    seed: u64,
+) -> Trial {
     Trial {
         cause: cause.into(),
         values: values.iter().map(|(k, v)| (k.to_string(), *v)).collect(),
@@ -93,7 +117,7 @@ pub fn trial(cause: &str, values: &[(&str, f64)], key: Option<(&str, Tolerance)>
         kind,
         duration_s: 20.0,
         seed,
-        noise: PmuNoise::typical(seed),
+        noise: trial_noise(seed),
     }
 }
 
@@ -105,10 +129,19 @@ pub fn truth_and_event(t: &Trial) -> Result<(Unit, Event), String> {
     let truth = if t.cause == "none" {
         base
     } else {
-        let probe = synthesize("probe", &base, &profile, 737.0, &PmuNoise::none(), &sim).map_err(|e| e.to_string())?;
+        let probe = synthesize("probe", &base, &profile, 737.0, &PmuNoise::none(), &sim)
+            .map_err(|e| e.to_string())?;
         catalog::hide(&t.cause, &base, &context(&base, &probe)?, &t.values)?
     };
-    let event = synthesize(&format!("trial-{}-{}", t.cause, t.seed), &truth, &profile, 737.0, &t.noise, &sim).map_err(|e| e.to_string())?;
+    let event = synthesize(
+        &format!("trial-{}-{}", t.cause, t.seed),
+        &truth,
+        &profile,
+        737.0,
+        &t.noise,
+        &sim,
+    )
+    .map_err(|e| e.to_string())?;
     Ok((truth, event))
 }
 
@@ -121,14 +154,36 @@ pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, String> {
         let v = nominal.get(r);
         nominal.set(r, v * f);
     }
-    let spec = CalibSpec::parse(NOMINAL_SPEC, std::path::Path::new("nominal-spec.toml")).map_err(|e| e.to_string())?;
-    let fitted = fit(&nominal, &spec, std::slice::from_ref(&event), &[], &quick_options(&["tg"], t.seed), &Silent).map_err(|e| e.to_string())?;
+    let spec = CalibSpec::parse(NOMINAL_SPEC, std::path::Path::new("nominal-spec.toml"))
+        .map_err(|e| e.to_string())?;
+    let fitted = fit(
+        &nominal,
+        &spec,
+        std::slice::from_ref(&event),
+        &[],
+        &quick_options(&["tg"], t.seed),
+        &Silent,
+    )
+    .map_err(|e| e.to_string())?;
     let calibrated = fitted.unit;
-    let res = diagnose(&calibrated, std::slice::from_ref(&event), &[], opts, &Silent).map_err(|e| e.to_string())?;
+    let res = diagnose(
+        &calibrated,
+        std::slice::from_ref(&event),
+        &[],
+        opts,
+        &Silent,
+    )
+    .map_err(|e| e.to_string())?;
     let named = res.report.verdict.cause.clone();
     let key = t.key.as_ref().map(|(p, _)| {
         let tv = truth.param(p).map(|r| truth.get(r)).unwrap_or(f64::NAN);
-        let got = res.report.verdict.key_parameters.iter().find(|(q, _, _)| q == p).map(|(_, v, _)| *v);
+        let got = res
+            .report
+            .verdict
+            .key_parameters
+            .iter()
+            .find(|(q, _, _)| q == p)
+            .map(|(_, v, _)| *v);
         (p.clone(), tv, got)
     });
     let named_right = named == t.cause;
@@ -140,7 +195,14 @@ pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, String> {
         (Some(_), _) => false,
         (None, _) => true,
     };
-    Ok(TrialOutcome { report: res.report, named, key, hit: named_right && key_ok, event, calibrated })
+    Ok(TrialOutcome {
+        report: res.report,
+        named,
+        key,
+        hit: named_right && key_ok,
+        event,
+        calibrated,
+    })
 }
 
 /// The canonical scenario for hiding `cause`, varied by `seed` (parameter values drawn around a
@@ -148,35 +210,76 @@ pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, String> {
 pub fn scenario(cause: &str, seed: u64, kind: Option<EventKind>) -> Trial {
     // A deterministic spread in [-1, 1] from the seed.
     let u = |salt: u64| {
-        let mut r = itaipu_dynamics::synthetic::Normal::new(seed.wrapping_mul(7919).wrapping_add(salt));
+        let mut r =
+            itaipu_dynamics::synthetic::Normal::new(seed.wrapping_mul(7919).wrapping_add(salt));
         2.0 * r.uniform() - 1.0
     };
     let dip = EventKind::FaultDip;
     let mut t = match cause {
         "torsional_mode" => trial(
             cause,
-            &[("shaft.f_torsion_hz", 5.0 + 2.0 * u(1)), ("shaft.zeta", 0.02 + 0.01 * u(2)), ("shaft.h_turbine", 0.8), ("machine.h", 3.7)],
+            &[
+                ("shaft.f_torsion_hz", 5.0 + 2.0 * u(1)),
+                ("shaft.zeta", 0.02 + 0.01 * u(2)),
+                ("shaft.h_turbine", 0.8),
+                ("machine.h", 3.7),
+            ],
             Some(("shaft.f_torsion_hz", Tolerance::Rel(0.05))),
             dip,
             seed,
         ),
-        "exciter_limit" => trial(cause, &[("exciter.e_max", 2.9 + 0.3 * u(1))], Some(("exciter.e_max", Tolerance::Rel(0.05))), dip, seed),
-        "saturation" => trial(cause, &[("machine.s10", 0.2 + 0.05 * u(1)), ("machine.s12", 0.6 + 0.1 * u(2))], None, dip, seed),
+        "exciter_limit" => trial(
+            cause,
+            &[("exciter.e_max", 2.9 + 0.3 * u(1))],
+            Some(("exciter.e_max", Tolerance::Rel(0.05))),
+            dip,
+            seed,
+        ),
+        "saturation" => trial(
+            cause,
+            &[
+                ("machine.s10", 0.2 + 0.05 * u(1)),
+                ("machine.s12", 0.6 + 0.1 * u(2)),
+            ],
+            None,
+            dip,
+            seed,
+        ),
         "governor" => trial(
             cause,
-            &[("deadband.db", 0.0005 + 0.0002 * u(1)), ("governor.velm", 0.05)],
+            &[
+                ("deadband.db", 0.001 + 0.0003 * u(1)),
+                ("governor.velm", 0.02),
+            ],
             None,
             EventKind::FrequencyExcursion,
             seed,
         ),
-        "measurement_skew" => {
-            trial(cause, &[("measurement.pq_delay_s", 0.012 + 0.006 * u(1))], Some(("measurement.pq_delay_s", Tolerance::Abs(0.5 / 60.0))), dip, seed)
-        }
-        "terminal_load" => trial(cause, &[("load.p_load", 0.05 + 0.02 * u(1)), ("load.q_load", 0.04 + 0.02 * u(2))], None, dip, seed),
+        "measurement_skew" => trial(
+            cause,
+            &[("measurement.pq_delay_s", 0.012 + 0.006 * u(1))],
+            Some(("measurement.pq_delay_s", Tolerance::Abs(0.5 / 60.0))),
+            dip,
+            seed,
+        ),
+        "terminal_load" => trial(
+            cause,
+            &[
+                ("load.p_load", 0.05 + 0.02 * u(1)),
+                ("load.q_load", 0.04 + 0.02 * u(2)),
+            ],
+            None,
+            dip,
+            seed,
+        ),
         "pss_state" => trial(cause, &[], None, dip, seed),
         "oel" => trial(
             cause,
-            &[("oel.i_pickup", 1.1), ("oel.a_max", 0.1 + 0.05 * u(1)), ("oel.k_i", 0.02)],
+            &[
+                ("oel.i_pickup", 1.04 + 0.02 * u(1)),
+                ("oel.a_max", 0.1 + 0.05 * u(2)),
+                ("oel.k_i", 0.05),
+            ],
             Some(("oel.i_pickup", Tolerance::Rel(0.05))),
             dip,
             seed,

@@ -39,9 +39,30 @@ const A: [[f64; 6]; 7] = [
     [1.0 / 5.0, 0.0, 0.0, 0.0, 0.0, 0.0],
     [3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0, 0.0],
     [44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0, 0.0],
-    [19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0, 0.0, 0.0],
-    [9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0, 0.0],
-    [35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0],
+    [
+        19372.0 / 6561.0,
+        -25360.0 / 2187.0,
+        64448.0 / 6561.0,
+        -212.0 / 729.0,
+        0.0,
+        0.0,
+    ],
+    [
+        9017.0 / 3168.0,
+        -355.0 / 33.0,
+        46732.0 / 5247.0,
+        49.0 / 176.0,
+        -5103.0 / 18656.0,
+        0.0,
+    ],
+    [
+        35.0 / 384.0,
+        0.0,
+        500.0 / 1113.0,
+        125.0 / 192.0,
+        -2187.0 / 6784.0,
+        11.0 / 84.0,
+    ],
 ];
 /// Error weights `b_i - b̂_i` (fifth minus fourth order).
 const E: [f64; 7] = [
@@ -79,7 +100,11 @@ impl Dopri5 {
     /// Checks the options: `rtol` finite and `> 10·ε`, `atol` finite and `>= 0`, `h_max > 0`
     /// (may be infinite), `h_init` finite and `>= 0`, `max_steps > 0`.
     pub fn new(opts: Dopri5Options) -> Result<Self, SolveError> {
-        let bad = |what: &str| Err(SolveError::BadSetting(format!("Dopri5 {what} (got {opts:?})")));
+        let bad = |what: &str| {
+            Err(SolveError::BadSetting(format!(
+                "Dopri5 {what} (got {opts:?})"
+            )))
+        };
         if !(opts.rtol.is_finite() && opts.rtol > 10.0 * f64::EPSILON) {
             return bad("rtol must be finite and > 10·ε");
         }
@@ -135,12 +160,19 @@ impl Dopri5 {
             stats.rhs_evals += 1;
             step.initial_step(sys, o.rtol, o.atol, o.h_max)
         };
-        let mut ctl = Controller { h: h0, err_old: 1e-4, rejected: false };
+        let mut ctl = Controller {
+            h: h0,
+            err_old: 1e-4,
+            rejected: false,
+        };
 
         for (k, &t_knot) in knots.iter().enumerate().skip(1) {
             while t < t_knot {
                 if stats.steps_accepted + stats.steps_rejected >= o.max_steps {
-                    return Err(SolveError::TooManySteps { t, max_steps: o.max_steps });
+                    return Err(SolveError::TooManySteps {
+                        t,
+                        max_steps: o.max_steps,
+                    });
                 }
                 if ctl.h <= 10.0 * f64::EPSILON * t.abs().max(span) {
                     return Err(SolveError::StepUnderflow { t, h: ctl.h });
@@ -279,7 +311,11 @@ impl Dopri5Step {
         (self.t1, self.h) = (t1, h);
         for s in 1..7 {
             let (done, rest) = self.k.split_at_mut(s);
-            let y = if s == 6 { &mut self.x1 } else { &mut self.stage };
+            let y = if s == 6 {
+                &mut self.x1
+            } else {
+                &mut self.stage
+            };
             // y = x0 + h Σ_j A[s][j] k_j, as one vectorisable axpy per earlier stage.
             y.copy_from_slice(&self.x0);
             for (kj, a) in done.iter().zip(&A[s]) {
@@ -303,7 +339,12 @@ impl Dopri5Step {
         let mut sum = 0.0;
         for i in 0..n {
             let e = self.h
-                * (E[0] * k[0][i] + E[1] * k[1][i] + E[2] * k[2][i] + E[3] * k[3][i] + E[4] * k[4][i] + E[5] * k[5][i]
+                * (E[0] * k[0][i]
+                    + E[1] * k[1][i]
+                    + E[2] * k[2][i]
+                    + E[3] * k[3][i]
+                    + E[4] * k[4][i]
+                    + E[5] * k[5][i]
                     + E[6] * k[6][i]);
             let scale = atol + rtol * x0[i].abs().max(x1[i].abs());
             sum += (e / scale.max(f64::MIN_POSITIVE)).powi(2);
@@ -322,7 +363,12 @@ impl Dopri5Step {
         for (i, o) in out.iter_mut().enumerate() {
             let dx = x1[i] - x0[i];
             let b = h * k1[i] - dx;
-            let d = D[0] * k[0][i] + D[1] * k[1][i] + D[2] * k[2][i] + D[3] * k[3][i] + D[4] * k[4][i] + D[5] * k[5][i]
+            let d = D[0] * k[0][i]
+                + D[1] * k[1][i]
+                + D[2] * k[2][i]
+                + D[3] * k[3][i]
+                + D[4] * k[4][i]
+                + D[5] * k[5][i]
                 + D[6] * k[6][i];
             let r4 = dx - h * k7[i] - b;
             *o = x0[i] + theta * (dx + th1 * (b + theta * (r4 + th1 * h * d)));
@@ -366,11 +412,20 @@ impl Dopri5Step {
         let n = self.x0.len().max(1) as f64;
         let scale = |x: f64| (atol + rtol * x.abs()).max(f64::MIN_POSITIVE);
         let rms = |f: &dyn Fn(usize) -> f64| {
-            ((0..self.x0.len()).map(|i| (f(i) / scale(self.x0[i])).powi(2)).sum::<f64>() / n).sqrt()
+            ((0..self.x0.len())
+                .map(|i| (f(i) / scale(self.x0[i])).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt()
         };
         let d0 = rms(&|i| self.x0[i]);
         let d1 = rms(&|i| self.k[0][i]);
-        let h0 = (if d0 <= 1e-5 || d1 <= 1e-5 { 1e-6 } else { 0.01 * d0 / d1 }).min(h_max);
+        let h0 = (if d0 <= 1e-5 || d1 <= 1e-5 {
+            1e-6
+        } else {
+            0.01 * d0 / d1
+        })
+        .min(h_max);
         for i in 0..self.x0.len() {
             self.x1[i] = self.x0[i] + h0 * self.k[0][i];
         }
@@ -379,7 +434,11 @@ impl Dopri5Step {
         let (k1, k2) = (&head[0], &tail[0]);
         let d2 = rms(&|i| k2[i] - k1[i]) / h0;
         let der = d1.max(d2);
-        let h1 = if der <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / der).powf(0.2) };
+        let h1 = if der <= 1e-15 {
+            (h0 * 1e-3).max(1e-6)
+        } else {
+            (0.01 / der).powf(0.2)
+        };
         let h = (100.0 * h0).min(h1).min(h_max);
         if h.is_finite() && h > 0.0 {
             h
@@ -396,7 +455,12 @@ mod tests {
     use super::*;
 
     fn opts(rtol: f64, atol: f64, h_max: f64) -> Dopri5Options {
-        Dopri5Options { rtol, atol, h_max, ..Dopri5Options::default() }
+        Dopri5Options {
+            rtol,
+            atol,
+            h_max,
+            ..Dopri5Options::default()
+        }
     }
 
     /// Fixed-step Dormand-Prince over `[0, 2]` in `n` steps; error at `t = 2`.
@@ -431,7 +495,10 @@ mod tests {
 
     #[test]
     fn dopri5_dense_output_local_order_is_five() {
-        let errs: Vec<f64> = [0.2, 0.1, 0.05].iter().map(|&h| dense_error(h, 0.37)).collect();
+        let errs: Vec<f64> = [0.2, 0.1, 0.05]
+            .iter()
+            .map(|&h| dense_error(h, 0.37))
+            .collect();
         let p = orders(&errs);
         eprintln!("Dopri5 dense output errors at theta=0.37 {errs:?}, observed orders {p:.4?}");
         assert!(p.iter().all(|p| (4.5..=5.5).contains(p)), "{p:?}");
@@ -485,10 +552,16 @@ mod tests {
             knots.push(last + if i % 2 == 0 { 0.1 } else { 1e-3 });
         }
         let mut x = Oscillator::exact(0.0);
-        let m = Method::Dopri5(Dopri5Options { h_init: 0.1, ..opts(1e-3, 1e-3, 1.0) });
+        let m = Method::Dopri5(Dopri5Options {
+            h_init: 0.1,
+            ..opts(1e-3, 1e-3, 1.0)
+        });
         let stats = solve(&m, &mut Oscillator, &mut x, &knots, |_, _, _, _| {}).unwrap();
         eprintln!("Dopri5 on 40 short intervals: {stats:?}");
-        assert!(stats.steps_accepted + stats.steps_rejected <= 40 + 2, "{stats:?}");
+        assert!(
+            stats.steps_accepted + stats.steps_rejected <= 40 + 2,
+            "{stats:?}"
+        );
         assert!(max_err(&x, &Oscillator::exact(*knots.last().unwrap())) < 1e-3);
     }
 
@@ -496,10 +569,19 @@ mod tests {
     fn dopri5_fsal_carries_across_knots() {
         let knots: Vec<f64> = (0..=20).map(|i| i as f64 * 0.1).collect();
         for (h_init, setup_evals) in [(0.05, 1), (0.0, 2)] {
-            let o = Dopri5Options { h_init, ..opts(1e-6, 1e-8, 1.0) };
+            let o = Dopri5Options {
+                h_init,
+                ..opts(1e-6, 1e-8, 1.0)
+            };
             let mut x = Oscillator::exact(0.0);
-            let s = solve(&Method::Dopri5(o), &mut Oscillator, &mut x, &knots, |_, _, _, _| {})
-                .unwrap();
+            let s = solve(
+                &Method::Dopri5(o),
+                &mut Oscillator,
+                &mut x,
+                &knots,
+                |_, _, _, _| {},
+            )
+            .unwrap();
             assert_eq!(
                 s.rhs_evals,
                 setup_evals + 6 * (s.steps_accepted + s.steps_rejected),
@@ -549,13 +631,20 @@ mod tests {
 
     #[test]
     fn dopri5_earliest_of_two_crossings_first() {
-        let o = Dopri5Options { h_init: 0.3, ..opts(1e-6, 1e-8, 0.3) };
+        let o = Dopri5Options {
+            h_init: 0.3,
+            ..opts(1e-6, 1e-8, 0.3)
+        };
         check_earliest_guard_first(&Method::Dopri5(o));
     }
 
     #[test]
     fn dopri5_controller() {
-        let mut c = Controller { h: 0.1, err_old: 1e-4, rejected: false };
+        let mut c = Controller {
+            h: 0.1,
+            err_old: 1e-4,
+            rejected: false,
+        };
         // Rejection: shrink, at most by FAC_MIN.
         assert!(!c.update(2.0, 0.1, false, 1.0));
         assert!(c.h < 0.1 && c.h >= 0.1 * FAC_MIN, "{}", c.h);
@@ -594,7 +683,10 @@ mod tests {
     fn dopri5_errors() {
         check_failures(&Method::Dopri5(Dopri5Options::default()));
 
-        let o = Dopri5Options { max_steps: 5, ..Dopri5Options::default() };
+        let o = Dopri5Options {
+            max_steps: 5,
+            ..Dopri5Options::default()
+        };
         let r = solve(
             &Method::Dopri5(o),
             &mut Oscillator,
@@ -602,25 +694,54 @@ mod tests {
             &[0.0, 2.0],
             |_, _, _, _| {},
         );
-        assert!(matches!(r, Err(SolveError::TooManySteps { max_steps: 5, .. })), "{r:?}");
+        assert!(
+            matches!(r, Err(SolveError::TooManySteps { max_steps: 5, .. })),
+            "{r:?}"
+        );
 
         let d = Dopri5Options::default;
         assert!(Dopri5::new(d()).is_ok());
-        assert!(Dopri5::new(Dopri5Options { h_max: f64::INFINITY, atol: 0.0, ..d() }).is_ok());
+        assert!(Dopri5::new(Dopri5Options {
+            h_max: f64::INFINITY,
+            atol: 0.0,
+            ..d()
+        })
+        .is_ok());
         for bad in [
             Dopri5Options { rtol: 0.0, ..d() },
             Dopri5Options { rtol: -1e-6, ..d() },
             Dopri5Options { rtol: 1e-17, ..d() },
-            Dopri5Options { rtol: f64::NAN, ..d() },
+            Dopri5Options {
+                rtol: f64::NAN,
+                ..d()
+            },
             Dopri5Options { atol: -1.0, ..d() },
-            Dopri5Options { atol: f64::INFINITY, ..d() },
+            Dopri5Options {
+                atol: f64::INFINITY,
+                ..d()
+            },
             Dopri5Options { h_max: 0.0, ..d() },
-            Dopri5Options { h_max: f64::NAN, ..d() },
-            Dopri5Options { h_init: -0.1, ..d() },
-            Dopri5Options { h_init: f64::NAN, ..d() },
-            Dopri5Options { max_steps: 0, ..d() },
+            Dopri5Options {
+                h_max: f64::NAN,
+                ..d()
+            },
+            Dopri5Options {
+                h_init: -0.1,
+                ..d()
+            },
+            Dopri5Options {
+                h_init: f64::NAN,
+                ..d()
+            },
+            Dopri5Options {
+                max_steps: 0,
+                ..d()
+            },
         ] {
-            assert!(matches!(Dopri5::new(bad.clone()), Err(SolveError::BadSetting(_))), "{bad:?}");
+            assert!(
+                matches!(Dopri5::new(bad.clone()), Err(SolveError::BadSetting(_))),
+                "{bad:?}"
+            );
         }
     }
 }

@@ -100,7 +100,13 @@ pub struct Dopri5Options {
 
 impl Default for Dopri5Options {
     fn default() -> Self {
-        Self { rtol: 1e-6, atol: 1e-8, h_max: 0.1, h_init: 0.0, max_steps: 5_000_000 }
+        Self {
+            rtol: 1e-6,
+            atol: 1e-8,
+            h_max: 0.1,
+            h_init: 0.0,
+            max_steps: 5_000_000,
+        }
     }
 }
 
@@ -168,14 +174,20 @@ const MAX_EVENTS_PER_INSTANT: usize = 100;
 /// `knots[0]` and checks that the resulting state is finite.
 fn begin<S: OdeSystem>(sys: &mut S, x: &mut [f64], knots: &[f64]) -> Result<(), SolveError> {
     let Some(&t0) = knots.first() else {
-        return Err(SolveError::BadKnots { index: 0, t: f64::NAN });
+        return Err(SolveError::BadKnots {
+            index: 0,
+            t: f64::NAN,
+        });
     };
     if !t0.is_finite() {
         return Err(SolveError::BadKnots { index: 0, t: t0 });
     }
     for (i, w) in knots.windows(2).enumerate() {
         if !(w[1] > w[0] && w[1].is_finite()) {
-            return Err(SolveError::BadKnots { index: i + 1, t: w[1] });
+            return Err(SolveError::BadKnots {
+                index: i + 1,
+                t: w[1],
+            });
         }
     }
     if x.len() != sys.dim() {
@@ -237,7 +249,10 @@ impl Events {
             return false;
         }
         sys.events(t1, x1, &mut self.g_end);
-        self.g_start.iter().zip(&self.g_end).any(|(&a, &b)| a > 0.0 && b <= 0.0)
+        self.g_start
+            .iter()
+            .zip(&self.g_end)
+            .any(|(&a, &b)| a > 0.0 && b <= 0.0)
     }
 
     /// The step end becomes the next step start.
@@ -254,8 +269,17 @@ impl Events {
         S: OdeSystem,
         F: FnMut(f64, &mut [f64]),
     {
-        let tol = EVENT_TOL_ABS.min(EVENT_TOL_REL * (t1 - t0)).max(4.0 * f64::EPSILON * t1.abs());
-        let Events { g_start, g_end, g_probe, x_probe, last_event, .. } = self;
+        let tol = EVENT_TOL_ABS
+            .min(EVENT_TOL_REL * (t1 - t0))
+            .max(4.0 * f64::EPSILON * t1.abs());
+        let Events {
+            g_start,
+            g_end,
+            g_probe,
+            x_probe,
+            last_event,
+            ..
+        } = self;
         let mut g = |i: usize, t: f64| {
             interp(t, x_probe);
             sys.events(t, x_probe, g_probe);

@@ -31,7 +31,9 @@ impl Rk4 {
         if h.is_finite() && h > 0.0 {
             Ok(Self { h })
         } else {
-            Err(SolveError::BadSetting(format!("RK4 step must be finite and > 0 (got {h})")))
+            Err(SolveError::BadSetting(format!(
+                "RK4 step must be finite and > 0 (got {h})"
+            )))
         }
     }
 
@@ -137,7 +139,13 @@ pub struct Rk4Work {
 impl Rk4Work {
     pub fn new(dim: usize) -> Self {
         let v = vec![0.0; dim];
-        Self { k1: v.clone(), k2: v.clone(), k3: v.clone(), k4: v.clone(), stage: v }
+        Self {
+            k1: v.clone(),
+            k2: v.clone(),
+            k3: v.clone(),
+            k4: v.clone(),
+            stage: v,
+        }
     }
 
     /// `f(t, x)` at the start of the last step.
@@ -156,7 +164,13 @@ pub fn rk4_step<S: OdeSystem>(
     out: &mut [f64],
     work: &mut Rk4Work,
 ) {
-    let Rk4Work { k1, k2, k3, k4, stage } = work;
+    let Rk4Work {
+        k1,
+        k2,
+        k3,
+        k4,
+        stage,
+    } = work;
     let half = 0.5 * h;
     sys.rhs(t, x, k1);
     axpy(stage, x, half, k1);
@@ -219,7 +233,10 @@ pub(super) mod tests {
     }
 
     pub fn max_err(x: &[f64], exact: &[f64]) -> f64 {
-        x.iter().zip(exact).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
+        x.iter()
+            .zip(exact)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
     }
 
     /// `log2` of successive error ratios (observed orders for halved steps).
@@ -248,7 +265,12 @@ pub(super) mod tests {
 
     impl Limiter {
         pub fn new(rate: fn(f64) -> f64, release: bool) -> Self {
-            Self { rate, release, held: false, event_times: Vec::new() }
+            Self {
+                rate,
+                release,
+                held: false,
+                event_times: Vec::new(),
+            }
         }
     }
 
@@ -293,8 +315,10 @@ pub(super) mod tests {
         let knots = [0.0, 0.7, 1.0, 1.55, 2.0];
         let mut x = [0.0];
         let mut seen = Vec::new();
-        let stats =
-            solve(method, &mut sys, &mut x, &knots, |_, t, x, _| seen.push((t, x[0]))).unwrap();
+        let stats = solve(method, &mut sys, &mut x, &knots, |_, t, x, _| {
+            seen.push((t, x[0]))
+        })
+        .unwrap();
         assert_eq!(stats.events, 1);
         assert_eq!(sys.event_times.len(), 1);
         let te = sys.event_times[0];
@@ -310,13 +334,23 @@ pub(super) mod tests {
     pub fn limiter_release_errors(method: &Method) -> (f64, f64, f64) {
         let mut sys = Limiter::new(f64::cos, true);
         let mut x = [0.0];
-        let stats =
-            solve(method, &mut sys, &mut x, &[0.0, 1.0, 2.0, 3.0], |_, _, _, _| {}).unwrap();
+        let stats = solve(
+            method,
+            &mut sys,
+            &mut x,
+            &[0.0, 1.0, 2.0, 3.0],
+            |_, _, _, _| {},
+        )
+        .unwrap();
         assert_eq!(stats.events, 2, "{:?}", sys.event_times);
         assert!(!sys.held);
         let pi = std::f64::consts::PI;
         let t = &sys.event_times;
-        ((t[0] - pi / 6.0).abs(), (t[1] - pi / 2.0).abs(), (x[0] - (3f64.sin() - 0.5)).abs())
+        (
+            (t[0] - pi / 6.0).abs(),
+            (t[1] - pi / 2.0).abs(),
+            (x[0] - (3f64.sin() - 0.5)).abs(),
+        )
     }
 
     /// `x' = ±1`: up until `x` reaches 0.5 (event `0.5 - x`), then down, no projection. The
@@ -348,11 +382,14 @@ pub(super) mod tests {
     pub fn check_turn_retakes_step(method: &Method) {
         let mut x = [0.0];
         let mut seen = Vec::new();
-        let stats =
-            solve(method, &mut Turn { down: false }, &mut x, &[0.0, 0.7, 2.0], |_, t, x, _| {
-                seen.push((t, x[0]))
-            })
-            .unwrap();
+        let stats = solve(
+            method,
+            &mut Turn { down: false },
+            &mut x,
+            &[0.0, 0.7, 2.0],
+            |_, t, x, _| seen.push((t, x[0])),
+        )
+        .unwrap();
         assert_eq!(stats.events, 1);
         for (t, xk) in seen {
             let exact = if t <= 0.5 { t } else { 1.0 - t };
@@ -398,7 +435,10 @@ pub(super) mod tests {
     }
 
     pub fn check_earliest_guard_first(method: &Method) {
-        let mut sys = TwoGuards { fired: [false; 2], log: Vec::new() };
+        let mut sys = TwoGuards {
+            fired: [false; 2],
+            log: Vec::new(),
+        };
         let stats = solve(method, &mut sys, &mut [0.0], &[0.0, 0.9], |_, _, _, _| {}).unwrap();
         assert_eq!(stats.events, 2);
         assert_eq!(sys.log.len(), 2, "{:?}", sys.log);
@@ -426,7 +466,11 @@ pub(super) mod tests {
             g[0] = if self.up { -x[0] } else { x[0] };
         }
         fn handle_event(&mut self, _t: f64, x: &mut [f64]) -> bool {
-            let crossed = if self.up { x[0] >= -1e-13 } else { x[0] <= 1e-13 };
+            let crossed = if self.up {
+                x[0] >= -1e-13
+            } else {
+                x[0] <= 1e-13
+            };
             if crossed {
                 self.up = !self.up;
                 x[0] = if self.up { -1e-11 } else { 1e-11 };
@@ -437,7 +481,13 @@ pub(super) mod tests {
 
     pub fn check_chatter_is_error(method: &Method) {
         let mut x = [0.25];
-        let r = solve(method, &mut Chatter { up: false }, &mut x, &[0.0, 1.0], |_, _, _, _| {});
+        let r = solve(
+            method,
+            &mut Chatter { up: false },
+            &mut x,
+            &[0.0, 1.0],
+            |_, _, _, _| {},
+        );
         match r {
             Err(SolveError::EventLoop { t }) => assert!((t - 0.25).abs() < 1e-8, "t = {t}"),
             other => panic!("expected EventLoop, got {other:?}"),
@@ -472,8 +522,14 @@ pub(super) mod tests {
 
     pub fn check_retrigger_ignored(method: &Method) {
         let mut x = [0.0];
-        let stats =
-            solve(method, &mut Retrigger, &mut x, &[0.0, 1.0, 2.0], |_, _, _, _| {}).unwrap();
+        let stats = solve(
+            method,
+            &mut Retrigger,
+            &mut x,
+            &[0.0, 1.0, 2.0],
+            |_, _, _, _| {},
+        )
+        .unwrap();
         assert_eq!(stats.events, 1);
         assert!((x[0] - 2.0).abs() < 1e-9, "x = {}", x[0]);
     }
@@ -491,21 +547,64 @@ pub(super) mod tests {
     }
 
     pub fn check_failures(method: &Method) {
-        let run =
-            |knots: &[f64]| solve(method, &mut Oscillator, &mut [1.0, 0.0], knots, |_, _, _, _| {});
-        assert!(matches!(run(&[0.0, 1.0, 0.5]), Err(SolveError::BadKnots { index: 2, .. })));
-        assert!(matches!(run(&[0.0, 1.0, 1.0]), Err(SolveError::BadKnots { index: 2, .. })));
-        assert!(matches!(run(&[]), Err(SolveError::BadKnots { index: 0, .. })));
-        assert!(matches!(run(&[0.0, f64::NAN]), Err(SolveError::BadKnots { index: 1, .. })));
-        assert!(matches!(run(&[f64::NAN]), Err(SolveError::BadKnots { index: 0, .. })));
-        assert!(matches!(run(&[0.0, f64::INFINITY]), Err(SolveError::BadKnots { index: 1, .. })));
+        let run = |knots: &[f64]| {
+            solve(
+                method,
+                &mut Oscillator,
+                &mut [1.0, 0.0],
+                knots,
+                |_, _, _, _| {},
+            )
+        };
+        assert!(matches!(
+            run(&[0.0, 1.0, 0.5]),
+            Err(SolveError::BadKnots { index: 2, .. })
+        ));
+        assert!(matches!(
+            run(&[0.0, 1.0, 1.0]),
+            Err(SolveError::BadKnots { index: 2, .. })
+        ));
+        assert!(matches!(
+            run(&[]),
+            Err(SolveError::BadKnots { index: 0, .. })
+        ));
+        assert!(matches!(
+            run(&[0.0, f64::NAN]),
+            Err(SolveError::BadKnots { index: 1, .. })
+        ));
+        assert!(matches!(
+            run(&[f64::NAN]),
+            Err(SolveError::BadKnots { index: 0, .. })
+        ));
+        assert!(matches!(
+            run(&[0.0, f64::INFINITY]),
+            Err(SolveError::BadKnots { index: 1, .. })
+        ));
 
-        let r = solve(method, &mut Oscillator, &mut [1.0], &[0.0, 1.0], |_, _, _, _| {});
+        let r = solve(
+            method,
+            &mut Oscillator,
+            &mut [1.0],
+            &[0.0, 1.0],
+            |_, _, _, _| {},
+        );
         assert!(matches!(r, Err(SolveError::BadSetting(_))), "{r:?}");
-        let r = solve(method, &mut Oscillator, &mut [1.0, f64::NAN], &[0.0, 1.0], |_, _, _, _| {});
+        let r = solve(
+            method,
+            &mut Oscillator,
+            &mut [1.0, f64::NAN],
+            &[0.0, 1.0],
+            |_, _, _, _| {},
+        );
         assert_eq!(r, Err(SolveError::NonFinite { t: 0.0, state: 1 }));
 
-        let r = solve(method, &mut Blowup, &mut [1.0], &[0.0, 2.0], |_, _, _, _| {});
+        let r = solve(
+            method,
+            &mut Blowup,
+            &mut [1.0],
+            &[0.0, 2.0],
+            |_, _, _, _| {},
+        );
         match r {
             Err(SolveError::NonFinite { t, .. } | SolveError::StepUnderflow { t, .. }) => {
                 assert!(t > 0.9 && t <= 2.0, "stopped at {t}")
@@ -520,8 +619,10 @@ pub(super) mod tests {
         let knots = [0.0, 0.013, 0.1, 0.35, 1.0, 1.7, 1.72, 2.0];
         let mut x = Oscillator::exact(0.0);
         let mut seen = Vec::new();
-        solve(method, &mut Oscillator, &mut x, &knots, |k, t, x, _| seen.push((k, t, x.to_vec())))
-            .unwrap();
+        solve(method, &mut Oscillator, &mut x, &knots, |k, t, x, _| {
+            seen.push((k, t, x.to_vec()))
+        })
+        .unwrap();
         assert_eq!(seen.len(), knots.len());
         for (k, (kk, t, xk)) in seen.iter().enumerate() {
             assert_eq!((*kk, *t), (k, knots[k]));
@@ -557,7 +658,14 @@ pub(super) mod tests {
             .iter()
             .map(|&h| {
                 let mut out = [0.0; 2];
-                rk4_step(&mut Oscillator, 0.3, &Oscillator::exact(0.3), h, &mut out, &mut work);
+                rk4_step(
+                    &mut Oscillator,
+                    0.3,
+                    &Oscillator::exact(0.3),
+                    h,
+                    &mut out,
+                    &mut work,
+                );
                 max_err(&out, &Oscillator::exact(0.3 + h))
             })
             .collect();
@@ -582,7 +690,12 @@ pub(super) mod tests {
         );
         assert_eq!(
             stats.unwrap(),
-            Stats { steps_accepted: 11, steps_rejected: 0, rhs_evals: 44, events: 0 }
+            Stats {
+                steps_accepted: 11,
+                steps_rejected: 0,
+                rhs_evals: 44,
+                events: 0
+            }
         );
     }
 
@@ -610,7 +723,15 @@ pub(super) mod tests {
         let dp = |t: f64| 3.0 * t * t - 1.0;
         let mut out = [0.0];
         for theta in [0.0, 0.25, 0.37, 0.9, 1.0] {
-            hermite(theta, h, &[p(t0)], &[dp(t0)], &[p(t0 + h)], &[dp(t0 + h)], &mut out);
+            hermite(
+                theta,
+                h,
+                &[p(t0)],
+                &[dp(t0)],
+                &[p(t0 + h)],
+                &[dp(t0 + h)],
+                &mut out,
+            );
             assert!((out[0] - p(t0 + theta * h)).abs() < 1e-14);
         }
     }
@@ -630,8 +751,14 @@ pub(super) mod tests {
                 evals += 1;
                 g(t)
             });
-            eprintln!("illinois: root {root}, error {:e}, {evals} evaluations", te - root);
-            assert!(g(te) <= 0.0 && te >= root && te - root <= 1e-12, "{te} vs {root}");
+            eprintln!(
+                "illinois: root {root}, error {:e}, {evals} evaluations",
+                te - root
+            );
+            assert!(
+                g(te) <= 0.0 && te >= root && te - root <= 1e-12,
+                "{te} vs {root}"
+            );
             assert!(evals < 200);
         }
     }
@@ -675,7 +802,10 @@ pub(super) mod tests {
     fn rk4_errors() {
         check_failures(&Method::Rk4 { h: 0.01 });
         for h in [0.0, -0.1, f64::NAN, f64::INFINITY] {
-            assert!(matches!(Rk4::new(h), Err(SolveError::BadSetting(_))), "h = {h}");
+            assert!(
+                matches!(Rk4::new(h), Err(SolveError::BadSetting(_))),
+                "h = {h}"
+            );
         }
     }
 }

@@ -142,7 +142,13 @@ impl NonWindup {
 
     /// Mode update with moving limits: projects a pinned state onto its (moved) limit, then
     /// re-evaluates as [`NonWindup::update`] with `f = rate(x)`. Returns `true` on any change.
-    pub fn update_moving(&mut self, x: &mut f64, rate: impl Fn(f64) -> f64, lo: f64, hi: f64) -> bool {
+    pub fn update_moving(
+        &mut self,
+        x: &mut f64,
+        rate: impl Fn(f64) -> f64,
+        lo: f64,
+        hi: f64,
+    ) -> bool {
         let old = (self.mode, *x);
         *x = self.effective(*x, lo, hi);
         let f = rate(*x);

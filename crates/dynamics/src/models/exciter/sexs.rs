@@ -48,10 +48,24 @@ pub mod port {
 
 /// Ports of SEXS; variants start with the same five.
 pub const PORTS: &[Port] = &[
-    Port::input("v_term", PortInit::Needs, "compensated terminal voltage E_comp [pu]"),
+    Port::input(
+        "v_term",
+        PortInit::Needs,
+        "compensated terminal voltage E_comp [pu]",
+    ),
     Port::input("vs", PortInit::Needs, "stabiliser signal V_S [pu]").optional(),
-    Port::input("voel", PortInit::Needs, "over-excitation limiter signal (<= 0) [pu]").optional(),
-    Port::input("vuel", PortInit::Needs, "under-excitation limiter signal [pu]").optional(),
+    Port::input(
+        "voel",
+        PortInit::Needs,
+        "over-excitation limiter signal (<= 0) [pu]",
+    )
+    .optional(),
+    Port::input(
+        "vuel",
+        PortInit::Needs,
+        "under-excitation limiter signal [pu]",
+    )
+    .optional(),
     Port::output("efd", PortInit::Needs, "field voltage E_fd [pu]"),
 ];
 
@@ -66,7 +80,9 @@ pub struct SexsGains {
 }
 
 /// What distinguishes one SEXS variant from another: its parameters, ports and E_fd limits.
-pub trait SexsVariant: ParamSet + Clone + Default + std::fmt::Debug + Send + Sync + 'static {
+pub trait SexsVariant:
+    ParamSet + Clone + Default + std::fmt::Debug + Send + Sync + 'static
+{
     /// Model name in unit files.
     const MODEL: &'static str;
     /// Ports; the first five are [`PORTS`] (same indices, see [`port`]).
@@ -89,7 +105,13 @@ impl SexsVariant for SexsParams {
     const MOVING_LIMITS: bool = false;
     #[inline(always)]
     fn gains(&self) -> SexsGains {
-        SexsGains { ta_tb: self.ta_tb, tb: self.tb, k: self.k, te: self.te, v_ref_offset: self.v_ref_offset }
+        SexsGains {
+            ta_tb: self.ta_tb,
+            tb: self.tb,
+            k: self.k,
+            te: self.te,
+            v_ref_offset: self.v_ref_offset,
+        }
     }
     fn validate_limits(&self) -> Result<(), ModelError> {
         guard::greater("e_max", self.e_max, "e_min", self.e_min)
@@ -119,7 +141,13 @@ pub type Sexs = SexsModel<SexsParams>;
 
 impl<V: SexsVariant> SexsModel<V> {
     pub fn new(p: V) -> Self {
-        Self { p, v_ref: 0.0, limit: NonWindup::default(), inv_tb: 0.0, inv_te: 0.0 }
+        Self {
+            p,
+            v_ref: 0.0,
+            limit: NonWindup::default(),
+            inv_tb: 0.0,
+            inv_te: 0.0,
+        }
     }
 
     /// Voltage reference found at initialisation [pu].
@@ -180,7 +208,9 @@ impl<V: SexsVariant> Block for SexsModel<V> {
         }
         x[1] = efd0;
         x[0] = efd0 / g.k;
-        self.v_ref = io.get(port::V_TERM) - io.get(port::VS) - io.get(port::VOEL) - io.get(port::VUEL) + efd0 / g.k;
+        self.v_ref =
+            io.get(port::V_TERM) - io.get(port::VS) - io.get(port::VOEL) - io.get(port::VUEL)
+                + efd0 / g.k;
         self.limit = NonWindup::default();
         self.inv_tb = 1.0 / g.tb;
         self.inv_te = 1.0 / g.te;
@@ -190,7 +220,11 @@ impl<V: SexsVariant> Block for SexsModel<V> {
     #[inline]
     fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
         let (lo, hi) = self.p.limits(io);
-        let x_e = if V::MOVING_LIMITS { self.limit.effective(x[1], lo, hi) } else { x[1] };
+        let x_e = if V::MOVING_LIMITS {
+            self.limit.effective(x[1], lo, hi)
+        } else {
+            x[1]
+        };
         io.set(port::EFD, x_e.clamp(lo, hi));
     }
 
@@ -218,7 +252,8 @@ impl<V: SexsVariant> Block for SexsModel<V> {
             let f = self.exciter_rate(&gains, x, io, self.limit.effective(x[1], lo, hi));
             self.limit.events_moving(x[1], f, lo, hi, g);
         } else {
-            self.limit.events(x[1], self.exciter_rate(&gains, x, io, x[1]), lo, hi, g);
+            self.limit
+                .events(x[1], self.exciter_rate(&gains, x, io, x[1]), lo, hi, g);
         }
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {
@@ -227,7 +262,12 @@ impl<V: SexsVariant> Block for SexsModel<V> {
         if V::MOVING_LIMITS {
             let mut limit = self.limit;
             let (x_ll, mut x_e) = (x[0], x[1]);
-            let changed = limit.update_moving(&mut x_e, |xe| self.exciter_rate(&gains, &[x_ll, xe], io, xe), lo, hi);
+            let changed = limit.update_moving(
+                &mut x_e,
+                |xe| self.exciter_rate(&gains, &[x_ll, xe], io, xe),
+                lo,
+                hi,
+            );
             self.limit = limit;
             x[1] = x_e;
             changed

@@ -64,7 +64,11 @@ mod port {
 
 const PORTS: &[Port] = &[
     Port::input("xadifd", PortInit::Needs, "field current X_ad I_fd [pu]"),
-    Port::output("voel", PortInit::Gives, "limiter output V_OEL (<= 0), added to the AVR error [pu]"),
+    Port::output(
+        "voel",
+        PortInit::Gives,
+        "limiter output V_OEL (<= 0), added to the AVR error [pu]",
+    ),
 ];
 
 /// Over-excitation limiter block.
@@ -116,7 +120,8 @@ impl Block for Oel {
         guard::positive("a_max", p.a_max)?;
         guard::non_negative("k_cool", p.k_cool)?;
         guard::positive("k_i", p.k_i)?;
-        guard::greater("0", 0.0, "voel_min", p.voel_min).map_err(|_| ModelError::param("voel_min", format!("must be < 0 (got {})", p.voel_min)))
+        guard::greater("0", 0.0, "voel_min", p.voel_min)
+            .map_err(|_| ModelError::param("voel_min", format!("must be < 0 (got {})", p.voel_min)))
     }
 
     fn init(&mut self, _op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
@@ -147,8 +152,16 @@ impl Block for Oel {
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
         let p = &self.p;
         let i = self.current(io);
-        dx[0] = if self.heating { i * i - p.i_pickup * p.i_pickup } else { -p.k_cool * x[0] };
-        dx[1] = if self.active { self.limit.derivative(self.integrator_rate(i)) } else { 0.0 };
+        dx[0] = if self.heating {
+            i * i - p.i_pickup * p.i_pickup
+        } else {
+            -p.k_cool * x[0]
+        };
+        dx[1] = if self.active {
+            self.limit.derivative(self.integrator_rate(i))
+        } else {
+            0.0
+        };
     }
 
     fn n_events(&self) -> usize {
@@ -157,9 +170,14 @@ impl Block for Oel {
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
         let p = &self.p;
         let i = self.current(io);
-        g[0] = if self.heating { i - p.i_pickup } else { p.i_pickup - i };
+        g[0] = if self.heating {
+            i - p.i_pickup
+        } else {
+            p.i_pickup - i
+        };
         if self.active {
-            self.limit.events(x[1], self.integrator_rate(i), p.voel_min, 0.0, &mut g[1..3]);
+            self.limit
+                .events(x[1], self.integrator_rate(i), p.voel_min, 0.0, &mut g[1..3]);
         } else {
             g[1] = (p.a_max - x[0]).max(p.i_pickup - i);
             g[2] = 1.0;
@@ -176,7 +194,8 @@ impl Block for Oel {
             self.limit = NonWindup::default();
         }
         if self.active {
-            self.limit.update(&mut x[1], self.integrator_rate(i), p.voel_min, 0.0);
+            self.limit
+                .update(&mut x[1], self.integrator_rate(i), p.voel_min, 0.0);
             if self.limit.mode == LimitMode::AtMax {
                 // Wound back to 0 and still rising: release.
                 self.active = false;

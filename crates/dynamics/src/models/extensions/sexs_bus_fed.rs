@@ -52,7 +52,12 @@ const PORTS: &[Port] = &[
     SEXS_PORTS[port::VOEL],
     SEXS_PORTS[port::VUEL],
     SEXS_PORTS[port::EFD],
-    Port::input_ft("v_supply", PortInit::Needs, "supply (terminal) voltage V_t of the rectifier [pu]").wired("v_term"),
+    Port::input_ft(
+        "v_supply",
+        PortInit::Needs,
+        "supply (terminal) voltage V_t of the rectifier [pu]",
+    )
+    .wired("v_term"),
     Port::input_ft("xadifd", PortInit::Needs, "field current X_ad I_fd [pu]"),
 ];
 
@@ -62,7 +67,13 @@ impl SexsVariant for SexsBusFedParams {
     const MOVING_LIMITS: bool = true;
     #[inline(always)]
     fn gains(&self) -> SexsGains {
-        SexsGains { ta_tb: self.ta_tb, tb: self.tb, k: self.k, te: self.te, v_ref_offset: self.v_ref_offset }
+        SexsGains {
+            ta_tb: self.ta_tb,
+            tb: self.tb,
+            k: self.k,
+            te: self.te,
+            v_ref_offset: self.v_ref_offset,
+        }
     }
     fn validate_limits(&self) -> Result<(), ModelError> {
         guard::finite("vr_min", self.vr_min)?;

@@ -30,7 +30,11 @@ mod port {
 
 const PORTS: &[Port] = &[
     Port::input_ft("speed", PortInit::Needs, "speed deviation Δω [pu]"),
-    Port::output("speed_db", PortInit::Gives, "speed deviation after the deadband [pu]"),
+    Port::output(
+        "speed_db",
+        PortInit::Gives,
+        "speed deviation after the deadband [pu]",
+    ),
 ];
 
 /// Speed deadband block.

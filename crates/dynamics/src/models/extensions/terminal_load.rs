@@ -58,7 +58,10 @@ impl Block for TerminalLoad {
 
     fn terminal_load(&self, v: f64) -> (f64, f64) {
         let v = v.max(0.0);
-        (self.p.p_load * v.powf(self.p.n_p), self.p.q_load * v.powf(self.p.n_q))
+        (
+            self.p.p_load * v.powf(self.p.n_p),
+            self.p.q_load * v.powf(self.p.n_q),
+        )
     }
 }
 

@@ -78,10 +78,26 @@ mod port {
 }
 
 const PORTS: &[Port] = &[
-    Port::input("pm", PortInit::Gives, "turbine mechanical power P_m from the governor [pu machine base]"),
-    Port::input_ft("speed", PortInit::Needs, "generator speed deviation Δω_g [pu]"),
-    Port::output("p_shaft", PortInit::Needs, "power delivered to the generator rotor T_s (1 + Δω_g) [pu]"),
-    Port::output("speed_turbine", PortInit::Gives, "turbine speed deviation Δω_t [pu]"),
+    Port::input(
+        "pm",
+        PortInit::Gives,
+        "turbine mechanical power P_m from the governor [pu machine base]",
+    ),
+    Port::input_ft(
+        "speed",
+        PortInit::Needs,
+        "generator speed deviation Δω_g [pu]",
+    ),
+    Port::output(
+        "p_shaft",
+        PortInit::Needs,
+        "power delivered to the generator rotor T_s (1 + Δω_g) [pu]",
+    ),
+    Port::output(
+        "speed_turbine",
+        PortInit::Gives,
+        "turbine speed deviation Δω_t [pu]",
+    ),
 ];
 
 /// Two-mass shaft block.
@@ -97,7 +113,13 @@ pub struct TwoMassShaft {
 
 impl Default for TwoMassShaft {
     fn default() -> Self {
-        Self { p: TwoMassShaftParams::default(), omega_b: 2.0 * PI * 60.0, k_s: 0.0, d_s: 0.0, inv_2ht: 0.0 }
+        Self {
+            p: TwoMassShaftParams::default(),
+            omega_b: 2.0 * PI * 60.0,
+            k_s: 0.0,
+            d_s: 0.0,
+            inv_2ht: 0.0,
+        }
     }
 }
 
@@ -150,7 +172,9 @@ impl Block for TwoMassShaft {
         io.set(port::PM, (ts0 + self.p.d_turbine * w0) * (1.0 + w0));
         io.set(port::SPEED_TURBINE, w0);
         if x.iter().any(|v| !v.is_finite()) {
-            return Err(ModelError::Init("two_mass_shaft: initial state is not finite".into()));
+            return Err(ModelError::Init(
+                "two_mass_shaft: initial state is not finite".into(),
+            ));
         }
         Ok(())
     }

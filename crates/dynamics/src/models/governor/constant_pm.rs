@@ -13,7 +13,11 @@ param_set! {
     }
 }
 
-const PORTS: &[Port] = &[Port::output("pm", PortInit::Needs, "mechanical power P_m [pu machine base]")];
+const PORTS: &[Port] = &[Port::output(
+    "pm",
+    PortInit::Needs,
+    "mechanical power P_m [pu machine base]",
+)];
 
 /// Constant mechanical power block.
 #[derive(Debug, Clone, Default)]

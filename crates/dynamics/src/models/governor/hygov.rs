@@ -47,7 +47,11 @@ mod port {
 
 const PORTS: &[Port] = &[
     Port::input_ft("speed", PortInit::Needs, "speed deviation Δω [pu]"),
-    Port::output("pm", PortInit::Needs, "mechanical power P_m [pu machine base]"),
+    Port::output(
+        "pm",
+        PortInit::Needs,
+        "mechanical power P_m [pu machine base]",
+    ),
 ];
 
 /// HYGOV block.
@@ -62,7 +66,10 @@ pub struct Hygov {
 
 impl Hygov {
     pub fn new(p: HygovParams) -> Self {
-        Self { p, ..Default::default() }
+        Self {
+            p,
+            ..Default::default()
+        }
     }
 
     /// `(de/dt, rate-limited dc/dt before the gate limit)`.
@@ -128,7 +135,13 @@ impl Block for Hygov {
         x[2] = q0;
         x[3] = q0;
         self.n_ref = p.r_perm * q0 + w0;
-        self.inv = [1.0 / p.t_f, 1.0 / (p.r_temp * p.t_r), 1.0 / p.r_temp, 1.0 / p.t_g, 1.0 / p.t_w];
+        self.inv = [
+            1.0 / p.t_f,
+            1.0 / (p.r_temp * p.t_r),
+            1.0 / p.r_temp,
+            1.0 / p.t_g,
+            1.0 / p.t_w,
+        ];
         self.gate_limit = NonWindup::default();
         Ok(())
     }
@@ -137,7 +150,10 @@ impl Block for Hygov {
     fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
         let p = &self.p;
         let h = Self::head(x[3], x[2]);
-        io.set(port::PM, p.a_t * h * (x[3] - p.q_nl) - p.d_turb * x[2] * io.get(port::SPEED));
+        io.set(
+            port::PM,
+            p.a_t * h * (x[3] - p.q_nl) - p.d_turb * x[2] * io.get(port::SPEED),
+        );
     }
 
     #[inline]
@@ -154,7 +170,8 @@ impl Block for Hygov {
     }
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
         let (_, dc) = self.rates(x, io.get(port::SPEED));
-        self.gate_limit.events(x[1], dc, self.p.g_min, self.p.g_max, g);
+        self.gate_limit
+            .events(x[1], dc, self.p.g_min, self.p.g_max, g);
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {
         let (_, dc) = self.rates(x, io.get(port::SPEED));

@@ -7,7 +7,7 @@
 //! departure: OpenIPSL's form is only consistent when the machine base equals the system base).
 //! GENCLS has no field winding: an exciter cannot be attached (the unit rejects it).
 
-use super::{Electrical, StatorImpedance, ElectricalInit, Field, Phasor, Stator};
+use super::{Electrical, ElectricalInit, Field, Phasor, Stator, StatorImpedance};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -33,7 +33,11 @@ pub struct Gencls {
 
 impl Gencls {
     pub fn new(p: GenclsParams) -> Self {
-        Self { p, e_prime: 0.0, z: StatorImpedance::default() }
+        Self {
+            p,
+            e_prime: 0.0,
+            z: StatorImpedance::default(),
+        }
     }
 }
 
@@ -60,17 +64,28 @@ impl Electrical for Gencls {
         self.z = StatorImpedance::new(self.p.r_a, self.p.x_d_prime, self.p.x_d_prime);
         Ok(())
     }
-    fn init_electrical(&mut self, v: Phasor, i: Phasor, _x: &mut [f64]) -> Result<ElectricalInit, ModelError> {
+    fn init_electrical(
+        &mut self,
+        v: Phasor,
+        i: Phasor,
+        _x: &mut [f64],
+    ) -> Result<ElectricalInit, ModelError> {
         let e = v + Phasor::new(self.p.r_a, self.p.x_d_prime) * i;
         self.e_prime = e.abs();
-        Ok(ElectricalInit { delta: e.arg(), efd: self.e_prime })
+        Ok(ElectricalInit {
+            delta: e.arg(),
+            efd: self.e_prime,
+        })
     }
     #[inline(always)]
     fn stator(&self, _x: &[f64], vd: f64, vq: f64) -> Stator {
         Stator::solve(0.0, self.e_prime, vd, vq, &self.z)
     }
     fn field(&self, _x: &[f64], _st: &Stator) -> Field {
-        Field { xadifd: self.e_prime, sat: 0.0 }
+        Field {
+            xadifd: self.e_prime,
+            sat: 0.0,
+        }
     }
     fn derivatives(&self, _x: &[f64], _efd: f64, _field: Field, _st: &Stator, _dx: &mut [f64]) {}
 }

@@ -18,7 +18,9 @@
 //! (E'_d decays to 0), which is how ANDES represents a salient-pole unit.
 
 use super::saturation::QuadraticSaturation;
-use super::{check_d_axis, DAxis, StatorImpedance, norm2, Electrical, ElectricalInit, Field, Phasor, Stator};
+use super::{
+    check_d_axis, norm2, DAxis, Electrical, ElectricalInit, Field, Phasor, Stator, StatorImpedance,
+};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -64,7 +66,10 @@ pub struct Genrou {
 
 impl Genrou {
     pub fn new(p: GenrouParams) -> Self {
-        Self { p, k: Consts::default() }
+        Self {
+            p,
+            k: Consts::default(),
+        }
     }
     #[inline(always)]
     fn subtransient(&self, x: &[f64]) -> (f64, f64) {
@@ -75,7 +80,14 @@ impl Genrou {
 
 impl Electrical for Genrou {
     const MODEL: &'static str = "GENROU";
-    const STATE_NAMES: &'static [&'static str] = &["delta", "speed", "e_q_prime", "e_d_prime", "psi_kd", "psi_kq"];
+    const STATE_NAMES: &'static [&'static str] = &[
+        "delta",
+        "speed",
+        "e_q_prime",
+        "e_d_prime",
+        "psi_kd",
+        "psi_kq",
+    ];
 
     fn params(&self) -> &dyn ParamSet {
         &self.p
@@ -117,7 +129,12 @@ impl Electrical for Genrou {
         Ok(())
     }
 
-    fn init_electrical(&mut self, v: Phasor, i: Phasor, x: &mut [f64]) -> Result<ElectricalInit, ModelError> {
+    fn init_electrical(
+        &mut self,
+        v: Phasor,
+        i: Phasor,
+        x: &mut [f64],
+    ) -> Result<ElectricalInit, ModelError> {
         let p = &self.p;
         let k = &self.k;
         let xpp = p.x_d_pp;
@@ -156,8 +173,10 @@ impl Electrical for Genrou {
         let (p, k) = (&self.p, &self.k);
         let (e_d_pp, e_q_pp) = self.subtransient(x);
         let se = k.sat.eval(norm2(e_q_pp, e_d_pp));
-        let xadifd =
-            x[0] + k.d.k1d * (x[0] - x[2] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + se * e_q_pp;
+        let xadifd = x[0]
+            + k.d.k1d * (x[0] - x[2] - (p.x_d_prime - p.x_l) * st.id)
+            + (p.x_d - p.x_d_prime) * st.id
+            + se * e_q_pp;
         Field { xadifd, sat: se }
     }
 
@@ -166,7 +185,8 @@ impl Electrical for Genrou {
         let (p, k) = (&self.p, &self.k);
         let (e_d_pp, _) = self.subtransient(x);
         let (xadifd, se) = (field.xadifd, field.sat);
-        let xaqi1q = x[1] + k.k1q * (x[1] - x[3] + (p.x_q_prime - p.x_l) * st.iq) - (p.x_q - p.x_q_prime) * st.iq
+        let xaqi1q = x[1] + k.k1q * (x[1] - x[3] + (p.x_q_prime - p.x_l) * st.iq)
+            - (p.x_q - p.x_q_prime) * st.iq
             + k.gamma * se * e_d_pp;
         dx[0] = (efd - xadifd) / p.t_d0_prime;
         dx[1] = -xaqi1q / p.t_q0_prime;

@@ -18,7 +18,9 @@
 //! X''q ≠ X''d (where OpenIPSL itself starts slightly off steady state).
 
 use super::saturation::ExponentialSaturation;
-use super::{check_d_axis, DAxis, StatorImpedance, norm2, Electrical, ElectricalInit, Field, Phasor, Stator};
+use super::{
+    check_d_axis, norm2, DAxis, Electrical, ElectricalInit, Field, Phasor, Stator, StatorImpedance,
+};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -63,7 +65,10 @@ pub struct Gensae {
 
 impl Gensae {
     pub fn new(p: GensaeParams) -> Self {
-        Self { p, k: Consts::default() }
+        Self {
+            p,
+            k: Consts::default(),
+        }
     }
 
     /// Steady-state q-axis residual at rotor angle δ (see module docs) and the saturation there.
@@ -80,7 +85,8 @@ impl Gensae {
 
 impl Electrical for Gensae {
     const MODEL: &'static str = "GENSAE";
-    const STATE_NAMES: &'static [&'static str] = &["delta", "speed", "e_q_prime", "psi_kd", "e_d_pp"];
+    const STATE_NAMES: &'static [&'static str] =
+        &["delta", "speed", "e_q_prime", "psi_kd", "e_d_pp"];
 
     fn params(&self) -> &dyn ParamSet {
         &self.p
@@ -120,7 +126,12 @@ impl Electrical for Gensae {
         Ok(())
     }
 
-    fn init_electrical(&mut self, v: Phasor, i: Phasor, x: &mut [f64]) -> Result<ElectricalInit, ModelError> {
+    fn init_electrical(
+        &mut self,
+        v: Phasor,
+        i: Phasor,
+        x: &mut [f64],
+    ) -> Result<ElectricalInit, ModelError> {
         let p = self.p.clone();
         let k = self.k;
         // Closed form (exact for X''q = X''d).
@@ -140,7 +151,8 @@ impl Electrical for Gensae {
                 break;
             }
             let hstep = 1e-7;
-            let dr = (self.q_residual(v, i, delta + hstep) - self.q_residual(v, i, delta - hstep)) / (2.0 * hstep);
+            let dr = (self.q_residual(v, i, delta + hstep) - self.q_residual(v, i, delta - hstep))
+                / (2.0 * hstep);
             if !(dr.abs() > 1e-14) {
                 break;
             }
@@ -152,7 +164,9 @@ impl Electrical for Gensae {
             }
         }
         if !converged && self.q_residual(v, i, delta).abs() > 1e-10 {
-            return Err(ModelError::Init("GENSAE: no rotor angle satisfies the q-axis steady state".into()));
+            return Err(ModelError::Init(
+                "GENSAE: no rotor angle satisfies the q-axis steady state".into(),
+            ));
         }
         let (vd, vq) = v.to_dq(delta);
         let (id, iq) = i.to_dq(delta);
@@ -179,8 +193,10 @@ impl Electrical for Gensae {
         let (p, k) = (&self.p, &self.k);
         let e_q_pp = k.d.k3d * x[0] + k.d.k4d * x[1];
         let se = k.sat.eval(norm2(e_q_pp, x[2]));
-        let xadifd =
-            x[0] + k.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + se * e_q_pp;
+        let xadifd = x[0]
+            + k.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id)
+            + (p.x_d - p.x_d_prime) * st.id
+            + se * e_q_pp;
         Field { xadifd, sat: se }
     }
 

@@ -16,7 +16,9 @@
 //! closed form and `E_fd0 = (1 + Se(E'_q0)) E'_q0 + (Xd − X'd) i_d0`.
 
 use super::saturation::QuadraticSaturation;
-use super::{check_d_axis, DAxis, StatorImpedance, Electrical, ElectricalInit, Field, Phasor, Stator};
+use super::{
+    check_d_axis, DAxis, Electrical, ElectricalInit, Field, Phasor, Stator, StatorImpedance,
+};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
@@ -60,13 +62,17 @@ pub struct Gensal {
 
 impl Gensal {
     pub fn new(p: GensalParams) -> Self {
-        Self { p, k: Consts::default() }
+        Self {
+            p,
+            k: Consts::default(),
+        }
     }
 }
 
 impl Electrical for Gensal {
     const MODEL: &'static str = "GENSAL";
-    const STATE_NAMES: &'static [&'static str] = &["delta", "speed", "e_q_prime", "psi_kd", "e_d_pp"];
+    const STATE_NAMES: &'static [&'static str] =
+        &["delta", "speed", "e_q_prime", "psi_kd", "e_d_pp"];
 
     fn params(&self) -> &dyn ParamSet {
         &self.p
@@ -105,7 +111,12 @@ impl Electrical for Gensal {
         Ok(())
     }
 
-    fn init_electrical(&mut self, v: Phasor, i: Phasor, x: &mut [f64]) -> Result<ElectricalInit, ModelError> {
+    fn init_electrical(
+        &mut self,
+        v: Phasor,
+        i: Phasor,
+        x: &mut [f64],
+    ) -> Result<ElectricalInit, ModelError> {
         let p = &self.p;
         let delta = (v + Phasor::new(p.r_a, p.x_q) * i).arg();
         let (vd, vq) = v.to_dq(delta);
@@ -129,7 +140,9 @@ impl Electrical for Gensal {
     fn field(&self, x: &[f64], st: &Stator) -> Field {
         let (p, k) = (&self.p, &self.k);
         let se = k.sat.eval(x[0]);
-        let xadifd = k.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) + (p.x_d - p.x_d_prime) * st.id + (1.0 + se) * x[0];
+        let xadifd = k.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id)
+            + (p.x_d - p.x_d_prime) * st.id
+            + (1.0 + se) * x[0];
         Field { xadifd, sat: se }
     }
 

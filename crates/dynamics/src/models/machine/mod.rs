@@ -39,7 +39,10 @@ impl Phasor {
         Self { re, im }
     }
     pub fn polar(mag: f64, ang: f64) -> Self {
-        Self { re: mag * ang.cos(), im: mag * ang.sin() }
+        Self {
+            re: mag * ang.cos(),
+            im: mag * ang.sin(),
+        }
     }
     pub fn abs(self) -> f64 {
         self.re.hypot(self.im)
@@ -48,7 +51,10 @@ impl Phasor {
         self.im.atan2(self.re)
     }
     pub fn conj(self) -> Self {
-        Self { re: self.re, im: -self.im }
+        Self {
+            re: self.re,
+            im: -self.im,
+        }
     }
     /// Park transform at rotor angle δ: returns `(d, q)` components.
     pub fn to_dq(self, delta: f64) -> (f64, f64) {
@@ -60,7 +66,10 @@ impl Phasor {
 impl std::ops::Mul for Phasor {
     type Output = Phasor;
     fn mul(self, o: Self) -> Self {
-        Self { re: self.re * o.re - self.im * o.im, im: self.re * o.im + self.im * o.re }
+        Self {
+            re: self.re * o.re - self.im * o.im,
+            im: self.re * o.im + self.im * o.re,
+        }
     }
 }
 
@@ -68,14 +77,20 @@ impl std::ops::Div for Phasor {
     type Output = Phasor;
     fn div(self, o: Self) -> Self {
         let d = o.re * o.re + o.im * o.im;
-        Self { re: (self.re * o.re + self.im * o.im) / d, im: (self.im * o.re - self.re * o.im) / d }
+        Self {
+            re: (self.re * o.re + self.im * o.im) / d,
+            im: (self.im * o.re - self.re * o.im) / d,
+        }
     }
 }
 
 impl std::ops::Add for Phasor {
     type Output = Phasor;
     fn add(self, o: Self) -> Self {
-        Self { re: self.re + o.re, im: self.im + o.im }
+        Self {
+            re: self.re + o.re,
+            im: self.im + o.im,
+        }
     }
 }
 
@@ -103,7 +118,12 @@ pub struct StatorImpedance {
 
 impl StatorImpedance {
     pub fn new(r_a: f64, x_d_pp: f64, x_q_pp: f64) -> Self {
-        Self { r_a, x_d_pp, x_q_pp, inv_det: 1.0 / (r_a * r_a + x_d_pp * x_q_pp) }
+        Self {
+            r_a,
+            x_d_pp,
+            x_q_pp,
+            inv_det: 1.0 / (r_a * r_a + x_d_pp * x_q_pp),
+        }
     }
 }
 
@@ -119,7 +139,14 @@ impl Stator {
         let dq = e_q_pp - vq;
         let id = (z.r_a * dd + z.x_q_pp * dq) * z.inv_det;
         let iq = (-z.x_d_pp * dd + z.r_a * dq) * z.inv_det;
-        Self { vd, vq, id, iq, psi_d: e_q_pp - z.x_d_pp * id, psi_q: -e_d_pp - z.x_q_pp * iq }
+        Self {
+            vd,
+            vq,
+            id,
+            iq,
+            psi_d: e_q_pp - z.x_d_pp * id,
+            psi_q: -e_d_pp - z.x_q_pp * iq,
+        }
     }
     #[inline(always)]
     pub fn torque(&self) -> f64 {
@@ -174,7 +201,12 @@ pub trait Electrical: Clone + Send + Sync + 'static {
     fn prepare(&mut self) -> Result<(), ModelError>;
     /// Steady state for terminal voltage `v` and current `i` (system frame, machine base):
     /// writes the electrical states `x_el` and returns δ0 and E_fd0.
-    fn init_electrical(&mut self, v: Phasor, i: Phasor, x_el: &mut [f64]) -> Result<ElectricalInit, ModelError>;
+    fn init_electrical(
+        &mut self,
+        v: Phasor,
+        i: Phasor,
+        x_el: &mut [f64],
+    ) -> Result<ElectricalInit, ModelError>;
     /// Stator solution for electrical states `x_el` and terminal voltage `(v_d, v_q)`.
     fn stator(&self, x_el: &[f64], vd: f64, vq: f64) -> Stator;
     /// Field current X_ad I_fd [pu, non-reciprocal] and the saturation factor Se at this point.
@@ -212,14 +244,34 @@ pub mod port {
 }
 
 const PORTS: &[Port] = &[
-    Port::input_ft("v_term", PortInit::Needs, "terminal voltage magnitude |V| [pu], from playback"),
-    Port::input_ft("theta_term", PortInit::Needs, "terminal voltage angle θ [rad], from playback"),
+    Port::input_ft(
+        "v_term",
+        PortInit::Needs,
+        "terminal voltage magnitude |V| [pu], from playback",
+    ),
+    Port::input_ft(
+        "theta_term",
+        PortInit::Needs,
+        "terminal voltage angle θ [rad], from playback",
+    ),
     Port::input("efd", PortInit::Gives, "field voltage E_fd [pu]"),
-    Port::input("pm", PortInit::Gives, "mechanical power P_m [pu machine base]"),
+    Port::input(
+        "pm",
+        PortInit::Gives,
+        "mechanical power P_m [pu machine base]",
+    ),
     Port::output("delta", PortInit::Gives, "rotor angle δ [rad]"),
     Port::output("speed", PortInit::Gives, "speed deviation Δω [pu]"),
-    Port::output("pe", PortInit::Gives, "terminal active power P [pu machine base]"),
-    Port::output("qe", PortInit::Gives, "terminal reactive power Q [pu machine base]"),
+    Port::output(
+        "pe",
+        PortInit::Gives,
+        "terminal active power P [pu machine base]",
+    ),
+    Port::output(
+        "qe",
+        PortInit::Gives,
+        "terminal reactive power Q [pu machine base]",
+    ),
     Port::output("te", PortInit::Gives, "air-gap torque T_e [pu]"),
     Port::output("xadifd", PortInit::Gives, "field current X_ad I_fd [pu]"),
     Port::output("id", PortInit::Gives, "d-axis stator current [pu]"),
@@ -241,7 +293,13 @@ pub struct Machine<E: Electrical> {
 
 impl<E: Electrical> Machine<E> {
     pub fn new(el: E) -> Self {
-        Self { el, swing: Swing::default(), omega_b: 2.0 * std::f64::consts::PI * 60.0, inv_2h: 0.0, damping: 0.0 }
+        Self {
+            el,
+            swing: Swing::default(),
+            omega_b: 2.0 * std::f64::consts::PI * 60.0,
+            inv_2h: 0.0,
+            damping: 0.0,
+        }
     }
 
     #[inline(always)]
@@ -314,7 +372,10 @@ impl<E: Electrical> Block for Machine<E> {
         io.set(port::PM, pm);
         self.write_outputs(x, &st, io);
         if !ei.efd.is_finite() || !pm.is_finite() || x.iter().any(|v| !v.is_finite()) {
-            return Err(ModelError::Init(format!("{} initial state is not finite", E::MODEL)));
+            return Err(ModelError::Init(format!(
+                "{} initial state is not finite",
+                E::MODEL
+            )));
         }
         Ok(())
     }
@@ -328,7 +389,11 @@ impl<E: Electrical> Block for Machine<E> {
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
         // `outputs` has just solved the stator at this (t, x): reuse its currents and torque.
-        let st = Stator { id: io.get(port::ID), iq: io.get(port::IQ), ..Stator::default() };
+        let st = Stator {
+            id: io.get(port::ID),
+            iq: io.get(port::IQ),
+            ..Stator::default()
+        };
         let d = self.damping;
         let w = x[1];
         let pm = io.get(port::PM);
@@ -338,8 +403,12 @@ impl<E: Electrical> Block for Machine<E> {
         };
         dx[0] = self.omega_b * w;
         dx[1] = (tm - io.get(port::TE)) * self.inv_2h;
-        let field = Field { xadifd: io.get(port::XADIFD), sat: io.get(port::SAT) };
-        self.el.derivatives(&x[2..], io.get(port::EFD), field, &st, &mut dx[2..]);
+        let field = Field {
+            xadifd: io.get(port::XADIFD),
+            sat: io.get(port::SAT),
+        };
+        self.el
+            .derivatives(&x[2..], io.get(port::EFD), field, &st, &mut dx[2..]);
     }
 
     fn set_nominal_frequency(&mut self, hz: f64) {
@@ -351,9 +420,17 @@ impl<E: Electrical> Block for Machine<E> {
             ("swing", "pm_over_speed") => self.swing = Swing::PmOverSpeed,
             ("swing", "pm_is_torque") => self.swing = Swing::PmIsTorque,
             ("swing", v) => {
-                return Err(ModelError::param("swing", format!("'{v}' is not one of: pm_over_speed, pm_is_torque")))
+                return Err(ModelError::param(
+                    "swing",
+                    format!("'{v}' is not one of: pm_over_speed, pm_is_torque"),
+                ))
             }
-            (k, _) => return Err(ModelError::param(k, "unknown option (machines accept: swing)")),
+            (k, _) => {
+                return Err(ModelError::param(
+                    k,
+                    "unknown option (machines accept: swing)",
+                ))
+            }
         }
         Ok(())
     }

@@ -22,10 +22,17 @@ pub struct QuadraticSaturation {
 impl QuadraticSaturation {
     pub fn new(s10: f64, s12: f64) -> Result<Self, ModelError> {
         if s10 < 0.0 || s12 < 0.0 || !s10.is_finite() || !s12.is_finite() {
-            return Err(ModelError::param("s10", format!("S10 = {s10} and S12 = {s12} must be finite and >= 0")));
+            return Err(ModelError::param(
+                "s10",
+                format!("S10 = {s10} and S12 = {s12} must be finite and >= 0"),
+            ));
         }
         if s10 == 0.0 || s12 == 0.0 {
-            return Ok(Self { knee: 0.0, b: 0.0, active: false });
+            return Ok(Self {
+                knee: 0.0,
+                b: 0.0,
+                active: false,
+            });
         }
         // A sensible curve needs S12 > S10/1.2 (then a < 1 and the knee lies below 1 pu).
         if 1.2 * s12 <= s10 {
@@ -37,7 +44,11 @@ impl QuadraticSaturation {
         let a = (s10 / (1.2 * s12)).sqrt();
         let knee = 1.2 + 0.2 / (a - 1.0);
         let b = 1.2 * s12 * (a - 1.0).powi(2) / 0.04;
-        Ok(Self { knee, b, active: true })
+        Ok(Self {
+            knee,
+            b,
+            active: true,
+        })
     }
 
     #[inline]
@@ -64,15 +75,24 @@ pub struct ExponentialSaturation {
 impl ExponentialSaturation {
     pub fn new(s10: f64, s12: f64) -> Result<Self, ModelError> {
         if s10 < 0.0 || s12 < 0.0 || !s10.is_finite() || !s12.is_finite() {
-            return Err(ModelError::param("s10", format!("S10 = {s10} and S12 = {s12} must be finite and >= 0")));
+            return Err(ModelError::param(
+                "s10",
+                format!("S10 = {s10} and S12 = {s12} must be finite and >= 0"),
+            ));
         }
         if s10 == 0.0 {
             return Ok(Self { s10: 0.0, n: 0.0 });
         }
         if s12 == 0.0 {
-            return Err(ModelError::param("s12", "exponential saturation needs S12 > 0 when S10 > 0"));
+            return Err(ModelError::param(
+                "s12",
+                "exponential saturation needs S12 > 0 when S10 > 0",
+            ));
         }
-        Ok(Self { s10, n: (s12 / s10).ln() / 1.2f64.ln() })
+        Ok(Self {
+            s10,
+            n: (s12 / s10).ln() / 1.2f64.ln(),
+        })
     }
 
     #[inline]

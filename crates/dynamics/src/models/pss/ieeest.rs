@@ -46,8 +46,17 @@ mod port {
 }
 
 const PORTS: &[Port] = &[
-    Port::input_ft("u", PortInit::Needs, "stabiliser input (default: speed deviation Δω) [pu]").wired("speed"),
-    Port::input_ft("v_term", PortInit::Needs, "terminal voltage V_CT for the output cut-off [pu]"),
+    Port::input_ft(
+        "u",
+        PortInit::Needs,
+        "stabiliser input (default: speed deviation Δω) [pu]",
+    )
+    .wired("speed"),
+    Port::input_ft(
+        "v_term",
+        PortInit::Needs,
+        "terminal voltage V_CT for the output cut-off [pu]",
+    ),
     Port::output("vs", PortInit::Gives, "stabiliser output V_S [pu]"),
 ];
 
@@ -65,14 +74,27 @@ struct Filter {
 
 impl Filter {
     fn new(p: &IeeestParams) -> Result<Self, ModelError> {
-        let d = [1.0, p.a1 + p.a3, p.a2 + p.a4 + p.a1 * p.a3, p.a1 * p.a4 + p.a2 * p.a3, p.a2 * p.a4];
+        let d = [
+            1.0,
+            p.a1 + p.a3,
+            p.a2 + p.a4 + p.a1 * p.a3,
+            p.a1 * p.a4 + p.a2 * p.a3,
+            p.a2 * p.a4,
+        ];
         let num = [1.0, p.a5, p.a6, 0.0, 0.0];
         let order = (0..5).rev().find(|&i| d[i] != 0.0).unwrap_or(0);
         let num_order = (0..5).rev().find(|&i| num[i] != 0.0).unwrap_or(0);
         if num_order > order {
-            return Err(ModelError::param("a5", "the notch filter F(s) is improper (numerator degree > denominator degree)"));
+            return Err(ModelError::param(
+                "a5",
+                "the notch filter F(s) is improper (numerator degree > denominator degree)",
+            ));
         }
-        let mut f = Filter { order, dff: 1.0, ..Default::default() };
+        let mut f = Filter {
+            order,
+            dff: 1.0,
+            ..Default::default()
+        };
         if order == 0 {
             return Ok(f);
         }
@@ -86,7 +108,12 @@ impl Filter {
     }
     #[inline(always)]
     fn output(&self, z: &[f64], u: f64) -> f64 {
-        self.dff * u + self.c[..self.order].iter().zip(z).map(|(c, z)| c * z).sum::<f64>()
+        self.dff * u
+            + self.c[..self.order]
+                .iter()
+                .zip(z)
+                .map(|(c, z)| c * z)
+                .sum::<f64>()
     }
     #[inline(always)]
     fn derivatives(&self, z: &[f64], u: f64, dz: &mut [f64]) {
@@ -129,7 +156,10 @@ pub struct Ieeest {
 
 impl Ieeest {
     pub fn new(p: IeeestParams) -> Self {
-        Self { p, filter: Filter::default() }
+        Self {
+            p,
+            filter: Filter::default(),
+        }
     }
     /// Signals along the chain: (filter out, lead-lag 1 out, lead-lag 2 out, washout out).
     #[inline(always)]
@@ -153,18 +183,36 @@ impl Block for Ieeest {
         PORTS
     }
     fn state_names(&self) -> &'static [&'static str] {
-        &["filter_1", "filter_2", "filter_3", "filter_4", "lead_lag_1", "lead_lag_2", "washout"]
+        &[
+            "filter_1",
+            "filter_2",
+            "filter_3",
+            "filter_4",
+            "lead_lag_1",
+            "lead_lag_2",
+            "washout",
+        ]
     }
     fn validate(&self) -> Result<(), ModelError> {
         let p = &self.p;
-        for (name, v) in [("a1", p.a1), ("a2", p.a2), ("a3", p.a3), ("a4", p.a4), ("a5", p.a5), ("a6", p.a6)] {
+        for (name, v) in [
+            ("a1", p.a1),
+            ("a2", p.a2),
+            ("a3", p.a3),
+            ("a4", p.a4),
+            ("a5", p.a5),
+            ("a6", p.a6),
+        ] {
             guard::non_negative(name, v)?;
         }
         for (lead, lag, ln, gn) in [(p.t1, p.t2, "t1", "t2"), (p.t3, p.t4, "t3", "t4")] {
             guard::non_negative(ln, lead)?;
             guard::non_negative(gn, lag)?;
             if lag == 0.0 && lead != 0.0 {
-                return Err(ModelError::param(gn, format!("a lead ({ln} = {lead}) needs a lag > 0")));
+                return Err(ModelError::param(
+                    gn,
+                    format!("a lead ({ln} = {lead}) needs a lag > 0"),
+                ));
             }
         }
         guard::non_negative("t5", p.t5)?;

@@ -31,7 +31,11 @@ mod port {
 }
 
 const PORTS: &[Port] = &[
-    Port::input("pe", PortInit::Needs, "electrical power P_e [pu machine base]"),
+    Port::input(
+        "pe",
+        PortInit::Needs,
+        "electrical power P_e [pu machine base]",
+    ),
     Port::output("vs", PortInit::Gives, "stabiliser output V_S [pu]"),
 ];
 
