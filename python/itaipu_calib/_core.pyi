@@ -195,8 +195,8 @@ def diagnose(
     *,
     causes: Union[str, Sequence[str], None] = None,
     seed: int = 1,
-    particles: int = 20,
-    pso_iterations: int = 25,
-    lbfgs_iterations: int = 20,
+    particles: int = 16,
+    pso_iterations: int = 20,
+    lbfgs_iterations: int = 15,
     threads: Optional[int] = None,
 ) -> Diagnosis: ...

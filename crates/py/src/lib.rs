@@ -1477,10 +1477,10 @@ fn cause_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
 /// UnitModelError; ValueError for bad options, TypeError for bad argument types.
 #[pyfunction]
 #[pyo3(
-    signature = (unit, events, held_out = None, *, causes = None, seed = 1, particles = 20, pso_iterations = 25,
-                 lbfgs_iterations = 20, threads = None),
-    text_signature = "(unit, events, held_out=None, *, causes=None, seed=1, particles=20, pso_iterations=25, \
-                      lbfgs_iterations=20, threads=None)"
+    signature = (unit, events, held_out = None, *, causes = None, seed = 1, particles = 16, pso_iterations = 20,
+                 lbfgs_iterations = 15, threads = None),
+    text_signature = "(unit, events, held_out=None, *, causes=None, seed=1, particles=16, pso_iterations=20, \
+                      lbfgs_iterations=15, threads=None)"
 )]
 #[allow(clippy::too_many_arguments)]
 fn diagnose(

@@ -395,7 +395,7 @@ fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Event, String>
         traces.get("p_pu").ok_or("no simulated P")?,
         traces.get("q_pu").ok_or("no simulated Q")?,
     );
-    let mut rng = itaipu_dynamics::synthetic::Normal::new(seed ^ 0x5EED_0F_5A11);
+    let mut rng = itaipu_dynamics::synthetic::Normal::new(seed ^ 0x005E_ED0F_5A11);
     let mut rec = r.clone();
     for k in 0..rec.time_s.len() {
         rec.p_pu[k] = p[k] + sp * rng.sample();
