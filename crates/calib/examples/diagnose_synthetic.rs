@@ -54,7 +54,10 @@ fn main() {
     let truth = if cause == "none" {
         base.clone()
     } else {
-        catalog::hide(&cause, &base, &context(&base, &probe).unwrap(), &values).unwrap()
+        catalog::hide(&cause, &base, &context(&base, &probe).unwrap(), &values)
+            .map_err(|e| e.to_string())
+            .unwrap()
+            .0
     };
     let mut noise = PmuNoise::typical(seed);
     if let Ok(scale) = std::env::var("NOISE_SCALE") {

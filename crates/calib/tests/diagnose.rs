@@ -146,7 +146,9 @@ fn hide_rejects_unknown_causes_and_parameters() {
         rate_hz: 60.0,
         mode_hint_hz: None,
     };
-    let err = |r: Result<itaipu_dynamics::unit::Unit, String>| r.err().expect("must be refused");
+    let err = |r: Result<(itaipu_dynamics::unit::Unit, catalog::Extension), catalog::HideError>| {
+        r.err().expect("must be refused").to_string()
+    };
     assert!(err(catalog::hide(
         "no_such_cause",
         &base,
@@ -161,7 +163,16 @@ fn hide_rejects_unknown_causes_and_parameters() {
     let ok = [("shaft.f_torsion_hz".to_string(), 7.5)]
         .into_iter()
         .collect();
-    let u = catalog::hide("torsional_mode", &base, &ctx, &ok).unwrap();
+    let u = catalog::hide("torsional_mode", &base, &ctx, &ok)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .0;
+    // A tied parameter is refused with the one to set instead.
+    let tied = [("shaft.h_generator".to_string(), 3.0)]
+        .into_iter()
+        .collect();
+    assert!(
+        err(catalog::hide("torsional_mode", &base, &ctx, &tied)).contains("set machine.h instead")
+    );
     assert_eq!(u.get(u.param("shaft.f_torsion_hz").unwrap()), 7.5);
     // The tie holds: the shaft's generator mass is the machine's inertia.
     assert_eq!(

@@ -334,43 +334,14 @@ fn hide_all(
     let mut unit = truth.clone();
     let mut entries = vec![];
     for (spec, cause, values) in hides {
-        let ext = match catalog::extend(cause, &unit, &ctx) {
-            Ok(Ok(ext)) => ext,
-            Ok(Err(why)) => {
-                return Err(CliError::new(
-                    2,
-                    format!(
-                        "--hide {spec}: cannot hide {cause} in unit '{}': {why}",
-                        unit.name
-                    ),
-                ))
-            }
-            Err(msg) => {
-                return Err(CliError::new(
-                    4,
-                    format!("{}: --hide {spec}: {msg}", unit_path.display()),
-                ))
-            }
-        };
-        let known = extension_params(&unit, &ext);
-        if let Some((bad, _)) = values.iter().find(|(p, _)| !known.contains(p)) {
-            if let Some((from, _)) = ext.ties.iter().find(|(_, to)| to == bad) {
-                return Err(CliError::new(
-                    2,
-                    format!("--hide {spec}: {bad} follows {from} in {cause}; set {from} instead"),
-                ));
-            }
-            return Err(CliError::new(
-                2,
-                format!(
-                    "--hide {spec}: unknown parameter '{bad}' for {cause} (its parameters: {})",
-                    known.join(", ")
-                ),
-            ));
-        }
         let map: BTreeMap<String, f64> = values.iter().cloned().collect();
-        unit = catalog::hide(cause, &unit, &ctx, &map)
-            .map_err(|e| CliError::new(2, format!("--hide {spec}: {e}")))?;
+        let (extended, ext) = catalog::hide(cause, &unit, &ctx, &map).map_err(|e| match e {
+            catalog::HideError::Build(msg) => {
+                CliError::new(4, format!("{}: --hide {spec}: {msg}", unit_path.display()))
+            }
+            other => CliError::new(2, format!("--hide {spec}: {other}")),
+        })?;
+        unit = extended;
         let mut shown: Vec<&str> = ext
             .extension_free
             .iter()
@@ -402,28 +373,4 @@ fn hide_all(
         causes.join(", ")
     );
     Ok((unit, entries))
-}
-
-/// The parameters a `--hide` of `ext` may set: those the extension frees and those of the
-/// blocks it adds, except the ones tied to another parameter.
-fn extension_params(unit: &Unit, ext: &catalog::Extension) -> Vec<String> {
-    let old: Vec<&str> = unit.instances().iter().map(|i| i.name.as_str()).collect();
-    let mut known: Vec<String> = vec![];
-    let mut push = |p: &str| {
-        if !known.iter().any(|k| k == p) {
-            known.push(p.to_string());
-        }
-    };
-    for f in ext.extension_free.iter().chain(&ext.interacting_free) {
-        push(&f.param);
-    }
-    for (path, _, _) in ext.unit.params() {
-        let block = path.split('.').next().unwrap_or("");
-        if !old.contains(&block) {
-            push(&path);
-        }
-    }
-    // A tied parameter follows another one: setting it would have no effect.
-    known.retain(|p| !ext.ties.iter().any(|(_, to)| to == p));
-    known
 }

@@ -1217,45 +1217,10 @@ fn hide_all(truth: &Unit, probe: &Event, hides: &[Hide]) -> Result<Unit, Failure
     })?;
     let mut unit = truth.clone();
     for (cause, values) in hides {
-        let ext = match catalog::extend(cause, &unit, &ctx) {
-            Ok(Ok(ext)) => ext,
-            Ok(Err(why)) => {
-                return Err(Failure::Value(format!(
-                    "hide: cannot hide {cause} in unit '{}': {why}",
-                    unit.name
-                )))
-            }
-            Err(msg) => return Err(Failure::Value(format!("hide: {cause}: {msg}"))),
-        };
-        let old: Vec<&str> = unit.instances().iter().map(|i| i.name.as_str()).collect();
-        let mut known: Vec<String> = ext
-            .extension_free
-            .iter()
-            .chain(&ext.interacting_free)
-            .map(|f| f.param.clone())
-            .collect();
-        for (path, _, _) in ext.unit.params() {
-            if !old.contains(&path.split('.').next().unwrap_or("")) && !known.contains(&path) {
-                known.push(path);
-            }
-        }
-        known.retain(|p| !ext.ties.iter().any(|(_, to)| to == p));
-        for (k, _) in values {
-            if let Some((from, _)) = ext.ties.iter().find(|(_, to)| to == k) {
-                return Err(Failure::Value(format!(
-                    "hide: {k} follows {from} in {cause}; set {from} instead"
-                )));
-            }
-            if !known.contains(k) {
-                return Err(Failure::Value(format!(
-                    "hide: unknown parameter '{k}' for {cause} (its parameters: {})",
-                    known.join(", ")
-                )));
-            }
-        }
         let map: BTreeMap<String, f64> = values.iter().cloned().collect();
         unit = catalog::hide(cause, &unit, &ctx, &map)
-            .map_err(|e| Failure::Value(format!("hide: {e}")))?;
+            .map_err(|e| Failure::Value(format!("hide: {e}")))?
+            .0;
     }
     let causes: Vec<&str> = hides.iter().map(|(c, _)| c.as_str()).collect();
     unit.description = format!(

@@ -531,44 +531,101 @@ pub fn extend(
     Ok(Ok(ext))
 }
 
+/// Why a cause cannot be hidden.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum HideError {
+    /// Unknown cause, unknown or tied parameter: a bad request.
+    #[error("{0}")]
+    Request(String),
+    /// The cause does not apply to this unit (e.g. no exciter for `exciter_limit`).
+    #[error("cannot hide {cause} in unit '{unit}': {why}")]
+    NotApplicable {
+        cause: String,
+        unit: String,
+        why: String,
+    },
+    /// The extension could not be built on this unit.
+    #[error("{0}")]
+    Build(String),
+}
+
+/// The parameters a hide of `ext` (built on `unit`) may set: those the extension frees and
+/// those of the blocks it adds, except the ones tied to another parameter.
+pub fn hideable_params(unit: &Unit, ext: &Extension) -> Vec<String> {
+    let old: Vec<&str> = unit.instances().iter().map(|i| i.name.as_str()).collect();
+    let mut known: Vec<String> = vec![];
+    let candidates = ext
+        .extension_free
+        .iter()
+        .chain(&ext.interacting_free)
+        .map(|f| f.param.clone())
+        .chain(
+            ext.unit
+                .params()
+                .into_iter()
+                .map(|(p, _, _)| p)
+                .filter(|p| !old.contains(&p.split('.').next().unwrap_or(""))),
+        );
+    for p in candidates {
+        if !known.contains(&p) && !ext.ties.iter().any(|(_, to)| *to == p) {
+            known.push(p);
+        }
+    }
+    known
+}
+
 /// The unit with `cause` hidden in it: the extension of [`extend`] with `values` set
-/// (`block.param` paths of the extended unit, e.g. `shaft.f_torsion_hz`), ties applied.
+/// (`block.param` paths among [`hideable_params`], e.g. `shaft.f_torsion_hz`), ties applied.
+/// Returns the extension too (what was added, for reports).
 pub fn hide(
     cause: &str,
     unit: &Unit,
     ctx: &Context,
     values: &BTreeMap<String, f64>,
-) -> Result<Unit, String> {
-    let ext = extend(cause, unit, ctx)?
-        .map_err(|why| format!("cannot hide {cause} in this unit: {why}"))?;
-    let mut u = ext.unit;
+) -> Result<(Unit, Extension), HideError> {
+    let ext = extend(cause, unit, ctx)
+        .map_err(|e| {
+            if find(cause).is_none() {
+                HideError::Request(e)
+            } else {
+                HideError::Build(e)
+            }
+        })?
+        .map_err(|why| HideError::NotApplicable {
+            cause: cause.to_string(),
+            unit: unit.name.clone(),
+            why,
+        })?;
+    let known = hideable_params(unit, &ext);
+    for path in values.keys() {
+        if let Some((from, _)) = ext.ties.iter().find(|(_, to)| to == path) {
+            return Err(HideError::Request(format!(
+                "{cause}: {path} follows {from}; set {from} instead"
+            )));
+        }
+        if !known.contains(path) {
+            return Err(HideError::Request(format!(
+                "{cause}: unknown parameter '{path}' (its parameters: {})",
+                known.join(", ")
+            )));
+        }
+    }
+    let mut u = ext.unit.clone();
+    let set = |u: &mut Unit, path: &str, v: f64| -> Result<(), HideError> {
+        let r = u.param(path).map_err(|e| HideError::Build(e.to_string()))?;
+        u.set(r, v);
+        Ok(())
+    };
     // Extension parameters start at their search start unless given.
-    for f in ext.extension_free.iter() {
-        let r = u.param(&f.param).map_err(|e| e.to_string())?;
-        u.set(r, f.start);
+    for f in &ext.extension_free {
+        set(&mut u, &f.param, f.start)?;
     }
     for (path, v) in values {
-        let r = u.param(path).map_err(|_| {
-            let known: Vec<&str> = ext
-                .extension_free
-                .iter()
-                .chain(&ext.interacting_free)
-                .map(|f| f.param.as_str())
-                .collect();
-            format!(
-                "{cause}: unknown parameter '{path}' (the extension's: {})",
-                known.join(", ")
-            )
-        })?;
-        u.set(r, *v);
+        set(&mut u, path, *v)?;
     }
     for (from, to) in &ext.ties {
-        let (rf, rt) = (
-            u.param(from).map_err(|e| e.to_string())?,
-            u.param(to).map_err(|e| e.to_string())?,
-        );
-        let v = u.get(rf);
-        u.set(rt, v);
+        let v = u.get(u.param(from).map_err(|e| HideError::Build(e.to_string()))?);
+        set(&mut u, to, v)?;
     }
-    Ok(u)
+    Ok((u, ext))
 }

@@ -779,13 +779,18 @@ fn mode_hint(ev: &[EventEvidence], rate_hz: f64) -> Option<f64> {
 /// rate), without evidence hints. Used to hide a cause in a synthetic truth.
 pub fn context(unit: &Unit, event: &Event) -> Result<Context, String> {
     let (_, tr) = fitness(unit, event, false)?;
+    Ok(context_from(&tr, event))
+}
+
+/// The catalog context read from a unit's traces on `event` (no evidence hints).
+fn context_from(traces: &Traces, event: &Event) -> Context {
     let t = &event.record.time_s;
-    Ok(Context {
-        efd0: tr.get("efd").map(|c| c[0]),
-        xadifd0: tr.get("xadifd").map(|c| c[0]),
+    Context {
+        efd0: traces.get("efd").map(|c| c[0]),
+        xadifd0: traces.get("xadifd").map(|c| c[0]),
         rate_hz: (t.len() - 1) as f64 / (t[t.len() - 1] - t[0]),
         mode_hint_hz: None,
-    })
+    }
 }
 
 /// Diagnoses `unit` (normally already calibrated) on `events`, judging candidates on `held_out`
@@ -917,15 +922,8 @@ pub fn diagnose(
     baselines.insert(bounds_key(&nuisance), reference);
 
     // 3. Context for the catalog.
-    let tr0 = &before[0].1;
-    let t = &events[0].record.time_s;
-    let rate_hz = (t.len() - 1) as f64 / (t[t.len() - 1] - t[0]);
-    let ctx = Context {
-        efd0: tr0.get("efd").map(|c| c[0]),
-        xadifd0: tr0.get("xadifd").map(|c| c[0]),
-        rate_hz,
-        mode_hint_hz: mode_hint(&evidence_before, rate_hz),
-    };
+    let mut ctx = context_from(&before[0].1, &events[0]);
+    ctx.mode_hint_hz = mode_hint(&evidence_before, ctx.rate_hz);
 
     // 4. Candidates.
     let ids: Vec<&str> = if opts.causes.is_empty() {

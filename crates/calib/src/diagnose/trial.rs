@@ -131,7 +131,9 @@ pub fn truth_and_event(t: &Trial) -> Result<(Unit, Event), String> {
     } else {
         let probe = synthesize("probe", &base, &profile, 737.0, &PmuNoise::none(), &sim)
             .map_err(|e| e.to_string())?;
-        catalog::hide(&t.cause, &base, &context(&base, &probe)?, &t.values)?
+        catalog::hide(&t.cause, &base, &context(&base, &probe)?, &t.values)
+            .map_err(|e| e.to_string())?
+            .0
     };
     let event = synthesize(
         &format!("trial-{}-{}", t.cause, t.seed),
