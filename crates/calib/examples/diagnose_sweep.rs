@@ -43,6 +43,11 @@ fn main() {
                     &t,
                     &DiagnoseOptions {
                         seed: t.seed,
+                        // DIAG_CAUSES=a,b restricts the catalog tried (for quick experiments).
+                        causes: std::env::var("DIAG_CAUSES")
+                            .ok()
+                            .map(|v| v.split(',').map(str::to_string).collect())
+                            .unwrap_or_default(),
                         lbfgs_iterations: std::env::var("LBFGS")
                             .ok()
                             .and_then(|v| v.parse().ok())
@@ -81,6 +86,22 @@ fn main() {
                             t0.elapsed().as_secs_f64()
                         );
                         if std::env::var("VERBOSE").is_ok() {
+                            let cal: Vec<String> = [
+                                "machine.h",
+                                "machine.x_d_prime",
+                                "machine.t_d0_prime",
+                                "exciter.k",
+                                "exciter.te",
+                            ]
+                            .iter()
+                            .map(|p| {
+                                format!(
+                                    "{p}={:.4}",
+                                    o.calibrated.get(o.calibrated.param(p).unwrap())
+                                )
+                            })
+                            .collect();
+                            println!("    calibrated: {}", cal.join(" "));
                             for c in &o.report.candidates {
                                 if let Some(g) = &c.gains {
                                     println!(
@@ -91,7 +112,7 @@ fn main() {
                                         100.0 * g.held_drop,
                                         g.null_gain_fit,
                                         if c.significant { "*" } else { " " },
-                                        c.parameters.iter().filter(|p| p.extension).map(|p| format!("{}={:.4}", p.param, p.result)).collect::<Vec<_>>().join(" "),
+                                        c.parameters.iter().filter(|p| p.extension || std::env::var("VERBOSE").as_deref() == Ok("2")).map(|p| format!("{}={:.4}", p.param, p.result)).collect::<Vec<_>>().join(" "),
                                         c.note
                                     );
                                 } else {

@@ -77,8 +77,13 @@ fn hidden_terminal_load_is_named() {
 }
 
 #[test]
-fn hidden_saturation_is_named() {
-    check("saturation", 101, None);
+fn hidden_exciter_ceiling_is_named_with_its_limit() {
+    check("exciter_limit", 101, None);
+}
+
+#[test]
+fn hidden_governor_deadband_and_rate_limit_are_named() {
+    check("governor", 101, None);
 }
 
 #[test]

@@ -242,18 +242,24 @@ pub fn nuisance(unit: &Unit) -> Vec<FreeBound> {
         .collect()
 }
 
+/// Frees the positive parameter `path` of `u` within `[v/factor, v·factor]` around its value
+/// `v`, clipped to the model's declared range (a calibrated value may sit on the bound of the
+/// calibration that bent it, so the band is wide). `None` if it does not exist or is not > 0.
+fn around(u: &Unit, path: &str, factor: f64) -> Option<FreeBound> {
+    let (_, spec, v) = u.params().into_iter().find(|(p, _, _)| p == path)?;
+    (v > 0.0).then(|| {
+        let lo = (v / factor).max(spec.range.0).min(v);
+        let hi = (v * factor).min(spec.range.1).max(v);
+        fb(path, lo, hi, v)
+    })
+}
+
 /// The AVR-stage parameters of exciter `x` that exist in `u` (gain and time constants), each
-/// free within a factor of two of its value.
+/// free within a factor of three of its value.
 fn avr_stage(u: &Unit, x: &str) -> Vec<FreeBound> {
     ["k", "te", "tb"]
         .iter()
-        .filter_map(|p| {
-            let path = format!("{x}.{p}");
-            value(u, &path)
-                .ok()
-                .filter(|v| *v > 0.0)
-                .map(|v| fb(&path, 0.5 * v, 2.0 * v, v))
-        })
+        .filter_map(|p| around(u, &format!("{x}.{p}"), 3.0))
         .collect()
 }
 
@@ -340,16 +346,29 @@ pub fn extend(
             let (emax, emin) = (value(&u, &pmax)?, value(&u, &pmin)?);
             let hi = emax.max(efd0 + 3.0).max(2.0 * efd0);
             ext.extension_free = vec![
-                scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi)), 16),
+                scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi)), 24),
                 fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05)),
             ];
             // The AVR stage's parameters, and the field's open-circuit time constant: on the
             // ceiling the field flux rises at about E_MAX/T'_d0, the pair a calibration without
             // the right limit trades against each other.
-            ext.interacting_free = avr_stage(&u, &x);
-            let td0 = format!("{machine}.t_d0_prime");
-            if let Ok(v) = value(&u, &td0) {
-                ext.interacting_free.push(fb(&td0, 0.6 * v, 1.6 * v, v));
+            // T_E is scanned with E_MAX: on and off the ceiling the two trade along a curved
+            // valley (a faster exciter reaches the ceiling sooner, as a higher ceiling would).
+            ext.interacting_free = avr_stage(&u, &x)
+                .into_iter()
+                .filter(|b| !b.param.ends_with(".tb"))
+                .map(|b| {
+                    if b.param.ends_with(".te") {
+                        scanned(b, 8)
+                    } else {
+                        b
+                    }
+                })
+                .collect();
+            ext.search_factor = 5;
+            for p in ["x_d_prime", "h"] {
+                ext.interacting_free
+                    .extend(around(&u, &format!("{machine}.{p}"), 1.6));
             }
         }
         "saturation" => {
@@ -390,17 +409,28 @@ pub fn extend(
             rewire(&mut u, &g, &[("speed", "speed_db")])?;
             let velm = value(&u, &format!("{g}.velm"))?;
             ext.extension_free = vec![
-                scanned(fb("deadband.db", 0.0, 0.002, 0.0), 9),
+                scanned(fb("deadband.db", 0.0, 0.004, 0.0), 9),
                 scanned(fb(&format!("{g}.velm"), 0.005, 0.5, velm), 9),
             ];
             let (r, tw) = (
                 value(&u, &format!("{g}.r_perm"))?,
                 value(&u, &format!("{g}.t_w"))?,
             );
+            // On a frequency excursion the machine's inertia carries the power the governor does
+            // not: a calibration without the governor's nonlinearity bends H to make up for it.
             ext.interacting_free = vec![
                 fb(&format!("{g}.r_perm"), 0.01, 0.15, r),
                 fb(&format!("{g}.t_w"), 0.3, 4.0, tw),
             ];
+            ext.interacting_free
+                .extend(around(&u, &format!("{machine}.h"), 1.6));
+            ext.interacting_free
+                .extend(around(&u, &format!("{machine}.x_d_prime"), 1.6));
+            if let Some(x) = &exciter {
+                ext.interacting_free
+                    .extend(around(&u, &format!("{x}.k"), 3.0));
+            }
+            ext.search_factor = 5;
             if !model.eq_ignore_ascii_case("HYGOV") {
                 // A new governor: every parameter the fit needs is new, count them all.
                 ext.extension_free.append(&mut ext.interacting_free);
@@ -457,23 +487,19 @@ pub fn extend(
             }
             // A calibration with the PSS as modelled tuned the AVR, the inertia and the field
             // dynamics to make up for it: they move with the PSS's state (a longer search).
-            ext.search_factor = 3;
-            for (p, lo, hi) in [
-                (format!("{x}.k"), 0.5, 2.0),
-                (format!("{x}.te"), 0.5, 2.0),
-                (format!("{machine}.h"), 0.7, 1.4),
-                (format!("{machine}.d"), 0.0, 0.0),
-                (format!("{machine}.x_d_prime"), 0.7, 1.4),
-                (format!("{machine}.t_d0_prime"), 0.6, 1.6),
+            ext.search_factor = 5;
+            for (p, factor) in [
+                (format!("{x}.k"), 3.0),
+                (format!("{x}.te"), 3.0),
+                (format!("{machine}.h"), 1.6),
+                (format!("{machine}.x_d_prime"), 2.5),
+                (format!("{machine}.t_d0_prime"), 1.6),
             ] {
-                if let Ok(v) = value(&u, &p) {
-                    let (a, b) = if p.ends_with(".d") {
-                        (0.0, v.max(0.0) + 3.0)
-                    } else {
-                        (lo * v, hi * v)
-                    };
-                    ext.interacting_free.push(fb(&p, a, b, v));
-                }
+                ext.interacting_free.extend(around(&u, &p, factor));
+            }
+            let d = format!("{machine}.d");
+            if let Ok(v) = value(&u, &d) {
+                ext.interacting_free.push(fb(&d, 0.0, v.max(0.0) + 3.0, v));
             }
         }
         "oel" => {

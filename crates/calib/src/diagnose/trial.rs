@@ -27,14 +27,19 @@ objective = "pq"
 free = [
   { param = "machine.h", min = 2.0, max = 9.0 },
   { param = "machine.x_d_prime", min = 0.15, max = 0.6 },
-  { param = "machine.t_d0_prime", min = 3.0, max = 14.0 },
   { param = "exciter.k", min = 30.0, max = 300.0 },
   { param = "exciter.te", min = 0.02, max = 0.2 },
 ]
 "#;
 
 /// How far the nominal unit starts from the truth (factor per parameter).
-/// (T'_d0 starts right but is free in the calibration.)
+///
+/// T'_d0 is held at its (true) datasheet value, as in a MOD-026 study where it comes from the
+/// open-circuit test: from P and Q alone it is not separable from an exciter ceiling. With E_fd
+/// on the ceiling the field flux rises at E_MAX/T'_d0, and on the `exciter_limit` trial the fit
+/// is as good along E_MAX/T'_d0 = const (RMS of Q 0.00245 pu at the truth, 0.00243 pu with
+/// E_MAX 6 % higher and T'_d0 to match), so a calibration that frees both cannot recover the
+/// ceiling.
 pub const NOMINAL_OFFSETS: &[(&str, f64)] = &[
     ("machine.h", 1.3),
     ("machine.x_d_prime", 0.75),
@@ -250,8 +255,8 @@ pub fn scenario(cause: &str, seed: u64, kind: Option<EventKind>) -> Trial {
         "governor" => trial(
             cause,
             &[
-                ("deadband.db", 0.001 + 0.0003 * u(1)),
-                ("governor.velm", 0.02),
+                ("deadband.db", 0.002 + 0.0005 * u(1)),
+                ("governor.velm", 0.01),
             ],
             None,
             EventKind::FrequencyExcursion,
