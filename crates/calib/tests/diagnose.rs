@@ -150,6 +150,8 @@ fn hide_rejects_unknown_causes_and_parameters() {
         xadifd0: Some(1.5),
         rate_hz: 60.0,
         mode_hint_hz: None,
+        deepest_dip: None,
+        sustained_df_hz: None,
     };
     let err = |r: Result<(itaipu_dynamics::unit::Unit, catalog::Extension), catalog::HideError>| {
         r.err().expect("must be refused").to_string()

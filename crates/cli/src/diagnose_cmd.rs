@@ -14,7 +14,9 @@ use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::fit_cmd::Reporter;
-use crate::{bundled, load_event, load_unit, plot, prepare_out, CliError, EXIT_CODES};
+use crate::{
+    bundled, check_out, load_event, load_unit, plot, prepare_out, CliError, SearchArgs, EXIT_CODES,
+};
 
 #[derive(clap::Args, Debug)]
 #[command(after_help = EXIT_CODES)]
@@ -43,21 +45,8 @@ pub struct DiagnoseArgs {
     /// Allow writing into an existing, non-empty --out folder.
     #[arg(long)]
     force: bool,
-    /// Random seed of the swarms (default 1). Same seed, same numbers, on any number of threads.
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Swarm size of each candidate re-fit (default 20).
-    #[arg(long)]
-    particles: Option<usize>,
-    /// Maximum swarm iterations of each re-fit (default 25).
-    #[arg(long)]
-    pso_iterations: Option<usize>,
-    /// Maximum L-BFGS iterations of each re-fit (default 20).
-    #[arg(long)]
-    lbfgs_iterations: Option<u64>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    threads: Option<usize>,
+    #[command(flatten)]
+    search: SearchArgs,
     /// Do not draw the plots (report.html is written without them).
     #[arg(long)]
     no_plot: bool,
@@ -100,23 +89,14 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         causes: causes(&a.cause)?,
         ..Default::default()
     };
-    if let Some(s) = a.seed {
-        opts.seed = s;
-    }
-    if let Some(n) = a.particles {
-        opts.particles = n.max(2);
-    }
-    if let Some(n) = a.pso_iterations {
-        opts.pso_iterations = n;
-    }
-    if let Some(n) = a.lbfgs_iterations {
-        opts.lbfgs_iterations = n;
-    }
-    let threads = match a.threads {
-        Some(0) => return Err(CliError::new(2, "--threads must be at least 1")),
-        Some(t) => t,
-        None => rayon::current_num_threads(),
-    };
+    a.search.apply(
+        &mut opts.seed,
+        &mut opts.particles,
+        &mut opts.pso_iterations,
+        &mut opts.lbfgs_iterations,
+    );
+    let pool = a.search.pool()?;
+    let threads = pool.current_num_threads();
     let unit_path = match &a.unit {
         Some(p) => p.clone(),
         None => bundled("itaipu/unit.toml")?,
@@ -137,24 +117,7 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         .map(|p| load_event(p))
         .collect::<Result<Vec<_>, _>>()?;
     let name = events.first().map(|e| e.name.clone()).unwrap_or_default();
-    if let Some(d) = &a.out {
-        let nonempty = d.is_dir()
-            && std::fs::read_dir(d)
-                .map(|mut r| r.next().is_some())
-                .unwrap_or(false);
-        if d.exists() && !d.is_dir() {
-            return Err(CliError::new(
-                7,
-                format!("{} exists and is not a folder", d.display()),
-            ));
-        }
-        if nonempty && !a.force {
-            return Err(CliError::new(
-                7,
-                format!("{} exists and is not empty; refusing to overwrite (use --force, or another --out)", d.display()),
-            ));
-        }
-    }
+    check_out(a.out.as_deref(), a.force)?;
     let tried = if opts.causes.is_empty() {
         format!("all {} causes", catalog::CAUSES.len())
     } else {
@@ -184,11 +147,6 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         opts.seed,
     );
     println!("{}", wrap(&header, WIDTH, "diagnose ", "         "));
-    // A pool of its own, so that --threads holds on every call (also in-process).
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| CliError::new(6, format!("cannot start {threads} worker threads: {e}")))?;
     let reporter = Reporter::new();
     let result = pool.install(|| diagnose(&unit, &events, &held_out, &opts, &reporter));
     reporter.finish();
@@ -407,7 +365,9 @@ fn print_report(r: &Diagnosis) {
     );
     println!("{}", wrap(&noise, WIDTH, "noise    ", "         "));
     println!();
-    println!("candidates by ΔBIC (* = significant: named if first)");
+    println!(
+        "candidates (* = significant, ranked by the extended model's BIC; the others by ΔBIC)"
+    );
     println!(
         "  {:<18} {:>9} {:>9} {:>9} {:>2} {:1}  key parameters / note",
         "cause", "ΔBIC", "fit χ²↓", "held χ²↓", "k", ""

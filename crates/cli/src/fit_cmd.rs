@@ -10,7 +10,9 @@ use itaipu_calib::fit::{fit, FitOptions, FitReport, Progress};
 use itaipu_calib::spec::{CalibSpec, Strategy};
 use itaipu_dynamics::unit_file::unit_to_toml;
 
-use crate::{bundled, load_event, load_unit, plot, prepare_out, CliError, EXIT_CODES};
+use crate::{
+    bundled, check_out, load_event, load_unit, plot, prepare_out, CliError, SearchArgs, EXIT_CODES,
+};
 
 #[derive(clap::Args, Debug)]
 #[command(after_help = EXIT_CODES)]
@@ -44,22 +46,8 @@ pub struct FitArgs {
     /// Allow writing into an existing, non-empty --out folder.
     #[arg(long)]
     force: bool,
-    /// Random seed of the swarm (default: the spec's). Same seed, same numbers, on any number
-    /// of threads.
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Swarm size (default: the spec's, else 40).
-    #[arg(long)]
-    particles: Option<usize>,
-    /// Maximum swarm iterations per stage (default: the spec's, else 100).
-    #[arg(long)]
-    pso_iterations: Option<usize>,
-    /// Maximum L-BFGS iterations per stage (default: the spec's, else 100).
-    #[arg(long)]
-    lbfgs_iterations: Option<u64>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    threads: Option<usize>,
+    #[command(flatten)]
+    search: SearchArgs,
     /// Do not draw the plots.
     #[arg(long)]
     no_plot: bool,
@@ -195,44 +183,19 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
             .map(|s| s.to_string())
             .collect();
     }
-    if let Some(s) = a.seed {
-        opts.seed = s;
-    }
     if a.no_polish {
         opts.polish = false;
     }
-    if let Some(n) = a.particles {
-        opts.particles = n.max(2);
-    }
-    if let Some(n) = a.pso_iterations {
-        opts.pso_iterations = n;
-    }
-    if let Some(n) = a.lbfgs_iterations {
-        opts.lbfgs_iterations = n;
-    }
-    if let Some(t) = a.threads {
-        if t == 0 {
-            return Err(CliError::new(2, "--threads must be at least 1"));
-        }
-        // The global pool can be set once per process; a second call (in tests) keeps the first.
-        let _ = rayon::ThreadPoolBuilder::new()
-            .num_threads(t)
-            .build_global();
-    }
+    a.search.apply(
+        &mut opts.seed,
+        &mut opts.particles,
+        &mut opts.pso_iterations,
+        &mut opts.lbfgs_iterations,
+    );
+    let pool = a.search.pool()?;
     let name = events.first().map(|e| e.name.clone()).unwrap_or_default();
     // Check the output folder before the (long) fit, create it after.
-    if let Some(d) = &a.out {
-        let nonempty = d.is_dir()
-            && std::fs::read_dir(d)
-                .map(|mut r| r.next().is_some())
-                .unwrap_or(false);
-        if nonempty && !a.force {
-            return Err(CliError::new(
-                7,
-                format!("{} exists and is not empty; refusing to overwrite (use --force, or another --out)", d.display()),
-            ));
-        }
-    }
+    check_out(a.out.as_deref(), a.force)?;
     println!(
         "fit    unit {} ({}), events {}, spec {}, stages {}, strategy {}, seed {}, {} threads",
         unit.name,
@@ -246,10 +209,11 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         opts.stages.join(" -> "),
         opts.strategy,
         opts.seed,
-        rayon::current_num_threads()
+        pool.current_num_threads()
     );
     let reporter = Reporter::new();
-    let result = fit(&unit, &spec, &events, &held_out, &opts, &reporter).map_err(|e| {
+    let result = pool.install(|| fit(&unit, &spec, &events, &held_out, &opts, &reporter));
+    let result = result.map_err(|e| {
         let code = if matches!(e, itaipu_calib::fit::FitError::Spec(_)) {
             4
         } else {

@@ -194,29 +194,95 @@ pub fn load_unit(path: &Path) -> Result<Unit, CliError> {
     read_unit(path).map_err(|e| CliError::new(4, e.to_string()))
 }
 
-/// Chooses and creates the output folder. With an explicit `--out`, an existing non-empty
-/// folder is refused unless `force`; by default `out/<name>` or the first free `out/<name>-N`.
-pub fn prepare_out(out: Option<&Path>, name: &str, force: bool) -> Result<PathBuf, CliError> {
-    let dir = match out {
-        Some(d) => {
-            let nonempty = d.is_dir()
-                && std::fs::read_dir(d)
-                    .map(|mut r| r.next().is_some())
-                    .unwrap_or(false);
-            if d.exists() && !d.is_dir() {
-                return Err(CliError::new(
-                    7,
-                    format!("{} exists and is not a folder", d.display()),
-                ));
-            }
-            if nonempty && !force {
-                return Err(CliError::new(
-                    7,
-                    format!("{} exists and is not empty; refusing to overwrite (use --force, or another --out)", d.display()),
-                ));
-            }
-            d.to_path_buf()
+/// Swarm, L-BFGS and thread options shared by `fit` and `diagnose`.
+#[derive(clap::Args, Debug)]
+pub struct SearchArgs {
+    /// Random seed of the swarms (fit: the spec's; diagnose: 1). Same seed, same numbers, on
+    /// any number of threads.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Swarm size (fit: the spec's, else 40; diagnose: 16 per candidate re-fit).
+    #[arg(long)]
+    pub particles: Option<usize>,
+    /// Maximum swarm iterations (fit: per stage, the spec's, else 100; diagnose: 20 per re-fit).
+    #[arg(long)]
+    pub pso_iterations: Option<usize>,
+    /// Maximum L-BFGS iterations (fit: per stage, the spec's, else 100; diagnose: 15 per
+    /// re-fit).
+    #[arg(long)]
+    pub lbfgs_iterations: Option<u64>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+impl SearchArgs {
+    /// Overrides the given search settings with the options given on the command line.
+    pub fn apply(&self, seed: &mut u64, particles: &mut usize, pso: &mut usize, lbfgs: &mut u64) {
+        if let Some(s) = self.seed {
+            *seed = s;
         }
+        if let Some(n) = self.particles {
+            *particles = n.max(2);
+        }
+        if let Some(n) = self.pso_iterations {
+            *pso = n;
+        }
+        if let Some(n) = self.lbfgs_iterations {
+            *lbfgs = n;
+        }
+    }
+
+    /// A worker pool of its own with `--threads` workers (all cores by default), so that the
+    /// option holds on every call, also in-process. `--threads 0` is a usage error (exit 2).
+    pub fn pool(&self) -> Result<rayon::ThreadPool, CliError> {
+        let threads = match self.threads {
+            Some(0) => return Err(CliError::new(2, "--threads must be at least 1")),
+            Some(t) => t,
+            None => rayon::current_num_threads(),
+        };
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| CliError::new(6, format!("cannot start {threads} worker threads: {e}")))
+    }
+}
+
+/// Refuses an explicit `--out` that is not a folder, or a non-empty folder without `force`
+/// (exit 7). Called before a long run, so that it fails before the work, not after.
+pub fn check_out(out: Option<&Path>, force: bool) -> Result<(), CliError> {
+    let Some(d) = out else {
+        return Ok(());
+    };
+    if d.exists() && !d.is_dir() {
+        return Err(CliError::new(
+            7,
+            format!("{} exists and is not a folder", d.display()),
+        ));
+    }
+    let nonempty = d.is_dir()
+        && std::fs::read_dir(d)
+            .map(|mut r| r.next().is_some())
+            .unwrap_or(false);
+    if nonempty && !force {
+        return Err(CliError::new(
+            7,
+            format!(
+                "{} exists and is not empty; refusing to overwrite (use --force, or another --out)",
+                d.display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Chooses and creates the output folder. With an explicit `--out`, an existing non-empty
+/// folder is refused unless `force` ([`check_out`]); by default `out/<name>` or the first free
+/// `out/<name>-N`.
+pub fn prepare_out(out: Option<&Path>, name: &str, force: bool) -> Result<PathBuf, CliError> {
+    check_out(out, force)?;
+    let dir = match out {
+        Some(d) => d.to_path_buf(),
         None => {
             let base = PathBuf::from("out").join(name);
             let mut d = base.clone();

@@ -132,7 +132,20 @@ pub struct Context {
     pub rate_hz: f64,
     /// Frequency of the dominant oscillation in the P residual above 1 Hz, if any [Hz].
     pub mode_hint_hz: Option<f64>,
+    /// Deepest voltage dip of the events after the onset, as a fraction of the pre-event |V|
+    /// (`None`: unknown, e.g. when hiding a cause, and no regime is required).
+    pub deepest_dip: Option<f64>,
+    /// Largest sustained frequency change of the events (last quarter against pre-event) [Hz].
+    pub sustained_df_hz: Option<f64>,
 }
+
+/// Dip from which a high-gain AVR is taken to run to its limits.
+pub const LIMIT_DIP: f64 = 0.05;
+/// Sustained frequency change from which a governor is taken to act [Hz].
+pub const GOVERNOR_DF_HZ: f64 = 0.02;
+/// Swarm-length factor of a candidate whose regime the events reach and that re-frees a
+/// calibration's bent stage parameters (limits, governor, PSS).
+const DEEP_SEARCH: usize = 5;
 
 /// A unit extended for one cause, with what to free in the re-fit.
 #[derive(Clone)]
@@ -340,6 +353,14 @@ pub fn extend(
                     model_of(&u, &x)
                 ));
             }
+            if ctx.deepest_dip.is_some_and(|d| d < LIMIT_DIP) {
+                // A limit just above the operating point would only clamp E_fd to make up for a
+                // mis-calibrated AVR gain.
+                return not_applicable(&format!(
+                    "no event dips |V| by {:.0} % or more, so the AVR is not driven to its limits",
+                    100.0 * LIMIT_DIP
+                ));
+            }
             let efd0 = ctx
                 .efd0
                 .ok_or("the field voltage at the operating point is unknown")?;
@@ -365,7 +386,7 @@ pub fn extend(
                     }
                 })
                 .collect();
-            ext.search_factor = 5;
+            ext.search_factor = DEEP_SEARCH;
             for p in ["x_d_prime", "h"] {
                 ext.interacting_free
                     .extend(around(&u, &format!("{machine}.{p}"), 1.6));
@@ -430,7 +451,9 @@ pub fn extend(
                 ext.interacting_free
                     .extend(around(&u, &format!("{x}.k"), 3.0));
             }
-            ext.search_factor = 5;
+            if ctx.sustained_df_hz.is_none_or(|df| df > GOVERNOR_DF_HZ) {
+                ext.search_factor = DEEP_SEARCH;
+            }
             if !model.eq_ignore_ascii_case("HYGOV") {
                 // A new governor: every parameter the fit needs is new, count them all.
                 ext.extension_free.append(&mut ext.interacting_free);
@@ -487,7 +510,7 @@ pub fn extend(
             }
             // A calibration with the PSS as modelled tuned the AVR, the inertia and the field
             // dynamics to make up for it: they move with the PSS's state (a longer search).
-            ext.search_factor = 5;
+            ext.search_factor = DEEP_SEARCH;
             for (p, factor) in [
                 (format!("{x}.k"), 3.0),
                 (format!("{x}.te"), 3.0),

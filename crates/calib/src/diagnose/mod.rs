@@ -281,32 +281,24 @@ pub fn windows(event: &Event) -> (f64, Vec<(String, f64, f64)>) {
 
 /// Grid frequency deviation [Hz] from the record (`freq_hz` if present, else the derivative of
 /// the unwrapped angle).
-/// Whether some event drives the unit into the regime where `cause` acts, so that its
-/// extension deserves the longer search ([`Extension::search_factor`]): a sustained frequency
-/// change (> 0.02 Hz between the pre-event and the last quarter of the record) for the
-/// governor, a voltage dip deeper than 5 % (a high-gain AVR then runs to its ceiling) for the
-/// exciter limits (which are not tried at all without such a dip). Other causes always
-/// qualify.
-fn drives(cause: &str, events: &[Event]) -> bool {
+/// How hard the events drive the unit, for [`Context`]: the deepest voltage dip after the
+/// onset as a fraction of the pre-event |V|, and the largest sustained frequency change (mean
+/// of the last quarter of the record against the pre-event mean) [Hz], over all events.
+fn regime(events: &[Event]) -> (f64, f64) {
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-    events.iter().any(|e| {
+    let (mut dip, mut df) = (0.0_f64, 0.0_f64);
+    for e in events {
         let t = &e.record.time_s;
-        let onset = e.init.end_s;
-        let pre = t.iter().take_while(|&&x| x <= onset).count().max(1);
-        match cause {
-            "governor" => {
-                let f = frequency_deviation(e);
-                let tail = f.len() - f.len() / 4;
-                (mean(&f[tail..]) - mean(&f[..pre])).abs() > 0.02
-            }
-            "exciter_limit" => {
-                let v = &e.record.v_mag_pu;
-                let v0 = mean(&v[..pre]);
-                v[pre.min(v.len())..].iter().any(|x| *x < 0.95 * v0)
-            }
-            _ => true,
-        }
-    })
+        let pre = t.iter().take_while(|&&x| x <= e.init.end_s).count().max(1);
+        let v = &e.record.v_mag_pu;
+        let v0 = mean(&v[..pre.min(v.len())]);
+        let v_min = v[pre.min(v.len())..].iter().copied().fold(v0, f64::min);
+        dip = dip.max(1.0 - v_min / v0);
+        let f = frequency_deviation(e);
+        let tail = f.len() - f.len() / 4;
+        df = df.max((mean(&f[tail..]) - mean(&f[..pre.min(f.len())])).abs());
+    }
+    (dip, df)
 }
 
 fn frequency_deviation(event: &Event) -> Vec<f64> {
@@ -866,7 +858,7 @@ fn context_from(traces: &Traces, event: &Event) -> Context {
         efd0: traces.get("efd").map(|c| c[0]),
         xadifd0: traces.get("xadifd").map(|c| c[0]),
         rate_hz: (t.len() - 1) as f64 / (t[t.len() - 1] - t[0]),
-        mode_hint_hz: None,
+        ..Default::default()
     }
 }
 
@@ -1001,6 +993,8 @@ pub fn diagnose(
     // 3. Context for the catalog.
     let mut ctx = context_from(&before[0].1, &events[0]);
     ctx.mode_hint_hz = mode_hint(&evidence_before, ctx.rate_hz);
+    let (dip, df) = regime(events);
+    (ctx.deepest_dip, ctx.sustained_df_hz) = (Some(dip), Some(df));
 
     // 4. Candidates.
     let ids: Vec<&str> = if opts.causes.is_empty() {
@@ -1041,15 +1035,6 @@ pub fn diagnose(
             }
             Ok(Ok(ext)) => ext,
         };
-        if id == "exciter_limit" && !drives(id, events) {
-            // Without a deep dip a limit near the operating point only buys the fit a clamp on
-            // E_fd that makes up for a mis-calibrated AVR gain.
-            rep.note = "not plausible: no event dips |V| by 5 % or more, so the AVR is not driven \
-                        to its limits"
-                .into();
-            reports.push(rep);
-            continue;
-        }
         let mut ext = ext;
         for b in &opts.refit {
             let known = ext
@@ -1116,13 +1101,8 @@ pub fn diagnose(
         // at its neutral start it is at least the baseline.
         let mut bounds = ext.extension_free.clone();
         bounds.extend(ext.interacting_free.iter().cloned());
-        let factor = if drives(id, events) {
-            ext.search_factor.max(1)
-        } else {
-            1
-        };
         let ext_opts = DiagnoseOptions {
-            pso_iterations: opts.pso_iterations * factor,
+            pso_iterations: opts.pso_iterations * ext.search_factor.max(1),
             ..opts.clone()
         };
         let base_opts = opts;
