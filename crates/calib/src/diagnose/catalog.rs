@@ -267,15 +267,6 @@ fn around(u: &Unit, path: &str, factor: f64) -> Option<FreeBound> {
     })
 }
 
-/// The AVR-stage parameters of exciter `x` that exist in `u` (gain and time constants), each
-/// free within a factor of three of its value.
-fn avr_stage(u: &Unit, x: &str) -> Vec<FreeBound> {
-    ["k", "te", "tb"]
-        .iter()
-        .filter_map(|p| around(u, &format!("{x}.{p}"), 3.0))
-        .collect()
-}
-
 /// Builds the extension of `unit` for `cause`. `Ok(None)` when the cause does not apply to this
 /// unit (e.g. no exciter for `exciter_limit`); the reason is in the string.
 pub fn extend(
@@ -370,27 +361,22 @@ pub fn extend(
                 scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi)), 24),
                 fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05)),
             ];
-            // The AVR stage's parameters, and the field's open-circuit time constant: on the
-            // ceiling the field flux rises at about E_MAX/T'_d0, the pair a calibration without
-            // the right limit trades against each other.
-            // T_E is scanned with E_MAX: on and off the ceiling the two trade along a curved
-            // valley (a faster exciter reaches the ceiling sooner, as a higher ceiling would).
-            ext.interacting_free = avr_stage(&u, &x)
-                .into_iter()
-                .filter(|b| !b.param.ends_with(".tb"))
-                .map(|b| {
-                    if b.param.ends_with(".te") {
-                        scanned(b, 8)
-                    } else {
-                        b
-                    }
-                })
-                .collect();
+            // The AVR gain and time constant, X'_d and H: a calibration without the right limit
+            // bends them to make up for it. T'_d0 stays as given: on the ceiling the field flux
+            // rises at E_MAX/T'_d0, so P and Q cannot tell the two apart (see
+            // `trial::NOMINAL_OFFSETS`). T_E is scanned with E_MAX: on and off the ceiling the
+            // two trade along a curved valley (a faster exciter reaches the ceiling sooner, as a
+            // higher ceiling would).
+            ext.interacting_free = [
+                around(&u, &format!("{x}.k"), 3.0),
+                around(&u, &format!("{x}.te"), 3.0).map(|b| scanned(b, 8)),
+                around(&u, &format!("{machine}.x_d_prime"), 1.6),
+                around(&u, &format!("{machine}.h"), 1.6),
+            ]
+            .into_iter()
+            .flatten()
+            .collect();
             ext.search_factor = DEEP_SEARCH;
-            for p in ["x_d_prime", "h"] {
-                ext.interacting_free
-                    .extend(around(&u, &format!("{machine}.{p}"), 1.6));
-            }
         }
         "saturation" => {
             let (s10, s12) = (format!("{machine}.s10"), format!("{machine}.s12"));
