@@ -335,6 +335,19 @@ fn diagnose_refuses_bad_input_before_running() {
         ]),
         2
     );
+    // A --refit parameter the unit does not have, bounds upside down, a malformed range.
+    for refit in [
+        "machine.nope",
+        "machine.h=6:3",
+        "machine.h=3",
+        "exciter.k=1:x",
+    ] {
+        assert_eq!(
+            cli(&["diagnose", "--event", event, "--unit", unit, "--refit", refit, "--out", o]),
+            2,
+            "--refit {refit}"
+        );
+    }
     // Bad event data, bad unit.
     let missing = tmp.path().join("missing.toml");
     assert_eq!(

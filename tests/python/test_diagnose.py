@@ -91,6 +91,33 @@ def test_diagnose_errors(skewed):
         ic.diagnose(DATA / "no-such-unit.toml", skewed)
 
 
+def test_diagnose_refit_frees_calibrated_parameters_again(skewed):
+    d = ic.diagnose(TRUTH, skewed, causes=["measurement_skew"], refit={"machine.h": (3.0, 6.0)}, **QUICK)
+    assert d.cause == "measurement_skew"
+    (b,) = d.report["refit"]
+    assert (b["param"], b["min"], b["max"], b["polish_only"]) == ("machine.h", 3.0, 6.0, True)
+    # Re-freed in the candidate's re-fit, within its bounds.
+    (skew,) = d.candidates
+    h = next(p for p in skew["parameters"] if p["param"] == "machine.h")
+    assert 3.0 <= h["result"] <= 6.0 and not h["extension"]
+    # A list of paths takes each model's declared range.
+    d = ic.diagnose(TRUTH, skewed, causes=["measurement_skew"], refit=["exciter.k"], **QUICK)
+    (b,) = d.report["refit"]
+    assert b["param"] == "exciter.k" and b["min"] < 100.0 < b["max"]
+
+
+def test_diagnose_refit_errors(skewed):
+    with pytest.raises(ic.CalibrationError, match="machine.nope") as e:
+        ic.diagnose(TRUTH, skewed, causes=["measurement_skew"], refit=["machine.nope"], **QUICK)
+    assert e.value.kind == "setup"
+    with pytest.raises(ic.CalibrationError, match="machine.h.*upside down"):
+        ic.diagnose(TRUTH, skewed, causes=["measurement_skew"], refit={"machine.h": (6.0, 3.0)}, **QUICK)
+    with pytest.raises(TypeError, match="refit"):
+        ic.diagnose(TRUTH, skewed, refit=3)
+    with pytest.raises(TypeError, match=r"refit\['machine.h'\]"):
+        ic.diagnose(TRUTH, skewed, refit={"machine.h": "wide"})
+
+
 def test_synth_hide_errors():
     with pytest.raises(ValueError, match="unknown cause 'earthquake'"):
         ic.synth(TRUTH, duration=3.0, hide=[("earthquake", {})])

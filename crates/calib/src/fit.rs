@@ -60,6 +60,8 @@ pub struct FitOptions {
     pub pso_iterations: usize,
     pub lbfgs_iterations: u64,
     pub lbfgs_memory: usize,
+    /// Largest RK4 step of the L-BFGS phase [s] ([`local::RK4_STEP_MAX_S`] in a calibration).
+    pub lbfgs_step_max_s: f64,
     /// After several stages, refine every freed parameter together on the full unit (L-BFGS,
     /// objective P+Q), reported as the stage `joint`.
     pub polish: bool,
@@ -76,6 +78,7 @@ impl FitOptions {
             pso_iterations: spec.pso.iterations,
             lbfgs_iterations: spec.lbfgs.iterations,
             lbfgs_memory: spec.lbfgs.memory,
+            lbfgs_step_max_s: local::RK4_STEP_MAX_S,
             polish: spec.polish,
         }
     }
@@ -375,7 +378,13 @@ pub(crate) fn search(
     let from = candidates.last().cloned().unwrap_or_default();
     if n > 0 && opts.lbfgs_iterations > 0 {
         progress.phase(stage, "lbfgs", opts.lbfgs_iterations);
-        let res = local::refine(problem, &from, opts.lbfgs_iterations, opts.lbfgs_memory);
+        let res = local::refine(
+            problem,
+            &from,
+            opts.lbfgs_iterations,
+            opts.lbfgs_memory,
+            opts.lbfgs_step_max_s,
+        );
         progress.iteration(res.iterations, res.best_cost);
         phases.push(PhaseReport {
             phase: format!("lbfgs (RK4 h = {:.3} ms)", res.step_s * 1e3),
@@ -849,6 +858,7 @@ pub fn quick_options(stages: &[&str], seed: u64) -> FitOptions {
         pso_iterations: 30,
         lbfgs_iterations: 30,
         lbfgs_memory: 7,
+        lbfgs_step_max_s: local::RK4_STEP_MAX_S,
         polish: false,
     }
 }

@@ -3,8 +3,9 @@
 //!
 //! Finite differences on an adaptive integrator stall L-BFGS on step-size noise, so the local
 //! phase evaluates the objective with **fixed-step RK4**: the step is chosen once per run as
-//! `min(2 ms, τ_min/2)` from the smallest time constant `τ_min` of the starting unit, and the
-//! objective is then a smooth function of the parameters. The 2n gradient evaluations run in
+//! `min(h_max, τ_min/2)` from the smallest time constant `τ_min` of the starting unit
+//! (`h_max` = [`RK4_STEP_MAX_S`] in a calibration), and the objective is then a smooth function
+//! of the parameters. The 2n gradient evaluations run in
 //! parallel (rayon); the result does not depend on the number of threads.
 
 use argmin::core::{
@@ -36,10 +37,16 @@ pub fn smallest_time_constant(unit: &Unit) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
-/// The fixed-step integrator for the local phase, starting at physical values `x`.
-pub fn gradient_integrator(problem: &Problem, x: &[f64]) -> SimOptions {
+/// Largest RK4 step of the local phase in a calibration [s]. At half the smallest time
+/// constant the step is stable and accurate; the cap keeps the kinks of the played-back input
+/// (linear between PMU samples, 16.7 ms apart at 60 samples/s) and of limiters well resolved.
+pub const RK4_STEP_MAX_S: f64 = 2e-3;
+
+/// The fixed-step integrator for the local phase, starting at physical values `x`: RK4 with
+/// step `min(step_max_s, τ_min/2)` (and at least 50 µs).
+pub fn gradient_integrator(problem: &Problem, x: &[f64], step_max_s: f64) -> SimOptions {
     let tau = smallest_time_constant(&problem.unit_at(x));
-    let h = (0.5 * tau).clamp(5e-5, 2e-3);
+    let h = (0.5 * tau).min(step_max_s).max(5e-5);
     SimOptions {
         method: Method::Rk4 { h },
     }
@@ -148,9 +155,16 @@ pub struct LocalResult {
     pub step_s: f64,
 }
 
-/// Runs L-BFGS from physical values `x0` for at most `iterations` iterations.
-pub fn refine(problem: &Problem, x0: &[f64], iterations: u64, memory: usize) -> LocalResult {
-    let sim = gradient_integrator(problem, x0);
+/// Runs L-BFGS from physical values `x0` for at most `iterations` iterations, on RK4 with a
+/// step of at most `step_max_s` (see [`gradient_integrator`]).
+pub fn refine(
+    problem: &Problem,
+    x0: &[f64],
+    iterations: u64,
+    memory: usize,
+    step_max_s: f64,
+) -> LocalResult {
+    let sim = gradient_integrator(problem, x0, step_max_s);
     let step_s = match sim.method {
         Method::Rk4 { h } => h,
         _ => f64::NAN,

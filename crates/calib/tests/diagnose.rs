@@ -82,6 +82,16 @@ fn hidden_exciter_ceiling_is_named_with_its_limit() {
 }
 
 #[test]
+fn hidden_saturation_is_named() {
+    check("saturation", 101, None);
+}
+
+#[test]
+fn a_hidden_over_excitation_limiter_is_named_with_its_pickup() {
+    check("oel", 101, None);
+}
+
+#[test]
 fn hidden_governor_deadband_and_rate_limit_are_named() {
     check("governor", 101, None);
 }

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use itaipu_calib::local::{gradient_integrator, LocalProblem};
+use itaipu_calib::local::{gradient_integrator, LocalProblem, RK4_STEP_MAX_S};
 use itaipu_calib::problem::{logit, EventData, FreeParam, Problem};
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::unit_file::read_unit;
@@ -37,7 +37,7 @@ fn gradient_matches_a_five_point_stencil() {
     let events = vec![EventData::new(&event, None, None).unwrap()];
     let problem = Problem::new(unit, free, events, (1.0, 1.0));
     let x0 = problem.start();
-    let sim = gradient_integrator(&problem, &x0);
+    let sim = gradient_integrator(&problem, &x0, RK4_STEP_MAX_S);
     let local = LocalProblem::new(&problem, sim);
     let z: Vec<f64> = problem.to_unit(&x0).into_iter().map(logit).collect();
     let g = local.gradient_z(&z);

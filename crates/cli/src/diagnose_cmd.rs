@@ -7,7 +7,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use itaipu_calib::diagnose::{
-    catalog, diagnose, CandidateReport, DiagnoseError, DiagnoseOptions, Diagnosis, EventEvidence,
+    catalog, diagnose, refit_bounds, CandidateReport, DiagnoseError, DiagnoseOptions, Diagnosis,
+    EventEvidence,
 };
 use itaipu_calib::evidence::{SignalEvidence, WindowStats};
 use itaipu_dynamics::simulate::Traces;
@@ -37,6 +38,13 @@ pub struct DiagnoseArgs {
     /// `--cause measurement_skew,saturation`. Default: the whole catalog.
     #[arg(long, value_name = "ID", num_args = 1.., value_delimiter = ',')]
     cause: Vec<String>,
+    /// Calibrated parameter(s) to free again in every re-fit, baselines and extensions alike
+    /// (repeatable or comma-separated): `PARAM` within the model's declared range, or
+    /// `PARAM=MIN:MAX`, e.g. `--refit machine.h,exciter.k=50:200`. For the stage parameters a
+    /// calibration may have bent to make up for the missing cause; they are polished with
+    /// L-BFGS after each candidate's global search.
+    #[arg(long, value_name = "PARAM[=MIN:MAX]", num_args = 1.., value_delimiter = ',')]
+    refit: Vec<String>,
     /// Output folder (diagnosis.json, extended.toml, plots, report.html). Default:
     /// out/diagnose-<first event>, or a new numbered folder beside it. An existing --out folder
     /// is never overwritten unless --force is given.
@@ -62,6 +70,38 @@ fn error_code(e: &DiagnoseError) -> u8 {
     match e {
         DiagnoseError::Simulation { .. } | DiagnoseError::Setup(_) => 6,
     }
+}
+
+/// The `--refit` requests as `(path, bounds)`: `PARAM` or `PARAM=MIN:MAX`. Malformed numbers
+/// are a usage error (exit 2) naming the request; whether the parameter exists is checked
+/// against the unit by [`refit_bounds`].
+fn refit_requests(requested: &[String]) -> Result<Vec<(String, Option<(f64, f64)>)>, CliError> {
+    requested
+        .iter()
+        .map(|r| {
+            let r = r.trim();
+            let bad = |why: &str| {
+                CliError::new(2, format!("--refit {r}: {why} (PARAM or PARAM=MIN:MAX)"))
+            };
+            match r.split_once('=') {
+                None if !r.is_empty() => Ok((r.to_string(), None)),
+                None => Err(bad("empty")),
+                Some((p, range)) => {
+                    let (lo, hi) = range
+                        .split_once(':')
+                        .ok_or_else(|| bad("no ':' between MIN and MAX"))?;
+                    let num = |v: &str| {
+                        v.trim()
+                            .parse::<f64>()
+                            .ok()
+                            .filter(|x| x.is_finite())
+                            .ok_or_else(|| bad(&format!("'{}' is not a finite number", v.trim())))
+                    };
+                    Ok((p.trim().to_string(), Some((num(lo)?, num(hi)?))))
+                }
+            }
+        })
+        .collect()
 }
 
 /// The `--cause` ids, checked against the catalog, without duplicates, in the order given.
@@ -107,6 +147,8 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         a.event.clone()
     };
     let unit = load_unit(&unit_path)?;
+    opts.refit = refit_bounds(&unit, &refit_requests(&a.refit)?)
+        .map_err(|e| CliError::new(2, format!("--refit: {e} (unit {})", unit_path.display())))?;
     let events = event_paths
         .iter()
         .map(|p| load_event(p))
@@ -146,6 +188,16 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         },
         opts.seed,
     );
+    let header = if opts.refit.is_empty() {
+        header
+    } else {
+        let freed: Vec<String> = opts
+            .refit
+            .iter()
+            .map(|b| format!("{} [{}, {}]", b.param, b.min, b.max))
+            .collect();
+        format!("{header}; re-freed in every re-fit: {}", freed.join(", "))
+    };
     println!("{}", wrap(&header, WIDTH, "diagnose ", "         "));
     let reporter = Reporter::new();
     let result = pool.install(|| diagnose(&unit, &events, &held_out, &opts, &reporter));
@@ -1166,6 +1218,23 @@ mod tests {
             "{}",
             e.msg
         );
+    }
+
+    #[test]
+    fn refit_requests_parse_names_and_ranges_and_name_bad_ones() {
+        let ok = refit_requests(&["machine.h".into(), " exciter.k = 50 : 200 ".into()]).unwrap();
+        assert_eq!(
+            ok,
+            [
+                ("machine.h".to_string(), None),
+                ("exciter.k".to_string(), Some((50.0, 200.0)))
+            ]
+        );
+        for bad in ["exciter.k=50", "exciter.k=a:2", "exciter.k=1:NaN", ""] {
+            let e = refit_requests(&[bad.into()]).unwrap_err();
+            assert_eq!(e.code, 2, "{bad}");
+            assert!(e.msg.contains("--refit"), "{}", e.msg);
+        }
     }
 
     #[test]

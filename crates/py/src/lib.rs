@@ -1425,6 +1425,35 @@ fn cause_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
     Ok(names)
 }
 
+/// The `refit` argument of `diagnose`: None, a parameter path or a list of them (each within
+/// its model's declared range), or a dict `{path: (min, max) or None}`.
+fn refit_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<(String, Option<(f64, f64)>)>> {
+    let Some(arg) = arg.filter(|a| !a.is_none()) else {
+        return Ok(vec![]);
+    };
+    let shape = "refit must be None, a parameter path, a list of paths, or a dict {path: (min, max) or None}";
+    if let Ok(s) = arg.extract::<String>() {
+        return Ok(vec![(s, None)]);
+    }
+    if let Ok(d) = arg.cast::<PyDict>() {
+        let mut out = vec![];
+        for (k, v) in d.iter() {
+            let path: String = k.extract().map_err(|_| PyTypeError::new_err(shape))?;
+            let range = if v.is_none() {
+                None
+            } else {
+                Some(v.extract::<(f64, f64)>().map_err(|_| {
+                    PyTypeError::new_err(format!("refit['{path}'] must be (min, max) or None"))
+                })?)
+            };
+            out.push((path, range));
+        }
+        return Ok(out);
+    }
+    let names: Vec<String> = arg.extract().map_err(|_| PyTypeError::new_err(shape))?;
+    Ok(names.into_iter().map(|n| (n, None)).collect())
+}
+
 /// Diagnoses what `unit` (normally already calibrated) still gets wrong on `events`: residual
 /// evidence, then each cause of the catalog (or of `causes`) as a model extension re-fitted by
 /// particle swarm and L-BFGS and judged by its gain (ΔBIC, fitted and held-out χ²), then a
@@ -1435,7 +1464,10 @@ fn cause_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
 /// and held out. `causes` (ids, see the catalog: torsional_mode, exciter_limit, saturation,
 /// governor, measurement_skew, terminal_load, pss_state, oel) limits the causes tried. `seed`,
 /// `particles`, `pso_iterations` and `lbfgs_iterations` set each re-fit; `threads` the worker
-/// threads (default: all cores). The GIL is released while it runs. Returns a Diagnosis.
+/// threads (default: all cores). `refit` names calibrated parameters to free again in every
+/// re-fit (a list of paths, or a dict of path to (min, max)), e.g. the stage parameters a
+/// calibration may have bent for the missing cause. The GIL is released while it runs.
+/// Returns a Diagnosis.
 ///
 /// Raises CalibrationError (kind 'setup': e.g. an unknown cause), SimulationError (kind
 /// 'simulation': the unit does not simulate on an event as given), EventError,
@@ -1443,9 +1475,9 @@ fn cause_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
 #[pyfunction]
 #[pyo3(
     signature = (unit, events, held_out = None, *, causes = None, seed = 1, particles = 16, pso_iterations = 20,
-                 lbfgs_iterations = 15, threads = None),
+                 lbfgs_iterations = 15, threads = None, refit = None),
     text_signature = "(unit, events, held_out=None, *, causes=None, seed=1, particles=16, pso_iterations=20, \
-                      lbfgs_iterations=15, threads=None)"
+                      lbfgs_iterations=15, threads=None, refit=None)"
 )]
 #[allow(clippy::too_many_arguments)]
 fn diagnose(
@@ -1459,8 +1491,10 @@ fn diagnose(
     pso_iterations: usize,
     lbfgs_iterations: u64,
     threads: Option<usize>,
+    refit: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PyDiagnosis> {
     let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
+    let refit = refit_list(refit)?;
     let events = event_sources(events, "events")?;
     let held_out = match held_out {
         Some(h) if !h.is_none() => event_sources(h, "held_out")?,
@@ -1484,7 +1518,7 @@ fn diagnose(
                 })?,
         ),
     };
-    let opts = DiagnoseOptions {
+    let mut opts = DiagnoseOptions {
         causes,
         seed,
         particles,
@@ -1497,6 +1531,7 @@ fn diagnose(
             Source::Loaded(u) => u,
             Source::Path(p) => Arc::new(read_unit(&p)?),
         };
+        opts.refit = calib_diagnose::refit_bounds(&unit, &refit)?;
         let events = load_events(events)?;
         let held_out = load_events(held_out)?;
         let run = || calib_diagnose::diagnose(&unit, &events, &held_out, &opts, &Silent);

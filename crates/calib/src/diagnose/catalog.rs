@@ -388,6 +388,20 @@ pub fn extend(
             }
             let (a, b) = (value(&u, &s10)?, value(&u, &s12)?);
             ext.extension_free = vec![fb(&s10, 0.0, 0.4, a), fb(&s12, 0.02, 1.5, b)];
+            // Saturation sets the incremental field-to-flux gain: a calibration with the wrong
+            // curve bends the AVR gain, X'_d and the exciter's speed to make up for it; and a
+            // calibration that is off for any reason must not be "repaired" by a saturation
+            // curve (its baseline re-fits them too).
+            if let Some(x) = &exciter {
+                ext.interacting_free
+                    .extend(around(&u, &format!("{x}.k"), 3.0));
+                ext.interacting_free
+                    .extend(around(&u, &format!("{x}.te"), 3.0));
+            }
+            ext.interacting_free
+                .extend(around(&u, &format!("{machine}.x_d_prime"), 1.6));
+            ext.interacting_free
+                .extend(around(&u, &format!("{machine}.h"), 1.6));
         }
         "governor" => {
             let Some(g) = governor else {
@@ -524,6 +538,15 @@ pub fn extend(
             if u.block("oel").is_some() {
                 return not_applicable("the unit already has an OEL");
             }
+            if ctx.deepest_dip.is_some_and(|d| d < LIMIT_DIP) {
+                // Without a dip the AVR does not force the field current into overload; a
+                // limiter picking up just above the operating point would only trim a
+                // mis-calibrated AVR gain.
+                return not_applicable(&format!(
+                    "no event dips |V| by {:.0} % or more, so the field current is not forced into overload",
+                    100.0 * LIMIT_DIP
+                ));
+            }
             let i0 = ctx
                 .xadifd0
                 .ok_or("the field current at the operating point is unknown")?;
@@ -545,12 +568,28 @@ pub fn extend(
                 ],
             )?;
             add_block(&mut u, "oel", oel)?;
+            // Pickup and I²t capacity scanned jointly: together they set when the limiter acts
+            // (a lower pickup with a larger capacity acts as late), and off that valley the
+            // objective is flat (the limiter never acts) or far worse (it acts at the wrong
+            // time).
             ext.extension_free = vec![
                 scanned(fb("oel.i_pickup", 1.01, 1.6, 1.2), 12),
-                fb("oel.a_max", 0.02, 30.0, 0.3),
+                scanned(fb("oel.a_max", 0.02, 30.0, 0.3), 8),
                 fb("oel.k_i", 0.002, 0.2, 0.03),
             ];
             ext.ties = vec![("oel.i_pickup".into(), "oel.i_limit".into())];
+            // A calibration without the limiter bends the AVR and the field dynamics to make
+            // up for the field being pulled back (as for `exciter_limit`).
+            ext.interacting_free = [
+                around(&u, &format!("{x}.k"), 3.0),
+                around(&u, &format!("{x}.te"), 3.0),
+                around(&u, &format!("{machine}.x_d_prime"), 1.6),
+                around(&u, &format!("{machine}.h"), 1.6),
+            ]
+            .into_iter()
+            .flatten()
+            .collect();
+            ext.search_factor = DEEP_SEARCH;
         }
         _ => unreachable!("every catalog id is handled"),
     }
