@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use itaipu_calib::diagnose::{
     catalog, diagnose, refit_bounds, CandidateReport, DiagnoseError, DiagnoseOptions, Diagnosis,
-    EventEvidence,
+    EventEvidence, RefitRequest,
 };
 use itaipu_calib::evidence::{SignalEvidence, WindowStats};
 use itaipu_dynamics::simulate::Traces;
@@ -75,7 +75,7 @@ fn error_code(e: &DiagnoseError) -> u8 {
 /// The `--refit` requests as `(path, bounds)`: `PARAM` or `PARAM=MIN:MAX`. Malformed numbers
 /// are a usage error (exit 2) naming the request; whether the parameter exists is checked
 /// against the unit by [`refit_bounds`].
-fn refit_requests(requested: &[String]) -> Result<Vec<(String, Option<(f64, f64)>)>, CliError> {
+fn refit_requests(requested: &[String]) -> Result<Vec<RefitRequest>, CliError> {
     requested
         .iter()
         .map(|r| {

@@ -1427,7 +1427,7 @@ fn cause_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
 
 /// The `refit` argument of `diagnose`: None, a parameter path or a list of them (each within
 /// its model's declared range), or a dict `{path: (min, max) or None}`.
-fn refit_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<(String, Option<(f64, f64)>)>> {
+fn refit_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<calib_diagnose::RefitRequest>> {
     let Some(arg) = arg.filter(|a| !a.is_none()) else {
         return Ok(vec![]);
     };

@@ -854,13 +854,17 @@ fn mode_hint(ev: &[EventEvidence], rate_hz: f64) -> Option<f64> {
         .map(|m| m.freq_hz)
 }
 
+/// A calibrated parameter to free again in every re-fit: its path (`machine.h`) and optional
+/// `(min, max)` bounds (default: the model's declared range).
+pub type RefitRequest = (String, Option<(f64, f64)>);
+
 /// The [`DiagnoseOptions::refit`] bounds for calibrated parameters of `unit` named by path
 /// (`machine.h`), each within the given `(min, max)` or, without, the model's declared range
 /// widened to hold the current value. Errors name the parameter: unknown, bounds upside down
 /// or empty, NaN.
 pub fn refit_bounds(
     unit: &Unit,
-    requested: &[(String, Option<(f64, f64)>)],
+    requested: &[RefitRequest],
 ) -> Result<Vec<FreeBound>, DiagnoseError> {
     let mut out: Vec<FreeBound> = vec![];
     for (path, range) in requested {
