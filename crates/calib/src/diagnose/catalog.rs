@@ -267,6 +267,25 @@ fn around(u: &Unit, path: &str, factor: f64) -> Option<FreeBound> {
     })
 }
 
+/// The calibrated parameters a calibration without a field-side cause (an exciter limit, an
+/// OEL, a saturation curve) bends to make up for it: the AVR gain K_A and exciter time constant
+/// T_E within ×3 (a bent value may sit on its calibration's bound), X'_d and H within ×1.6.
+/// T'_d0 stays as given (see `trial::NOMINAL_OFFSETS`).
+fn field_side(u: &Unit, exciter: Option<&str>, machine: &str) -> Vec<FreeBound> {
+    let avr = exciter.into_iter().flat_map(|x| {
+        [
+            around(u, &format!("{x}.k"), 3.0),
+            around(u, &format!("{x}.te"), 3.0),
+        ]
+    });
+    avr.chain([
+        around(u, &format!("{machine}.x_d_prime"), 1.6),
+        around(u, &format!("{machine}.h"), 1.6),
+    ])
+    .flatten()
+    .collect()
+}
+
 /// Builds the extension of `unit` for `cause`. `Ok(None)` when the cause does not apply to this
 /// unit (e.g. no exciter for `exciter_limit`); the reason is in the string.
 pub fn extend(
@@ -367,15 +386,11 @@ pub fn extend(
             // `trial::NOMINAL_OFFSETS`). T_E is scanned with E_MAX: on and off the ceiling the
             // two trade along a curved valley (a faster exciter reaches the ceiling sooner, as a
             // higher ceiling would).
-            ext.interacting_free = [
-                around(&u, &format!("{x}.k"), 3.0),
-                around(&u, &format!("{x}.te"), 3.0).map(|b| scanned(b, 8)),
-                around(&u, &format!("{machine}.x_d_prime"), 1.6),
-                around(&u, &format!("{machine}.h"), 1.6),
-            ]
-            .into_iter()
-            .flatten()
-            .collect();
+            ext.interacting_free = field_side(&u, Some(&x), &machine);
+            let te = format!("{x}.te");
+            for b in ext.interacting_free.iter_mut().filter(|b| b.param == te) {
+                b.scan = 8;
+            }
             ext.search_factor = DEEP_SEARCH;
         }
         "saturation" => {
@@ -389,19 +404,10 @@ pub fn extend(
             let (a, b) = (value(&u, &s10)?, value(&u, &s12)?);
             ext.extension_free = vec![fb(&s10, 0.0, 0.4, a), fb(&s12, 0.02, 1.5, b)];
             // Saturation sets the incremental field-to-flux gain: a calibration with the wrong
-            // curve bends the AVR gain, X'_d and the exciter's speed to make up for it; and a
-            // calibration that is off for any reason must not be "repaired" by a saturation
-            // curve (its baseline re-fits them too).
-            if let Some(x) = &exciter {
-                ext.interacting_free
-                    .extend(around(&u, &format!("{x}.k"), 3.0));
-                ext.interacting_free
-                    .extend(around(&u, &format!("{x}.te"), 3.0));
-            }
-            ext.interacting_free
-                .extend(around(&u, &format!("{machine}.x_d_prime"), 1.6));
-            ext.interacting_free
-                .extend(around(&u, &format!("{machine}.h"), 1.6));
+            // curve bends the AVR and X'_d to make up for it; and a calibration that is off for
+            // any other reason must not be "repaired" by a saturation curve (its baseline
+            // re-fits them too).
+            ext.interacting_free = field_side(&u, exciter.as_deref(), &machine);
         }
         "governor" => {
             let Some(g) = governor else {
@@ -580,15 +586,7 @@ pub fn extend(
             ext.ties = vec![("oel.i_pickup".into(), "oel.i_limit".into())];
             // A calibration without the limiter bends the AVR and the field dynamics to make
             // up for the field being pulled back (as for `exciter_limit`).
-            ext.interacting_free = [
-                around(&u, &format!("{x}.k"), 3.0),
-                around(&u, &format!("{x}.te"), 3.0),
-                around(&u, &format!("{machine}.x_d_prime"), 1.6),
-                around(&u, &format!("{machine}.h"), 1.6),
-            ]
-            .into_iter()
-            .flatten()
-            .collect();
+            ext.interacting_free = field_side(&u, Some(&x), &machine);
             ext.search_factor = DEEP_SEARCH;
         }
         _ => unreachable!("every catalog id is handled"),
