@@ -105,8 +105,9 @@ fn main() {
                             for c in &o.report.candidates {
                                 if let Some(g) = &c.gains {
                                     println!(
-                                        "    {:<17} ΔBIC {:>9.1} fit {:>6.1} % held {:>6.1} % null {:>6.1} {} [{}] {}",
+                                        "    {:<17} {:>5.1} s ΔBIC {:>9.1} fit {:>6.1} % held {:>6.1} % null {:>6.1} {} [{}] {}",
                                         c.cause,
+                                        c.wall_s,
                                         g.delta_bic,
                                         100.0 * g.fit_drop,
                                         100.0 * g.held_drop,
