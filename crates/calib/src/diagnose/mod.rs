@@ -7,25 +7,30 @@
 //!    `r = simulated − measured` of P and Q (and E_fd, I_fd where measured) are analysed by
 //!    [`crate::evidence::analyse`] in four windows (pre-event, dip = the first second after the
 //!    event, recovery = the next 4 s, tail), against the inputs |V| and frequency.
-//! 2. **Noise.** The measurement-noise standard deviations σ_P, σ_Q come from the pre-event
-//!    segment of the measured signals ([`crate::evidence::noise_floor`]), so that
-//!    `χ² = Σ (ΔP/σ_P)² + Σ (ΔQ/σ_Q)²` is in units of the noise variance.
+//! 2. **Noise.** σ_P, σ_Q are the standard deviations of the pre-event residual of the unit as
+//!    given (where a right model is in steady state), so that
+//!    `χ² = Σ (ΔP/σ_P)² + Σ (ΔQ/σ_Q)²` is in units of the noise variance, the playback's input
+//!    noise propagated through the model included. The set-point offsets are then re-fitted
+//!    (nuisance parameters): the evidence and the verdict are about that reference.
 //! 3. **Split.** With held-out events, the candidates are fitted on the events and judged on the
 //!    held-out ones. Without, each event is cut into alternating blocks of
 //!    [`DiagnoseOptions::block_s`] seconds: even blocks are fitted, odd blocks held out.
 //! 4. **Candidates.** For each applicable cause, the unit is extended ([`catalog::extend`]) and
-//!    re-fitted (PSO then L-BFGS, as a calibration stage) over the extension's parameters and the
-//!    unit parameters it interacts with. The **baseline** is the unit re-fitted over the same
-//!    interacting parameters without the extension, so a gain is the extension's alone.
+//!    re-fitted over the extension's parameters and the unit parameters it interacts with: a grid
+//!    scan of the narrow-valleyed ones, the swarm, the scan again, L-BFGS. The
+//!    **baseline** is the unit re-fitted over the same interacting parameters without the
+//!    extension, so a gain is the extension's alone.
 //! 5. **Gain.** `Δχ²` on the fitted samples, the relative drop of the fitted and of the held-out
-//!    χ², and the Bayesian information criterion difference
-//!    `ΔBIC = Δχ²/VIF − k ln(N/VIF)` (k = the extension's parameters, N = fitted residuals,
-//!    VIF = `(1 + ρ₁)/(1 − ρ₁)` from the baseline residual's lag-1 autocorrelation, so that a
-//!    coloured residual counts as fewer independent samples): an extension that only buys
-//!    flexibility gains about `k` in χ² and loses.
-//! 6. **Verdict.** The candidate with the largest ΔBIC is named when it is significant:
-//!    `ΔBIC > bic_threshold`, fitted χ² down by at least `min_fit_drop`, and held-out χ² down
-//!    by at least `min_held_drop`. Otherwise the verdict is `none` (residual RMS within
+//!    χ², each net of the gain the same re-fits achieve on a surrogate of the events (the
+//!    reference's own simulation with the noise drawn again: pure noise fitting), and the
+//!    Bayesian information criterion difference `ΔBIC = Δχ²/VIF − k ln(N/VIF)` (k = the
+//!    extension's parameters, N = fitted residuals, VIF = `(1 + ρ₁)/(1 − ρ₁)` from the baseline
+//!    residual's lag-1 autocorrelation, so that a coloured residual counts as fewer independent
+//!    samples): an extension that only buys flexibility gains about `k` in χ² and loses.
+//! 6. **Verdict.** A candidate is significant when `ΔBIC > bic_threshold`, its fitted χ² is down
+//!    by at least `min_fit_drop` and its held-out χ² by at least `min_held_drop`. Among the
+//!    significant ones, the extended model with the lowest `χ²_ext + k ln N` (k = every
+//!    parameter it re-fitted) is named. Otherwise the verdict is `none` (residual RMS within
 //!    `noise_factor` of the noise floor) or `unexplained` (with the window and signal where the
 //!    residual lives).
 //!
