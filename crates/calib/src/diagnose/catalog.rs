@@ -52,7 +52,7 @@ pub static CAUSES: &[CauseInfo] = &[
         id: "saturation",
         title: "magnetic saturation other than modelled",
         signature: "Q residual that grows with the flux (voltage) level and a Q bias after the event",
-        extension: "machine saturation S(1.0), S(1.2) freed",
+        extension: "machine saturation S(1.0), S(1.2) freed (with the AVR gain, T_E, X'_d and H)",
         key_params: &["machine.s10", "machine.s12"],
     },
     CauseInfo {
@@ -90,7 +90,8 @@ pub static CAUSES: &[CauseInfo] = &[
         title: "over-excitation limiter acting after the event",
         signature: "Q residual that appears seconds after the event, while the field current stays high, \
                     and grows (the limiter pulls the field back)",
-        extension: "inverse-time OEL on the field current (pickup, I²t capacity, integral gain)",
+        extension: "inverse-time OEL on the field current (pickup, I²t capacity, integral gain), with the AVR \
+                    gain, T_E, X'_d and H",
         key_params: &["oel.i_pickup", "oel.a_max"],
     },
 ];
