@@ -97,8 +97,8 @@ pub fn base_unit() -> Unit {
 /// PMU noise of the trials: 0.002 pu white noise on P and Q with 0.0014 pu quantisation (as in
 /// the Itaipu record) and 1e-4 pu / 1e-4 rad on the voltage phasor (TVE about 0.014 %, a good
 /// M-class PMU). The voltage is the playback's input: its noise reaches the simulated P and Q
-/// through the model (errors in variables), and at 5 × this level the bias it leaves is large
-/// enough for flexible extensions (saturation, terminal load) to fit it (see the README).
+/// through the model (errors in variables), and at 5 × this level the bias it leaves comes
+/// close to what a flexible extension (a terminal load) needs to be named (see the README).
 pub fn trial_noise(seed: u64) -> PmuNoise {
     PmuNoise {
         v_sigma: 1e-4,
