@@ -396,14 +396,7 @@ pub(crate) fn search(
     }
     // Keep the best candidate by an accurate evaluation (the phases used different integrators).
     let acc = accurate_integrator();
-    let scored: Vec<(f64, usize)> = candidates
-        .par_iter()
-        .enumerate()
-        .map(|(k, x)| (problem.cost(x, &acc), k))
-        .collect();
-    let (_, k) = scored
-        .into_iter()
-        .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
+    let (_, k) = problem.best_of(&candidates, &acc);
     (candidates[k].clone(), phases)
 }
 

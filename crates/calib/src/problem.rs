@@ -22,6 +22,7 @@ use itaipu_dynamics::event::Event;
 use itaipu_dynamics::integrate::{Dopri5Options, Method};
 use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
 use itaipu_dynamics::unit::{ParamRef, Unit};
+use rayon::prelude::*;
 
 use crate::spec::{Objective, Weights};
 
@@ -315,6 +316,16 @@ impl Problem {
             }
         }
         Ok(r)
+    }
+
+    /// The lowest objective among `points` (physical values, evaluated in parallel) and its
+    /// index, the first one on ties, so the choice does not depend on thread timing.
+    pub fn best_of(&self, points: &[Vec<f64>], sim: &SimOptions) -> (f64, usize) {
+        let costs: Vec<f64> = points.par_iter().map(|x| self.cost(x, sim)).collect();
+        costs.into_iter().enumerate().fold(
+            (f64::INFINITY, 0),
+            |a, (i, c)| if c < a.0 { (c, i) } else { a },
+        )
     }
 
     /// The objective at physical values `x`; the penalty (counted and logged) on failure.

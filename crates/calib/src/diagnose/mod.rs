@@ -54,7 +54,6 @@ use crate::fit::{fitness, search, FitOptions, Progress};
 use crate::problem::{accurate_integrator, search_integrator, EventData, FreeParam, Problem};
 use crate::spec::Strategy;
 use catalog::{Context, Extension, FreeBound, CAUSES};
-use rayon::prelude::*;
 
 /// Options of a diagnosis.
 #[derive(Debug, Clone)]
@@ -287,8 +286,6 @@ pub fn windows(event: &Event) -> (f64, Vec<(String, f64, f64)>) {
     (onset, w.into_iter().filter(|(_, a, b)| b > a).collect())
 }
 
-/// Grid frequency deviation [Hz] from the record (`freq_hz` if present, else the derivative of
-/// the unwrapped angle).
 /// How hard the events drive the unit, for [`Context`]: the deepest voltage dip after the
 /// onset as a fraction of the pre-event |V|, and the largest sustained frequency change (mean
 /// of the last quarter of the record against the pre-event mean) [Hz], over all events.
@@ -309,6 +306,8 @@ fn regime(events: &[Event]) -> (f64, f64) {
     (dip, df)
 }
 
+/// Grid frequency deviation [Hz] from the record (`freq_hz` if present, else the derivative of
+/// the unwrapped angle).
 fn frequency_deviation(event: &Event) -> Vec<f64> {
     let r = &event.record;
     if let Some(f) = &r.freq_hz {
@@ -618,14 +617,7 @@ fn scan(problem: &mut Problem, scans: &[(usize, usize)]) {
                 xs
             })
             .collect();
-        let costs: Vec<(f64, usize)> = points
-            .par_iter()
-            .enumerate()
-            .map(|(i, xs)| (problem.cost(xs, &sim), i))
-            .collect();
-        let (c, i) = costs
-            .into_iter()
-            .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
+        let (c, i) = problem.best_of(&points, &sim);
         if c < start_cost {
             for (jj, _) in &group {
                 problem.free[*jj].start = points[i][*jj];
@@ -873,32 +865,48 @@ pub fn refit_bounds(
 ) -> Result<Vec<FreeBound>, DiagnoseError> {
     let mut out: Vec<FreeBound> = vec![];
     for (path, range) in requested {
-        let r = unit
-            .param(path)
-            .map_err(|e| DiagnoseError::Setup(format!("refit parameter {path}: {e}")))?;
+        let r = unit.param(path).map_err(|e| refit_error(path, e))?;
         let v = unit.get(r);
         let (min, max) = range.unwrap_or_else(|| {
             let (lo, hi) = unit.param_spec(r).range;
             (lo.min(v), hi.max(v))
         });
-        if !(min < max) {
-            return Err(DiagnoseError::Setup(format!(
-                "refit parameter {path}: bounds [{min}, {max}] are upside down or empty"
-            )));
+        let param = unit.param_path(r);
+        if !out.iter().any(|b| b.param == param) {
+            out.push(FreeBound {
+                param,
+                min,
+                max,
+                start: v,
+                scan: 0,
+                polish_only: true,
+            });
         }
-        if out.iter().any(|b| b.param == unit.param_path(r)) {
-            continue;
-        }
-        out.push(FreeBound {
-            param: unit.param_path(r),
-            min,
-            max,
-            start: v.clamp(min, max),
-            scan: 0,
-            polish_only: true,
-        });
+    }
+    check_refit(unit, &out)?;
+    for b in &mut out {
+        b.start = b.start.clamp(b.min, b.max);
     }
     Ok(out)
+}
+
+fn refit_error(path: &str, why: impl std::fmt::Display) -> DiagnoseError {
+    DiagnoseError::Setup(format!("refit parameter {path}: {why}"))
+}
+
+/// Checks [`DiagnoseOptions::refit`]: every parameter exists in `unit` and its bounds are not
+/// upside down, empty or NaN.
+fn check_refit(unit: &Unit, refit: &[FreeBound]) -> Result<(), DiagnoseError> {
+    for b in refit {
+        unit.param(&b.param).map_err(|e| refit_error(&b.param, e))?;
+        if !(b.min < b.max) {
+            return Err(refit_error(
+                &b.param,
+                format!("bounds [{}, {}] are upside down or empty", b.min, b.max),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The catalog context of `unit` on `event` (operating-point field voltage and current, PMU
@@ -940,16 +948,7 @@ pub fn diagnose(
             )));
         }
     }
-    for b in &opts.refit {
-        unit.param(&b.param)
-            .map_err(|e| DiagnoseError::Setup(format!("refit parameter {}: {e}", b.param)))?;
-        if !(b.min < b.max) {
-            return Err(DiagnoseError::Setup(format!(
-                "refit parameter {}: bounds [{}, {}] are upside down or empty",
-                b.param, b.min, b.max
-            )));
-        }
-    }
+    check_refit(unit, &opts.refit)?;
     if !(opts.block_s > 0.0) {
         return Err(DiagnoseError::Setup(format!(
             "block length must be > 0 s (got {})",
