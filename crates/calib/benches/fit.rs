@@ -6,7 +6,9 @@
 //!   440 objective evaluations) in a pool of 1 and of 2 threads, for the parallel speed-up;
 //! * `diagnose_full_catalog_20s`: `diagnose` with the whole catalog (default options) on a 20 s
 //!   synthetic fault-dip event at 60 samples/s with PMU noise, on the generic hydro unit (the
-//!   issue's target: within 60 s on this 2-core machine).
+//!   issue's target: within 60 s on this 2-core machine);
+//! * `practice_fit_and_diagnose`: the default fit and the diagnosis of the bundled practice case
+//!   p01 with every uncertain parameter free (target: within 60 s).
 
 use std::path::PathBuf;
 
@@ -90,5 +92,42 @@ fn diagnose_full_catalog_20s(bencher: Bencher) {
             &Silent,
         )
         .unwrap()
+    });
+}
+
+/// The practice protocol on the bundled practice case p01 (20 s fault record at 30 samples/s,
+/// made by an independent implementation): the default staged fit of the nominal unit with the
+/// one practice spec (20 parameters free), then `diagnose` re-fitting the whole calibrated set
+/// with the calibration's prior. The target: within 60 s on 2 cores.
+#[divan::bench(sample_count = 1, sample_size = 1)]
+fn practice_fit_and_diagnose(bencher: Bencher) {
+    use itaipu_calib::diagnose::{calibrated_set, diagnose, DiagnoseOptions};
+    use itaipu_calib::practice::{practice_spec, PracticeCase};
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/practice/cases/p01");
+    let case = PracticeCase::load(&dir).unwrap();
+    let spec = practice_spec(&case.unit).unwrap();
+    let opts = FitOptions::from_spec(&spec);
+    bencher.bench(|| {
+        let r = fit(
+            &case.unit,
+            &spec,
+            &[case.event.clone()],
+            &[],
+            &opts,
+            &Silent,
+        )
+        .unwrap();
+        let d = diagnose(
+            &r.unit,
+            &[case.event.clone()],
+            &[],
+            &DiagnoseOptions {
+                refit: calibrated_set(&spec, &opts.stages, &case.unit, &r.unit),
+                ..Default::default()
+            },
+            &Silent,
+        )
+        .unwrap();
+        divan::black_box(d.report.verdict.cause)
     });
 }

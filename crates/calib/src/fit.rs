@@ -1,7 +1,7 @@
 //! Staged calibration: generator, then AVR, PSS, governor, each by PSO then L-BFGS (paper 000
 //! Algorithm 1), with the incremental and simultaneous-first strategies of paper 001.
 //!
-//! Per stage: the unit is reduced to the stage's blocks ([`crate::spec::removed_blocks`]),
+//! Per stage: the unit keeps or loses later stages' blocks ([`crate::spec::StageBlocks`]),
 //! `set` values and `replace` blocks are applied, the swarm searches the stage's box from the
 //! current values, L-BFGS refines the swarm's best, and the best of start / swarm / L-BFGS by
 //! an accurate re-evaluation is kept. The Gauss-Newton (Fisher) approximation at that point
@@ -12,7 +12,7 @@ use std::time::Instant;
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::registry;
 use itaipu_dynamics::simulate::{simulate_prepared, Traces};
-use itaipu_dynamics::unit::Unit;
+use itaipu_dynamics::unit::{ParamRef, Unit};
 use itaipu_dynamics::unit_file;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -20,10 +20,10 @@ use serde::Serialize;
 use crate::identify;
 use crate::local;
 use crate::problem::{
-    accurate_integrator, objective_weights, search_integrator, EventData, FreeParam, Problem,
+    accurate_integrator, objective_weights, search_integrator, EventData, FreeParam, Prior, Problem,
 };
 use crate::pso::{self, PsoOptions};
-use crate::spec::{removed_blocks, CalibSpec, Objective, StageSpec, Strategy, Weights, STAGES};
+use crate::spec::{CalibSpec, LocalMethod, Objective, StageSpec, Strategy, Weights, STAGES};
 
 /// Correlation above which two parameters are reported as not separately identifiable.
 pub const CORRELATION_LIMIT: f64 = 0.95;
@@ -62,9 +62,12 @@ pub struct FitOptions {
     pub lbfgs_memory: usize,
     /// Largest RK4 step of the L-BFGS phase [s] ([`local::RK4_STEP_MAX_S`] in a calibration).
     pub lbfgs_step_max_s: f64,
-    /// After several stages, refine every freed parameter together on the full unit (L-BFGS,
-    /// objective P+Q), reported as the stage `joint`.
+    /// After several stages, search every freed parameter together on the full unit (swarm
+    /// from the staged result, then the local method from the swarm's best, the staged result
+    /// and the datasheet values; objective P+Q), reported as the stage `joint`.
     pub polish: bool,
+    /// The local method after each swarm.
+    pub local: LocalMethod,
 }
 
 impl FitOptions {
@@ -80,6 +83,7 @@ impl FitOptions {
             lbfgs_memory: spec.lbfgs.memory,
             lbfgs_step_max_s: local::RK4_STEP_MAX_S,
             polish: spec.polish,
+            local: spec.local,
         }
     }
 }
@@ -298,19 +302,28 @@ fn combined_stage(name: &str, spec: &CalibSpec, stages: &[String]) -> StageSpec 
         lowpass_hz: None,
         set: Default::default(),
         free: vec![],
+        tie: Default::default(),
         replace: Default::default(),
     };
     for s in stages {
         let st = spec.stage(s).expect("stages are checked against the spec");
         all.free.extend(st.free.iter().cloned());
+        all.tie
+            .extend(st.tie.iter().map(|(a, b)| (a.clone(), b.clone())));
         all.window = all.window.or(st.window);
         all.lowpass_hz = all.lowpass_hz.or(st.lowpass_hz);
     }
     all
 }
 
-/// Resolves a stage's free parameters in `unit`.
-fn free_params(unit: &Unit, spec: &StageSpec) -> Result<Vec<FreeParam>, FitError> {
+/// Resolves a stage's free parameters in `unit`, each with its prior around its value in
+/// `datasheet` (the unit before the fit) with the parameter's spread or `default_spread`.
+fn free_params(
+    unit: &Unit,
+    spec: &StageSpec,
+    datasheet: &Unit,
+    default_spread: f64,
+) -> Result<Vec<FreeParam>, FitError> {
     spec.free
         .iter()
         .map(|f| {
@@ -324,6 +337,15 @@ fn free_params(unit: &Unit, spec: &StageSpec) -> Result<Vec<FreeParam>, FitError
                 )
             })?;
             let start = f.start.unwrap_or(unit.get(r));
+            let spread = f.spread.unwrap_or(default_spread);
+            let prior = datasheet
+                .param(&f.param)
+                .ok()
+                .map(|d| Prior {
+                    center: datasheet.get(d),
+                    spread,
+                })
+                .filter(|p| p.spread > 0.0 && p.center > 0.0);
             Ok(FreeParam::new(
                 unit.param_path(r),
                 r,
@@ -331,19 +353,48 @@ fn free_params(unit: &Unit, spec: &StageSpec) -> Result<Vec<FreeParam>, FitError
                 f.max,
                 start,
                 unit.param_spec(r).unit,
-            ))
+            )
+            .with_prior(prior))
         })
         .collect()
 }
 
+/// Resolves a stage's ties `to = from` in `unit` as `(from, to)` references.
+fn resolve_ties(unit: &Unit, spec: &StageSpec) -> Result<Vec<(ParamRef, ParamRef)>, FitError> {
+    spec.tie
+        .iter()
+        .map(|(to, from)| {
+            let r = |p: &str| {
+                unit.param(p)
+                    .map_err(|e| stage_err(&spec.name, format!("tie {to} = {from}: {e}")))
+            };
+            Ok((r(from)?, r(to)?))
+        })
+        .collect()
+}
+
+/// Gives every tied parameter of `spec` its source's value in `unit`.
+fn apply_ties(unit: &mut Unit, spec: &StageSpec) -> Result<(), FitError> {
+    for (from, to) in resolve_ties(unit, spec)? {
+        let v = unit.get(from);
+        unit.set(to, v);
+    }
+    Ok(())
+}
+
 /// Runs the swarm then L-BFGS on `problem` from its start; returns the best physical values,
 /// the phase reports, and the objective at the best (accurate integrator).
+///
+/// The local phase also runs from each point of `also_from` (physical values): the joint pass
+/// starts from the staged result and from the datasheet values, so that a stage that derailed
+/// (fitted a unit whose other blocks were still wrong) cannot trap the result.
 pub(crate) fn search(
     problem: &Problem,
     opts: &FitOptions,
     stage: &str,
     progress: &dyn Progress,
     use_pso: bool,
+    also_from: &[Vec<f64>],
 ) -> (Vec<f64>, Vec<PhaseReport>) {
     let n = problem.dim();
     let start = problem.start();
@@ -376,22 +427,44 @@ pub(crate) fn search(
         candidates.push(problem.from_unit(&res.best));
     }
     let from = candidates.last().cloned().unwrap_or_default();
-    if n > 0 && opts.lbfgs_iterations > 0 {
-        progress.phase(stage, "lbfgs", opts.lbfgs_iterations);
-        let res = local::refine(
-            problem,
-            &from,
-            opts.lbfgs_iterations,
-            opts.lbfgs_memory,
-            opts.lbfgs_step_max_s,
-        );
+    let lm = opts.local == LocalMethod::Lm;
+    let starts: Vec<Vec<f64>> = std::iter::once(from)
+        .chain(also_from.iter().cloned())
+        .collect();
+    for (i, from) in starts.iter().enumerate() {
+        if n == 0 || opts.lbfgs_iterations == 0 {
+            break;
+        }
+        let name = if lm { "levenberg-marquardt" } else { "lbfgs" };
+        progress.phase(stage, name, opts.lbfgs_iterations);
+        let res = if lm {
+            local::levenberg_marquardt(problem, from, opts.lbfgs_iterations)
+        } else {
+            local::refine(
+                problem,
+                from,
+                opts.lbfgs_iterations,
+                opts.lbfgs_memory,
+                opts.lbfgs_step_max_s,
+            )
+        };
         progress.iteration(res.iterations, res.best_cost);
+        let from_txt = if i == 0 {
+            String::new()
+        } else {
+            format!(" from start {}", i + 1)
+        };
         phases.push(PhaseReport {
-            phase: format!("lbfgs (RK4 h = {:.3} ms)", res.step_s * 1e3),
+            phase: if lm {
+                format!("{name}{from_txt} (Dormand-Prince, rtol 1e-8)")
+            } else {
+                format!("{name}{from_txt} (RK4 h = {:.3} ms)", res.step_s * 1e3)
+            },
             iterations: res.iterations,
             best_objective: res.best_cost,
             stopped_by: res.stopped_by.clone(),
         });
+        candidates.push(from.clone());
         candidates.push(res.best);
     }
     // Keep the best candidate by an accurate evaluation (the phases used different integrators).
@@ -463,6 +536,7 @@ fn run_stage(
     opts: &FitOptions,
     progress: &dyn Progress,
     use_pso: bool,
+    also_from: &[Vec<f64>],
 ) -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
     let t0 = Instant::now();
     let data: Vec<EventData> = events
@@ -471,7 +545,12 @@ fn run_stage(
         .collect::<Result<_, _>>()
         .map_err(|m| stage_err(name, m))?;
     let weights = objective_weights(spec.objective, spec.weights);
-    let problem = Problem::new(unit, free, data, weights);
+    let ties = resolve_ties(&unit, spec)?;
+    let mut problem = Problem::new(unit, free, data, weights);
+    problem.ties = ties;
+    if problem.free.iter().any(|f| f.prior.is_some()) {
+        problem.prior_weight = problem.measured_noise_variance();
+    }
     let acc = accurate_integrator();
     let start = problem.start();
     let objective_before = problem
@@ -497,12 +576,15 @@ fn run_stage(
                 weights,
             );
             sub.penalty = problem.penalty;
+            sub.ties = problem.ties.clone();
+            sub.prior_weight = problem.prior_weight;
             let (b, ph) = search(
                 &sub,
                 opts,
                 &format!("{label} {i}/{}", problem.dim()),
                 progress,
                 false,
+                &[],
             );
             x[..i].copy_from_slice(&b);
             phases.extend(ph.into_iter().map(|p| PhaseReport {
@@ -512,7 +594,7 @@ fn run_stage(
         }
         x
     } else {
-        let (b, ph) = search(&problem, opts, label, progress, use_pso);
+        let (b, ph) = search(&problem, opts, label, progress, use_pso, also_from);
         phases = ph;
         b
     };
@@ -674,8 +756,9 @@ pub fn check_spec(unit: &Unit, spec: &CalibSpec, stages: &[String]) -> Result<()
             .stage(s)
             .ok_or_else(|| FitError::Spec(format!("stage '{s}' is not in the spec")))?;
         apply_stage_edits(&mut u, st).map_err(|e| FitError::Spec(e.to_string()))?;
+        resolve_ties(&u, st).map_err(|e| FitError::Spec(e.to_string()))?;
         let stage_unit = u
-            .without(removed_blocks(s))
+            .without(spec.removed_blocks(s))
             .map_err(|e| FitError::Spec(format!("stage {s}: {e}")))?;
         for f in &st.free {
             stage_unit.param(&f.param).map_err(|e| {
@@ -739,7 +822,7 @@ pub fn fit(
             apply_stage_edits(&mut full, spec.stage(s).expect("checked"))?;
         }
         let all = combined_stage("all", spec, &opts.stages);
-        let free = free_params(&full, &all)?;
+        let free = free_params(&full, &all, unit, spec.prior)?;
         let (rep, out, best) = run_stage(
             "all",
             "simultaneous",
@@ -751,12 +834,14 @@ pub fn fit(
             opts,
             progress,
             true,
+            &[],
         )?;
         // The full unit (with every stage's replacements) carries on with the joint result.
         master = full;
         for (f, v) in free.iter().zip(&best) {
             master.set(f.r, *v);
         }
+        apply_ties(&mut master, &all)?;
         reports.push(rep);
         outputs.push(out);
     }
@@ -765,9 +850,9 @@ pub fn fit(
         let st = spec.stage(s).expect("checked");
         apply_stage_edits(&mut master, st)?;
         let stage_unit = master
-            .without(removed_blocks(s))
+            .without(spec.removed_blocks(s))
             .map_err(|e| stage_err(s, e.to_string()))?;
-        let free = free_params(&stage_unit, st)?;
+        let free = free_params(&stage_unit, st, unit, spec.prior)?;
         let (rep, out, best) = run_stage(
             s,
             s,
@@ -779,6 +864,7 @@ pub fn fit(
             opts,
             progress,
             true,
+            &[],
         )?;
         for (f, v) in free.iter().zip(&best) {
             let r = master
@@ -786,6 +872,7 @@ pub fn fit(
                 .map_err(|e| stage_err(s, e.to_string()))?;
             master.set(r, *v);
         }
+        apply_ties(&mut master, st)?;
         reports.push(rep);
         outputs.push(out);
     }
@@ -795,7 +882,7 @@ pub fn fit(
         let mut joint = combined_stage("joint", spec, &opts.stages);
         joint.lowpass_hz = None;
         let full = master.clone();
-        let free = free_params(&full, &joint)?;
+        let free = free_params(&full, &joint, unit, spec.prior)?;
         // Start from the current values, not the spec's starting values.
         let free: Vec<FreeParam> = free
             .into_iter()
@@ -803,6 +890,12 @@ pub fn fit(
                 start: full.get(f.r).clamp(f.lo, f.hi),
                 ..f
             })
+            .collect();
+        // A second start at the datasheet values (the prior's centre where there is one), in
+        // case the staged result lies in another, worse basin.
+        let datasheet: Vec<f64> = free
+            .iter()
+            .map(|f| f.prior.map_or(f.start, |p| p.center).clamp(f.lo, f.hi))
             .collect();
         let (rep, out, best) = run_stage(
             "joint",
@@ -814,11 +907,13 @@ pub fn fit(
             held_out,
             opts,
             progress,
-            false,
+            true,
+            &[datasheet],
         )?;
         for (f, v) in free.iter().zip(&best) {
             master.set(f.r, *v);
         }
+        apply_ties(&mut master, &joint)?;
         reports.push(rep);
         outputs.push(out);
     }
@@ -853,5 +948,6 @@ pub fn quick_options(stages: &[&str], seed: u64) -> FitOptions {
         lbfgs_memory: 7,
         lbfgs_step_max_s: local::RK4_STEP_MAX_S,
         polish: false,
+        local: LocalMethod::Lm,
     }
 }

@@ -12,6 +12,7 @@
 //! * [`filter`]: zero-phase low-pass filtering of measurements.
 //! * [`evidence`]: residual evidence for diagnosis (windows, noise floor, whiteness,
 //!   cross-correlation with the inputs, spectrum, matrix-pencil modes).
+//! * [`practice`]: the practice set of independent events, its one spec and its answer keys.
 //! * [`fit`]: stages, strategies and reports.
 //! * [`diagnose`]: residual evidence, the catalog of causes with their model extensions,
 //!   re-fits and gains, and the verdict.
@@ -25,6 +26,7 @@ pub mod filter;
 pub mod fit;
 pub mod identify;
 pub mod local;
+pub mod practice;
 pub mod problem;
 pub mod pso;
 pub mod spec;

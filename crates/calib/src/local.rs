@@ -229,3 +229,163 @@ pub fn refine(
         step_s,
     }
 }
+
+/// Step of the forward differences of the Levenberg-Marquardt Jacobian, in box coordinates.
+pub const LM_FD_STEP: f64 = 1e-4;
+
+/// Integrator of the Levenberg-Marquardt phase: Dormand-Prince at rtol 1e-8. Unlike L-BFGS,
+/// which builds curvature from differences of gradients and stalls on the step-size noise of an
+/// adaptive integrator, LM takes its curvature from the Jacobian itself, where a relative error
+/// of ~1e-8/[`LM_FD_STEP`] = 1e-4 is harmless; and it costs a tenth of fixed-step RK4 at 2 ms on
+/// a 20-30 s record (a few hundred steps instead of 10 000-15 000).
+pub fn lm_integrator() -> SimOptions {
+    SimOptions {
+        method: Method::Dopri5(itaipu_dynamics::integrate::Dopri5Options {
+            rtol: 1e-8,
+            atol: 1e-9,
+            h_max: 0.02,
+            max_steps: 50_000,
+            ..Default::default()
+        }),
+    }
+}
+
+/// Levenberg-Marquardt on the residual vector, in box coordinates `u ∈ [0, 1]ⁿ` (see
+/// [`crate::problem`]) with the bounds handled by projection.
+///
+/// Each iteration builds the Jacobian of the residuals by forward differences (n simulations
+/// in parallel, on [`lm_integrator`]), then tries steps `(JᵀJ + λ·diag(JᵀJ)) δ = −Jᵀr` with λ rising until the
+/// sum of squares falls. Parameters on a bound whose gradient pushes outwards are held for that
+/// step (the active set), so a parameter that an earlier stage pushed onto its bound can leave
+/// it as soon as the gradient points inwards: unlike the logistic coordinates of L-BFGS, the
+/// box coordinates do not flatten the objective near a bound. A component whose difference
+/// fails (a candidate the model rejects) gets a zero column and is held.
+///
+/// Why: the objective is a sum of squares over thousands of samples with 20-odd strongly
+/// correlated parameters; the Gauss-Newton model uses that structure (curvature from first
+/// derivatives only), where L-BFGS on the scalar sum stalls in the long curved valleys.
+pub fn levenberg_marquardt(problem: &Problem, x0: &[f64], iterations: u64) -> LocalResult {
+    let sim = lm_integrator();
+    let n = problem.dim();
+    let mut u = problem.to_unit(x0);
+    let sumsq = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
+    let r0 = problem.residuals_logged(&problem.from_unit(&u), &sim);
+    let step_s = f64::NAN; // adaptive: no fixed step
+    let Some(mut r) = r0 else {
+        return LocalResult {
+            best: x0.to_vec(),
+            best_cost: problem.penalty,
+            iterations: 0,
+            stopped_by: "the start does not simulate".into(),
+            step_s,
+        };
+    };
+    let mut cost = sumsq(&r);
+    if n == 0 || iterations == 0 {
+        return LocalResult {
+            best: x0.to_vec(),
+            best_cost: cost,
+            iterations: 0,
+            stopped_by: "nothing to do".into(),
+            step_s,
+        };
+    }
+    let mut lambda = 1e-3;
+    let mut stopped_by = "max iterations".to_string();
+    let mut it = 0;
+    let mut small_steps = 0;
+    while it < iterations {
+        it += 1;
+        // Jacobian columns (forward differences towards the interior).
+        let cols: Vec<Option<Vec<f64>>> = (0..n)
+            .into_par_iter()
+            .map(|j| {
+                let h = if u[j] + LM_FD_STEP <= 1.0 {
+                    LM_FD_STEP
+                } else {
+                    -LM_FD_STEP
+                };
+                let mut up = u.clone();
+                up[j] += h;
+                let rp = problem.residuals_logged(&problem.from_unit(&up), &sim)?;
+                (rp.len() == r.len()).then(|| rp.iter().zip(&r).map(|(a, b)| (a - b) / h).collect())
+            })
+            .collect();
+        let m = r.len();
+        let jac = nalgebra::DMatrix::from_fn(m, n, |k, j| cols[j].as_ref().map_or(0.0, |c| c[k]));
+        let jt = jac.transpose();
+        let a = &jt * &jac;
+        let g = &jt * nalgebra::DVector::from_column_slice(&r);
+        // Active set: on a bound with the descent direction pointing out, or no derivative.
+        let free: Vec<usize> = (0..n)
+            .filter(|&j| {
+                let out_low = u[j] <= 0.0 && g[j] > 0.0;
+                let out_high = u[j] >= 1.0 && g[j] < 0.0;
+                cols[j].is_some() && a[(j, j)] > 0.0 && !out_low && !out_high
+            })
+            .collect();
+        if free.is_empty() {
+            stopped_by = "every parameter held on a bound".into();
+            break;
+        }
+        let k = free.len();
+        let mut improved = false;
+        for _ in 0..12 {
+            let mut h = nalgebra::DMatrix::<f64>::zeros(k, k);
+            let mut b = nalgebra::DVector::<f64>::zeros(k);
+            for (p, &i) in free.iter().enumerate() {
+                for (q, &j) in free.iter().enumerate() {
+                    h[(p, q)] = a[(i, j)];
+                }
+                h[(p, p)] += lambda * a[(i, i)].max(1e-12);
+                b[p] = -g[i];
+            }
+            let Some(delta) = h.cholesky().map(|c| c.solve(&b)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut un = u.clone();
+            for (p, &i) in free.iter().enumerate() {
+                un[i] = (u[i] + delta[p]).clamp(0.0, 1.0);
+            }
+            let moved = un
+                .iter()
+                .zip(&u)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            if moved < 1e-10 {
+                lambda *= 10.0;
+                continue;
+            }
+            match problem.residuals_logged(&problem.from_unit(&un), &sim) {
+                Some(rn) if sumsq(&rn) < cost => {
+                    let new_cost = sumsq(&rn);
+                    let rel = (cost - new_cost) / cost.max(1e-300);
+                    small_steps = if rel < 1e-6 { small_steps + 1 } else { 0 };
+                    u = un;
+                    r = rn;
+                    cost = new_cost;
+                    lambda = (lambda / 3.0).max(1e-9);
+                    improved = true;
+                    break;
+                }
+                _ => lambda *= 4.0,
+            }
+        }
+        if !improved {
+            stopped_by = "no step lowers the objective".into();
+            break;
+        }
+        if small_steps >= 3 {
+            stopped_by = "converged (relative decrease below 1e-6 three times)".into();
+            break;
+        }
+    }
+    LocalResult {
+        best: problem.from_unit(&u),
+        best_cost: cost,
+        iterations: it,
+        stopped_by,
+        step_s,
+    }
+}

@@ -7,11 +7,14 @@
 //! [calibration]
 //! strategy = "sequential"        # "sequential" | "incremental" | "simultaneous-first"
 //! seed = 1
-//! polish = true                  # after several stages, a joint L-BFGS pass over all of them
+//! polish = true                  # after several stages, a joint pass over all of them
+//! stage_blocks = "keep"          # "keep" (whole unit in every stage) | "remove" (papers' reduction)
+//! prior = 0.2                    # spread of the prior around the unit's values (0 = none)
+//! local = "lm"                   # local method after each swarm: "lm" | "lbfgs"
 //! [calibration.pso]              # optional, defaults shown
 //! particles = 40
 //! iterations = 100
-//! [calibration.lbfgs]
+//! [calibration.lbfgs]            # the local method's settings (either method)
 //! iterations = 100
 //!
 //! [[calibration.stage]]
@@ -22,14 +25,18 @@
 //! lowpass_hz = 15.0              # optional zero-phase low-pass of the measurement
 //! set = { "machine.x_l" = 0.13 } # optional fixed values, applied before this stage and kept
 //! free = [ { param = "machine.x_d", min = 0.6, max = 2.0 }, … ]   # in engineering order
+//!                                # optional per parameter: start = …, spread = … (prior)
 //! [calibration.stage.replace.governor]   # optional: a block put into the unit from this stage on
 //! model = "HYGOV"
 //! r_perm = 0.05                  # …every parameter, as in a unit file
 //! ```
 //!
-//! Stage semantics (paper 001 Phase A-C, paper 000 Algorithm 1): `gen` simulates the machine with
-//! E_fd held at E_fd0 and P_m constant (exciter, PSS and governor removed), `avr` adds the exciter,
-//! `pss` the stabiliser, `tg` the governor. Earlier stages' results are frozen.
+//! Stage semantics (paper 001 Phase A-C, paper 000 Algorithm 1): stages run in the order gen,
+//! avr, pss, tg, each freeing its parameters with earlier stages' results frozen. With
+//! `stage_blocks = "keep"` (default) every stage simulates the whole unit, later stages' blocks at
+//! their current values; with `stage_blocks = "remove"` (the papers' reduction) `gen` simulates the
+//! machine with E_fd held at E_fd0 and P_m constant (exciter, PSS and governor removed), `avr` adds
+//! the exciter, `pss` the stabiliser, `tg` the governor.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -39,7 +46,23 @@ use serde::Deserialize;
 /// Stage names in their fixed order.
 pub const STAGES: [&str; 4] = ["gen", "avr", "pss", "tg"];
 
-/// Blocks removed from the unit in each stage.
+/// What a stage does with the blocks of later stages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StageBlocks {
+    /// Every block stays in the unit at its current values: a stage fits its parameters on the
+    /// unit that produced the record (the default: on a record longer than a few seconds the
+    /// AVR, PSS and governor act, and a unit without them cannot reproduce it, so its fitted
+    /// parameters bend to make up for them).
+    #[default]
+    Keep,
+    /// The paper's reduction: the generator stage holds E_fd at E_fd0 and P_m constant
+    /// (exciter, PSS and governor removed), the AVR stage adds the exciter, and so on
+    /// ([`removed_blocks`]). Right for a record short enough that the controls barely act.
+    Remove,
+}
+
+/// Blocks removed from the unit in each stage under [`StageBlocks::Remove`].
 pub fn removed_blocks(stage: &str) -> &'static [&'static str] {
     match stage {
         "gen" => &["exciter", "pss", "governor"],
@@ -115,6 +138,9 @@ pub struct FreeSpec {
     pub max: f64,
     /// Starting value; default: the value in the unit (clamped into the bounds).
     pub start: Option<f64>,
+    /// Relative spread of this parameter's prior around the unit's value before the fit
+    /// (overrides `calibration.prior`; 0 = no prior on it).
+    pub spread: Option<f64>,
 }
 
 /// One stage.
@@ -132,6 +158,10 @@ pub struct StageSpec {
     pub set: BTreeMap<String, f64>,
     #[serde(default)]
     pub free: Vec<FreeSpec>,
+    /// Tied parameters `to = from`: `to` takes `from`'s value in every candidate (e.g.
+    /// `"machine.x_q_pp" = "machine.x_d_pp"` for a machine whose data give one X'').
+    #[serde(default)]
+    pub tie: BTreeMap<String, String>,
     /// Blocks put into the unit from this stage on (section name → unit-file table).
     #[serde(default)]
     pub replace: BTreeMap<String, toml::Table>,
@@ -210,6 +240,39 @@ pub struct CalibSpec {
     /// After several stages, refine all their parameters together on the full unit.
     #[serde(default = "default_polish")]
     pub polish: bool,
+    /// What a stage does with the blocks of later stages (`keep` or `remove`).
+    #[serde(default)]
+    pub stage_blocks: StageBlocks,
+    /// Default relative spread of the log-normal prior that ties each free (positive) parameter
+    /// to the unit's value before the fit, the datasheet value (`crate::problem::Prior`); 0 = no
+    /// prior.
+    #[serde(default = "default_prior")]
+    pub prior: f64,
+    /// The local method after each swarm (`lm` or `lbfgs`).
+    #[serde(default)]
+    pub local: LocalMethod,
+}
+
+/// The local (gradient) method after the swarm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LocalMethod {
+    /// Levenberg-Marquardt on the residual Jacobian ([`crate::local::levenberg_marquardt`]):
+    /// the objective is a sum of squares, and the Gauss-Newton model follows the long curved
+    /// valleys of 20-odd correlated parameters where L-BFGS on the sum stalls.
+    #[default]
+    Lm,
+    /// argmin's L-BFGS on the sum of squares ([`crate::local::refine`]).
+    Lbfgs,
+}
+
+/// Default prior spread: a datasheet or commissioning value trusted to about 20 % (one
+/// standard deviation of `ln x`); a 50 % error then costs about 4 in χ², what the data pay for
+/// a fraction of a percent of their misfit.
+pub const DEFAULT_PRIOR_SPREAD: f64 = 0.2;
+
+fn default_prior() -> f64 {
+    DEFAULT_PRIOR_SPREAD
 }
 
 fn default_polish() -> bool {
@@ -289,6 +352,12 @@ impl CalibSpec {
             field,
             msg,
         };
+        if !(self.prior >= 0.0 && self.prior.is_finite()) {
+            return Err(err(
+                "calibration.prior".into(),
+                format!("must be a finite spread >= 0 (got {})", self.prior),
+            ));
+        }
         if self.pso.particles < 2 {
             return Err(err(
                 "calibration.pso.particles".into(),
@@ -352,12 +421,28 @@ impl CalibSpec {
                         ));
                     }
                 }
+                if let Some(sp) = f.spread {
+                    if !(sp >= 0.0 && sp.is_finite()) {
+                        return Err(err(
+                            fctx,
+                            format!("spread must be a finite number >= 0 (got {sp})"),
+                        ));
+                    }
+                }
                 if s.free[..j].iter().any(|g| g.param == f.param) {
                     return Err(err(fctx, "listed twice".into()));
                 }
             }
         }
         Ok(())
+    }
+
+    /// The blocks stage `stage` removes from the unit (none under [`StageBlocks::Keep`]).
+    pub fn removed_blocks(&self, stage: &str) -> &'static [&'static str] {
+        match self.stage_blocks {
+            StageBlocks::Keep => &[],
+            StageBlocks::Remove => removed_blocks(stage),
+        }
     }
 
     /// The spec of stage `name`, if listed.

@@ -229,6 +229,7 @@ fn bad_requests_are_setup_errors() {
             start: 3.0,
             scan: 0,
             polish_only: true,
+            prior: None,
         }],
         ..Default::default()
     });
@@ -241,6 +242,7 @@ fn bad_requests_are_setup_errors() {
             start: 1.0,
             scan: 0,
             polish_only: true,
+            prior: None,
         }],
         ..Default::default()
     });

@@ -382,11 +382,13 @@ fn several_events_are_fitted_together_and_a_held_out_event_is_reported() {
         after < 0.2 * before,
         "the calibration should carry over to the held-out event: {before} -> {after}"
     );
-    // The summed objective is the sum over the fitted events.
+    // The objective is the sum over the fitted events plus the datasheet prior's term (the
+    // start is 30 % and 20 % off in H and X_q: a few noise variances, a small fraction of J).
     let sum: f64 = rows[..2].iter().map(|r| r.j_pq).sum();
+    let prior_term = res.report.stages[0].objective_after - sum;
     assert!(
-        (sum - res.report.stages[0].objective_after).abs() < 1e-9 * sum.max(1.0),
-        "{sum} vs {}",
+        prior_term > 0.0 && prior_term < 0.05 * sum,
+        "objective {} against J {sum}",
         res.report.stages[0].objective_after
     );
 }

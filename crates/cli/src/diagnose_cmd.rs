@@ -7,10 +7,11 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use itaipu_calib::diagnose::{
-    catalog, diagnose, refit_bounds, CandidateReport, DiagnoseError, DiagnoseOptions, Diagnosis,
-    EventEvidence, RefitRequest,
+    calibrated_set, catalog, diagnose, refit_bounds, CandidateReport, DiagnoseError,
+    DiagnoseOptions, Diagnosis, EventEvidence, RefitRequest,
 };
 use itaipu_calib::evidence::{SignalEvidence, WindowStats};
+use itaipu_calib::spec::CalibSpec;
 use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
@@ -34,6 +35,12 @@ pub struct DiagnoseArgs {
     /// bundled Itaipu unit.
     #[arg(long, value_name = "FILE")]
     unit: Option<PathBuf>,
+    /// A `fit` output folder: diagnose its calibrated.toml and re-fit the whole calibrated set
+    /// (every parameter its calibration.toml frees, within the spec's bounds) in every
+    /// baseline and extension, with the same prior around its datasheet.toml values, so that an
+    /// effect the calibration absorbed by bending right values is still seen.
+    #[arg(long, value_name = "DIR", conflicts_with = "unit")]
+    fit: Option<PathBuf>,
     /// Cause(s) of the catalog to try (repeatable or comma-separated), e.g.
     /// `--cause measurement_skew,saturation`. Default: the whole catalog.
     #[arg(long, value_name = "ID", num_args = 1.., value_delimiter = ',')]
@@ -137,9 +144,10 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     );
     let pool = a.search.pool()?;
     let threads = pool.current_num_threads();
-    let unit_path = match &a.unit {
-        Some(p) => p.clone(),
-        None => bundled("itaipu/unit.toml")?,
+    let unit_path = match (&a.unit, &a.fit) {
+        (Some(p), _) => p.clone(),
+        (None, Some(dir)) => dir.join("calibrated.toml"),
+        (None, None) => bundled("itaipu/unit.toml")?,
     };
     let event_paths = if a.event.is_empty() {
         vec![bundled("itaipu/event.toml")?]
@@ -149,6 +157,17 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     let unit = load_unit(&unit_path)?;
     opts.refit = refit_bounds(&unit, &refit_requests(&a.refit)?)
         .map_err(|e| CliError::new(2, format!("--refit: {e} (unit {})", unit_path.display())))?;
+    if let Some(dir) = &a.fit {
+        let spec_path = dir.join("calibration.toml");
+        let spec = CalibSpec::from_file(&spec_path).map_err(|e| CliError::new(4, e.to_string()))?;
+        let datasheet = load_unit(&dir.join("datasheet.toml"))?;
+        let stages: Vec<String> = spec.stages.iter().map(|s| s.name.clone()).collect();
+        for b in calibrated_set(&spec, &stages, &datasheet, &unit) {
+            if !opts.refit.iter().any(|r| r.param == b.param) {
+                opts.refit.push(b);
+            }
+        }
+    }
     let events = event_paths
         .iter()
         .map(|p| load_event(p))

@@ -238,6 +238,12 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         opts.seed
     );
     write(&out.join("calibrated.toml"), &unit_to_toml(&calibrated))?;
+    // What `diagnose --fit` needs to re-fit the same calibrated set with the same prior: the unit
+    // as given (the datasheet values the prior is centred on) and the spec.
+    write(&out.join("datasheet.toml"), &unit_to_toml(&unit))?;
+    let spec_text = std::fs::read_to_string(&calib_path)
+        .map_err(|e| CliError::new(7, format!("cannot read {}: {e}", calib_path.display())))?;
+    write(&out.join("calibration.toml"), &spec_text)?;
     for st in &result.stages {
         let dir = out.join(&st.stage);
         std::fs::create_dir_all(&dir)
@@ -341,7 +347,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         }
     }
     print_report(&result.report);
-    println!("wrote  {}/report.json, calibrated.toml, <stage>/{{unit.toml, traces.csv, traces_start.csv{}}}", out.display(), if a.no_plot { "" } else { ", plot.svg" });
+    println!("wrote  {}/report.json, calibrated.toml, datasheet.toml, calibration.toml, <stage>/{{unit.toml, traces.csv, traces_start.csv{}}}", out.display(), if a.no_plot { "" } else { ", plot.svg" });
     Ok(())
 }
 

@@ -13,6 +13,8 @@ use itaipu_dynamics::registry::{self, Role};
 use itaipu_dynamics::unit::Unit;
 use serde::Serialize;
 
+use crate::problem::Prior;
+
 /// One entry of the catalog.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct CauseInfo {
@@ -120,6 +122,10 @@ pub struct FreeBound {
     /// Held at its start during the global search and freed only in the final L-BFGS polish
     /// (for the many calibrated parameters re-freed with [`super::DiagnoseOptions::refit`]).
     pub polish_only: bool,
+    /// The datasheet prior of a calibrated parameter (the calibration's), so that a re-fit that
+    /// bends it pays the same price as the calibration did.
+    #[serde(skip)]
+    pub prior: Option<Prior>,
 }
 
 /// What the operating point and the evidence tell the catalog about a unit on an event.
@@ -221,6 +227,7 @@ fn fb(param: &str, min: f64, max: f64, start: f64) -> FreeBound {
         start: start.clamp(min, max),
         scan: 0,
         polish_only: false,
+        prior: None,
     }
 }
 

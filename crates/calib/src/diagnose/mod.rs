@@ -197,6 +197,44 @@ pub struct CandidateReport {
     pub simulations: usize,
     pub failed_candidates: usize,
     pub wall_s: f64,
+    /// The calibrated parameters (with a datasheet prior) that the baseline holds more than one
+    /// prior spread from their datasheet value, or that the extension does: what the base model
+    /// bends to mimic the cause, and where they go with the extension.
+    pub distortion: Vec<Distortion>,
+}
+
+/// A calibrated parameter's value in the datasheet, the re-fitted baseline and the extension.
+#[derive(Debug, Clone, Serialize)]
+pub struct Distortion {
+    pub param: String,
+    pub datasheet: f64,
+    pub base: f64,
+    pub extended: f64,
+    /// `ln(value/datasheet)/spread` of the baseline and of the extension (prior standard scores).
+    pub z_base: f64,
+    pub z_extended: f64,
+}
+
+/// The distortion a cause removes: for every re-freed parameter with a prior, its baseline and
+/// extension values, kept where either lies more than one prior spread from the datasheet.
+fn distortion(refit: &[FreeBound], base: &Unit, ext: &Unit) -> Vec<Distortion> {
+    refit
+        .iter()
+        .filter_map(|b| {
+            let p = b.prior?;
+            let get = |u: &Unit| u.param(&b.param).ok().map(|r| u.get(r));
+            let (vb, ve) = (get(base)?, get(ext)?);
+            let (zb, ze) = (p.z(vb)?, p.z(ve)?);
+            (zb.abs() > 1.0 || ze.abs() > 1.0).then(|| Distortion {
+                param: b.param.clone(),
+                datasheet: p.center,
+                base: vb,
+                extended: ve,
+                z_base: zb,
+                z_extended: ze,
+            })
+        })
+        .collect()
 }
 
 /// The verdict.
@@ -574,7 +612,8 @@ fn resolve(unit: &Unit, bounds: &[FreeBound]) -> Result<Vec<FreeParam>, String> 
                 b.max,
                 b.start,
                 unit.param_spec(r).unit,
-            ))
+            )
+            .with_prior(b.prior))
         })
         .collect()
 }
@@ -657,6 +696,7 @@ fn refit(
         lbfgs_memory: opts.lbfgs_memory,
         lbfgs_step_max_s: REFIT_RK4_STEP_MAX_S,
         polish: false,
+        local: crate::spec::LocalMethod::Lm,
     };
     let mut x: Vec<f64> = free.iter().map(|f| f.start).collect();
     let mut simulations = 0;
@@ -679,6 +719,7 @@ fn refit(
             weights,
         );
         problem.ties = tie_refs.clone();
+        problem.prior_weight = PRIOR_WEIGHT;
         // Scan (the parameters that ask for it), swarm, scan again from the swarm's best (the
         // interacting parameters it corrected move the valleys the scanned ones lie in), L-BFGS.
         let scans: Vec<(usize, usize)> = global
@@ -692,14 +733,14 @@ fn refit(
             lbfgs_iterations: 0,
             ..fit_opts.clone()
         };
-        let best = search(&problem, &swarm_only, label, progress, true).0;
+        let best = search(&problem, &swarm_only, label, progress, true, &[]).0;
         for (f, v) in problem.free.iter_mut().zip(&best) {
             f.start = *v;
         }
         if !scans.is_empty() {
             scan(&mut problem, &scans);
         }
-        let best = search(&problem, &fit_opts, label, progress, false).0;
+        let best = search(&problem, &fit_opts, label, progress, false, &[]).0;
         for (jj, &j) in global.iter().enumerate() {
             x[j] = best[jj];
         }
@@ -719,12 +760,14 @@ fn refit(
             .collect();
         let mut problem = Problem::new(unit.clone(), polish_free, sp.fit.clone(), weights);
         problem.ties = tie_refs.clone();
+        problem.prior_weight = PRIOR_WEIGHT;
         x = search(
             &problem,
             &fit_opts,
             &format!("{label} (polish)"),
             progress,
             false,
+            &[],
         )
         .0;
         simulations += problem.simulations();
@@ -734,6 +777,7 @@ fn refit(
     let acc = accurate_integrator();
     let mut fit_problem = Problem::new(unit.clone(), free.clone(), sp.fit.clone(), weights);
     fit_problem.ties = tie_refs.clone();
+    fit_problem.prior_weight = PRIOR_WEIGHT;
     let r_fit = fit_problem.residuals(&x, &acc)?;
     let mut held = Problem::new(unit.clone(), free, sp.held.clone(), weights);
     held.ties = tie_refs;
@@ -851,6 +895,55 @@ fn mode_hint(ev: &[EventEvidence], rate_hz: f64) -> Option<f64> {
         .map(|m| m.freq_hz)
 }
 
+/// Weight of the priors' residuals in a re-fit: the re-fits' residuals are already in units of
+/// the noise (weights 1/σ²), so a prior residual `ln(x/x₀)/spread` counts as one standardised
+/// sample and the fitted χ² is the negative log-posterior (times 2).
+const PRIOR_WEIGHT: f64 = 1.0;
+
+/// The whole calibrated set of a fit as [`DiagnoseOptions::refit`] bounds: every parameter the
+/// spec's `stages` free, within the spec's bounds, starting at its calibrated value in
+/// `calibrated`, with the calibration's prior around its value in `datasheet` (the unit before
+/// the fit). Re-fitting every extension and its baseline over this set with the same prior is
+/// what lets the diagnosis see an effect the calibration absorbed by bending right values.
+pub fn calibrated_set(
+    spec: &crate::spec::CalibSpec,
+    stages: &[String],
+    datasheet: &Unit,
+    calibrated: &Unit,
+) -> Vec<FreeBound> {
+    let mut out: Vec<FreeBound> = vec![];
+    for st in spec.stages.iter().filter(|s| stages.contains(&s.name)) {
+        for f in &st.free {
+            let Ok(r) = calibrated.param(&f.param) else {
+                continue;
+            };
+            let param = calibrated.param_path(r);
+            if out.iter().any(|b| b.param == param) {
+                continue;
+            }
+            let spread = f.spread.unwrap_or(spec.prior);
+            let prior = datasheet
+                .param(&param)
+                .ok()
+                .map(|d| crate::problem::Prior {
+                    center: datasheet.get(d),
+                    spread,
+                })
+                .filter(|p| p.spread > 0.0 && p.center > 0.0);
+            out.push(FreeBound {
+                param,
+                min: f.min,
+                max: f.max,
+                start: calibrated.get(r).clamp(f.min, f.max),
+                scan: 0,
+                polish_only: true,
+                prior,
+            });
+        }
+    }
+    out
+}
+
 /// A calibrated parameter to free again in every re-fit: its path (`machine.h`) and optional
 /// `(min, max)` bounds (default: the model's declared range).
 pub type RefitRequest = (String, Option<(f64, f64)>);
@@ -880,6 +973,7 @@ pub fn refit_bounds(
                 start: v,
                 scan: 0,
                 polish_only: true,
+                prior: None,
             });
         }
     }
@@ -1077,6 +1171,7 @@ pub fn diagnose(
             simulations: 0,
             failed_candidates: 0,
             wall_s: 0.0,
+            distortion: vec![],
         };
         let ext: Extension = match catalog::extend(id, unit, &ctx) {
             Err(msg) => {
@@ -1098,7 +1193,16 @@ pub fn diagnose(
                 .iter()
                 .chain(&ext.interacting_free)
                 .any(|f| f.param == b.param);
-            if !known && ext.unit.param(&b.param).is_ok() {
+            if known {
+                // A cause's own interacting parameter keeps its bounds and takes the prior.
+                for f in ext
+                    .interacting_free
+                    .iter_mut()
+                    .filter(|f| f.param == b.param)
+                {
+                    f.prior = b.prior;
+                }
+            } else if ext.unit.param(&b.param).is_ok() {
                 let v = ext
                     .unit
                     .param(&b.param)
@@ -1322,6 +1426,7 @@ pub fn diagnose(
             rms_q_ext,
         };
         rep.significant = passes(net_fit, net_held);
+        rep.distortion = distortion(&opts.refit, &base.unit, &r.unit);
         let free = resolve(&ext.unit, &bounds).unwrap_or_default();
         rep.parameters = free
             .iter()
@@ -1423,6 +1528,29 @@ pub fn diagnose(
                 g.k,
                 params.join(", ")
             );
+            // Which calibrated values become plausible again with it.
+            let back: Vec<String> = rep
+                .distortion
+                .iter()
+                .filter(|d| d.z_base.abs() > 1.0 && d.z_extended.abs() < d.z_base.abs())
+                .map(|d| {
+                    format!(
+                        "{} {} -> {} (datasheet {})",
+                        d.param,
+                        fmt_num(d.base),
+                        fmt_num(d.extended),
+                        fmt_num(d.datasheet)
+                    )
+                })
+                .collect();
+            let statement = if back.is_empty() {
+                statement
+            } else {
+                format!(
+                    "{statement} Without it the re-fitted unit bends calibrated values away from their datasheet;                      with it they come back: {}.",
+                    back.join(", ")
+                )
+            };
             extended_unit = Some(r.unit);
             Verdict {
                 cause: rep.cause.clone(),

@@ -105,6 +105,8 @@ impl Electrical for Gensae {
         let p = &self.p;
         guard::positive("t_d0_prime", p.t_d0_prime)?;
         guard::positive("t_d0_pp", p.t_d0_pp)?;
+        // The transient flux decays slower than the subtransient one (T'd0 > T''d0).
+        guard::greater("t_d0_prime", p.t_d0_prime, "t_d0_pp", p.t_d0_pp)?;
         guard::positive("t_q0_pp", p.t_q0_pp)?;
         check_d_axis(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l)?;
         guard::greater("x_q_pp", p.x_q_pp, "x_l", p.x_l)?;

@@ -1,0 +1,227 @@
+//! The practice set run as a user would run it: for each case the nominal model is the unit,
+//! the one spec of [`practice_spec`] frees the same 20 parameters on every case, then the
+//! default `fit --stage all`, then `diagnose` on the calibrated unit; only then is the answer
+//! key read, to score J after the fit against the key's floor, the cause named and the key
+//! parameter.
+//!
+//! `cargo run --release -p itaipu-calib --example practice -- [ROOT] [CASE ...] [--no-diagnose]`
+//! (ROOT defaults to `../shared/practice` beside the checkout). Writes `out/practice.json`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use itaipu_calib::diagnose::{calibrated_set, diagnose, DiagnoseOptions};
+use itaipu_calib::fit::{fit, FitOptions, Silent};
+use itaipu_calib::practice::{case_dirs, practice_spec, score, true_unit, AnswerKey, PracticeCase};
+
+fn main() {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let no_diag = args.iter().any(|a| a == "--no-diagnose");
+    let truth_check = args.iter().any(|a| a == "--truth");
+    args.retain(|a| a != "--no-diagnose" && a != "--truth");
+    let default_root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/practice");
+    let (root, filter): (PathBuf, Vec<String>) = match args.first() {
+        Some(a) if PathBuf::from(a).join("cases").is_dir() => (a.into(), args[1..].to_vec()),
+        _ => (default_root, args.clone()),
+    };
+    let dirs = case_dirs(&root).unwrap_or_else(|e| panic!("{e}"));
+    let mut rows = vec![];
+    println!(
+        "{:<5} {:<17} {:>9} {:>9} {:>6} {:>6}  {:<17} {:>6}  key",
+        "case", "hidden", "J fit", "J floor", "ratio", "fit s", "named", "diag s"
+    );
+    for dir in dirs {
+        let name = dir.file_name().unwrap().to_string_lossy().to_string();
+        if !filter.is_empty() && !filter.contains(&name) {
+            continue;
+        }
+        let case = PracticeCase::load(&dir).unwrap_or_else(|e| panic!("{e}"));
+        if truth_check {
+            // The engine check: the true unit (from the key) with only the offsets fitted.
+            let truth = true_unit(&root, &name).unwrap_or_else(|e| panic!("{e}"));
+            let spec = itaipu_calib::CalibSpec::parse(
+                "[calibration]\nprior = 0\n[[calibration.stage]]\nname = \"tg\"\nfree = [{ param = \"exciter.v_ref_offset\", min = -0.01, max = 0.01 }, { param = \"governor.n_ref_offset\", min = -0.005, max = 0.005 }]\n",
+                std::path::Path::new("<offsets>"),
+            )
+            .unwrap();
+            let mut o = FitOptions::from_spec(&spec);
+            o.pso_iterations = 0;
+            let r = fit(&truth, &spec, &[case.event.clone()], &[], &o, &Silent).unwrap();
+            let j = itaipu_calib::fit::fitness(&r.unit, &case.event, false)
+                .unwrap()
+                .0
+                .j_pq;
+            let key = AnswerKey::read(&root, &name).unwrap();
+            println!(
+                "{name:<5} truth J {j:.5}  key floor {:.5}  ratio {:.3}",
+                key.floor_j,
+                j / key.floor_j
+            );
+            continue;
+        }
+        let spec = practice_spec(&case.unit).unwrap_or_else(|e| panic!("{e}"));
+        let opts = FitOptions::from_spec(&spec);
+        let t0 = Instant::now();
+        let res = match fit(
+            &case.unit,
+            &spec,
+            &[case.event.clone()],
+            &[],
+            &opts,
+            &Silent,
+        ) {
+            Ok(r) => r,
+            Err(e) => {
+                println!("{name}: fit failed: {e}");
+                continue;
+            }
+        };
+        let fit_s = t0.elapsed().as_secs_f64();
+        let j_fit = itaipu_calib::fit::fitness(&res.unit, &case.event, false)
+            .map(|(f, _)| f.j_pq)
+            .unwrap_or(f64::NAN);
+        let diag = if no_diag {
+            None
+        } else {
+            let t1 = Instant::now();
+            // The whole calibrated set re-fitted with the calibration's prior (unless
+            // NO_REFIT is set, for comparison with the cause-specific re-fits alone).
+            let refit = if std::env::var("NO_REFIT").is_ok() {
+                vec![]
+            } else {
+                calibrated_set(&spec, &opts.stages, &case.unit, &res.unit)
+            };
+            let d = diagnose(
+                &res.unit,
+                &[case.event.clone()],
+                &[],
+                &DiagnoseOptions {
+                    refit,
+                    ..Default::default()
+                },
+                &Silent,
+            );
+            Some((d, t1.elapsed().as_secs_f64()))
+        };
+        if std::env::var("VERBOSE").is_ok() {
+            if let Some((Ok(d), _)) = &diag {
+                for c in &d.report.candidates {
+                    match &c.gains {
+                        Some(g) => println!(
+                            "      {:<17} fit {:+6.1} % held {:+6.1} % dBIC {:8.1} k {} {}{}",
+                            c.cause,
+                            100.0 * g.fit_drop,
+                            100.0 * g.held_drop,
+                            g.delta_bic,
+                            g.k,
+                            if c.significant { "significant " } else { "" },
+                            c.distortion
+                                .iter()
+                                .map(|x| format!(
+                                    "{} z {:.1}->{:.1}",
+                                    x.param, x.z_base, x.z_extended
+                                ))
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                        None => println!("      {:<17} {}", c.cause, c.note),
+                    }
+                }
+            }
+        }
+        // Only now the answer key.
+        let key = AnswerKey::read(&root, &name).unwrap_or_else(|e| panic!("{e}"));
+        let s = match &diag {
+            None => score(&name, &key, &res.unit, j_fit, fit_s, None),
+            Some((Ok(d), secs)) => score(
+                &name,
+                &key,
+                &res.unit,
+                j_fit,
+                fit_s,
+                Some((&d.report.verdict.cause, d.extended_unit.as_ref(), *secs)),
+            ),
+            Some((Err(e), secs)) => {
+                let msg = format!("error: {e}");
+                score(
+                    &name,
+                    &key,
+                    &res.unit,
+                    j_fit,
+                    fit_s,
+                    Some((&msg, None, *secs)),
+                )
+            }
+        };
+        let key_txt = s
+            .key
+            .as_ref()
+            .map(|(w, t, f, ok)| {
+                format!(
+                    "{w}: {t:.4} -> {} {}",
+                    f.map_or("-".into(), |f| format!("{f:.4}")),
+                    if *ok { "ok" } else { "MISS" }
+                )
+            })
+            .unwrap_or_default();
+        println!(
+            "{:<5} {:<17} {:>9.4} {:>9.4} {:>6.2} {:>6.1}  {:<17} {:>6.1}  {}",
+            s.case,
+            s.hidden,
+            s.j_fit,
+            s.floor_j,
+            s.fit_ratio,
+            s.fit_s,
+            s.named.clone().unwrap_or("-".into())
+                + if s.cause_ok == Some(false) { " x" } else { "" },
+            s.diagnose_s,
+            key_txt
+        );
+        if std::env::var("VERBOSE").is_ok() {
+            for (p, nom, truth, got) in &s.nominal_errors {
+                println!("      {p}: nominal {nom:.4}, true {truth:.4}, calibrated {got:.4}");
+            }
+            for st in &res.report.stages {
+                println!(
+                    "      {} {:.5} -> {:.5} ({:.1} s, {} failed) {}",
+                    st.stage,
+                    st.objective_before,
+                    st.objective_after,
+                    st.wall_s,
+                    st.failed_candidates,
+                    st.phases
+                        .iter()
+                        .map(|p| format!(
+                            "[{} {} it, {:.5}, {}]",
+                            p.phase, p.iterations, p.best_objective, p.stopped_by
+                        ))
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                );
+                if let Some(m) = st.failure_messages.first() {
+                    println!("        first failure: {m}");
+                }
+            }
+        }
+        rows.push(s);
+    }
+    let fit_ok = rows.iter().filter(|r| r.fit_ratio <= 1.1).count();
+    let effect = rows.iter().filter(|r| r.hidden != "none").count();
+    let hits = rows
+        .iter()
+        .filter(|r| r.hidden != "none" && r.cause_ok == Some(true))
+        .count();
+    let clean = rows.len() - effect;
+    let clean_ok = rows
+        .iter()
+        .filter(|r| r.hidden == "none" && r.cause_ok == Some(true))
+        .count();
+    println!(
+        "fit within 1.1 x floor: {fit_ok}/{}; right cause: {hits}/{effect}; none on clean: {clean_ok}/{clean}",
+        rows.len()
+    );
+    std::fs::create_dir_all("out").ok();
+    if let Ok(text) = serde_json::to_string_pretty(&rows) {
+        std::fs::write("out/practice.json", text).ok();
+    }
+}

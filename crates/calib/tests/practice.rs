@@ -1,0 +1,151 @@
+//! The practice protocol on the bundled cases (`data/practice/`, events made by an independent
+//! implementation): the nominal model is the unit, one spec frees the same 20 parameters on
+//! every case, the default staged fit must reach the answer key's floor, and the key is read
+//! only to score. The whole set: `cargo run --release -p itaipu-calib --example practice`.
+
+use std::path::PathBuf;
+
+use itaipu_calib::fit::{fit, fitness, FitOptions, Silent};
+use itaipu_calib::practice::{
+    practice_spec, true_unit, AnswerKey, PracticeCase, FREE, RELATIVE_BOUNDS,
+};
+use itaipu_calib::CalibSpec;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/practice")
+}
+
+fn case(name: &str) -> PracticeCase {
+    PracticeCase::load(&root().join("cases").join(name)).unwrap()
+}
+
+#[test]
+fn the_one_spec_frees_the_twenty_parameters_within_the_same_relative_bounds() {
+    let c = case("p01");
+    let spec = practice_spec(&c.unit).unwrap();
+    let names: Vec<&str> = spec.stages.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["gen", "avr", "pss", "tg"]);
+    let free: Vec<_> = spec
+        .stages
+        .iter()
+        .flat_map(|s| s.free.iter())
+        .filter(|f| !f.param.ends_with("_offset"))
+        .collect();
+    assert_eq!(free.len(), FREE.len());
+    for f in &free {
+        let r = c.unit.param(&f.param).unwrap();
+        let x0 = c.unit.get(r);
+        assert!(
+            (f.min - RELATIVE_BOUNDS.0 * x0).abs() < 1e-12 * x0
+                && (f.max - RELATIVE_BOUNDS.1 * x0).abs() < 1e-12 * x0,
+            "{}: [{}, {}] for nominal {x0}",
+            f.param,
+            f.min,
+            f.max
+        );
+    }
+    // The two set-point offsets are nuisance parameters of their stages; X''q follows X''d.
+    let offsets: Vec<&str> = spec
+        .stages
+        .iter()
+        .flat_map(|s| s.free.iter())
+        .filter(|f| f.param.ends_with("_offset"))
+        .map(|f| f.param.as_str())
+        .collect();
+    assert_eq!(offsets, ["exciter.v_ref_offset", "governor.n_ref_offset"]);
+    assert_eq!(
+        spec.stage("gen")
+            .unwrap()
+            .tie
+            .get("machine.x_q_pp")
+            .map(String::as_str),
+        Some("machine.x_d_pp")
+    );
+    // The nominal model, not the truth: the key's wrong parameters differ from the unit.
+    let key = AnswerKey::read(&root(), "p01").unwrap();
+    for (p, nominal, truth) in &key.nominal_errors {
+        let v = c.unit.get(c.unit.param(p).unwrap());
+        assert_eq!(v, *nominal, "{p}");
+        assert!((v - truth).abs() > 0.1 * truth.abs(), "{p}");
+    }
+}
+
+#[test]
+fn a_nominal_file_with_an_unknown_parameter_is_refused_by_name() {
+    let dir = std::env::temp_dir().join(format!("itaipu-practice-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let src = root().join("cases/p01");
+    std::fs::copy(src.join("data.csv"), dir.join("data.csv")).unwrap();
+    let text = std::fs::read_to_string(src.join("nominal.json")).unwrap();
+    std::fs::write(
+        dir.join("nominal.json"),
+        text.replacen("\"TE\":", "\"TEX\":", 1),
+    )
+    .unwrap();
+    let e = PracticeCase::load(&dir)
+        .err()
+        .expect("an unknown key must be refused");
+    assert!(
+        e.contains("exciter.TEX") && e.contains("nominal.json"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn the_engine_reproduces_the_independent_floor_with_the_true_parameters() {
+    // The true unit (from the key) with only the two set-point offsets fitted gives the key's
+    // floor J: the playback, the models and the objective agree with the independent
+    // implementation.
+    let c = case("p01");
+    let truth = true_unit(&root(), "p01").unwrap();
+    let spec = CalibSpec::parse(
+        "[calibration]\nprior = 0\n[[calibration.stage]]\nname = \"tg\"\nfree = [\
+         { param = \"exciter.v_ref_offset\", min = -0.01, max = 0.01 },\
+         { param = \"governor.n_ref_offset\", min = -0.005, max = 0.005 }]\n",
+        std::path::Path::new("<offsets>"),
+    )
+    .unwrap();
+    let mut opts = FitOptions::from_spec(&spec);
+    opts.pso_iterations = 0;
+    let r = fit(&truth, &spec, &[c.event.clone()], &[], &opts, &Silent).unwrap();
+    let j = fitness(&r.unit, &c.event, false).unwrap().0.j_pq;
+    let key = AnswerKey::read(&root(), "p01").unwrap();
+    assert!(
+        (j / key.floor_j - 1.0).abs() < 0.02,
+        "J {j} against the key's floor {}",
+        key.floor_j
+    );
+}
+
+#[test]
+fn the_default_staged_fit_reaches_the_floor_with_every_uncertain_parameter_free() {
+    let c = case("p01");
+    let spec = practice_spec(&c.unit).unwrap();
+    let opts = FitOptions::from_spec(&spec);
+    let r = fit(&c.unit, &spec, &[c.event.clone()], &[], &opts, &Silent).unwrap();
+    let j_start = fitness(&c.unit, &c.event, false).unwrap().0.j_pq;
+    let j = fitness(&r.unit, &c.event, false).unwrap().0.j_pq;
+    // Scoring only now.
+    let key = AnswerKey::read(&root(), "p01").unwrap();
+    assert!(
+        j <= 1.1 * key.floor_j,
+        "J {j} after the fit, the key's floor {} (start {j_start})",
+        key.floor_j
+    );
+    // The physical relations hold in the calibrated machine.
+    let g = |p: &str| r.unit.get(r.unit.param(p).unwrap());
+    assert!(g("machine.x_d") > g("machine.x_d_prime"));
+    assert!(g("machine.x_d_prime") > g("machine.x_d_pp"));
+    assert!(g("machine.x_d_pp") > g("machine.x_l"));
+    assert!(g("machine.t_d0_prime") > g("machine.t_d0_pp"));
+    assert_eq!(g("machine.x_q_pp"), g("machine.x_d_pp"));
+    // The joint pass is reported, with its swarm and local phases.
+    let joint = r.report.stages.last().unwrap();
+    assert_eq!(joint.stage, "joint");
+    assert!(joint.phases.iter().any(|p| p.phase == "pso"));
+    assert!(joint
+        .phases
+        .iter()
+        .any(|p| p.phase.starts_with("levenberg-marquardt")));
+}
