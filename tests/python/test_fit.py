@@ -57,7 +57,7 @@ def test_fit_report(gen_fit):
     assert stage["objective_after"] <= stage["objective_before"]
     assert [p["phase"] for p in stage["phases"]][0] == "pso"
     assert stage["phases"][0]["iterations"] == 3
-    assert stage["phases"][1]["phase"].startswith("lbfgs")
+    assert stage["phases"][1]["phase"].startswith("levenberg-marquardt")
     assert stage["fitness"][0]["samples"] == N_SAMPLES
     assert stage["simulations"] > 0
     # The fitness table of the command line: start first, then one row per stage.
@@ -108,10 +108,13 @@ def test_fit_traces(gen_fit):
         np.testing.assert_array_equal(tr.p_meas_pu, event.p_pu)
     # The traces are those the report scores (the fit window is the whole record).
     stage = gen_fit.report["stages"][0]
-    assert _j(start) == pytest.approx(stage["objective_before"], rel=1e-12)
+    # The stage objective is J plus the datasheet prior's term, reported on its own.
+    assert stage["prior_before"] >= 0.0
+    assert _j(start) == pytest.approx(stage["objective_before"] - stage["prior_before"], rel=1e-12)
     assert _j(calibrated) == pytest.approx(stage["fitness"][0]["j_pq"], rel=1e-12)
-    # The gen stage holds E_fd: the stage's unit has no exciter.
-    assert not any(c.startswith("exciter.") for c in calibrated.columns)
+    # Every stage simulates the whole unit (stage_blocks = "keep"): the gen stage's unit has the
+    # exciter, at its starting values.
+    assert any(c.startswith("exciter.") for c in calibrated.columns)
     again = gen_fit.traces("gen", event="itaipu-60hz-fault")[1]
     np.testing.assert_array_equal(again.q_pu, calibrated.q_pu)
     with pytest.raises(KeyError, match="no stage 'pss'"):

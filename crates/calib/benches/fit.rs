@@ -111,7 +111,7 @@ fn practice_fit_and_diagnose(bencher: Bencher) {
         let r = fit(
             &case.unit,
             &spec,
-            &[case.event.clone()],
+            std::slice::from_ref(&case.event),
             &[],
             &opts,
             &Silent,
@@ -119,7 +119,7 @@ fn practice_fit_and_diagnose(bencher: Bencher) {
         .unwrap();
         let d = diagnose(
             &r.unit,
-            &[case.event.clone()],
+            std::slice::from_ref(&case.event),
             &[],
             &DiagnoseOptions {
                 refit: calibrated_set(&spec, &opts.stages, &case.unit, &r.unit),

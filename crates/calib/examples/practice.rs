@@ -46,7 +46,15 @@ fn main() {
             .unwrap();
             let mut o = FitOptions::from_spec(&spec);
             o.pso_iterations = 0;
-            let r = fit(&truth, &spec, &[case.event.clone()], &[], &o, &Silent).unwrap();
+            let r = fit(
+                &truth,
+                &spec,
+                std::slice::from_ref(&case.event),
+                &[],
+                &o,
+                &Silent,
+            )
+            .unwrap();
             let j = itaipu_calib::fit::fitness(&r.unit, &case.event, false)
                 .unwrap()
                 .0
@@ -65,7 +73,7 @@ fn main() {
         let res = match fit(
             &case.unit,
             &spec,
-            &[case.event.clone()],
+            std::slice::from_ref(&case.event),
             &[],
             &opts,
             &Silent,
@@ -93,7 +101,7 @@ fn main() {
             };
             let d = diagnose(
                 &res.unit,
-                &[case.event.clone()],
+                std::slice::from_ref(&case.event),
                 &[],
                 &DiagnoseOptions {
                     refit,

@@ -158,9 +158,13 @@ pub struct StageReport {
     pub lowpass_hz: Option<f64>,
     pub models: Vec<String>,
     pub parameters: Vec<ParamReport>,
-    /// Stage objective before and after (accurate integrator).
+    /// Stage objective before and after (accurate integrator): the weighted sum of squares plus
+    /// the datasheet prior's term.
     pub objective_before: f64,
     pub objective_after: f64,
+    /// The prior's term in `objective_before` and `objective_after` (0 without a prior).
+    pub prior_before: f64,
+    pub prior_after: f64,
     /// P+Q fitness per event after the stage (fit and held-out events).
     pub fitness: Vec<EventFitness>,
     pub phases: Vec<PhaseReport>,
@@ -371,6 +375,10 @@ fn resolve_ties(unit: &Unit, spec: &StageSpec) -> Result<Vec<(ParamRef, ParamRef
             Ok((r(from)?, r(to)?))
         })
         .collect()
+}
+
+fn sumsq(r: &[f64]) -> f64 {
+    r.iter().map(|v| v * v).sum()
 }
 
 /// Gives every tied parameter of `spec` its source's value in `unit`.
@@ -720,6 +728,8 @@ fn run_stage(
         parameters,
         objective_before,
         objective_after,
+        prior_before: sumsq(&problem.prior_residuals(&start)),
+        prior_after: sumsq(&problem.prior_residuals(&best)),
         fitness: fitness_rows,
         phases,
         simulations: problem.simulations(),

@@ -108,7 +108,15 @@ fn the_engine_reproduces_the_independent_floor_with_the_true_parameters() {
     .unwrap();
     let mut opts = FitOptions::from_spec(&spec);
     opts.pso_iterations = 0;
-    let r = fit(&truth, &spec, &[c.event.clone()], &[], &opts, &Silent).unwrap();
+    let r = fit(
+        &truth,
+        &spec,
+        std::slice::from_ref(&c.event),
+        &[],
+        &opts,
+        &Silent,
+    )
+    .unwrap();
     let j = fitness(&r.unit, &c.event, false).unwrap().0.j_pq;
     let key = AnswerKey::read(&root(), "p01").unwrap();
     assert!(
@@ -123,7 +131,15 @@ fn the_default_staged_fit_reaches_the_floor_with_every_uncertain_parameter_free(
     let c = case("p01");
     let spec = practice_spec(&c.unit).unwrap();
     let opts = FitOptions::from_spec(&spec);
-    let r = fit(&c.unit, &spec, &[c.event.clone()], &[], &opts, &Silent).unwrap();
+    let r = fit(
+        &c.unit,
+        &spec,
+        std::slice::from_ref(&c.event),
+        &[],
+        &opts,
+        &Silent,
+    )
+    .unwrap();
     let j_start = fitness(&c.unit, &c.event, false).unwrap().0.j_pq;
     let j = fitness(&r.unit, &c.event, false).unwrap().0.j_pq;
     // Scoring only now.

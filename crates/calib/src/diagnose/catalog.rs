@@ -354,7 +354,7 @@ pub fn extend(
             rewire(&mut u, &machine, &[("pm", "p_shaft")])?;
             ext.extension_free = vec![
                 scanned(fb("shaft.f_torsion_hz", 1.0, f_hi, f_start), 48),
-                fb("shaft.zeta", 0.005, 0.5, 0.05),
+                fb("shaft.zeta", 0.0005, 0.5, 0.05),
                 fb("shaft.h_turbine", 0.02 * h, 0.6 * h, h_t),
             ];
             ext.interacting_free = vec![fb(&h_path, 0.4 * h, 1.05 * h, h - h_t)];
