@@ -13,6 +13,26 @@ use std::time::Instant;
 use itaipu_calib::diagnose::{calibrated_set, diagnose, DiagnoseOptions};
 use itaipu_calib::fit::{fit, FitOptions, Silent};
 use itaipu_calib::practice::{case_dirs, practice_spec, score, true_unit, AnswerKey, PracticeCase};
+use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
+
+fn print_stage(st: &itaipu_calib::fit::StageReport) {
+    println!(
+        "      {} {:.5} -> {:.5} ({:.1} s, {} failed) {}",
+        st.stage,
+        st.objective_before,
+        st.objective_after,
+        st.wall_s,
+        st.failed_candidates,
+        st.phases
+            .iter()
+            .map(|p| format!(
+                "[{} {} it, {:.5}, {}]",
+                p.phase, p.iterations, p.best_objective, p.stopped_by
+            ))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+}
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
@@ -70,22 +90,35 @@ fn main() {
         let spec = practice_spec(&case.unit).unwrap_or_else(|e| panic!("{e}"));
         let opts = FitOptions::from_spec(&spec);
         let t0 = Instant::now();
-        let res = match fit(
-            &case.unit,
-            &spec,
-            std::slice::from_ref(&case.event),
-            &[],
-            &opts,
-            &Silent,
-        ) {
-            Ok(r) => r,
-            Err(e) => {
-                println!("{name}: fit failed: {e}");
-                continue;
-            }
+        // REUSE_FITS=1 takes the calibrated unit of an earlier run (out/practice/<case>.toml;
+        // the fit is deterministic) to iterate on the diagnosis alone.
+        let cached = PathBuf::from("out/practice").join(format!("{name}.toml"));
+        let calibrated = match std::env::var("REUSE_FITS") {
+            Ok(_) if cached.is_file() => read_unit(&cached).unwrap_or_else(|e| panic!("{e}")),
+            _ => match fit(
+                &case.unit,
+                &spec,
+                std::slice::from_ref(&case.event),
+                &[],
+                &opts,
+                &Silent,
+            ) {
+                Ok(r) => {
+                    if std::env::var("VERBOSE").is_ok() {
+                        r.report.stages.iter().for_each(print_stage);
+                    }
+                    std::fs::create_dir_all("out/practice").ok();
+                    std::fs::write(&cached, unit_to_toml(&r.unit)).ok();
+                    r.unit
+                }
+                Err(e) => {
+                    println!("{name}: fit failed: {e}");
+                    continue;
+                }
+            },
         };
         let fit_s = t0.elapsed().as_secs_f64();
-        let j_fit = itaipu_calib::fit::fitness(&res.unit, &case.event, false)
+        let j_fit = itaipu_calib::fit::fitness(&calibrated, &case.event, false)
             .map(|(f, _)| f.j_pq)
             .unwrap_or(f64::NAN);
         let diag = if no_diag {
@@ -97,10 +130,10 @@ fn main() {
             let refit = if std::env::var("NO_REFIT").is_ok() {
                 vec![]
             } else {
-                calibrated_set(&spec, &opts.stages, &case.unit, &res.unit)
+                calibrated_set(&spec, &opts.stages, &case.unit, &calibrated)
             };
             let d = diagnose(
-                &res.unit,
+                &calibrated,
                 std::slice::from_ref(&case.event),
                 &[],
                 &DiagnoseOptions {
@@ -140,11 +173,11 @@ fn main() {
         // Only now the answer key.
         let key = AnswerKey::read(&root, &name).unwrap_or_else(|e| panic!("{e}"));
         let s = match &diag {
-            None => score(&name, &key, &res.unit, j_fit, fit_s, None),
+            None => score(&name, &key, &calibrated, j_fit, fit_s, None),
             Some((Ok(d), secs)) => score(
                 &name,
                 &key,
-                &res.unit,
+                &calibrated,
                 j_fit,
                 fit_s,
                 Some((&d.report.verdict.cause, d.extended_unit.as_ref(), *secs)),
@@ -154,7 +187,7 @@ fn main() {
                 score(
                     &name,
                     &key,
-                    &res.unit,
+                    &calibrated,
                     j_fit,
                     fit_s,
                     Some((&msg, None, *secs)),
@@ -188,27 +221,6 @@ fn main() {
         if std::env::var("VERBOSE").is_ok() {
             for (p, nom, truth, got) in &s.nominal_errors {
                 println!("      {p}: nominal {nom:.4}, true {truth:.4}, calibrated {got:.4}");
-            }
-            for st in &res.report.stages {
-                println!(
-                    "      {} {:.5} -> {:.5} ({:.1} s, {} failed) {}",
-                    st.stage,
-                    st.objective_before,
-                    st.objective_after,
-                    st.wall_s,
-                    st.failed_candidates,
-                    st.phases
-                        .iter()
-                        .map(|p| format!(
-                            "[{} {} it, {:.5}, {}]",
-                            p.phase, p.iterations, p.best_objective, p.stopped_by
-                        ))
-                        .collect::<Vec<_>>()
-                        .join(" ")
-                );
-                if let Some(m) = st.failure_messages.first() {
-                    println!("        first failure: {m}");
-                }
             }
         }
         rows.push(s);
