@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use itaipu_calib::diagnose::{calibrated_set, diagnose, DiagnoseOptions};
 use itaipu_calib::fit::{fit, FitOptions, Silent};
-use itaipu_calib::practice::{case_dirs, practice_spec, score, true_unit, AnswerKey, PracticeCase};
+use itaipu_calib::practice::{case_dirs, practice_spec, score, truth_j, AnswerKey, PracticeCase};
 use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
 
 fn print_stage(st: &itaipu_calib::fit::StageReport) {
@@ -58,27 +58,7 @@ fn main() {
         let case = PracticeCase::load(&dir).unwrap_or_else(|e| panic!("{e}"));
         if truth_check {
             // The engine check: the true unit (from the key) with only the offsets fitted.
-            let truth = true_unit(&root, &name).unwrap_or_else(|e| panic!("{e}"));
-            let spec = itaipu_calib::CalibSpec::parse(
-                "[calibration]\nprior = 0\n[[calibration.stage]]\nname = \"tg\"\nfree = [{ param = \"exciter.v_ref_offset\", min = -0.01, max = 0.01 }, { param = \"governor.n_ref_offset\", min = -0.005, max = 0.005 }]\n",
-                std::path::Path::new("<offsets>"),
-            )
-            .unwrap();
-            let mut o = FitOptions::from_spec(&spec);
-            o.pso_iterations = 0;
-            let r = fit(
-                &truth,
-                &spec,
-                std::slice::from_ref(&case.event),
-                &[],
-                &o,
-                &Silent,
-            )
-            .unwrap();
-            let j = itaipu_calib::fit::fitness(&r.unit, &case.event, false)
-                .unwrap()
-                .0
-                .j_pq;
+            let j = truth_j(&root, &case).unwrap_or_else(|e| panic!("{e}"));
             let key = AnswerKey::read(&root, &name).unwrap();
             println!(
                 "{name:<5} truth J {j:.5}  key floor {:.5}  ratio {:.3}",

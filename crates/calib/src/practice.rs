@@ -359,6 +359,29 @@ pub fn true_unit(practice_root: &Path, case: &str) -> Result<Unit, String> {
     parse_unit(&text, &path).map_err(|e| e.to_string())
 }
 
+/// The engine check: J of the case's true unit (from the key, [`true_unit`]) on its event with
+/// only the two set-point offsets fitted (no prior, local method only), which the key's floor
+/// J is (for a case whose effect is not part of the true unit's parameters). Reads the key.
+pub fn truth_j(practice_root: &Path, case: &PracticeCase) -> Result<f64, String> {
+    let truth = true_unit(practice_root, &case.name)?;
+    let mut text =
+        String::from("[calibration]\nprior = 0\n[[calibration.stage]]\nname = \"tg\"\nfree = [\n");
+    for (_, path, b) in NUISANCE {
+        text.push_str(&format!(
+            "  {{ param = \"{path}\", min = {}, max = {b} }},\n",
+            -b
+        ));
+    }
+    text.push_str("]\n");
+    let spec = CalibSpec::parse(&text, Path::new("<offsets>")).map_err(|e| e.to_string())?;
+    let mut opts = crate::fit::FitOptions::from_spec(&spec);
+    opts.pso_iterations = 0;
+    let events = std::slice::from_ref(&case.event);
+    let r = crate::fit::fit(&truth, &spec, events, &[], &opts, &crate::fit::Silent)
+        .map_err(|e| e.to_string())?;
+    crate::fit::fitness(&r.unit, &case.event, false).map(|(f, _)| f.j_pq)
+}
+
 /// The case folders of a practice root (`<root>/cases/*`), sorted.
 pub fn case_dirs(root: &Path) -> Result<Vec<PathBuf>, String> {
     let cases = root.join("cases");

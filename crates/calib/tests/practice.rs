@@ -7,9 +7,8 @@ use std::path::PathBuf;
 
 use itaipu_calib::fit::{fit, fitness, FitOptions, Silent};
 use itaipu_calib::practice::{
-    practice_spec, true_unit, AnswerKey, PracticeCase, FREE, RELATIVE_BOUNDS,
+    practice_spec, truth_j, AnswerKey, PracticeCase, FREE, RELATIVE_BOUNDS,
 };
-use itaipu_calib::CalibSpec;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/practice")
@@ -98,26 +97,7 @@ fn the_engine_reproduces_the_independent_floor_with_the_true_parameters() {
     // floor J: the playback, the models and the objective agree with the independent
     // implementation.
     let c = case("p01");
-    let truth = true_unit(&root(), "p01").unwrap();
-    let spec = CalibSpec::parse(
-        "[calibration]\nprior = 0\n[[calibration.stage]]\nname = \"tg\"\nfree = [\
-         { param = \"exciter.v_ref_offset\", min = -0.01, max = 0.01 },\
-         { param = \"governor.n_ref_offset\", min = -0.005, max = 0.005 }]\n",
-        std::path::Path::new("<offsets>"),
-    )
-    .unwrap();
-    let mut opts = FitOptions::from_spec(&spec);
-    opts.pso_iterations = 0;
-    let r = fit(
-        &truth,
-        &spec,
-        std::slice::from_ref(&c.event),
-        &[],
-        &opts,
-        &Silent,
-    )
-    .unwrap();
-    let j = fitness(&r.unit, &c.event, false).unwrap().0.j_pq;
+    let j = truth_j(&root(), &c).unwrap();
     let key = AnswerKey::read(&root(), "p01").unwrap();
     assert!(
         (j / key.floor_j - 1.0).abs() < 0.02,
