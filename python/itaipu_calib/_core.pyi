@@ -199,4 +199,6 @@ def diagnose(
     pso_iterations: int = 20,
     lbfgs_iterations: int = 15,
     threads: Optional[int] = None,
+    refit: Union[str, Sequence[str], Mapping[str, Tuple[float, float]], None] = None,
+    fit: Optional[FitResult] = None,
 ) -> Diagnosis: ...

@@ -128,3 +128,18 @@ def test_synth_hide_errors():
     # A ceiling below the operating point's field voltage: the truth cannot initialise.
     with pytest.raises(ic.InitError):
         ic.synth(TRUTH, duration=3.0, hide={"exciter_limit": {"exciter.e_max": 0.5}})
+
+
+def test_diagnose_refits_the_whole_calibrated_set_of_a_fit(skewed):
+    # A quick generator-stage fit of the synthetic unit on the skewed event; diagnose(fit=...)
+    # re-frees every parameter that stage freed, within the spec's bounds (as `diagnose --fit`).
+    spec = DATA / "itaipu" / "calibration.toml"
+    f = ic.fit(skewed, TRUTH, calib=spec, stages="gen", seed=1, particles=4, pso_iterations=2,
+               lbfgs_iterations=1, polish=False)
+    d = ic.diagnose(f.unit, skewed, causes=["measurement_skew"], fit=f, **QUICK)
+    freed = {b["param"]: (b["min"], b["max"]) for b in d.report["refit"]}
+    stage = {p["param"]: (p["min"], p["max"]) for p in f.report["stages"][0]["parameters"]}
+    assert freed == stage and len(freed) == 11
+    assert all(b["polish_only"] for b in d.report["refit"])
+    with pytest.raises(TypeError, match="FitResult"):
+        ic.diagnose(f.unit, skewed, causes=["measurement_skew"], fit="not a fit", **QUICK)

@@ -653,6 +653,8 @@ struct PyFitResult {
     report_json: String,
     unit: Arc<Unit>,
     stages: Vec<StageOutput>,
+    /// The calibrated set with the calibration's prior, for `diagnose(..., fit=...)`.
+    calibrated_set: Vec<catalog::FreeBound>,
 }
 
 impl PyFitResult {
@@ -932,47 +934,50 @@ fn fit(
             )));
         }
     }
-    let result = py.detach(move || -> Result<calib_fit::FitResult, Failure> {
-        let unit = match unit_src {
-            Source::Loaded(u) => u,
-            Source::Path(p) => Arc::new(read_unit(&p)?),
-        };
-        let spec = CalibSpec::from_file(&calib)?;
-        let events = load_events(events)?;
-        let held_out = load_events(held_out)?;
-        let mut opts = FitOptions::from_spec(&spec);
-        if let Some(s) = strategy {
-            opts.strategy = s;
-        }
-        if let Some(s) = stages {
-            opts.stages = s;
-        }
-        if let Some(s) = seed {
-            opts.seed = s;
-        }
-        if !polish {
-            opts.polish = false;
-        }
-        if let Some(n) = particles {
-            opts.particles = n;
-        }
-        if let Some(n) = pso_iterations {
-            opts.pso_iterations = n;
-        }
-        if let Some(n) = lbfgs_iterations {
-            opts.lbfgs_iterations = n;
-        }
-        let mut result = calib_fit::fit(&unit, &spec, &events, &held_out, &opts, &Silent)?;
-        // As the command line's calibrated.toml.
-        result.unit.description = format!(
-            "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
-            unit.description,
-            opts.stages.join("+"),
-            opts.seed
-        );
-        Ok(result)
-    });
-    let result = result.map_err(|e| e.into_pyerr(py))?;
+    let result = py.detach(
+        move || -> Result<(calib_fit::FitResult, Vec<catalog::FreeBound>), Failure> {
+            let unit = match unit_src {
+                Source::Loaded(u) => u,
+                Source::Path(p) => Arc::new(read_unit(&p)?),
+            };
+            let spec = CalibSpec::from_file(&calib)?;
+            let events = load_events(events)?;
+            let held_out = load_events(held_out)?;
+            let mut opts = FitOptions::from_spec(&spec);
+            if let Some(s) = strategy {
+                opts.strategy = s;
+            }
+            if let Some(s) = stages {
+                opts.stages = s;
+            }
+            if let Some(s) = seed {
+                opts.seed = s;
+            }
+            if !polish {
+                opts.polish = false;
+            }
+            if let Some(n) = particles {
+                opts.particles = n;
+            }
+            if let Some(n) = pso_iterations {
+                opts.pso_iterations = n;
+            }
+            if let Some(n) = lbfgs_iterations {
+                opts.lbfgs_iterations = n;
+            }
+            let mut result = calib_fit::fit(&unit, &spec, &events, &held_out, &opts, &Silent)?;
+            // As the command line's calibrated.toml.
+            result.unit.description = format!(
+                "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
+                unit.description,
+                opts.stages.join("+"),
+                opts.seed
+            );
+            let set = calib_diagnose::calibrated_set(&spec, &opts.stages, &unit, &result.unit);
+            Ok((result, set))
+        },
+    );
+    let (result, calibrated_set) = result.map_err(|e| e.into_pyerr(py))?;
     let report_json = serde_json::to_string(&result.report)
         .map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
     Ok(PyFitResult {
@@ -980,6 +985,7 @@ fn fit(
         report_json,
         unit: Arc::new(result.unit),
         stages: result.stages,
+        calibrated_set,
     })
 }
 
@@ -1466,8 +1472,10 @@ fn refit_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<calib_diagnose::Re
 /// `particles`, `pso_iterations` and `lbfgs_iterations` set each re-fit; `threads` the worker
 /// threads (default: all cores). `refit` names calibrated parameters to free again in every
 /// re-fit (a list of paths, or a dict of path to (min, max)), e.g. the stage parameters a
-/// calibration may have bent for the missing cause. The GIL is released while it runs.
-/// Returns a Diagnosis.
+/// calibration may have bent for the missing cause. `fit` (a FitResult, normally the one whose
+/// `.unit` is diagnosed) re-frees its whole calibrated set, within the spec's bounds and with the
+/// calibration's datasheet prior, as `itaipu-calib diagnose --fit`. The GIL is released while it
+/// runs. Returns a Diagnosis.
 ///
 /// Raises CalibrationError (kind 'setup': e.g. an unknown cause), SimulationError (kind
 /// 'simulation': the unit does not simulate on an event as given), EventError,
@@ -1475,9 +1483,9 @@ fn refit_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<calib_diagnose::Re
 #[pyfunction]
 #[pyo3(
     signature = (unit, events, held_out = None, *, causes = None, seed = 1, particles = 16, pso_iterations = 20,
-                 lbfgs_iterations = 15, threads = None, refit = None),
+                 lbfgs_iterations = 15, threads = None, refit = None, fit = None),
     text_signature = "(unit, events, held_out=None, *, causes=None, seed=1, particles=16, pso_iterations=20, \
-                      lbfgs_iterations=15, threads=None, refit=None)"
+                      lbfgs_iterations=15, threads=None, refit=None, fit=None)"
 )]
 #[allow(clippy::too_many_arguments)]
 fn diagnose(
@@ -1492,9 +1500,21 @@ fn diagnose(
     lbfgs_iterations: u64,
     threads: Option<usize>,
     refit: Option<&Bound<'_, PyAny>>,
+    fit: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PyDiagnosis> {
     let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
     let refit = refit_list(refit)?;
+    // A FitResult: its whole calibrated set is re-freed with the calibration's prior (as
+    // `itaipu-calib diagnose --fit`).
+    let fit_set: Vec<catalog::FreeBound> = match fit {
+        Some(f) if !f.is_none() => f
+            .downcast::<PyFitResult>()
+            .map_err(|_| PyTypeError::new_err("fit must be a FitResult (from itaipu_calib.fit)"))?
+            .get()
+            .calibrated_set
+            .clone(),
+        _ => vec![],
+    };
     let events = event_sources(events, "events")?;
     let held_out = match held_out {
         Some(h) if !h.is_none() => event_sources(h, "held_out")?,
@@ -1532,6 +1552,11 @@ fn diagnose(
             Source::Path(p) => Arc::new(read_unit(&p)?),
         };
         opts.refit = calib_diagnose::refit_bounds(&unit, &refit)?;
+        for b in fit_set {
+            if !opts.refit.iter().any(|r| r.param == b.param) && unit.param(&b.param).is_ok() {
+                opts.refit.push(b);
+            }
+        }
         let events = load_events(events)?;
         let held_out = load_events(held_out)?;
         let run = || calib_diagnose::diagnose(&unit, &events, &held_out, &opts, &Silent);
