@@ -162,6 +162,7 @@ fn hide_rejects_unknown_causes_and_parameters() {
         mode_hint_hz: None,
         deepest_dip: None,
         sustained_df_hz: None,
+        field_current_rise: None,
     };
     let err = |r: Result<(itaipu_dynamics::unit::Unit, catalog::Extension), catalog::HideError>| {
         r.err().expect("must be refused").to_string()

@@ -144,10 +144,18 @@ pub struct Context {
     pub deepest_dip: Option<f64>,
     /// Largest sustained frequency change of the events (last quarter against pre-event) [Hz].
     pub sustained_df_hz: Option<f64>,
+    /// Largest rise of the field current X_adI_fd of the unit as given over its pre-event value,
+    /// as a fraction (`None`: unknown).
+    pub field_current_rise: Option<f64>,
 }
 
 /// Dip from which a high-gain AVR is taken to run to its limits.
 pub const LIMIT_DIP: f64 = 0.05;
+/// Rise of the field current from which an over-excitation limiter can pick up: a voltage step
+/// down that the AVR answers with a sustained field forcing reaches the limiter's pickup
+/// (typically 1.05-1.1 × rated, a few percent above a loaded unit's field current) without any
+/// dip. Below it, a limiter just above the operating point would only trim a bent AVR gain.
+pub const OEL_IFD_RISE: f64 = 0.05;
 /// Sustained frequency change from which a governor is taken to act [Hz].
 pub const GOVERNOR_DF_HZ: f64 = 0.02;
 /// Swarm-length factor of a candidate whose regime the events reach and that re-frees a
@@ -552,13 +560,17 @@ pub fn extend(
             if u.block("oel").is_some() {
                 return not_applicable("the unit already has an OEL");
             }
-            if ctx.deepest_dip.is_some_and(|d| d < LIMIT_DIP) {
-                // Without a dip the AVR does not force the field current into overload; a
-                // limiter picking up just above the operating point would only trim a
-                // mis-calibrated AVR gain.
+            if ctx.deepest_dip.is_some_and(|d| d < LIMIT_DIP)
+                && ctx.field_current_rise.is_none_or(|r| r < OEL_IFD_RISE)
+            {
+                // Without a dip or a sustained field forcing the field current is not driven
+                // into overload; a limiter picking up just above the operating point would only
+                // trim a mis-calibrated AVR gain.
                 return not_applicable(&format!(
-                    "no event dips |V| by {:.0} % or more, so the field current is not forced into overload",
-                    100.0 * LIMIT_DIP
+                    "no event dips |V| by {:.0} % or more or raises the field current by {:.0} % or more, \
+                     so the field current is not forced into overload",
+                    100.0 * LIMIT_DIP,
+                    100.0 * OEL_IFD_RISE
                 ));
             }
             let i0 = ctx

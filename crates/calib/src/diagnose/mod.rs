@@ -1145,6 +1145,14 @@ pub fn diagnose(
     ctx.mode_hint_hz = mode_hint(&evidence_before, ctx.rate_hz);
     let (dip, df) = regime(events);
     (ctx.deepest_dip, ctx.sustained_df_hz) = (Some(dip), Some(df));
+    ctx.field_current_rise = before
+        .iter()
+        .filter_map(|(_, tr)| {
+            let i = tr.get("xadifd")?;
+            let i0 = *i.first()?;
+            (i0 > 0.0).then(|| i.iter().copied().fold(i0, f64::max) / i0 - 1.0)
+        })
+        .reduce(f64::max);
 
     // 4. Candidates.
     let ids: Vec<&str> = if opts.causes.is_empty() {
