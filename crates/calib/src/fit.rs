@@ -20,7 +20,8 @@ use serde::Serialize;
 use crate::identify;
 use crate::local;
 use crate::problem::{
-    accurate_integrator, objective_weights, search_integrator, EventData, FreeParam, Prior, Problem,
+    accurate_integrator, objective_weights, search_integrator, sum_of_squares, EventData,
+    FreeParam, Prior, Problem,
 };
 use crate::pso::{self, PsoOptions};
 use crate::spec::{CalibSpec, LocalMethod, Objective, StageSpec, Strategy, Weights, STAGES};
@@ -377,10 +378,6 @@ fn resolve_ties(unit: &Unit, spec: &StageSpec) -> Result<Vec<(ParamRef, ParamRef
         .collect()
 }
 
-fn sumsq(r: &[f64]) -> f64 {
-    r.iter().map(|v| v * v).sum()
-}
-
 /// Gives every tied parameter of `spec` its source's value in `unit`.
 fn apply_ties(unit: &mut Unit, spec: &StageSpec) -> Result<(), FitError> {
     for (from, to) in resolve_ties(unit, spec)? {
@@ -472,7 +469,10 @@ pub(crate) fn search(
             best_objective: res.best_cost,
             stopped_by: res.stopped_by.clone(),
         });
-        candidates.push(from.clone());
+        if i > 0 {
+            // The first start (the swarm's best or the stage start) is a candidate already.
+            candidates.push(from.clone());
+        }
         candidates.push(res.best);
     }
     // Keep the best candidate by an accurate evaluation (the phases used different integrators).
@@ -563,7 +563,7 @@ fn run_stage(
     let start = problem.start();
     let objective_before = problem
         .residuals(&start, &acc)
-        .map(|r| r.iter().map(|v| v * v).sum::<f64>())
+        .map(|r| sum_of_squares(&r))
         .map_err(|m| stage_err(name, format!("the starting unit does not simulate: {m}")))?;
     let mut phases = vec![];
     let best = if opts.strategy == Strategy::Incremental && name == "gen" {
@@ -609,7 +609,7 @@ fn run_stage(
     let r_best = problem
         .residuals(&best, &acc)
         .map_err(|m| stage_err(name, format!("the calibrated unit does not simulate: {m}")))?;
-    let objective_after: f64 = r_best.iter().map(|v| v * v).sum();
+    let objective_after = sum_of_squares(&r_best);
     progress.message(&format!(
         "{label}: objective {objective_before:.5} -> {objective_after:.5}"
     ));
@@ -728,8 +728,8 @@ fn run_stage(
         parameters,
         objective_before,
         objective_after,
-        prior_before: sumsq(&problem.prior_residuals(&start)),
-        prior_after: sumsq(&problem.prior_residuals(&best)),
+        prior_before: sum_of_squares(&problem.prior_residuals(&start)),
+        prior_after: sum_of_squares(&problem.prior_residuals(&best)),
         fitness: fitness_rows,
         phases,
         simulations: problem.simulations(),

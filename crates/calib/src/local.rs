@@ -18,7 +18,7 @@ use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::unit::Unit;
 use rayon::prelude::*;
 
-use crate::problem::Problem;
+use crate::problem::{sum_of_squares, Problem};
 
 /// Step of the central differences in `z`.
 pub const FD_STEP: f64 = 1e-5;
@@ -268,7 +268,6 @@ pub fn levenberg_marquardt(problem: &Problem, x0: &[f64], iterations: u64) -> Lo
     let sim = lm_integrator();
     let n = problem.dim();
     let mut u = problem.to_unit(x0);
-    let sumsq = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
     let r0 = problem.residuals_logged(&problem.from_unit(&u), &sim);
     let step_s = f64::NAN; // adaptive: no fixed step
     let Some(mut r) = r0 else {
@@ -280,7 +279,7 @@ pub fn levenberg_marquardt(problem: &Problem, x0: &[f64], iterations: u64) -> Lo
             step_s,
         };
     };
-    let mut cost = sumsq(&r);
+    let mut cost = sum_of_squares(&r);
     if n == 0 || iterations == 0 {
         return LocalResult {
             best: x0.to_vec(),
@@ -358,8 +357,8 @@ pub fn levenberg_marquardt(problem: &Problem, x0: &[f64], iterations: u64) -> Lo
                 continue;
             }
             match problem.residuals_logged(&problem.from_unit(&un), &sim) {
-                Some(rn) if sumsq(&rn) < cost => {
-                    let new_cost = sumsq(&rn);
+                Some(rn) if sum_of_squares(&rn) < cost => {
+                    let new_cost = sum_of_squares(&rn);
                     let rel = (cost - new_cost) / cost.max(1e-300);
                     small_steps = if rel < 1e-6 { small_steps + 1 } else { 0 };
                     u = un;

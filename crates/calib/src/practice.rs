@@ -195,8 +195,7 @@ pub fn practice_spec(unit: &Unit) -> Result<CalibSpec, SpecError> {
     let mut text = String::from("[calibration]\n");
     for stage in ["gen", "avr", "pss", "tg"] {
         let mut free = vec![];
-        for (s, section, _, p) in FREE.iter().filter(|f| f.0 == stage) {
-            let _ = s;
+        for (_, section, _, p) in FREE.iter().filter(|f| f.0 == stage) {
             let path = format!("{section}.{p}");
             if let Ok(r) = unit.param(&path) {
                 let x0 = unit.get(r);

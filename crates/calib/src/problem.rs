@@ -134,6 +134,11 @@ impl FreeParam {
     }
 }
 
+/// Σ r², the objective of a residual vector.
+pub fn sum_of_squares(r: &[f64]) -> f64 {
+    r.iter().map(|v| v * v).sum()
+}
+
 /// Logistic map ℝ → (0, 1).
 pub fn logistic(z: f64) -> f64 {
     1.0 / (1.0 + (-z).exp())
@@ -428,15 +433,8 @@ impl Problem {
 
     /// The objective at physical values `x`; the penalty (counted and logged) on failure.
     pub fn cost(&self, x: &[f64], sim: &SimOptions) -> f64 {
-        self.evaluations
-            .fetch_add(self.events.len(), Ordering::Relaxed);
-        match self.residuals(x, sim) {
-            Ok(r) => r.iter().map(|v| v * v).sum(),
-            Err(msg) => {
-                self.record_failure(x, msg);
-                self.penalty
-            }
-        }
+        self.residuals_logged(x, sim)
+            .map_or(self.penalty, |r| sum_of_squares(&r))
     }
 
     /// The residuals at physical values `x`, counted as an evaluation; `None` (the failure

@@ -51,7 +51,9 @@ use serde::Serialize;
 
 use crate::evidence::{self, EvidenceOptions, SignalEvidence};
 use crate::fit::{fitness, search, FitOptions, Progress};
-use crate::problem::{accurate_integrator, search_integrator, EventData, FreeParam, Problem};
+use crate::problem::{
+    accurate_integrator, search_integrator, sum_of_squares, EventData, FreeParam, Problem,
+};
 use crate::spec::Strategy;
 use catalog::{Context, Extension, FreeBound, CAUSES};
 
@@ -785,8 +787,8 @@ fn refit(
     Ok(Refit {
         unit: fit_problem.unit_at(&x),
         values: x,
-        chi2_fit: r_fit.iter().map(|v| v * v).sum(),
-        chi2_held: r_held.iter().map(|v| v * v).sum(),
+        chi2_fit: sum_of_squares(&r_fit),
+        chi2_held: sum_of_squares(&r_held),
         n_fit: r_fit.len(),
         n_held: r_held.len(),
         simulations,
