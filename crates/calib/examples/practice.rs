@@ -124,6 +124,13 @@ fn main() {
             );
             Some((d, t1.elapsed().as_secs_f64()))
         };
+        if let Some((Ok(d), _)) = &diag {
+            // The whole report, for reading the candidates' numbers afterwards.
+            if let Ok(text) = serde_json::to_string_pretty(&d.report) {
+                std::fs::create_dir_all("out/practice").ok();
+                std::fs::write(format!("out/practice/{name}.diagnosis.json"), text).ok();
+            }
+        }
         if std::env::var("VERBOSE").is_ok() {
             if let Some((Ok(d), _)) = &diag {
                 for c in &d.report.candidates {

@@ -484,7 +484,7 @@ pub(crate) fn search(
 /// Jacobian of the residuals in physical units (accurate integrator): central differences,
 /// one-sided where a parameter sits on a bound (the model may reject values beyond it, e.g. a
 /// negative damping).
-fn jacobian(problem: &Problem, x: &[f64]) -> Option<Vec<Vec<f64>>> {
+pub(crate) fn jacobian(problem: &Problem, x: &[f64]) -> Option<Vec<Vec<f64>>> {
     let acc = accurate_integrator();
     let r0 = problem.residuals(x, &acc).ok()?;
     let cols: Vec<Option<Vec<f64>>> = (0..x.len())

@@ -266,7 +266,7 @@ pub struct Problem {
     pub events: Vec<EventData>,
     /// (w_p, w_q).
     pub weights: (f64, f64),
-    /// Finite cost given to a candidate that fails.
+    /// Finite cost given to a candidate that fails ([`FAILURE_PENALTY`]).
     pub penalty: f64,
     /// Tied parameters `(from, to)`: `to` takes `from`'s value in every candidate (e.g. a
     /// two-mass shaft's generator inertia follows `machine.h`).
@@ -278,6 +278,12 @@ pub struct Problem {
     failures: AtomicUsize,
     failure_log: Mutex<Vec<String>>,
 }
+
+/// The cost of a candidate that fails to initialise or integrate: finite, so that the swarm
+/// and the line searches can compare and interpolate it, and far above any objective a record
+/// can produce (a diagnosis χ² normalised by the noise variance reaches 1e6-1e7 on a record
+/// whose model misses an effect by a few percent of P; a failure must never look better).
+pub const FAILURE_PENALTY: f64 = 1e30;
 
 impl Problem {
     pub fn new(
@@ -291,7 +297,7 @@ impl Problem {
             free,
             events,
             weights,
-            penalty: 1e6,
+            penalty: FAILURE_PENALTY,
             ties: Vec::new(),
             prior_weight: 0.0,
             evaluations: AtomicUsize::new(0),

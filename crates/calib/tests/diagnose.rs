@@ -159,10 +159,7 @@ fn hide_rejects_unknown_causes_and_parameters() {
         efd0: Some(1.5),
         xadifd0: Some(1.5),
         rate_hz: 60.0,
-        mode_hint_hz: None,
-        deepest_dip: None,
-        sustained_df_hz: None,
-        field_current_rise: None,
+        ..Default::default()
     };
     let err = |r: Result<(itaipu_dynamics::unit::Unit, catalog::Extension), catalog::HideError>| {
         r.err().expect("must be refused").to_string()

@@ -378,10 +378,21 @@ fn key_params(c: &CandidateReport) -> Vec<String> {
         .iter()
         .filter(|p| p.extension)
         .map(|p| {
+            let value = match p.std_error {
+                Some(se) if se.is_finite() => with_unit(p.result, &p.unit).replacen(
+                    &num(p.result),
+                    &format!("{} ± {}", num(p.result), num(se)),
+                    1,
+                ),
+                Some(_) => format!(
+                    "{} (not determined by the data)",
+                    with_unit(p.result, &p.unit)
+                ),
+                None => with_unit(p.result, &p.unit),
+            };
             format!(
-                "{} = {}{}",
+                "{} = {value}{}",
                 p.param,
-                with_unit(p.result, &p.unit),
                 if p.at_bound { " (at bound)" } else { "" }
             )
         })

@@ -139,6 +139,9 @@ pub struct Context {
     pub rate_hz: f64,
     /// Frequency of the dominant oscillation in the P residual above 1 Hz, if any [Hz].
     pub mode_hint_hz: Option<f64>,
+    /// A resonance of the P residual in the shaft band that passes [`resonance_stands_out`]
+    /// (the most significant over the events), if any.
+    pub shaft_resonance: Option<crate::evidence::SpectralPeak>,
     /// Deepest voltage dip of the events after the onset, as a fraction of the pre-event |V|
     /// (`None`: unknown, e.g. when hiding a cause, and no regime is required).
     pub deepest_dip: Option<f64>,
@@ -147,6 +150,71 @@ pub struct Context {
     /// Largest rise of the field current X_adI_fd of the unit as given over its pre-event value,
     /// as a fraction (`None`: unknown).
     pub field_current_rise: Option<f64>,
+}
+
+/// Largest chance that noise alone gives a resonance, for it to name a torsional mode: one in
+/// a million (with the band's windows counted), the "very strong" end of the usual scales.
+pub const RESONANCE_P: f64 = 1e-6;
+/// Smallest prominence of a resonance over its neighbourhood (see
+/// [`crate::evidence::SpectralPeak::prominence`]): twice its neighbours' power. The shoulder
+/// of a low-frequency misfit leaking into the band has a prominence near or below 1.
+pub const RESONANCE_PROMINENCE: f64 = 2.0;
+
+/// Whether a resonance of the P residual is a mode the model lacks rather than noise or leakage.
+pub fn resonance_stands_out(p: &crate::evidence::SpectralPeak) -> bool {
+    p.p_value < RESONANCE_P && p.prominence >= RESONANCE_PROMINENCE
+}
+
+/// The evidence that names `cause` by itself, when a re-fit cannot measure it: a torsional
+/// mode kept ringing by random turbine torque is a resonance in the P residual that no
+/// deterministic playback reproduces, so its re-fit gains nothing, while the spectrum shows it
+/// far above the measurement noise.
+pub fn named_by_evidence(cause: &str, ctx: &Context) -> Option<String> {
+    match cause {
+        "torsional_mode" => ctx.shaft_resonance.as_ref().map(|p| {
+            format!(
+                "the P residual has a resonance at {:.2} Hz with {:.1} times the band's noise power \
+                 over {:.1} Hz ({:.1} times its neighbours'; chance from noise alone {:.1e}), which \
+                 no deterministic playback reproduces: a shaft mode kept ringing by the turbine's \
+                 torque",
+                p.freq_hz,
+                p.ratio,
+                crate::evidence::PEAK_WINDOW_HZ,
+                p.prominence,
+                p.p_value
+            )
+        }),
+        _ => None,
+    }
+}
+
+/// Smallest P/Q skew a diagnosis names, in sample intervals. Between samples the playback only
+/// knows the voltage by interpolation, and the unit's fastest responses (subtransient flux,
+/// the exciter) follow it within the sample interval, so a delay of a fraction of a sample
+/// trades against those: on practice records without any skew, the fitted delay comes out at
+/// 0.2-0.45 sample intervals. Half a sample is also the resolution a delay is scored to.
+pub const SKEW_RESOLUTION_SAMPLES: f64 = 0.5;
+
+/// Why the fitted extension of `cause` is below what the data can resolve (then it is not
+/// named, whatever its gain), from its fitted parameters `(path, value)`.
+pub fn below_resolution(cause: &str, fitted: &[(String, f64)], ctx: &Context) -> Option<String> {
+    match cause {
+        "measurement_skew" => {
+            let tau = fitted
+                .iter()
+                .find(|(p, _)| p == "measurement.pq_delay_s")?
+                .1;
+            let samples = tau * ctx.rate_hz;
+            (samples < SKEW_RESOLUTION_SAMPLES).then(|| {
+                format!(
+                    "the fitted delay ({:.1} ms, {samples:.2} sample intervals) is below half a sample \
+                     interval, which the playback's own timing between samples can account for",
+                    1e3 * tau
+                )
+            })
+        }
+        _ => None,
+    }
 }
 
 /// Dip from which a high-gain AVR is taken to run to its limits.
@@ -342,10 +410,20 @@ pub fn extend(
             let h_t = 0.15 * h;
             let nyquist = 0.5 * ctx.rate_hz;
             let f_hi = (0.9 * nyquist).clamp(1.0, 25.0);
-            let f_start = ctx
-                .mode_hint_hz
-                .filter(|f| *f > 1.0 && *f < f_hi)
+            // A resonance in the residual pins the frequency (the spectrum's resolution is a
+            // few hundredths of a hertz): the re-fit searches within 2 % of it.
+            let resonance = ctx
+                .shaft_resonance
+                .as_ref()
+                .map(|p| p.freq_hz)
+                .filter(|f| *f > 1.0 && *f < f_hi);
+            let f_start = resonance
+                .or(ctx.mode_hint_hz.filter(|f| *f > 1.0 && *f < f_hi))
                 .unwrap_or(0.5 * f_hi);
+            let (f_min, f_max) = match resonance {
+                Some(f) => (0.98 * f, (1.02 * f).min(f_hi)),
+                None => (1.0, f_hi),
+            };
             let shaft = new_block(
                 "two_mass_shaft",
                 &[
@@ -361,7 +439,7 @@ pub fn extend(
             add_block(&mut u, "shaft", shaft)?;
             rewire(&mut u, &machine, &[("pm", "p_shaft")])?;
             ext.extension_free = vec![
-                scanned(fb("shaft.f_torsion_hz", 1.0, f_hi, f_start), 48),
+                scanned(fb("shaft.f_torsion_hz", f_min, f_max, f_start), 48),
                 fb("shaft.zeta", 0.0005, 0.5, 0.05),
                 fb("shaft.h_turbine", 0.02 * h, 0.6 * h, h_t),
             ];

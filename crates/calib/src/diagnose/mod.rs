@@ -96,7 +96,7 @@ impl Default for DiagnoseOptions {
             lbfgs_memory: 7,
             block_s: 0.5,
             bic_threshold: 10.0,
-            min_fit_drop: 0.05,
+            min_fit_drop: 0.02,
             min_held_drop: 0.01,
             noise_factor: 1.5,
         }
@@ -130,7 +130,14 @@ pub struct EventEvidence {
     /// Event onset used for the windows [s].
     pub onset_s: f64,
     pub signals: Vec<SignalEvidence>,
+    /// The strongest resonance of the P residual in the shaft band (see [`SHAFT_BAND_HZ`]).
+    pub p_peak: Option<evidence::SpectralPeak>,
 }
+
+/// Band searched for a torsional line in the P residual [Hz]: above the electromechanical and
+/// control modes (below 3 Hz), up to 25 Hz (the first torsional modes of hydro and thermal
+/// shafts lie between about 5 and 25 Hz), and below 0.95 × Nyquist.
+pub const SHAFT_BAND_HZ: (f64, f64) = (4.0, 25.0);
 
 /// A re-fitted parameter of a candidate.
 #[derive(Debug, Clone, Serialize)]
@@ -144,6 +151,10 @@ pub struct CandidateParam {
     /// `true` for the extension's own parameters, `false` for interacting unit parameters.
     pub extension: bool,
     pub at_bound: bool,
+    /// Standard error at the re-fit's optimum, from the Jacobian of the residuals with the
+    /// priors' rows (a posterior standard error, every re-fitted parameter free): computed for
+    /// the named cause only (`null` otherwise, ∞ when the data and prior do not determine it).
+    pub std_error: Option<f64>,
 }
 
 /// The gain of an extension.
@@ -396,10 +407,22 @@ pub fn event_evidence(event: &Event, traces: &Traces) -> EventEvidence {
     if let Some(ifd) = &r.ifd_pu {
         add("Ifd", col("xadifd"), ifd);
     }
+    let p_peak = traces.get("p_pu").and_then(|sim| {
+        let res: Vec<f64> = sim.iter().zip(&r.p_pu).map(|(a, b)| a - b).collect();
+        let n = r.time_s.len();
+        let dt = (r.time_s[n - 1] - r.time_s[0]) / (n.max(2) - 1) as f64;
+        evidence::spectral_peak(
+            &res,
+            dt,
+            SHAFT_BAND_HZ.0,
+            SHAFT_BAND_HZ.1.min(0.95 * 0.5 / dt),
+        )
+    });
     EventEvidence {
         event: event.name.clone(),
         onset_s: onset,
         signals,
+        p_peak,
     }
 }
 
@@ -481,6 +504,9 @@ fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Event, String>
     .map_err(|e| e.to_string())
 }
 
+/// A candidate's re-fit with the bounds and ties it was re-fitted over (for its standard errors).
+type RefitRecord = (Refit, Vec<FreeBound>, Vec<(String, String)>);
+
 /// Fit and held-out problem data.
 struct Split {
     fit: Vec<EventData>,
@@ -504,7 +530,7 @@ fn split(events: &[Event], held_out: &[Event], block_s: f64) -> Result<Split, Di
     let (mut fit, mut held) = (vec![], vec![]);
     for e in events {
         let d = data(e)?;
-        let t0 = e.record.time_s[0];
+        let t0 = disturbance_s(e).map_or(e.record.time_s[0], |a| a - DISTURBANCE_LEAD_S);
         let even: Vec<bool> = e
             .record
             .time_s
@@ -529,9 +555,49 @@ fn split(events: &[Event], held_out: &[Event], block_s: f64) -> Result<Split, Di
         fit,
         held,
         description: format!(
-            "alternate {block_s} s blocks of each event: even blocks fitted, odd blocks held out"
+            "alternate {block_s} s blocks of each event, one fitted block starting \
+             {DISTURBANCE_LEAD_S} s before the disturbance: even blocks fitted, odd blocks held out"
         ),
     })
+}
+
+/// How far before the disturbance the fitted block that holds it starts [s].
+const DISTURBANCE_LEAD_S: f64 = 0.1;
+
+/// When the event's disturbance starts: the first sample after the init window whose |V|
+/// departs from the init window's mean by at least half the largest departure (`None` when
+/// the largest departure is within 1 % of |V|: no disturbance to speak of, ambient data).
+///
+/// The fit/held-out split aligns its blocks on it, so that the few samples of a fault dip —
+/// the ones that say most about the fast dynamics, and about what limits and saturation do —
+/// are fitted rather than left to be predicted by a re-fit that never saw them: with blocks
+/// counted from the start of the record, a 0.1 s dip falls in a held-out block as often as not.
+fn disturbance_s(event: &Event) -> Option<f64> {
+    let r = &event.record;
+    let init: Vec<f64> = r
+        .time_s
+        .iter()
+        .zip(&r.v_mag_pu)
+        .filter(|(t, _)| **t <= event.init.end_s)
+        .map(|(_, v)| *v)
+        .collect();
+    if init.is_empty() {
+        return None;
+    }
+    let pre = init.iter().sum::<f64>() / init.len() as f64;
+    let after = || {
+        r.time_s
+            .iter()
+            .zip(&r.v_mag_pu)
+            .filter(|(t, _)| **t > event.init.end_s)
+    };
+    let max_dev = after().map(|(_, v)| (v - pre).abs()).fold(0.0, f64::max);
+    if !(max_dev > 0.01 * pre.abs()) {
+        return None;
+    }
+    after()
+        .find(|(_, v)| (*v - pre).abs() >= 0.5 * max_dev)
+        .map(|(t, _)| *t)
 }
 
 /// Largest RK4 step of the re-fits' L-BFGS phase [s] (a calibration uses 2 ms). Every re-fit's
@@ -802,6 +868,39 @@ fn refit(
             },
         ),
     })
+}
+
+/// Standard errors of the re-fitted parameters `bounds` at `values` of `unit` (already at
+/// those values), over every sample of `events`, with the priors' rows: `σ² (JᵀJ)⁻¹` by
+/// [`crate::identify::analyse`]. `None` when a perturbed unit does not simulate.
+fn std_errors(
+    unit: &Unit,
+    bounds: &[FreeBound],
+    ties: &[(String, String)],
+    values: &[f64],
+    events: &[Event],
+    weights: (f64, f64),
+) -> Option<Vec<f64>> {
+    let free: Vec<FreeParam> = resolve(unit, bounds)
+        .ok()?
+        .into_iter()
+        .zip(values)
+        .map(|(f, v)| FreeParam { start: *v, ..f })
+        .collect();
+    let data: Vec<EventData> = events
+        .iter()
+        .map(|e| EventData::new(e, None, None))
+        .collect::<Result<_, _>>()
+        .ok()?;
+    let mut problem = Problem::new(unit.clone(), free, data, weights);
+    problem.ties = ties
+        .iter()
+        .map(|(a, b)| Some((unit.param(a).ok()?, unit.param(b).ok()?)))
+        .collect::<Option<_>>()?;
+    problem.prior_weight = PRIOR_WEIGHT;
+    let jac = crate::fit::jacobian(&problem, values)?;
+    let rss = sum_of_squares(&problem.residuals(values, &accurate_integrator()).ok()?);
+    Some(crate::identify::analyse(&jac, rss, 0.95).std_errors)
 }
 
 /// RMS of P and Q over every sample of the events (accurate integrator).
@@ -1145,6 +1244,11 @@ pub fn diagnose(
     // 3. Context for the catalog.
     let mut ctx = context_from(&before[0].1, &events[0]);
     ctx.mode_hint_hz = mode_hint(&evidence_before, ctx.rate_hz);
+    ctx.shaft_resonance = evidence_before
+        .iter()
+        .filter_map(|e| e.p_peak.clone())
+        .filter(catalog::resonance_stands_out)
+        .min_by(|a, b| a.p_value.total_cmp(&b.p_value));
     let (dip, df) = regime(events);
     (ctx.deepest_dip, ctx.sustained_df_hz) = (Some(dip), Some(df));
     ctx.field_current_rise = before
@@ -1163,7 +1267,7 @@ pub fn diagnose(
         opts.causes.iter().map(|s| s.as_str()).collect()
     };
     let mut reports = vec![];
-    let mut refits: BTreeMap<String, Refit> = BTreeMap::new();
+    let mut refits: BTreeMap<String, RefitRecord> = BTreeMap::new();
     for id in ids {
         let info = catalog::find(id).expect("checked");
         let t0 = Instant::now();
@@ -1436,6 +1540,24 @@ pub fn diagnose(
             rms_q_ext,
         };
         rep.significant = passes(net_fit, net_held);
+        let fitted: Vec<(String, f64)> = resolve(&ext.unit, &bounds)
+            .unwrap_or_default()
+            .iter()
+            .zip(&r.values)
+            .map(|(f, v)| (f.path.clone(), *v))
+            .collect();
+        if let Some(why) = catalog::below_resolution(id, &fitted, &ctx) {
+            if rep.significant {
+                rep.significant = false;
+                rep.note = format!("not named: {why}");
+            }
+        }
+        if !rep.significant {
+            if let Some(why) = catalog::named_by_evidence(id, &ctx) {
+                rep.significant = true;
+                rep.note = format!("named by the evidence: {why}");
+            }
+        }
         rep.distortion = distortion(&opts.refit, &base.unit, &r.unit);
         let free = resolve(&ext.unit, &bounds).unwrap_or_default();
         rep.parameters = free
@@ -1451,6 +1573,7 @@ pub fn diagnose(
                 result: *v,
                 extension: i < ext.extension_free.len(),
                 at_bound: f.at_bound(*v),
+                std_error: None,
             })
             .collect();
         progress.message(&format!(
@@ -1466,7 +1589,7 @@ pub fn diagnose(
         rep.simulations += r.simulations + base.simulations;
         rep.failed_candidates = r.failures;
         rep.wall_s = t0.elapsed().as_secs_f64();
-        refits.insert(id.to_string(), r);
+        refits.insert(id.to_string(), (r, bounds.clone(), ext.ties.clone()));
         reports.push(rep);
     }
 
@@ -1495,10 +1618,19 @@ pub fn diagnose(
     let mut after = vec![];
     let mut evidence_after = vec![];
     let verdict = match named {
-        Some(rep) => {
-            let r = refits
+        Some(mut rep) => {
+            let (r, bounds, ties) = refits
                 .remove(&rep.cause)
                 .expect("a significant candidate was re-fitted");
+            // Uncertainty of the re-fitted parameters (all samples, with the priors).
+            if let Some(se) = std_errors(&r.unit, &bounds, &ties, &r.values, events, weights) {
+                for (p, e) in rep.parameters.iter_mut().zip(se) {
+                    p.std_error = Some(e);
+                }
+                if let Some(c) = reports.iter_mut().find(|c| c.cause == rep.cause) {
+                    c.parameters = rep.parameters.clone();
+                }
+            }
             for e in events {
                 if let Ok((_, tr)) = fitness(&r.unit, e, false) {
                     evidence_after.push(event_evidence(e, &tr));
@@ -1522,7 +1654,16 @@ pub fn diagnose(
                 .expect("significant candidates have gains");
             let params: Vec<String> = key
                 .iter()
-                .map(|(p, v, u)| format!("{p} = {} {u}", fmt_num(*v)))
+                .map(|(p, v, u)| {
+                    let se = rep
+                        .parameters
+                        .iter()
+                        .find(|c| &c.param == p)
+                        .and_then(|c| c.std_error)
+                        .filter(|e| e.is_finite())
+                        .map_or(String::new(), |e| format!(" ± {}", fmt_num(e)));
+                    format!("{p} = {}{se} {u}", fmt_num(*v))
+                })
                 .collect();
             let statement = format!(
                 "{}: {}. The extension ({}) lowers χ² on the fitted samples by {:.0} % ({:.1} -> {:.1}) and on the held-out \
@@ -1557,7 +1698,7 @@ pub fn diagnose(
                 statement
             } else {
                 format!(
-                    "{statement} Without it the re-fitted unit bends calibrated values away from their datasheet;                      with it they come back: {}.",
+                    "{statement} Without it the re-fitted unit bends calibrated values away from their datasheet; with it they come back: {}.",
                     back.join(", ")
                 )
             };
