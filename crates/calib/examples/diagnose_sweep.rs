@@ -19,7 +19,10 @@ fn main() {
         .unwrap_or(101);
     let mut causes: Vec<String> = args.iter().skip(1).cloned().collect();
     if causes.is_empty() {
-        causes = catalog::CAUSES.iter().map(|c| c.id.to_string()).collect();
+        causes = catalog::CAUSES
+            .iter()
+            .map(|c| c.info().id.to_string())
+            .collect();
         causes.push("none".into());
     }
     let mut rows = vec![];

@@ -118,10 +118,8 @@ fn every_extension_of_the_catalog_starts_in_steady_state_on_the_base_unit() {
     let t = scenario("none", 1, None);
     let (_, ev) = itaipu_calib::diagnose::trial::truth_and_event(&t).unwrap();
     let ctx = itaipu_calib::diagnose::context(&base, &ev).unwrap();
-    for c in catalog::CAUSES {
-        let ext = catalog::extend(c.id, &base, &ctx)
-            .unwrap()
-            .unwrap_or_else(|why| panic!("{}: {why}", c.id));
+    for c in catalog::CAUSES.iter().map(|c| c.info()) {
+        let ext = catalog::extend(c.id, &base, &ctx).unwrap_or_else(|e| panic!("{}: {e}", c.id));
         let tr = itaipu_dynamics::simulate::simulate(
             &ext.unit,
             &ev,

@@ -1,6 +1,7 @@
-//! The catalog of causes: for each, what it looks like in the residual evidence, the extension
-//! block that models it, and which parameters a re-fit frees (the extension's own, then the
-//! unit's parameters it interacts with).
+//! The catalog of causes: the [`Cause`] trait each cause implements (what it looks like in the
+//! residual evidence, the extension block that models it, which parameters a re-fit frees — the
+//! extension's own, then the unit's parameters it interacts with — and its self-test scenario),
+//! the registry [`CAUSES`] (one file per cause in `causes/`), and what every cause shares.
 //!
 //! One definition serves two uses: [`extend`] builds the extended unit that `diagnose` re-fits,
 //! and [`hide`] builds the same extension with chosen values, so that `synth` can hide a cause
@@ -31,81 +32,107 @@ pub struct CauseInfo {
     pub key_params: &'static [&'static str],
 }
 
-/// Every cause `diagnose` knows, in the order they are tried.
-pub static CAUSES: &[CauseInfo] = &[
-    CauseInfo {
-        id: "torsional_mode",
-        title: "torsional mode of the turbine-generator shaft",
-        signature: "a lightly damped oscillation in the P residual above the electromechanical modes, \
-                    present after every disturbance",
-        extension: "two_mass_shaft between the governor and the machine (H_t, mode frequency, damping ratio), \
-                    machine.h becomes the generator mass",
-        key_params: &["shaft.f_torsion_hz", "shaft.zeta"],
-    },
-    CauseInfo {
-        id: "exciter_limit",
-        title: "exciter output limits reached",
-        signature: "Q residual confined to the dip and the first recovery seconds (the field voltage \
-                    saturates on its ceiling or floor), small before and long after",
-        extension: "exciter ceiling E_MAX and floor E_MIN freed (with the AVR gain)",
-        key_params: &["exciter.e_max", "exciter.e_min"],
-    },
-    CauseInfo {
-        id: "saturation",
-        title: "magnetic saturation other than modelled",
-        signature: "Q residual that grows with the flux (voltage) level and a Q bias after the event",
-        extension: "machine saturation S(1.0), S(1.2) freed (with the AVR gain, T_E, X'_d and H)",
-        key_params: &["machine.s10", "machine.s12"],
-    },
-    CauseInfo {
-        id: "governor",
-        title: "governor action missing or mis-modelled",
-        signature: "slow P residual that follows the frequency deviation (seconds), growing through the \
-                    record",
-        extension: "HYGOV (added, or refitted) with a speed deadband and its gate rate limit VELM free",
-        key_params: &["deadband.db", "governor.velm"],
-    },
-    CauseInfo {
-        id: "measurement_skew",
-        title: "power channels skewed against the voltage channel",
-        signature: "P and Q residuals shaped like the time derivative of the response (largest where P and Q \
-                    change fastest), cross-correlated with the input at a lag",
-        extension: "pmu_measurement block: a fractional delay of the P and Q channels",
-        key_params: &["measurement.pq_delay_s"],
-    },
-    CauseInfo {
-        id: "terminal_load",
-        title: "unmodelled load between the machine and the PMU",
-        signature: "P and Q residuals proportional to the voltage deviation (largest in the dip), no lag",
-        extension: "terminal_load block: a constant-impedance P and Q load at the terminal bus",
-        key_params: &["load.p_load", "load.q_load"],
-    },
-    CauseInfo {
-        id: "pss_state",
-        title: "PSS in service other than modelled",
-        signature: "electromechanical swing in the P residual with the wrong damping after the event",
-        extension: "the PSS removed when the model has one; a STAB3 added when it has none",
-        key_params: &["pss.in_service"],
-    },
-    CauseInfo {
-        id: "oel",
-        title: "over-excitation limiter acting after the event",
-        signature: "Q residual that appears seconds after the event, while the field current stays high, \
-                    and grows (the limiter pulls the field back)",
-        extension: "inverse-time OEL on the field current (pickup, I²t capacity, integral gain), with the AVR \
-                    gain, T_E, X'_d and H",
-        key_params: &["oel.i_pickup", "oel.a_max"],
-    },
-];
+pub use super::causes::CAUSES;
+
+/// A cause of the catalog. Implemented once per cause, in `diagnose/causes/<cause>.rs`, and
+/// listed in [`CAUSES`]; the diagnosis, `synth --hide`, the CLI, Python and the self-tests all
+/// go through it.
+pub trait Cause: Sync {
+    /// Its id, title and descriptions.
+    fn info(&self) -> &'static CauseInfo;
+
+    /// Extends `x.unit` (a copy of the unit as given, its machine, exciter, PSS and governor
+    /// named in `roles`) with the cause's model and sets what a re-fit frees: the extension's
+    /// own parameters, the unit parameters it interacts with, ties, fixed results, the search
+    /// length. [`CauseError::NotApplicable`] when the cause cannot apply to this unit or these
+    /// events (no exciter, no dip to reach a limit).
+    fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError>;
+
+    /// Features of the evidence that point to the cause (shown in the candidates' table, not
+    /// used to rank).
+    fn signature(&self, _ev: &[super::EventEvidence], _ctx: &Context) -> Vec<String> {
+        vec![]
+    }
+
+    /// Why the evidence names the cause by itself, when a re-fit cannot measure it (`None`:
+    /// only its gain can name it).
+    fn named_by_evidence(&self, _ctx: &Context) -> Option<String> {
+        None
+    }
+
+    /// Why the fitted extension (its parameters `(path, value)`) is below what the data can
+    /// resolve; then it is not named, whatever its gain.
+    fn below_resolution(&self, _fitted: &[(String, f64)], _ctx: &Context) -> Option<String> {
+        None
+    }
+
+    /// The cause's canonical self-test: values hidden in a synthetic truth (`spread(salt)` is a
+    /// seeded number in [-1, 1]), the parameter whose recovery is scored and the event that
+    /// drives the unit into the cause's regime (see [`super::trial::scenario`]).
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario;
+}
+
+/// A cause's self-test scenario ([`Cause::scenario`]).
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    /// `(path, value)` of the extension's parameters in the truth.
+    pub values: Vec<(&'static str, f64)>,
+    /// The parameter whose recovery is scored, with its tolerance.
+    pub key: Option<(&'static str, super::trial::Tolerance)>,
+    /// The event that shows the cause.
+    pub kind: itaipu_dynamics::synthetic::EventKind,
+}
+
+/// The instances of the unit's machine, exciter, PSS and governor.
+#[derive(Debug, Clone)]
+pub struct Roles {
+    pub machine: String,
+    pub exciter: Option<String>,
+    pub pss: Option<String>,
+    pub governor: Option<String>,
+}
+
+/// Why a cause's extension was not built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CauseError {
+    /// No such cause in the catalog.
+    #[error("unknown cause '{0}' (known: {known})", known = ids())]
+    Unknown(String),
+    /// The cause cannot apply to this unit or these events.
+    #[error("{0}")]
+    NotApplicable(String),
+    /// The extension could not be built (a parameter, a block or a wiring the unit refused).
+    #[error("{0}")]
+    Build(String),
+}
+
+impl CauseError {
+    pub fn not_applicable(why: impl Into<String>) -> Self {
+        Self::NotApplicable(why.into())
+    }
+
+    pub fn build(why: impl std::fmt::Display) -> Self {
+        Self::Build(why.to_string())
+    }
+}
+
+/// The cause with id `id`.
+pub fn cause(id: &str) -> Option<&'static dyn Cause> {
+    CAUSES.iter().copied().find(|c| c.info().id == id)
+}
 
 /// Looks a cause up by id.
 pub fn find(id: &str) -> Option<&'static CauseInfo> {
-    CAUSES.iter().find(|c| c.id == id)
+    cause(id).map(|c| c.info())
 }
 
 /// Ids of all causes, for messages.
 pub fn ids() -> String {
-    CAUSES.iter().map(|c| c.id).collect::<Vec<_>>().join(", ")
+    CAUSES
+        .iter()
+        .map(|c| c.info().id)
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// A free parameter of a candidate re-fit.
@@ -165,58 +192,6 @@ pub fn resonance_stands_out(p: &crate::evidence::SpectralPeak) -> bool {
     p.p_value < RESONANCE_P && p.prominence >= RESONANCE_PROMINENCE
 }
 
-/// The evidence that names `cause` by itself, when a re-fit cannot measure it: a torsional
-/// mode kept ringing by random turbine torque is a resonance in the P residual that no
-/// deterministic playback reproduces, so its re-fit gains nothing, while the spectrum shows it
-/// far above the measurement noise.
-pub fn named_by_evidence(cause: &str, ctx: &Context) -> Option<String> {
-    match cause {
-        "torsional_mode" => ctx.shaft_resonance.as_ref().map(|p| {
-            format!(
-                "the P residual has a resonance at {:.2} Hz with {:.1} times the band's noise power \
-                 over {:.1} Hz ({:.1} times its neighbours'; chance from noise alone {:.1e}), which \
-                 no deterministic playback reproduces: a shaft mode kept ringing by the turbine's \
-                 torque",
-                p.freq_hz,
-                p.ratio,
-                crate::evidence::PEAK_WINDOW_HZ,
-                p.prominence,
-                p.p_value
-            )
-        }),
-        _ => None,
-    }
-}
-
-/// Smallest P/Q skew a diagnosis names, in sample intervals. Between samples the playback only
-/// knows the voltage by interpolation, and the unit's fastest responses (subtransient flux,
-/// the exciter) follow it within the sample interval, so a delay of a fraction of a sample
-/// trades against those: on practice records without any skew, the fitted delay comes out at
-/// 0.2-0.45 sample intervals. Half a sample is also the resolution a delay is scored to.
-pub const SKEW_RESOLUTION_SAMPLES: f64 = 0.5;
-
-/// Why the fitted extension of `cause` is below what the data can resolve (then it is not
-/// named, whatever its gain), from its fitted parameters `(path, value)`.
-pub fn below_resolution(cause: &str, fitted: &[(String, f64)], ctx: &Context) -> Option<String> {
-    match cause {
-        "measurement_skew" => {
-            let tau = fitted
-                .iter()
-                .find(|(p, _)| p == "measurement.pq_delay_s")?
-                .1;
-            let samples = tau * ctx.rate_hz;
-            (samples < SKEW_RESOLUTION_SAMPLES).then(|| {
-                format!(
-                    "the fitted delay ({:.1} ms, {samples:.2} sample intervals) is below half a sample \
-                     interval, which the playback's own timing between samples can account for",
-                    1e3 * tau
-                )
-            })
-        }
-        _ => None,
-    }
-}
-
 /// Dip from which a high-gain AVR is taken to run to its limits.
 pub const LIMIT_DIP: f64 = 0.05;
 /// Rise of the field current from which an over-excitation limiter can pick up: a voltage step
@@ -228,7 +203,7 @@ pub const OEL_IFD_RISE: f64 = 0.05;
 pub const GOVERNOR_DF_HZ: f64 = 0.02;
 /// Swarm-length factor of a candidate whose regime the events reach and that re-frees a
 /// calibration's bent stage parameters (limits, governor, PSS).
-const DEEP_SEARCH: usize = 5;
+pub const DEEP_SEARCH: usize = 5;
 
 /// A unit extended for one cause, with what to free in the re-fit.
 #[derive(Clone)]
@@ -265,37 +240,37 @@ pub fn instance_with_role(unit: &Unit, role: Role) -> Option<String> {
         .map(|i| i.name.clone())
 }
 
-fn model_of(unit: &Unit, name: &str) -> String {
+pub(crate) fn model_of(unit: &Unit, name: &str) -> String {
     unit.block(name)
         .map(|b| b.model().to_string())
         .unwrap_or_default()
 }
 
-fn new_block(model: &str, values: &[(&str, f64)]) -> Result<Box<dyn Block>, String> {
-    let info =
-        registry::find(model).ok_or_else(|| format!("model {model} is not in the registry"))?;
+pub(crate) fn new_block(model: &str, values: &[(&str, f64)]) -> Result<Box<dyn Block>, CauseError> {
+    let info = registry::find(model)
+        .ok_or_else(|| CauseError::build(format!("model {model} is not in the registry")))?;
     let mut b = info.create();
     for (name, v) in values {
         let ps = b.params_mut();
         let k = ps
             .index_of(name)
-            .ok_or_else(|| format!("{model} has no parameter {name}"))?;
+            .ok_or_else(|| CauseError::build(format!("{model} has no parameter {name}")))?;
         ps.set(k, *v);
     }
     Ok(b)
 }
 
-fn value(unit: &Unit, path: &str) -> Result<f64, String> {
+pub(crate) fn value(unit: &Unit, path: &str) -> Result<f64, CauseError> {
     unit.param(path)
         .map(|r| unit.get(r))
-        .map_err(|e| e.to_string())
+        .map_err(CauseError::build)
 }
 
-fn has_param(unit: &Unit, path: &str) -> bool {
+pub(crate) fn has_param(unit: &Unit, path: &str) -> bool {
     unit.param(path).is_ok()
 }
 
-fn fb(param: &str, min: f64, max: f64, start: f64) -> FreeBound {
+pub(crate) fn fb(param: &str, min: f64, max: f64, start: f64) -> FreeBound {
     FreeBound {
         param: param.to_string(),
         min,
@@ -307,23 +282,31 @@ fn fb(param: &str, min: f64, max: f64, start: f64) -> FreeBound {
     }
 }
 
-fn scanned(mut b: FreeBound, points: usize) -> FreeBound {
+pub(crate) fn scanned(mut b: FreeBound, points: usize) -> FreeBound {
     b.scan = points;
     b
 }
 
 /// Adds block `name` (the wiring is resolved once all edits are made).
-fn add_block(unit: &mut Unit, name: &str, block: Box<dyn Block>) -> Result<(), String> {
-    unit.add(name, block, &[]).map_err(|e| e.to_string())
+pub(crate) fn add_block(
+    unit: &mut Unit,
+    name: &str,
+    block: Box<dyn Block>,
+) -> Result<(), CauseError> {
+    unit.add(name, block, &[]).map_err(CauseError::build)
 }
 
 /// Rewires ports of the existing instance `name`, keeping its other connections.
-fn rewire(unit: &mut Unit, name: &str, ports: &[(&str, &str)]) -> Result<(), String> {
+pub(crate) fn rewire(
+    unit: &mut Unit,
+    name: &str,
+    ports: &[(&str, &str)],
+) -> Result<(), CauseError> {
     let rw: Vec<(String, String)> = ports
         .iter()
         .map(|(a, b)| (a.to_string(), b.to_string()))
         .collect();
-    unit.rewire(name, &rw).map_err(|e| e.to_string())
+    unit.rewire(name, &rw).map_err(CauseError::build)
 }
 
 /// Set-point offsets that every re-fit frees as nuisance parameters (`models.md`: a playback
@@ -342,7 +325,7 @@ pub fn nuisance(unit: &Unit) -> Vec<FreeBound> {
 /// Frees the positive parameter `path` of `u` within `[v/factor, v·factor]` around its value
 /// `v`, clipped to the model's declared range (a calibrated value may sit on the bound of the
 /// calibration that bent it, so the band is wide). `None` if it does not exist or is not > 0.
-fn around(u: &Unit, path: &str, factor: f64) -> Option<FreeBound> {
+pub(crate) fn around(u: &Unit, path: &str, factor: f64) -> Option<FreeBound> {
     let (_, spec, v) = u.params().into_iter().find(|(p, _, _)| p == path)?;
     (v > 0.0).then(|| {
         let lo = (v / factor).max(spec.range.0).min(v);
@@ -355,7 +338,7 @@ fn around(u: &Unit, path: &str, factor: f64) -> Option<FreeBound> {
 /// OEL, a saturation curve) bends to make up for it: the AVR gain K_A and exciter time constant
 /// T_E within ×3 (a bent value may sit on its calibration's bound), X'_d and H within ×1.6.
 /// T'_d0 stays as given (see `trial::NOMINAL_OFFSETS`).
-fn field_side(u: &Unit, exciter: Option<&str>, machine: &str) -> Vec<FreeBound> {
+pub(crate) fn field_side(u: &Unit, exciter: Option<&str>, machine: &str) -> Vec<FreeBound> {
     let avr = exciter.into_iter().flat_map(|x| {
         [
             around(u, &format!("{x}.k"), 3.0),
@@ -370,23 +353,23 @@ fn field_side(u: &Unit, exciter: Option<&str>, machine: &str) -> Vec<FreeBound> 
     .collect()
 }
 
-/// Builds the extension of `unit` for `cause`. `Ok(None)` when the cause does not apply to this
-/// unit (e.g. no exciter for `exciter_limit`); the reason is in the string.
-pub fn extend(
-    cause: &str,
-    unit: &Unit,
-    ctx: &Context,
-) -> Result<Result<Extension, String>, String> {
-    let info = find(cause).ok_or_else(|| format!("unknown cause '{cause}' (known: {})", ids()))?;
+/// Builds the extension of `unit` for `cause` ([`Cause::extend`]), with the set-point offsets
+/// (nuisance parameters) freed in every re-fit.
+pub fn extend(cause_id: &str, unit: &Unit, ctx: &Context) -> Result<Extension, CauseError> {
+    let c = cause(cause_id).ok_or_else(|| CauseError::Unknown(cause_id.to_string()))?;
+    let info = c.info();
     let mut u = unit.clone();
-    u.ensure_finished().map_err(|e| e.to_string())?;
-    let machine = instance_with_role(&u, Role::Machine).ok_or("the unit has no machine")?;
-    let exciter = instance_with_role(&u, Role::Exciter);
-    let pss = instance_with_role(&u, Role::Pss);
-    let governor = instance_with_role(&u, Role::Governor);
+    u.ensure_finished().map_err(CauseError::build)?;
+    let roles = Roles {
+        machine: instance_with_role(&u, Role::Machine)
+            .ok_or_else(|| CauseError::build("the unit has no machine"))?,
+        exciter: instance_with_role(&u, Role::Exciter),
+        pss: instance_with_role(&u, Role::Pss),
+        governor: instance_with_role(&u, Role::Governor),
+    };
     let mut ext = Extension {
         cause: info.id,
-        unit: u.clone(),
+        unit: u,
         extension_free: vec![],
         interacting_free: vec![],
         discrete_params: 0,
@@ -395,310 +378,16 @@ pub fn extend(
         fixed: vec![],
         search_factor: 1,
     };
-    let not_applicable = |why: &str| Ok(Err(why.to_string()));
-    match info.id {
-        "torsional_mode" => {
-            if governor.is_none() {
-                return not_applicable("no governor block to feed the turbine mass");
-            }
-            if u.block("shaft").is_some() {
-                return not_applicable("the unit already has a block named 'shaft'");
-            }
-            let h_path = format!("{machine}.h");
-            let h = value(&u, &h_path)?;
-            // Split the calibrated (rigid) inertia: 15 % to the turbine to start with.
-            let h_t = 0.15 * h;
-            let nyquist = 0.5 * ctx.rate_hz;
-            let f_hi = (0.9 * nyquist).clamp(1.0, 25.0);
-            // A resonance in the residual pins the frequency (the spectrum's resolution is a
-            // few hundredths of a hertz): the re-fit searches within 2 % of it.
-            let resonance = ctx
-                .shaft_resonance
-                .as_ref()
-                .map(|p| p.freq_hz)
-                .filter(|f| *f > 1.0 && *f < f_hi);
-            let f_start = resonance
-                .or(ctx.mode_hint_hz.filter(|f| *f > 1.0 && *f < f_hi))
-                .unwrap_or(0.5 * f_hi);
-            let (f_min, f_max) = match resonance {
-                Some(f) => (0.98 * f, (1.02 * f).min(f_hi)),
-                None => (1.0, f_hi),
-            };
-            let shaft = new_block(
-                "two_mass_shaft",
-                &[
-                    ("h_turbine", h_t),
-                    ("h_generator", h - h_t),
-                    ("f_torsion_hz", f_start),
-                    ("zeta", 0.05),
-                    ("d_turbine", 0.0),
-                ],
-            )?;
-            let h_r = u.param(&h_path).map_err(|e| e.to_string())?;
-            u.set(h_r, h - h_t);
-            add_block(&mut u, "shaft", shaft)?;
-            rewire(&mut u, &machine, &[("pm", "p_shaft")])?;
-            ext.extension_free = vec![
-                scanned(fb("shaft.f_torsion_hz", f_min, f_max, f_start), 48),
-                fb("shaft.zeta", 0.0005, 0.5, 0.05),
-                fb("shaft.h_turbine", 0.02 * h, 0.6 * h, h_t),
-            ];
-            ext.interacting_free = vec![fb(&h_path, 0.4 * h, 1.05 * h, h - h_t)];
-            ext.ties = vec![(h_path, "shaft.h_generator".into())];
-        }
-        "exciter_limit" => {
-            let Some(x) = exciter else {
-                return not_applicable("no exciter");
-            };
-            let (pmax, pmin) = (format!("{x}.e_max"), format!("{x}.e_min"));
-            if !has_param(&u, &pmax) || !has_param(&u, &pmin) {
-                return not_applicable(&format!(
-                    "exciter {} has no E_MAX/E_MIN limits",
-                    model_of(&u, &x)
-                ));
-            }
-            if ctx.deepest_dip.is_some_and(|d| d < LIMIT_DIP) {
-                // A limit just above the operating point would only clamp E_fd to make up for a
-                // mis-calibrated AVR gain.
-                return not_applicable(&format!(
-                    "no event dips |V| by {:.0} % or more, so the AVR is not driven to its limits",
-                    100.0 * LIMIT_DIP
-                ));
-            }
-            let efd0 = ctx
-                .efd0
-                .ok_or("the field voltage at the operating point is unknown")?;
-            let (emax, emin) = (value(&u, &pmax)?, value(&u, &pmin)?);
-            let hi = emax.max(efd0 + 3.0).max(2.0 * efd0);
-            ext.extension_free = vec![
-                scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi)), 24),
-                fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05)),
-            ];
-            // The AVR gain and time constant, X'_d and H: a calibration without the right limit
-            // bends them to make up for it. T'_d0 stays as given: on the ceiling the field flux
-            // rises at E_MAX/T'_d0, so P and Q cannot tell the two apart (see
-            // `trial::NOMINAL_OFFSETS`). T_E is scanned with E_MAX: on and off the ceiling the
-            // two trade along a curved valley (a faster exciter reaches the ceiling sooner, as a
-            // higher ceiling would).
-            ext.interacting_free = field_side(&u, Some(&x), &machine);
-            let te = format!("{x}.te");
-            for b in ext.interacting_free.iter_mut().filter(|b| b.param == te) {
-                b.scan = 8;
-            }
-            ext.search_factor = DEEP_SEARCH;
-        }
-        "saturation" => {
-            let (s10, s12) = (format!("{machine}.s10"), format!("{machine}.s12"));
-            if !has_param(&u, &s10) || !has_param(&u, &s12) {
-                return not_applicable(&format!(
-                    "machine {} has no S(1.0), S(1.2)",
-                    model_of(&u, &machine)
-                ));
-            }
-            let (a, b) = (value(&u, &s10)?, value(&u, &s12)?);
-            ext.extension_free = vec![fb(&s10, 0.0, 0.4, a), fb(&s12, 0.02, 1.5, b)];
-            // Saturation sets the incremental field-to-flux gain: a calibration with the wrong
-            // curve bends the AVR and X'_d to make up for it; and a calibration that is off for
-            // any other reason must not be "repaired" by a saturation curve (its baseline
-            // re-fits them too).
-            ext.interacting_free = field_side(&u, exciter.as_deref(), &machine);
-        }
-        "governor" => {
-            let Some(g) = governor else {
-                return not_applicable("no governor block");
-            };
-            if u.block("deadband").is_some() {
-                return not_applicable("the unit already has a block named 'deadband'");
-            }
-            let model = model_of(&u, &g);
-            if !model.eq_ignore_ascii_case("HYGOV") {
-                // Governor action missing: put a typical HYGOV in its place.
-                let hygov = registry::find("HYGOV")
-                    .ok_or("HYGOV is not in the registry")?
-                    .create();
-                u.put(&g, hygov, &[]).map_err(|e| e.to_string())?;
-                ext.description = format!(
-                    "HYGOV (typical values) in place of {model}, with a speed deadband; {}",
-                    info.extension
-                );
-            }
-            add_block(
-                &mut u,
-                "deadband",
-                new_block("speed_deadband", &[("db", 0.0)])?,
-            )?;
-            rewire(&mut u, &g, &[("speed", "speed_db")])?;
-            let velm = value(&u, &format!("{g}.velm"))?;
-            ext.extension_free = vec![
-                scanned(fb("deadband.db", 0.0, 0.004, 0.0), 9),
-                scanned(fb(&format!("{g}.velm"), 0.005, 0.5, velm), 9),
-            ];
-            let (r, tw) = (
-                value(&u, &format!("{g}.r_perm"))?,
-                value(&u, &format!("{g}.t_w"))?,
-            );
-            // On a frequency excursion the machine's inertia carries the power the governor does
-            // not: a calibration without the governor's nonlinearity bends H to make up for it.
-            ext.interacting_free = vec![
-                fb(&format!("{g}.r_perm"), 0.01, 0.15, r),
-                fb(&format!("{g}.t_w"), 0.3, 4.0, tw),
-            ];
-            ext.interacting_free
-                .extend(around(&u, &format!("{machine}.h"), 1.6));
-            ext.interacting_free
-                .extend(around(&u, &format!("{machine}.x_d_prime"), 1.6));
-            if let Some(x) = &exciter {
-                ext.interacting_free
-                    .extend(around(&u, &format!("{x}.k"), 3.0));
-            }
-            if ctx.sustained_df_hz.is_none_or(|df| df > GOVERNOR_DF_HZ) {
-                ext.search_factor = DEEP_SEARCH;
-            }
-            if !model.eq_ignore_ascii_case("HYGOV") {
-                // A new governor: every parameter the fit needs is new, count them all.
-                ext.extension_free.append(&mut ext.interacting_free);
-            }
-        }
-        "measurement_skew" => {
-            if u.block("measurement").is_some() {
-                return not_applicable("the unit already has a measurement block");
-            }
-            add_block(&mut u, "measurement", new_block("pmu_measurement", &[])?)?;
-            let max = 3.0 / ctx.rate_hz.max(1.0);
-            ext.extension_free = vec![scanned(
-                fb(
-                    "measurement.pq_delay_s",
-                    0.0,
-                    max,
-                    0.5 / ctx.rate_hz.max(1.0),
-                ),
-                13,
-            )];
-        }
-        "terminal_load" => {
-            if u.block("load").is_some() {
-                return not_applicable("the unit already has a block named 'load'");
-            }
-            add_block(&mut u, "load", new_block("terminal_load", &[])?)?;
-            ext.extension_free = vec![
-                fb("load.p_load", 0.0, 0.15, 0.0),
-                fb("load.q_load", -0.15, 0.15, 0.0),
-            ];
-        }
-        "pss_state" => {
-            let Some(x) = exciter else {
-                return not_applicable("no exciter for a PSS to act on");
-            };
-            if let Some(p) = pss {
-                u = u.without(&[p.as_str()]).map_err(|e| e.to_string())?;
-                ext.description = format!("the PSS ({}) taken out of service", model_of(unit, &p));
-                ext.discrete_params = 1;
-                ext.fixed = vec![("pss.in_service".into(), 0.0)];
-            } else {
-                add_block(
-                    &mut u,
-                    "pss",
-                    registry::find("STAB3")
-                        .ok_or("STAB3 is not in the registry")?
-                        .create(),
-                )?;
-                ext.description = "a STAB3 PSS (typical values) put in service".into();
-                ext.extension_free =
-                    vec![fb("pss.k_x", 0.2, 5.0, 1.0), fb("pss.t_x2", 0.5, 8.0, 3.0)];
-                ext.discrete_params = 1;
-                ext.fixed = vec![("pss.in_service".into(), 1.0)];
-            }
-            // A calibration with the PSS as modelled tuned the AVR, the inertia and the field
-            // dynamics to make up for it: they move with the PSS's state (a longer search).
-            ext.search_factor = DEEP_SEARCH;
-            for (p, factor) in [
-                (format!("{x}.k"), 3.0),
-                (format!("{x}.te"), 3.0),
-                (format!("{machine}.h"), 1.6),
-                (format!("{machine}.x_d_prime"), 2.5),
-                (format!("{machine}.t_d0_prime"), 1.6),
-            ] {
-                ext.interacting_free.extend(around(&u, &p, factor));
-            }
-            let d = format!("{machine}.d");
-            if let Ok(v) = value(&u, &d) {
-                ext.interacting_free.push(fb(&d, 0.0, v.max(0.0) + 3.0, v));
-            }
-        }
-        "oel" => {
-            let Some(x) = exciter else {
-                return not_applicable("no exciter for an OEL to act on");
-            };
-            let has_voel = u
-                .block(&x)
-                .is_some_and(|b| b.ports().iter().any(|p| p.name == "voel"));
-            if !has_voel {
-                return not_applicable(&format!("exciter {} has no OEL input", model_of(&u, &x)));
-            }
-            if u.block("oel").is_some() {
-                return not_applicable("the unit already has an OEL");
-            }
-            if ctx.deepest_dip.is_some_and(|d| d < LIMIT_DIP)
-                && ctx.field_current_rise.is_none_or(|r| r < OEL_IFD_RISE)
-            {
-                // Without a dip or a sustained field forcing the field current is not driven
-                // into overload; a limiter picking up just above the operating point would only
-                // trim a mis-calibrated AVR gain.
-                return not_applicable(&format!(
-                    "no event dips |V| by {:.0} % or more or raises the field current by {:.0} % or more, \
-                     so the field current is not forced into overload",
-                    100.0 * LIMIT_DIP,
-                    100.0 * OEL_IFD_RISE
-                ));
-            }
-            let i0 = ctx
-                .xadifd0
-                .ok_or("the field current at the operating point is unknown")?;
-            if !(i0 > 0.0) {
-                return not_applicable("the field current at the operating point is not positive");
-            }
-            // Rated field current = the pre-event one, so pickup and limit read as multiples of it
-            // (the pickup stays at least 1 % above, so the limiter starts inactive).
-            let oel = new_block(
-                "oel",
-                &[
-                    ("ifd_rated", i0),
-                    ("i_pickup", 1.2),
-                    ("i_limit", 1.2),
-                    ("a_max", 2.0),
-                    ("k_cool", 0.05),
-                    ("k_i", 0.01),
-                    ("voel_min", -0.5),
-                ],
-            )?;
-            add_block(&mut u, "oel", oel)?;
-            // Pickup and I²t capacity scanned jointly: together they set when the limiter acts
-            // (a lower pickup with a larger capacity acts as late), and off that valley the
-            // objective is flat (the limiter never acts) or far worse (it acts at the wrong
-            // time).
-            ext.extension_free = vec![
-                scanned(fb("oel.i_pickup", 1.01, 1.6, 1.2), 12),
-                scanned(fb("oel.a_max", 0.02, 30.0, 0.3), 8),
-                fb("oel.k_i", 0.002, 0.2, 0.03),
-            ];
-            ext.ties = vec![("oel.i_pickup".into(), "oel.i_limit".into())];
-            // A calibration without the limiter bends the AVR and the field dynamics to make
-            // up for the field being pulled back (as for `exciter_limit`).
-            ext.interacting_free = field_side(&u, Some(&x), &machine);
-            ext.search_factor = DEEP_SEARCH;
-        }
-        _ => unreachable!("every catalog id is handled"),
-    }
-    u.ensure_finished().map_err(|e| e.to_string())?;
+    c.extend(&mut ext, &roles, ctx)?;
+    ext.unit.ensure_finished().map_err(CauseError::build)?;
     // Every re-fit also frees the set-point offsets (nuisance parameters).
-    for n in nuisance(&u) {
+    for n in nuisance(&ext.unit) {
         let known = |v: &Vec<FreeBound>| v.iter().any(|f| f.param == n.param);
         if !known(&ext.extension_free) && !known(&ext.interacting_free) {
             ext.interacting_free.push(n);
         }
     }
-    ext.unit = u;
-    Ok(Ok(ext))
+    Ok(ext)
 }
 
 /// Why a cause cannot be hidden.
@@ -753,19 +442,15 @@ pub fn hide(
     ctx: &Context,
     values: &BTreeMap<String, f64>,
 ) -> Result<(Unit, Extension), HideError> {
-    let ext = extend(cause, unit, ctx)
-        .map_err(|e| {
-            if find(cause).is_none() {
-                HideError::Request(e)
-            } else {
-                HideError::Build(e)
-            }
-        })?
-        .map_err(|why| HideError::NotApplicable {
+    let ext = extend(cause, unit, ctx).map_err(|e| match e {
+        CauseError::Unknown(_) => HideError::Request(e.to_string()),
+        CauseError::NotApplicable(why) => HideError::NotApplicable {
             cause: cause.to_string(),
             unit: unit.name.clone(),
             why,
-        })?;
+        },
+        CauseError::Build(msg) => HideError::Build(msg),
+    })?;
     let known = hideable_params(unit, &ext);
     for path in values.keys() {
         if let Some((from, _)) = ext.ties.iter().find(|(_, to)| to == path) {

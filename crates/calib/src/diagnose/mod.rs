@@ -39,6 +39,7 @@
 //! against naming a cause that only absorbs some structured misfit.
 
 pub mod catalog;
+pub mod causes;
 pub mod trial;
 
 use std::collections::BTreeMap;
@@ -916,71 +917,6 @@ fn rms_pq(unit: &Unit, events: &[Event]) -> (f64, f64) {
     ((sp / n.max(1.0)).sqrt(), (sq / n.max(1.0)).sqrt())
 }
 
-/// Features of the evidence that point to a cause (shown in the table, not used to rank).
-fn signature(cause: &str, ev: &[EventEvidence], ctx: &Context) -> Vec<String> {
-    let mut out = vec![];
-    for e in ev {
-        for s in &e.signals {
-            let top = s
-                .windows
-                .iter()
-                .max_by(|a, b| a.share_of_sse.total_cmp(&b.share_of_sse));
-            match (cause, s.signal.as_str()) {
-                ("torsional_mode", "P") | ("pss_state", "P") => {
-                    if let Some(m) = s
-                        .modes
-                        .iter()
-                        .filter(|m| m.freq_hz > 0.1)
-                        .max_by(|a, b| a.energy_share.total_cmp(&b.energy_share))
-                    {
-                        out.push(format!(
-                            "{}: P residual mode {:.2} Hz, ζ = {:.3}, amplitude {:.4} pu",
-                            e.event, m.freq_hz, m.damping_ratio, m.amplitude
-                        ));
-                    }
-                }
-                ("measurement_skew", _) | ("terminal_load", _) => {
-                    if let Some(x) = s.cross.iter().find(|x| x.input == "|V|" && x.significant) {
-                        out.push(format!(
-                            "{}: {} residual correlates with |V| (ρ = {:.2} at lag {})",
-                            e.event, s.signal, x.correlation, x.best_lag_samples
-                        ));
-                    }
-                }
-                ("governor", "P") => {
-                    if let Some(x) = s
-                        .cross
-                        .iter()
-                        .find(|x| x.input == "frequency" && x.significant)
-                    {
-                        out.push(format!(
-                            "{}: P residual correlates with frequency (ρ = {:.2} at lag {})",
-                            e.event, x.correlation, x.best_lag_samples
-                        ));
-                    }
-                }
-                ("exciter_limit", "Q") | ("oel", "Q") | ("saturation", "Q") => {
-                    if let Some(w) = top {
-                        out.push(format!(
-                            "{}: Q residual mostly in the {} window ({:.0} % of SSE)",
-                            e.event,
-                            w.label,
-                            100.0 * w.share_of_sse
-                        ));
-                    }
-                }
-                _ => {}
-            }
-        }
-    }
-    if cause == "torsional_mode" {
-        if let Some(f) = ctx.mode_hint_hz {
-            out.push(format!("search started at the residual's {f:.2} Hz mode"));
-        }
-    }
-    out
-}
-
 /// The dominant oscillatory mode above 1 Hz in the P residuals (matrix pencil), if any.
 fn mode_hint(ev: &[EventEvidence], rate_hz: f64) -> Option<f64> {
     ev.iter()
@@ -1137,10 +1073,9 @@ pub fn diagnose(
     }
     for c in &opts.causes {
         if catalog::find(c).is_none() {
-            return Err(DiagnoseError::Setup(format!(
-                "unknown cause '{c}' (known: {})",
-                catalog::ids()
-            )));
+            return Err(DiagnoseError::Setup(
+                catalog::CauseError::Unknown(c.clone()).to_string(),
+            ));
         }
     }
     check_refit(unit, &opts.refit)?;
@@ -1262,14 +1197,15 @@ pub fn diagnose(
 
     // 4. Candidates.
     let ids: Vec<&str> = if opts.causes.is_empty() {
-        CAUSES.iter().map(|c| c.id).collect()
+        CAUSES.iter().map(|c| c.info().id).collect()
     } else {
         opts.causes.iter().map(|s| s.as_str()).collect()
     };
     let mut reports = vec![];
     let mut refits: BTreeMap<String, RefitRecord> = BTreeMap::new();
     for id in ids {
-        let info = catalog::find(id).expect("checked");
+        let cause = catalog::cause(id).expect("checked");
+        let info = cause.info();
         let t0 = Instant::now();
         let mut rep = CandidateReport {
             cause: id.to_string(),
@@ -1281,24 +1217,24 @@ pub fn diagnose(
             fixed: vec![],
             gains: None,
             significant: false,
-            signature: signature(id, &evidence_before, &ctx),
+            signature: cause.signature(&evidence_before, &ctx),
             simulations: 0,
             failed_candidates: 0,
             wall_s: 0.0,
             distortion: vec![],
         };
         let ext: Extension = match catalog::extend(id, unit, &ctx) {
-            Err(msg) => {
-                rep.note = format!("could not build the extension: {msg}");
-                reports.push(rep);
-                continue;
-            }
-            Ok(Err(why)) => {
+            Err(catalog::CauseError::NotApplicable(why)) => {
                 rep.note = format!("not applicable: {why}");
                 reports.push(rep);
                 continue;
             }
-            Ok(Ok(ext)) => ext,
+            Err(e) => {
+                rep.note = format!("could not build the extension: {e}");
+                reports.push(rep);
+                continue;
+            }
+            Ok(ext) => ext,
         };
         let mut ext = ext;
         for b in &opts.refit {
@@ -1546,14 +1482,14 @@ pub fn diagnose(
             .zip(&r.values)
             .map(|(f, v)| (f.path.clone(), *v))
             .collect();
-        if let Some(why) = catalog::below_resolution(id, &fitted, &ctx) {
+        if let Some(why) = cause.below_resolution(&fitted, &ctx) {
             if rep.significant {
                 rep.significant = false;
                 rep.note = format!("not named: {why}");
             }
         }
         if !rep.significant {
-            if let Some(why) = catalog::named_by_evidence(id, &ctx) {
+            if let Some(why) = cause.named_by_evidence(&ctx) {
                 rep.significant = true;
                 rep.note = format!("named by the evidence: {why}");
             }

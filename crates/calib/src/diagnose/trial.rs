@@ -221,77 +221,12 @@ pub fn scenario(cause: &str, seed: u64, kind: Option<EventKind>) -> Trial {
             itaipu_dynamics::synthetic::Normal::new(seed.wrapping_mul(7919).wrapping_add(salt));
         2.0 * r.uniform() - 1.0
     };
-    let dip = EventKind::FaultDip;
-    let mut t = match cause {
-        "torsional_mode" => trial(
-            cause,
-            &[
-                ("shaft.f_torsion_hz", 5.0 + 2.0 * u(1)),
-                ("shaft.zeta", 0.02 + 0.01 * u(2)),
-                ("shaft.h_turbine", 0.8),
-                ("machine.h", 3.7),
-            ],
-            Some(("shaft.f_torsion_hz", Tolerance::Rel(0.05))),
-            dip,
-            seed,
-        ),
-        "exciter_limit" => trial(
-            cause,
-            &[("exciter.e_max", 2.9 + 0.3 * u(1))],
-            Some(("exciter.e_max", Tolerance::Rel(0.05))),
-            dip,
-            seed,
-        ),
-        "saturation" => trial(
-            cause,
-            &[
-                ("machine.s10", 0.2 + 0.05 * u(1)),
-                ("machine.s12", 0.6 + 0.1 * u(2)),
-            ],
-            None,
-            dip,
-            seed,
-        ),
-        "governor" => trial(
-            cause,
-            &[
-                ("deadband.db", 0.002 + 0.0005 * u(1)),
-                ("governor.velm", 0.01),
-            ],
-            None,
-            EventKind::FrequencyExcursion,
-            seed,
-        ),
-        "measurement_skew" => trial(
-            cause,
-            &[("measurement.pq_delay_s", 0.012 + 0.006 * u(1))],
-            Some(("measurement.pq_delay_s", Tolerance::Abs(0.5 / 60.0))),
-            dip,
-            seed,
-        ),
-        "terminal_load" => trial(
-            cause,
-            &[
-                ("load.p_load", 0.05 + 0.02 * u(1)),
-                ("load.q_load", 0.04 + 0.02 * u(2)),
-            ],
-            None,
-            dip,
-            seed,
-        ),
-        "pss_state" => trial(cause, &[], None, dip, seed),
-        "oel" => trial(
-            cause,
-            &[
-                ("oel.i_pickup", 1.04 + 0.02 * u(1)),
-                ("oel.a_max", 0.1 + 0.05 * u(2)),
-                ("oel.k_i", 0.05),
-            ],
-            Some(("oel.i_pickup", Tolerance::Rel(0.05))),
-            dip,
-            seed,
-        ),
-        _ => trial("none", &[], None, dip, seed),
+    let mut t = match catalog::cause(cause) {
+        Some(c) => {
+            let s = c.scenario(&u);
+            trial(cause, &s.values, s.key, s.kind, seed)
+        }
+        None => trial("none", &[], None, EventKind::FaultDip, seed),
     };
     if let Some(k) = kind {
         t.kind = k;

@@ -1,0 +1,84 @@
+//! `exciter_limit`: the exciter's output limits reached in the dip, modelled by freeing the
+//! exciter's ceiling E_MAX and floor E_MIN (with the AVR gain and the field side a calibration
+//! without the limit bends).
+
+use itaipu_dynamics::synthetic::EventKind;
+
+use super::super::catalog::{
+    fb, field_side, has_param, model_of, scanned, value, Cause, CauseError, CauseInfo, Context,
+    Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP,
+};
+use super::super::trial::Tolerance;
+use super::super::EventEvidence;
+
+pub struct ExciterLimit;
+
+static INFO: CauseInfo = CauseInfo {
+    id: "exciter_limit",
+    title: "exciter output limits reached",
+    signature: "Q residual confined to the dip and the first recovery seconds (the field voltage \
+                saturates on its ceiling or floor), small before and long after",
+    extension: "exciter ceiling E_MAX and floor E_MIN freed (with the AVR gain)",
+    key_params: &["exciter.e_max", "exciter.e_min"],
+};
+
+impl Cause for ExciterLimit {
+    fn info(&self) -> &'static CauseInfo {
+        &INFO
+    }
+
+    fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
+        let Some(exc) = roles.exciter.as_deref() else {
+            return Err(CauseError::not_applicable("no exciter"));
+        };
+        let (pmax, pmin) = (format!("{exc}.e_max"), format!("{exc}.e_min"));
+        if !has_param(&x.unit, &pmax) || !has_param(&x.unit, &pmin) {
+            return Err(CauseError::not_applicable(format!(
+                "exciter {} has no E_MAX/E_MIN limits",
+                model_of(&x.unit, exc)
+            )));
+        }
+        if ctx.deepest_dip.is_some_and(|d| d < LIMIT_DIP) {
+            // A limit just above the operating point would only clamp E_fd to make up for a
+            // mis-calibrated AVR gain.
+            return Err(CauseError::not_applicable(format!(
+                "no event dips |V| by {:.0} % or more, so the AVR is not driven to its limits",
+                100.0 * LIMIT_DIP
+            )));
+        }
+        let efd0 = ctx.efd0.ok_or_else(|| {
+            CauseError::build("the field voltage at the operating point is unknown")
+        })?;
+        let (emax, emin) = (value(&x.unit, &pmax)?, value(&x.unit, &pmin)?);
+        let hi = emax.max(efd0 + 3.0).max(2.0 * efd0);
+        x.extension_free = vec![
+            scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi)), 24),
+            fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05)),
+        ];
+        // The AVR gain and time constant, X'_d and H: a calibration without the right limit
+        // bends them to make up for it. T'_d0 stays as given: on the ceiling the field flux
+        // rises at E_MAX/T'_d0, so P and Q cannot tell the two apart (see
+        // `trial::NOMINAL_OFFSETS`). T_E is scanned with E_MAX: on and off the ceiling the two
+        // trade along a curved valley (a faster exciter reaches the ceiling sooner, as a higher
+        // ceiling would).
+        x.interacting_free = field_side(&x.unit, Some(exc), &roles.machine);
+        let te = format!("{exc}.te");
+        for b in x.interacting_free.iter_mut().filter(|b| b.param == te) {
+            b.scan = 8;
+        }
+        x.search_factor = DEEP_SEARCH;
+        Ok(())
+    }
+
+    fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
+        super::q_window(ev)
+    }
+
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
+        Scenario {
+            values: vec![("exciter.e_max", 2.9 + 0.3 * spread(1))],
+            key: Some(("exciter.e_max", Tolerance::Rel(0.05))),
+            kind: EventKind::FaultDip,
+        }
+    }
+}

@@ -1,0 +1,106 @@
+//! `governor`: governor action missing or mis-modelled, re-fitted as a HYGOV (added when the
+//! unit has another governor) with a speed deadband and its gate-rate limit.
+
+use itaipu_dynamics::registry;
+use itaipu_dynamics::synthetic::EventKind;
+
+use super::super::catalog::{
+    add_block, around, fb, model_of, new_block, rewire, scanned, value, Cause, CauseError,
+    CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH, GOVERNOR_DF_HZ,
+};
+use super::super::EventEvidence;
+
+pub struct Governor;
+
+static INFO: CauseInfo = CauseInfo {
+    id: "governor",
+    title: "governor action missing or mis-modelled",
+    signature:
+        "slow P residual that follows the frequency deviation (seconds), growing through the \
+                record",
+    extension: "HYGOV (added, or refitted) with a speed deadband and its gate rate limit VELM free",
+    key_params: &["deadband.db", "governor.velm"],
+};
+
+impl Cause for Governor {
+    fn info(&self) -> &'static CauseInfo {
+        &INFO
+    }
+
+    fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
+        let Some(g) = roles.governor.as_deref() else {
+            return Err(CauseError::not_applicable("no governor block"));
+        };
+        if x.unit.block("deadband").is_some() {
+            return Err(CauseError::not_applicable(
+                "the unit already has a block named 'deadband'",
+            ));
+        }
+        let model = model_of(&x.unit, g);
+        let hygov = model.eq_ignore_ascii_case("HYGOV");
+        if !hygov {
+            // Governor action missing: put a typical HYGOV in its place.
+            let block = registry::find("HYGOV")
+                .ok_or_else(|| CauseError::build("HYGOV is not in the registry"))?
+                .create();
+            x.unit.put(g, block, &[]).map_err(CauseError::build)?;
+            x.description = format!(
+                "HYGOV (typical values) in place of {model}, with a speed deadband; {}",
+                INFO.extension
+            );
+        }
+        add_block(
+            &mut x.unit,
+            "deadband",
+            new_block("speed_deadband", &[("db", 0.0)])?,
+        )?;
+        rewire(&mut x.unit, g, &[("speed", "speed_db")])?;
+        let velm = value(&x.unit, &format!("{g}.velm"))?;
+        x.extension_free = vec![
+            scanned(fb("deadband.db", 0.0, 0.004, 0.0), 9),
+            scanned(fb(&format!("{g}.velm"), 0.005, 0.5, velm), 9),
+        ];
+        let (r, tw) = (
+            value(&x.unit, &format!("{g}.r_perm"))?,
+            value(&x.unit, &format!("{g}.t_w"))?,
+        );
+        // On a frequency excursion the machine's inertia carries the power the governor does
+        // not: a calibration without the governor's nonlinearity bends H to make up for it.
+        x.interacting_free = vec![
+            fb(&format!("{g}.r_perm"), 0.01, 0.15, r),
+            fb(&format!("{g}.t_w"), 0.3, 4.0, tw),
+        ];
+        let m = &roles.machine;
+        x.interacting_free
+            .extend(around(&x.unit, &format!("{m}.h"), 1.6));
+        x.interacting_free
+            .extend(around(&x.unit, &format!("{m}.x_d_prime"), 1.6));
+        if let Some(exc) = &roles.exciter {
+            x.interacting_free
+                .extend(around(&x.unit, &format!("{exc}.k"), 3.0));
+        }
+        if ctx.sustained_df_hz.is_none_or(|df| df > GOVERNOR_DF_HZ) {
+            x.search_factor = DEEP_SEARCH;
+        }
+        if !hygov {
+            // A new governor: every parameter the fit needs is new, count them all.
+            x.extension_free.append(&mut x.interacting_free);
+        }
+        Ok(())
+    }
+
+    fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
+        super::correlates_with(ev, "frequency", Some("P"))
+    }
+
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
+        Scenario {
+            values: vec![
+                ("deadband.db", 0.002 + 0.0005 * spread(1)),
+                ("governor.velm", 0.01),
+            ],
+            key: None,
+            kind: EventKind::FrequencyExcursion,
+        }
+    }
+}

@@ -1,0 +1,118 @@
+//! `oel`: an over-excitation limiter acting after the event, modelled by an inverse-time OEL on
+//! the field current at the exciter's summing point (with the field side).
+
+use itaipu_dynamics::synthetic::EventKind;
+
+use super::super::catalog::{
+    add_block, fb, field_side, model_of, new_block, scanned, Cause, CauseError, CauseInfo, Context,
+    Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP, OEL_IFD_RISE,
+};
+use super::super::trial::Tolerance;
+use super::super::EventEvidence;
+
+pub struct Oel;
+
+static INFO: CauseInfo = CauseInfo {
+    id: "oel",
+    title: "over-excitation limiter acting after the event",
+    signature:
+        "Q residual that appears seconds after the event, while the field current stays high, \
+                and grows (the limiter pulls the field back)",
+    extension:
+        "inverse-time OEL on the field current (pickup, I²t capacity, integral gain), with the AVR \
+                gain, T_E, X'_d and H",
+    key_params: &["oel.i_pickup", "oel.a_max"],
+};
+
+impl Cause for Oel {
+    fn info(&self) -> &'static CauseInfo {
+        &INFO
+    }
+
+    fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
+        let Some(exc) = roles.exciter.as_deref() else {
+            return Err(CauseError::not_applicable(
+                "no exciter for an OEL to act on",
+            ));
+        };
+        let has_voel = x
+            .unit
+            .block(exc)
+            .is_some_and(|b| b.ports().iter().any(|p| p.name == "voel"));
+        if !has_voel {
+            return Err(CauseError::not_applicable(format!(
+                "exciter {} has no OEL input",
+                model_of(&x.unit, exc)
+            )));
+        }
+        if x.unit.block("oel").is_some() {
+            return Err(CauseError::not_applicable("the unit already has an OEL"));
+        }
+        if ctx.deepest_dip.is_some_and(|d| d < LIMIT_DIP)
+            && ctx.field_current_rise.is_none_or(|r| r < OEL_IFD_RISE)
+        {
+            // Without a dip or a sustained field forcing the field current is not driven into
+            // overload; a limiter picking up just above the operating point would only trim a
+            // mis-calibrated AVR gain.
+            return Err(CauseError::not_applicable(format!(
+                "no event dips |V| by {:.0} % or more or raises the field current by {:.0} % or more, \
+                 so the field current is not forced into overload",
+                100.0 * LIMIT_DIP,
+                100.0 * OEL_IFD_RISE
+            )));
+        }
+        let i0 = ctx.xadifd0.ok_or_else(|| {
+            CauseError::build("the field current at the operating point is unknown")
+        })?;
+        if !(i0 > 0.0) {
+            return Err(CauseError::not_applicable(
+                "the field current at the operating point is not positive",
+            ));
+        }
+        // Rated field current = the pre-event one, so pickup and limit read as multiples of it
+        // (the pickup stays at least 1 % above, so the limiter starts inactive).
+        let oel = new_block(
+            "oel",
+            &[
+                ("ifd_rated", i0),
+                ("i_pickup", 1.2),
+                ("i_limit", 1.2),
+                ("a_max", 2.0),
+                ("k_cool", 0.05),
+                ("k_i", 0.01),
+                ("voel_min", -0.5),
+            ],
+        )?;
+        add_block(&mut x.unit, "oel", oel)?;
+        // Pickup and I²t capacity scanned jointly: together they set when the limiter acts (a
+        // lower pickup with a larger capacity acts as late), and off that valley the objective
+        // is flat (the limiter never acts) or far worse (it acts at the wrong time).
+        x.extension_free = vec![
+            scanned(fb("oel.i_pickup", 1.01, 1.6, 1.2), 12),
+            scanned(fb("oel.a_max", 0.02, 30.0, 0.3), 8),
+            fb("oel.k_i", 0.002, 0.2, 0.03),
+        ];
+        x.ties = vec![("oel.i_pickup".into(), "oel.i_limit".into())];
+        // A calibration without the limiter bends the AVR and the field dynamics to make up for
+        // the field being pulled back (as for `exciter_limit`).
+        x.interacting_free = field_side(&x.unit, Some(exc), &roles.machine);
+        x.search_factor = DEEP_SEARCH;
+        Ok(())
+    }
+
+    fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
+        super::q_window(ev)
+    }
+
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
+        Scenario {
+            values: vec![
+                ("oel.i_pickup", 1.04 + 0.02 * spread(1)),
+                ("oel.a_max", 0.1 + 0.05 * spread(2)),
+                ("oel.k_i", 0.05),
+            ],
+            key: Some(("oel.i_pickup", Tolerance::Rel(0.05))),
+            kind: EventKind::FaultDip,
+        }
+    }
+}

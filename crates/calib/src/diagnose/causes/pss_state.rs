@@ -1,0 +1,79 @@
+//! `pss_state`: the PSS in service other than modelled: taken out when the model has one, a
+//! typical STAB3 put in when it has none.
+
+use itaipu_dynamics::registry;
+use itaipu_dynamics::synthetic::EventKind;
+
+use super::super::catalog::{
+    add_block, around, fb, model_of, value, Cause, CauseError, CauseInfo, Context, Extension,
+    Roles, Scenario, DEEP_SEARCH,
+};
+use super::super::EventEvidence;
+
+pub struct PssState;
+
+static INFO: CauseInfo = CauseInfo {
+    id: "pss_state",
+    title: "PSS in service other than modelled",
+    signature: "electromechanical swing in the P residual with the wrong damping after the event",
+    extension: "the PSS removed when the model has one; a STAB3 added when it has none",
+    key_params: &["pss.in_service"],
+};
+
+impl Cause for PssState {
+    fn info(&self) -> &'static CauseInfo {
+        &INFO
+    }
+
+    fn extend(&self, x: &mut Extension, roles: &Roles, _ctx: &Context) -> Result<(), CauseError> {
+        let Some(exc) = roles.exciter.as_deref() else {
+            return Err(CauseError::not_applicable("no exciter for a PSS to act on"));
+        };
+        if let Some(p) = &roles.pss {
+            let model = model_of(&x.unit, p);
+            x.unit = x.unit.without(&[p.as_str()]).map_err(CauseError::build)?;
+            x.description = format!("the PSS ({model}) taken out of service");
+            x.discrete_params = 1;
+            x.fixed = vec![("pss.in_service".into(), 0.0)];
+        } else {
+            let stab3 = registry::find("STAB3")
+                .ok_or_else(|| CauseError::build("STAB3 is not in the registry"))?
+                .create();
+            add_block(&mut x.unit, "pss", stab3)?;
+            x.description = "a STAB3 PSS (typical values) put in service".into();
+            x.extension_free = vec![fb("pss.k_x", 0.2, 5.0, 1.0), fb("pss.t_x2", 0.5, 8.0, 3.0)];
+            x.discrete_params = 1;
+            x.fixed = vec![("pss.in_service".into(), 1.0)];
+        }
+        // A calibration with the PSS as modelled tuned the AVR, the inertia and the field
+        // dynamics to make up for it: they move with the PSS's state (a longer search).
+        x.search_factor = DEEP_SEARCH;
+        let m = &roles.machine;
+        for (p, factor) in [
+            (format!("{exc}.k"), 3.0),
+            (format!("{exc}.te"), 3.0),
+            (format!("{m}.h"), 1.6),
+            (format!("{m}.x_d_prime"), 2.5),
+            (format!("{m}.t_d0_prime"), 1.6),
+        ] {
+            x.interacting_free.extend(around(&x.unit, &p, factor));
+        }
+        let d = format!("{m}.d");
+        if let Ok(v) = value(&x.unit, &d) {
+            x.interacting_free.push(fb(&d, 0.0, v.max(0.0) + 3.0, v));
+        }
+        Ok(())
+    }
+
+    fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
+        super::dominant_p_mode(ev)
+    }
+
+    fn scenario(&self, _spread: &dyn Fn(u64) -> f64) -> Scenario {
+        Scenario {
+            values: vec![],
+            key: None,
+            kind: EventKind::FaultDip,
+        }
+    }
+}

@@ -1,0 +1,123 @@
+//! `torsional_mode`: a torsional mode of the turbine-generator shaft, modelled by splitting the
+//! calibrated rigid inertia into a two-mass shaft (turbine and generator masses joined by a
+//! spring of the mode's frequency).
+
+use itaipu_dynamics::synthetic::EventKind;
+
+use super::super::catalog::{
+    add_block, fb, new_block, rewire, scanned, value, Cause, CauseError, CauseInfo, Context,
+    Extension, Roles, Scenario,
+};
+use super::super::trial::Tolerance;
+use super::super::EventEvidence;
+use crate::evidence::PEAK_WINDOW_HZ;
+
+pub struct TorsionalMode;
+
+static INFO: CauseInfo = CauseInfo {
+    id: "torsional_mode",
+    title: "torsional mode of the turbine-generator shaft",
+    signature: "a lightly damped oscillation in the P residual above the electromechanical modes, \
+                present after every disturbance",
+    extension:
+        "two_mass_shaft between the governor and the machine (H_t, mode frequency, damping ratio), \
+                machine.h becomes the generator mass",
+    key_params: &["shaft.f_torsion_hz", "shaft.zeta"],
+};
+
+impl Cause for TorsionalMode {
+    fn info(&self) -> &'static CauseInfo {
+        &INFO
+    }
+
+    fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
+        if roles.governor.is_none() {
+            return Err(CauseError::not_applicable(
+                "no governor block to feed the turbine mass",
+            ));
+        }
+        if x.unit.block("shaft").is_some() {
+            return Err(CauseError::not_applicable(
+                "the unit already has a block named 'shaft'",
+            ));
+        }
+        let h_path = format!("{}.h", roles.machine);
+        let h = value(&x.unit, &h_path)?;
+        // Split the calibrated (rigid) inertia: 15 % to the turbine to start with.
+        let h_t = 0.15 * h;
+        let nyquist = 0.5 * ctx.rate_hz;
+        let f_hi = (0.9 * nyquist).clamp(1.0, 25.0);
+        // A resonance in the residual pins the frequency (the spectrum's resolution is a few
+        // hundredths of a hertz): the re-fit searches within 2 % of it.
+        let resonance = ctx
+            .shaft_resonance
+            .as_ref()
+            .map(|p| p.freq_hz)
+            .filter(|f| *f > 1.0 && *f < f_hi);
+        let f_start = resonance
+            .or(ctx.mode_hint_hz.filter(|f| *f > 1.0 && *f < f_hi))
+            .unwrap_or(0.5 * f_hi);
+        let (f_min, f_max) = match resonance {
+            Some(f) => (0.98 * f, (1.02 * f).min(f_hi)),
+            None => (1.0, f_hi),
+        };
+        let shaft = new_block(
+            "two_mass_shaft",
+            &[
+                ("h_turbine", h_t),
+                ("h_generator", h - h_t),
+                ("f_torsion_hz", f_start),
+                ("zeta", 0.05),
+                ("d_turbine", 0.0),
+            ],
+        )?;
+        let h_r = x.unit.param(&h_path).map_err(CauseError::build)?;
+        x.unit.set(h_r, h - h_t);
+        add_block(&mut x.unit, "shaft", shaft)?;
+        rewire(&mut x.unit, &roles.machine, &[("pm", "p_shaft")])?;
+        x.extension_free = vec![
+            scanned(fb("shaft.f_torsion_hz", f_min, f_max, f_start), 48),
+            fb("shaft.zeta", 0.0005, 0.5, 0.05),
+            fb("shaft.h_turbine", 0.02 * h, 0.6 * h, h_t),
+        ];
+        x.interacting_free = vec![fb(&h_path, 0.4 * h, 1.05 * h, h - h_t)];
+        x.ties = vec![(h_path, "shaft.h_generator".into())];
+        Ok(())
+    }
+
+    fn signature(&self, ev: &[EventEvidence], ctx: &Context) -> Vec<String> {
+        let mut out = super::dominant_p_mode(ev);
+        if let Some(f) = ctx.mode_hint_hz {
+            out.push(format!("search started at the residual's {f:.2} Hz mode"));
+        }
+        out
+    }
+
+    /// A torsional mode kept ringing by random turbine torque is a resonance in the P residual
+    /// that no deterministic playback reproduces, so its re-fit gains nothing, while the
+    /// spectrum shows it far above the measurement noise.
+    fn named_by_evidence(&self, ctx: &Context) -> Option<String> {
+        ctx.shaft_resonance.as_ref().map(|p| {
+            format!(
+                "the P residual has a resonance at {:.2} Hz with {:.1} times the band's noise power \
+                 over {:.1} Hz ({:.1} times its neighbours'; chance from noise alone {:.1e}), which \
+                 no deterministic playback reproduces: a shaft mode kept ringing by the turbine's \
+                 torque",
+                p.freq_hz, p.ratio, PEAK_WINDOW_HZ, p.prominence, p.p_value
+            )
+        })
+    }
+
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
+        Scenario {
+            values: vec![
+                ("shaft.f_torsion_hz", 5.0 + 2.0 * spread(1)),
+                ("shaft.zeta", 0.02 + 0.01 * spread(2)),
+                ("shaft.h_turbine", 0.8),
+                ("machine.h", 3.7),
+            ],
+            key: Some(("shaft.f_torsion_hz", Tolerance::Rel(0.05))),
+            kind: EventKind::FaultDip,
+        }
+    }
+}
