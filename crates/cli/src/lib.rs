@@ -2,7 +2,8 @@
 //!
 //! Exit codes (also in `--help`): 0 success, 2 usage error, 3 bad event data (event TOML or
 //! CSV), 4 bad unit model, 5 the model cannot initialise at the measured operating point,
-//! 6 the simulation failed, 7 output could not be written (or would overwrite).
+//! 6 the simulation failed, 7 output could not be written (or would overwrite), 130/143 a fit
+//! interrupted by SIGINT/SIGTERM (partial folder kept; `--resume` goes on).
 
 // Checks are written `!(x > 0.0)` on purpose: that form also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -21,13 +22,16 @@ use itaipu_dynamics::unit_file::read_unit;
 
 pub mod diagnose_cmd;
 pub mod fit_cmd;
+pub mod output;
 pub mod plot;
 pub mod synth_cmd;
 
 pub const EXIT_CODES: &str =
     "Exit codes: 0 success, 2 usage error, 3 bad event data (event TOML or CSV), \
 4 bad unit model or calibration spec, 5 model cannot initialise at the measured operating point, \
-6 simulation or fit failed, 7 output could not be written (or would overwrite an existing folder).";
+6 simulation or fit failed, 7 output could not be written (or would overwrite an existing folder), \
+130/143 fit interrupted by SIGINT/SIGTERM (finished stages kept in a folder marked by partial.json; \
+rerun with --resume). A complete output folder holds manifest.json (written last).";
 
 #[derive(Parser, Debug)]
 #[command(
@@ -142,6 +146,12 @@ where
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
 {
+    let args: Vec<OsString> = args.into_iter().map(Into::into).collect();
+    output::set_command(
+        args.iter()
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect(),
+    );
     let cli = match Cli::try_parse_from(args) {
         Ok(c) => c,
         Err(e) => {
@@ -218,12 +228,25 @@ pub struct SearchArgs {
 
 impl SearchArgs {
     /// Overrides the given search settings with the options given on the command line.
-    pub fn apply(&self, seed: &mut u64, particles: &mut usize, pso: &mut usize, lbfgs: &mut u64) {
+    /// `--particles` below 2 is a usage error (exit 2; it used to become 2 in silence).
+    pub fn apply(
+        &self,
+        seed: &mut u64,
+        particles: &mut usize,
+        pso: &mut usize,
+        lbfgs: &mut u64,
+    ) -> Result<(), CliError> {
         if let Some(s) = self.seed {
             *seed = s;
         }
         if let Some(n) = self.particles {
-            *particles = n.max(2);
+            if n < 2 {
+                return Err(CliError::new(
+                    2,
+                    format!("--particles {n}: a swarm needs at least 2 particles"),
+                ));
+            }
+            *particles = n;
         }
         if let Some(n) = self.pso_iterations {
             *pso = n;
@@ -231,6 +254,7 @@ impl SearchArgs {
         if let Some(n) = self.lbfgs_iterations {
             *lbfgs = n;
         }
+        Ok(())
     }
 
     /// A worker pool of its own with `--threads` workers (all cores by default), so that the
@@ -276,10 +300,16 @@ pub fn check_out(out: Option<&Path>, force: bool) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Chooses and creates the output folder. With an explicit `--out`, an existing non-empty
-/// folder is refused unless `force` ([`check_out`]); by default `out/<name>` or the first free
-/// `out/<name>-N`.
-pub fn prepare_out(out: Option<&Path>, name: &str, force: bool) -> Result<PathBuf, CliError> {
+/// Chooses the output folder and starts writing it ([`output::Staging`]: a temporary folder
+/// beside it, renamed into place when complete). With an explicit `--out`, an existing
+/// non-empty folder is refused unless `force` ([`check_out`]), and then replaced whole; by
+/// default `out/<name>` or the first free `out/<name>-N`. Call it before the computation: it
+/// is the writability check.
+pub fn prepare_out(
+    out: Option<&Path>,
+    name: &str,
+    force: bool,
+) -> Result<output::Staging, CliError> {
     check_out(out, force)?;
     let dir = match out {
         Some(d) => d.to_path_buf(),
@@ -294,9 +324,7 @@ pub fn prepare_out(out: Option<&Path>, name: &str, force: bool) -> Result<PathBu
             d
         }
     };
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| CliError::new(7, format!("cannot create {}: {e}", dir.display())))?;
-    Ok(dir)
+    output::Staging::begin(&dir)
 }
 
 fn sim_options(a: &SimulateArgs) -> Result<SimOptions, CliError> {
@@ -363,14 +391,15 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     let opts = sim_options(a)?;
     let event = load_event(&event_path)?;
     let unit = load_unit(&unit_path)?;
-    let t0 = Instant::now();
-    let traces = simulate(&unit, &event, &opts)?;
-    let wall = t0.elapsed();
-    let out = prepare_out(
+    let staging = prepare_out(
         a.out.as_deref(),
         &format!("simulate-{}", event.name),
         a.force,
     )?;
+    let out = staging.path().to_path_buf();
+    let t0 = Instant::now();
+    let traces = simulate(&unit, &event, &opts)?;
+    let wall = t0.elapsed();
     let csv_path = out.join("traces.csv");
     traces
         .write_csv(&csv_path)
@@ -423,7 +452,7 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
         "misfit fit window {:.2}-{:.2} s ({n_fit} samples): RMS P {rms_p:.4} pu, RMS Q {rms_q:.4} pu, J = sum(dP^2 + dQ^2) = {j:.4}",
         event.fit.start_s, event.fit.end_s
     );
-    let mut written = vec![csv_path.display().to_string()];
+    let mut written = vec!["traces.csv".to_string()];
     if !a.no_plot {
         let plot_path = out.join("plot.svg");
         let t = &traces.time_s;
@@ -480,9 +509,11 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
         ];
         let title = format!("{}: {} playback, J = {j:.3}", event.name, unit.name);
         plot::draw(&plot_path, &title, "time [s]", &panels).map_err(|e| CliError::new(7, e))?;
-        written.push(plot_path.display().to_string());
+        written.push("plot.svg".to_string());
     }
-    println!("wrote  {}", written.join(", "));
+    let target = staging.commit(None)?;
+    written.push(output::MANIFEST.to_string());
+    println!("wrote  {}/{{{}}}", target.display(), written.join(", "));
     Ok(())
 }
 
