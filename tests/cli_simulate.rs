@@ -86,11 +86,10 @@ fn an_existing_output_folder_is_not_overwritten_without_force() {
     assert_eq!(std::fs::read_to_string(&keep).unwrap(), "mine");
     assert!(!tmp.path().join("traces.csv").exists());
     assert_eq!(cli(&["simulate", "--out", out, "--no-plot", "--force"]), 0);
-    assert_eq!(
-        std::fs::read_to_string(&keep).unwrap(),
-        "mine",
-        "--force writes our files, it does not clear the folder"
-    );
+    // --force replaces the folder whole (issue 13): nothing of an earlier run stays beside the
+    // new results, and the manifest lists exactly what is there.
+    assert!(!keep.exists(), "--force replaces the folder whole");
+    itaipu_calib_cli::output::verify(tmp.path()).unwrap();
 }
 
 #[test]

@@ -178,6 +178,11 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         .map(|p| load_event(p))
         .collect::<Result<Vec<_>, _>>()?;
     let name = events.first().map(|e| e.name.clone()).unwrap_or_default();
+    let warnings = crate::plausibility(
+        &events.iter().chain(&held_out).collect::<Vec<_>>(),
+        &unit,
+        &unit_path,
+    )?;
     // The output folder: checked and started before the (long) diagnosis.
     let staging = prepare_out(a.out.as_deref(), &format!("diagnose-{name}"), a.force)?;
     let tried = if opts.causes.is_empty() {
@@ -269,6 +274,10 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     print_report(report);
     if let Some(n) = extended_note {
         println!("{n}");
+    }
+    crate::write_warnings(&out, &warnings)?;
+    if !warnings.is_empty() {
+        written.push("warnings.json".into());
     }
     let target = staging.commit(Some(opts.seed))?;
     written.push(crate::output::MANIFEST.into());

@@ -12,6 +12,7 @@ use itaipu_calib::fit::{
     StageReport,
 };
 use itaipu_calib::spec::{CalibSpec, Strategy};
+use itaipu_dynamics::plausibility::{Finding, Severity};
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
@@ -277,6 +278,15 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         &mut opts.lbfgs_iterations,
     )?;
     let pool = a.search.pool()?;
+    let mut warnings = crate::plausibility(
+        &events.iter().chain(&held_out).collect::<Vec<_>>(),
+        &unit,
+        &unit_path,
+    )?;
+    warnings.extend(start_warnings(&unit, &spec, &opts.stages, &calib_path));
+    for w in warnings.iter().filter(|w| w.kind == "start_clamped") {
+        eprintln!("warning: {w}");
+    }
     let name = events.first().map(|e| e.name.clone()).unwrap_or_default();
     let mut input_paths: Vec<&Path> = vec![&unit_path, &calib_path];
     input_paths.extend(event_paths.iter().map(|p| p.as_path()));
@@ -450,6 +460,8 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     {
         let f = finished.lock().expect("finished");
         report["stages"] = serde_json::Value::Array(f.reports.clone());
+        report["warnings"] =
+            serde_json::to_value(&warnings).map_err(|e| CliError::new(7, e.to_string()))?;
         if let Some((_, st, _)) = &resumed {
             report["resumed_stages"] = serde_json::json!(st.finished_stages);
         }
@@ -475,6 +487,53 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     print_report(&result.report);
     println!("wrote  {}/report.json, calibrated.toml, datasheet.toml, calibration.toml, <stage>/{{unit.toml, traces.csv, traces_start.csv{}}}, manifest.json", target.display(), if a.no_plot { "" } else { ", plot.svg" });
     Ok(())
+}
+
+/// A free parameter without `start` whose value in the unit lies outside its bounds starts
+/// from the nearest bound: said, not done in silence.
+fn start_warnings(
+    unit: &Unit,
+    spec: &CalibSpec,
+    stages: &[String],
+    calib_path: &Path,
+) -> Vec<Finding> {
+    let mut out = vec![];
+    for (k, st) in spec.stages.iter().enumerate() {
+        if !stages.contains(&st.name) {
+            continue;
+        }
+        for (j, f) in st.free.iter().enumerate() {
+            if f.start.is_some() {
+                continue;
+            }
+            let v = match st.set.get(&f.param) {
+                Some(v) => *v,
+                None => match unit.param(&f.param) {
+                    Ok(r) => unit.get(r),
+                    Err(_) => continue,
+                },
+            };
+            if !(v >= f.min && v <= f.max) {
+                out.push(Finding {
+                    severity: Severity::Warning,
+                    kind: "start_clamped",
+                    file: calib_path.to_path_buf(),
+                    line: None,
+                    time_s: None,
+                    column: format!("calibration.stage[{k}].free[{j}] ({})", f.param),
+                    message: format!(
+                        "the unit's value {v} lies outside [{}, {}]; stage {} starts from {}",
+                        f.min,
+                        f.max,
+                        st.name,
+                        v.clamp(f.min, f.max)
+                    ),
+                    fix: "widen the bounds, or give start = ... in the free entry".into(),
+                });
+            }
+        }
+    }
+    out
 }
 
 /// Writes a finished stage's folder: unit, traces and plots.

@@ -15,6 +15,7 @@ use std::time::Instant;
 use clap::{Parser, Subcommand, ValueEnum};
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::integrate::{Dopri5Options, Method};
+use itaipu_dynamics::plausibility::{self, Finding, Severity};
 use itaipu_dynamics::registry;
 use itaipu_dynamics::simulate::{simulate, SimError, SimOptions, Traces};
 use itaipu_dynamics::unit::Unit;
@@ -204,6 +205,50 @@ pub fn load_unit(path: &Path) -> Result<Unit, CliError> {
     read_unit(path).map_err(|e| CliError::new(4, e.to_string()))
 }
 
+/// The plausibility layer ([`itaipu_dynamics::plausibility`]) on events (against the unit's
+/// rating) and on the unit's parameters: an error stops the run (exit 3, every error listed
+/// with file, line, column and fix); warnings are printed and returned, for the outputs.
+pub fn plausibility(
+    events: &[&Event],
+    unit: &Unit,
+    unit_path: &Path,
+) -> Result<Vec<Finding>, CliError> {
+    let mut all = vec![];
+    for e in events {
+        all.extend(plausibility::check_event(e, Some(unit.machine_mva)));
+    }
+    all.extend(plausibility::check_unit(unit, unit_path));
+    let errors: Vec<String> = all
+        .iter()
+        .filter(|f| f.severity == Severity::Error)
+        .map(|f| f.to_string())
+        .collect();
+    if !errors.is_empty() {
+        return Err(CliError::new(
+            3,
+            format!("implausible data:\n  {}", errors.join("\n  ")),
+        ));
+    }
+    for f in &all {
+        eprintln!("warning: {f}");
+    }
+    Ok(all)
+}
+
+/// Writes `warnings.json` into `dir` when there are warnings.
+pub fn write_warnings(dir: &Path, warnings: &[Finding]) -> Result<(), CliError> {
+    if warnings.is_empty() {
+        return Ok(());
+    }
+    let text =
+        serde_json::to_string_pretty(warnings).map_err(|e| CliError::new(7, e.to_string()))?;
+    output::write_synced(&dir.join("warnings.json"), text.as_bytes())
+}
+
+/// Largest number of fixed RK4 steps a playback may take (`--step` too small for the record
+/// is refused rather than run for hours).
+pub const RK4_MAX_STEPS: f64 = 1e7;
+
 /// Swarm, L-BFGS and thread options shared by `fit` and `diagnose`.
 #[derive(clap::Args, Debug)]
 pub struct SearchArgs {
@@ -391,6 +436,21 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     let opts = sim_options(a)?;
     let event = load_event(&event_path)?;
     let unit = load_unit(&unit_path)?;
+    if let Method::Rk4 { h } = opts.method {
+        let steps = event.playback.duration_s() / h;
+        if steps > RK4_MAX_STEPS {
+            return Err(CliError::new(
+                2,
+                format!(
+                    "--step {h}: {steps:.3e} RK4 steps over the {:.3} s playback of {}; the cap is {RK4_MAX_STEPS:e} (use --step {:.1e} or larger, or --method dopri5)",
+                    event.playback.duration_s(),
+                    event_path.display(),
+                    event.playback.duration_s() / RK4_MAX_STEPS
+                ),
+            ));
+        }
+    }
+    let warnings = plausibility(&[&event], &unit, &unit_path)?;
     let staging = prepare_out(
         a.out.as_deref(),
         &format!("simulate-{}", event.name),
@@ -510,6 +570,10 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
         let title = format!("{}: {} playback, J = {j:.3}", event.name, unit.name);
         plot::draw(&plot_path, &title, "time [s]", &panels).map_err(|e| CliError::new(7, e))?;
         written.push("plot.svg".to_string());
+    }
+    write_warnings(&out, &warnings)?;
+    if !warnings.is_empty() {
+        written.push("warnings.json".to_string());
     }
     let target = staging.commit(None)?;
     written.push(output::MANIFEST.to_string());
