@@ -180,3 +180,123 @@ fn too_few_particles_is_a_usage_error() {
         }
     }
 }
+
+/// Writes the Itaipu event with its CSV rows passed through `edit` (row index, fields).
+fn itaipu_event_with(tmp: &TempDir, tag: &str, edit: impl Fn(usize, &mut Vec<f64>)) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(data("itaipu/itaipu_pmu_60sps.csv")).unwrap();
+    let mut lines = text.lines();
+    let mut csv = format!("{}\n", lines.next().unwrap());
+    for (i, l) in lines.enumerate() {
+        let mut v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+        edit(i, &mut v);
+        let s: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
+        csv.push_str(&s.join(","));
+        csv.push('\n');
+    }
+    tmp.write(&format!("{tag}.csv"), &csv);
+    let ev = std::fs::read_to_string(data("itaipu/event.toml"))
+        .unwrap()
+        .replace("itaipu_pmu_60sps.csv", &format!("{tag}.csv"));
+    tmp.write(&format!("{tag}.toml"), &ev)
+}
+
+/// Implausible data stop the run before anything is computed (exit 3, nothing written);
+/// implausible but possible data run with a warning kept in the outputs.
+#[test]
+fn implausible_events_stop_or_warn_through_the_cli() {
+    let tmp = TempDir::new("plaus");
+    let out = tmp.path().join("o");
+    let o = out.to_str().unwrap();
+    // A one-sample dropout, a 100 s gap, a time column in picoseconds, P on a wrong base.
+    let dropout = itaipu_event_with(&tmp, "dropout", |i, v| {
+        if i == 200 {
+            v[1] = 0.0;
+            v[2] = 0.0;
+        }
+    });
+    let gap = itaipu_event_with(&tmp, "gap", |i, v| {
+        if i >= 150 {
+            v[0] += 100.0;
+        }
+    });
+    let scaled = itaipu_event_with(&tmp, "scaled", |_, v| v[0] *= 1e-12);
+    let base = itaipu_event_with(&tmp, "base", |_, v| {
+        v[3] *= 1.6;
+        v[4] *= 1.6;
+    });
+    for ev in [&dropout, &gap, &scaled, &base] {
+        for cmd in ["simulate", "fit"] {
+            let code = cli(&[cmd, "--event", ev.to_str().unwrap(), "--out", o]);
+            assert_eq!(code, 3, "{cmd} {}", ev.display());
+            assert!(!out.exists());
+        }
+    }
+    // Flipped signs: a warning, kept in warnings.json.
+    let flipped = itaipu_event_with(&tmp, "flipped", |_, v| {
+        v[3] = -v[3];
+        v[4] = -v[4];
+    });
+    let code = cli(&[
+        "simulate",
+        "--event",
+        flipped.to_str().unwrap(),
+        "--no-plot",
+        "--out",
+        o,
+    ]);
+    assert_eq!(code, 0);
+    let w: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("warnings.json")).unwrap())
+            .unwrap();
+    assert_eq!(w[0]["kind"], "absorbing_p");
+    assert_eq!(w[0]["severity"], "warning");
+    assert!(w[0]["file"].as_str().unwrap().ends_with("flipped.csv"));
+    itaipu_calib_cli::output::verify(&out).unwrap();
+}
+
+/// A start value outside its bounds is no longer clamped in silence: the fit's report lists
+/// the warning with the spec's field.
+#[test]
+fn a_clamped_start_is_reported() {
+    let tmp = TempDir::new("clamp");
+    // machine.h is 4.5 in the unit; bounds 0.1-3.0 put it outside.
+    let text = std::fs::read_to_string(data("itaipu/calibration.toml"))
+        .unwrap()
+        .replace(
+            "{ param = \"machine.h\", min = 0.1, max = 5.0 }",
+            "{ param = \"machine.h\", min = 0.1, max = 3.0 }",
+        );
+    let spec = tmp.write("c.toml", &text);
+    let out = tmp.path().join("o");
+    let code = cli(&[
+        "fit",
+        "--calib",
+        spec.to_str().unwrap(),
+        "--stage",
+        "gen",
+        "--particles",
+        "4",
+        "--pso-iterations",
+        "1",
+        "--lbfgs-iterations",
+        "1",
+        "--no-plot",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0);
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let w = r["warnings"].as_array().unwrap();
+    let c = w.iter().find(|x| x["kind"] == "start_clamped").expect("start_clamped");
+    assert!(c["column"].as_str().unwrap().contains("calibration.stage[0].free[1] (machine.h)"));
+    assert!(c["message"].as_str().unwrap().contains("starts from 3"));
+}
+
+/// `--method rk4 --step 1e-9` is refused at once (it ran for half an hour).
+#[test]
+fn absurd_rk4_steps_are_refused() {
+    let t0 = std::time::Instant::now();
+    assert_eq!(cli(&["simulate", "--method", "rk4", "--step", "1e-9"]), 2);
+    assert!(t0.elapsed().as_secs_f64() < 2.0);
+}
