@@ -10,6 +10,7 @@
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use numpy::PyArray1;
@@ -934,7 +935,12 @@ fn fit(
             )));
         }
     }
-    let result = py.detach(
+    // The fit runs on a worker thread while this thread, without the GIL between checks,
+    // looks for signals every 20 ms: Ctrl-C (KeyboardInterrupt) stops the fit at its next
+    // candidate evaluation and is raised as soon as the worker has come back.
+    let cancel = Arc::new(AtomicBool::new(false));
+    let worker_cancel = cancel.clone();
+    let work =
         move || -> Result<(calib_fit::FitResult, Vec<catalog::FreeBound>), Failure> {
             let unit = match unit_src {
                 Source::Loaded(u) => u,
@@ -965,7 +971,13 @@ fn fit(
             if let Some(n) = lbfgs_iterations {
                 opts.lbfgs_iterations = n;
             }
-            let mut result = calib_fit::fit(&unit, &spec, &events, &held_out, &opts, &Silent)?;
+            let control = calib_fit::FitControl {
+                cancel: Some(worker_cancel),
+                ..Default::default()
+            };
+            let mut result = calib_fit::fit_with(
+                &unit, &spec, &events, &held_out, &opts, &Silent, &control,
+            )?;
             // As the command line's calibrated.toml.
             result.unit.description = format!(
                 "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
@@ -975,8 +987,23 @@ fn fit(
             );
             let set = calib_diagnose::calibrated_set(&spec, &opts.stages, &unit, &result.unit);
             Ok((result, set))
-        },
-    );
+        };
+    let result = std::thread::scope(|scope| -> PyResult<_> {
+        let worker = scope.spawn(work);
+        loop {
+            if worker.is_finished() {
+                return Ok(worker
+                    .join()
+                    .unwrap_or_else(|p| std::panic::resume_unwind(p)));
+            }
+            py.detach(|| std::thread::sleep(std::time::Duration::from_millis(20)));
+            if let Err(e) = py.check_signals() {
+                cancel.store(true, Ordering::SeqCst);
+                let _ = py.detach(|| worker.join());
+                return Err(e);
+            }
+        }
+    })?;
     let (result, calibrated_set) = result.map_err(|e| e.into_pyerr(py))?;
     let report_json = serde_json::to_string(&result.report)
         .map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
