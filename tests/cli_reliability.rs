@@ -124,7 +124,10 @@ fn force_replaces_the_whole_folder_and_the_manifest_matches() {
     let m = itaipu_calib_cli::output::verify(&out).unwrap();
     assert_eq!(m.seed, Some(1));
     assert_eq!(m.command[1], "fit");
-    assert!(m.files.iter().any(|f| f.path == "gen/unit.toml" && f.bytes > 0));
+    assert!(m
+        .files
+        .iter()
+        .any(|f| f.path == "gen/unit.toml" && f.bytes > 0));
     // A changed file no longer matches its manifest.
     std::fs::write(out.join("gen/unit.toml"), "edited").unwrap();
     assert!(itaipu_calib_cli::output::verify(&out).is_err());
@@ -134,7 +137,13 @@ fn force_replaces_the_whole_folder_and_the_manifest_matches() {
     let sim = tmp.path().join("sim");
     tmp.write("sim/old.svg", "stale");
     assert_eq!(
-        cli(&["simulate", "--no-plot", "--force", "--out", sim.to_str().unwrap()]),
+        cli(&[
+            "simulate",
+            "--no-plot",
+            "--force",
+            "--out",
+            sim.to_str().unwrap()
+        ]),
         0
     );
     assert_eq!(names(&sim), ["manifest.json", "traces.csv"]);
@@ -182,7 +191,11 @@ fn too_few_particles_is_a_usage_error() {
 }
 
 /// Writes the Itaipu event with its CSV rows passed through `edit` (row index, fields).
-fn itaipu_event_with(tmp: &TempDir, tag: &str, edit: impl Fn(usize, &mut Vec<f64>)) -> std::path::PathBuf {
+fn itaipu_event_with(
+    tmp: &TempDir,
+    tag: &str,
+    edit: impl Fn(usize, &mut Vec<f64>),
+) -> std::path::PathBuf {
     let text = std::fs::read_to_string(data("itaipu/itaipu_pmu_60sps.csv")).unwrap();
     let mut lines = text.lines();
     let mut csv = format!("{}\n", lines.next().unwrap());
@@ -246,8 +259,7 @@ fn implausible_events_stop_or_warn_through_the_cli() {
     ]);
     assert_eq!(code, 0);
     let w: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("warnings.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join("warnings.json")).unwrap()).unwrap();
     assert_eq!(w[0]["kind"], "absorbing_p");
     assert_eq!(w[0]["severity"], "warning");
     assert!(w[0]["file"].as_str().unwrap().ends_with("flipped.csv"));
@@ -288,8 +300,14 @@ fn a_clamped_start_is_reported() {
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let w = r["warnings"].as_array().unwrap();
-    let c = w.iter().find(|x| x["kind"] == "start_clamped").expect("start_clamped");
-    assert!(c["column"].as_str().unwrap().contains("calibration.stage[0].free[1] (machine.h)"));
+    let c = w
+        .iter()
+        .find(|x| x["kind"] == "start_clamped")
+        .expect("start_clamped");
+    assert!(c["column"]
+        .as_str()
+        .unwrap()
+        .contains("calibration.stage[0].free[1] (machine.h)"));
     assert!(c["message"].as_str().unwrap().contains("starts from 3"));
 }
 

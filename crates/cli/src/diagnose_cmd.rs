@@ -16,9 +16,7 @@ use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::fit_cmd::Reporter;
-use crate::{
-    bundled, load_event, load_unit, plot, prepare_out, CliError, SearchArgs, EXIT_CODES,
-};
+use crate::{bundled, load_event, load_unit, plot, prepare_out, CliError, SearchArgs, EXIT_CODES};
 
 #[derive(clap::Args, Debug)]
 #[command(after_help = EXIT_CODES)]

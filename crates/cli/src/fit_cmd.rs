@@ -165,7 +165,8 @@ fn interrupt_flags() -> (Arc<AtomicBool>, Arc<AtomicUsize>) {
                 for (sig, code) in [(SIGINT, 130), (SIGTERM, 143)] {
                     // Registration fails only for forbidden signals; then a signal ends the
                     // process as usual, which loses nothing written (the folder is temporary).
-                    let _ = signal_hook::flag::register_conditional_shutdown(sig, code, flag.clone());
+                    let _ =
+                        signal_hook::flag::register_conditional_shutdown(sig, code, flag.clone());
                     let _ = signal_hook::flag::register_usize(sig, which.clone(), sig as usize);
                     let _ = signal_hook::flag::register(sig, flag.clone());
                 }
@@ -305,12 +306,21 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         if dir.join(crate::output::MANIFEST).is_file() {
             return Err(CliError::new(
                 2,
-                format!("--resume: {} is complete (it has manifest.json); nothing to resume", dir.display()),
+                format!(
+                    "--resume: {} is complete (it has manifest.json); nothing to resume",
+                    dir.display()
+                ),
             ));
         }
         let pj = dir.join(crate::output::PARTIAL);
         let text = std::fs::read_to_string(&pj).map_err(|e| {
-            CliError::new(2, format!("--resume: {}: {e} (not the folder of an interrupted fit)", pj.display()))
+            CliError::new(
+                2,
+                format!(
+                    "--resume: {}: {e} (not the folder of an interrupted fit)",
+                    pj.display()
+                ),
+            )
         })?;
         let st: PartialState = serde_json::from_str(&text)
             .map_err(|e| CliError::new(2, format!("--resume: {}: {e}", pj.display())))?;
@@ -358,12 +368,21 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     if let Some((dir, st, master)) = &resumed {
         for label in &st.finished_stages {
             crate::output::copy_dir(&dir.join(label), &out.join(label)).map_err(|e| {
-                CliError::new(7, format!("--resume: cannot copy {}: {e}", dir.join(label).display()))
+                CliError::new(
+                    7,
+                    format!("--resume: cannot copy {}: {e}", dir.join(label).display()),
+                )
             })?;
         }
         if !st.finished_stages.is_empty() {
             std::fs::copy(dir.join(RESUME_UNIT), out.join(RESUME_UNIT)).map_err(|e| {
-                CliError::new(7, format!("--resume: cannot copy {}: {e}", dir.join(RESUME_UNIT).display()))
+                CliError::new(
+                    7,
+                    format!(
+                        "--resume: cannot copy {}: {e}",
+                        dir.join(RESUME_UNIT).display()
+                    ),
+                )
             })?;
         }
         let mut f = finished.lock().expect("finished");
@@ -433,7 +452,8 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
                 inputs: inputs.clone(),
                 stage_reports: f.reports.clone(),
             };
-            let text = serde_json::to_string_pretty(&state).map_err(|e| CliError::new(7, e.to_string()))?;
+            let text = serde_json::to_string_pretty(&state)
+                .map_err(|e| CliError::new(7, e.to_string()))?;
             crate::output::write_synced(&out.join(crate::output::PARTIAL), text.as_bytes())?;
             let target = staging.keep_partial()?;
             return Err(CliError::new(
@@ -455,8 +475,8 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         }
     };
     let write = |p: &Path, text: &str| crate::output::write_synced(p, text.as_bytes());
-    let mut report = serde_json::to_value(&result.report)
-        .map_err(|e| CliError::new(7, e.to_string()))?;
+    let mut report =
+        serde_json::to_value(&result.report).map_err(|e| CliError::new(7, e.to_string()))?;
     {
         let f = finished.lock().expect("finished");
         report["stages"] = serde_json::Value::Array(f.reports.clone());
@@ -466,7 +486,8 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
             report["resumed_stages"] = serde_json::json!(st.finished_stages);
         }
     }
-    let json = serde_json::to_string_pretty(&report).map_err(|e| CliError::new(7, e.to_string()))?;
+    let json =
+        serde_json::to_string_pretty(&report).map_err(|e| CliError::new(7, e.to_string()))?;
     write(&out.join("report.json"), &json)?;
     let mut calibrated = result.unit.clone();
     calibrated.description = format!(
@@ -537,7 +558,12 @@ fn start_warnings(
 }
 
 /// Writes a finished stage's folder: unit, traces and plots.
-fn write_stage(out: &Path, st: &StageOutput, rep: &StageReport, no_plot: bool) -> Result<(), CliError> {
+fn write_stage(
+    out: &Path,
+    st: &StageOutput,
+    rep: &StageReport,
+    no_plot: bool,
+) -> Result<(), CliError> {
     let write = |p: &Path, text: &str| crate::output::write_synced(p, text.as_bytes());
     let dir = out.join(&st.stage);
     std::fs::create_dir_all(&dir)

@@ -144,9 +144,7 @@ impl Staging {
         let name = target
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
-            .ok_or_else(|| {
-                CliError::new(7, format!("{}: not a folder name", target.display()))
-            })?;
+            .ok_or_else(|| CliError::new(7, format!("{}: not a folder name", target.display())))?;
         let parent = match target.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
@@ -173,12 +171,7 @@ impl Staging {
         let probe = st.tmp.join(".probe");
         std::fs::write(&probe, b"itaipu-calib")
             .and_then(|_| std::fs::remove_file(&probe))
-            .map_err(|e| {
-                CliError::new(
-                    7,
-                    format!("{} is not writable: {e}", st.tmp.display()),
-                )
-            })?;
+            .map_err(|e| CliError::new(7, format!("{} is not writable: {e}", st.tmp.display())))?;
         Ok(st)
     }
 

@@ -114,8 +114,15 @@ fn sigint_leaves_a_marked_partial_folder_and_resume_gives_the_same_numbers() {
         .iter()
         .map(|s| s.as_str().unwrap().to_string())
         .collect();
-    assert_eq!(finished.first().map(String::as_str), Some("gen"), "{finished:?}");
-    assert!(finished.len() < 4, "the fit finished before the signal: {finished:?}");
+    assert_eq!(
+        finished.first().map(String::as_str),
+        Some("gen"),
+        "{finished:?}"
+    );
+    assert!(
+        finished.len() < 4,
+        "the fit finished before the signal: {finished:?}"
+    );
     // No temporary folder left beside it.
     let leftovers: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
@@ -132,7 +139,12 @@ fn sigint_leaves_a_marked_partial_folder_and_resume_gives_the_same_numbers() {
             .args(["--out", sim.to_str().unwrap()])
             .output()
             .unwrap();
-        assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         assert!(out.join(st).join("traces.csv").is_file());
         assert_eq!(partial["stage_reports"][k]["stage"], st.as_str());
     }
@@ -152,7 +164,10 @@ fn sigint_leaves_a_marked_partial_folder_and_resume_gives_the_same_numbers() {
         std::fs::read_to_string(out.join("calibrated.toml")).unwrap(),
         std::fs::read_to_string(reference.join("calibrated.toml")).unwrap()
     );
-    let (a, b) = (json(&reference.join("report.json")), json(&out.join("report.json")));
+    let (a, b) = (
+        json(&reference.join("report.json")),
+        json(&out.join("report.json")),
+    );
     let stages = |r: &serde_json::Value| -> Vec<(String, f64, Vec<f64>)> {
         r["stages"]
             .as_array()

@@ -42,7 +42,10 @@ fn rows() -> Vec<[f64; 5]> {
 fn event(dir: &Path, rows: &[[f64; 5]], system_mva: f64) -> Event {
     let mut csv = String::from("time_s,v_re_pu,v_im_pu,p_pu,q_pu\n");
     for r in rows {
-        csv.push_str(&format!("{:?},{:?},{:?},{:?},{:?}\n", r[0], r[1], r[2], r[3], r[4]));
+        csv.push_str(&format!(
+            "{:?},{:?},{:?},{:?},{:?}\n",
+            r[0], r[1], r[2], r[3], r[4]
+        ));
     }
     std::fs::write(dir.join("e.csv"), csv).unwrap();
     let toml = format!(
@@ -153,7 +156,10 @@ fn an_absurd_sample_and_a_spike_point_at_their_line() {
         let _ = event(&t.0, &rows(), 1000.0);
         let mut csv = String::from("time_s,v_re_pu,v_im_pu,p_pu,q_pu\n");
         for x in &r {
-            csv.push_str(&format!("{:?},{:?},{:?},{:?},{:?}\n", x[0], x[1], x[2], x[3], x[4]));
+            csv.push_str(&format!(
+                "{:?},{:?},{:?},{:?},{:?}\n",
+                x[0], x[1], x[2], x[3], x[4]
+            ));
         }
         std::fs::write(t.0.join("e.csv"), csv).unwrap();
         t.0.join("e.toml")
@@ -171,7 +177,10 @@ fn an_absurd_sample_and_a_spike_point_at_their_line() {
     r[30][4] += 2.0;
     let f = check_event(&event(&t.0, &r, 1000.0), Some(ITAIPU_MVA));
     let d = find(&f, "spike");
-    assert_eq!((d.severity, d.line, d.column.as_str()), (Severity::Warning, Some(32), "q_pu"));
+    assert_eq!(
+        (d.severity, d.line, d.column.as_str()),
+        (Severity::Warning, Some(32), "q_pu")
+    );
 }
 
 #[test]
@@ -183,7 +192,14 @@ fn an_angle_column_in_radians_is_found() {
     for x in rows() {
         let a = x[2].atan2(x[1]) + std::f64::consts::TAU * 0.5 * x[0];
         let a = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-        csv.push_str(&format!("{:?},{:?},{:?},{:?},{:?}\n", x[0], x[1].hypot(x[2]), a, x[3], x[4]));
+        csv.push_str(&format!(
+            "{:?},{:?},{:?},{:?},{:?}\n",
+            x[0],
+            x[1].hypot(x[2]),
+            a,
+            x[3],
+            x[4]
+        ));
     }
     std::fs::write(t.0.join("e.csv"), &csv).unwrap();
     std::fs::write(
@@ -194,7 +210,10 @@ fn an_angle_column_in_radians_is_found() {
     let e = Event::from_toml_file(&t.0.join("e.toml")).unwrap();
     let f = check_event(&e, Some(ITAIPU_MVA));
     let d = find(&f, "angle_radians");
-    assert_eq!((d.severity, d.column.as_str()), (Severity::Error, "angle_deg"));
+    assert_eq!(
+        (d.severity, d.column.as_str()),
+        (Severity::Error, "angle_deg")
+    );
     // The same in degrees is fine.
     let deg: String = csv
         .lines()
@@ -224,5 +243,8 @@ fn parameters_far_outside_the_library_ranges_warn() {
     let u = read_unit(&t.0.join("u.toml")).unwrap();
     let f = check_unit(&u, &t.0.join("u.toml"));
     assert_eq!(f.len(), 1, "{f:#?}");
-    assert_eq!((f[0].kind, f[0].column.as_str()), ("parameter_range", "machine.h"));
+    assert_eq!(
+        (f[0].kind, f[0].column.as_str()),
+        ("parameter_range", "machine.h")
+    );
 }

@@ -940,54 +940,52 @@ fn fit(
     // candidate evaluation and is raised as soon as the worker has come back.
     let cancel = Arc::new(AtomicBool::new(false));
     let worker_cancel = cancel.clone();
-    let work =
-        move || -> Result<(calib_fit::FitResult, Vec<catalog::FreeBound>), Failure> {
-            let unit = match unit_src {
-                Source::Loaded(u) => u,
-                Source::Path(p) => Arc::new(read_unit(&p)?),
-            };
-            let spec = CalibSpec::from_file(&calib)?;
-            let events = load_events(events)?;
-            let held_out = load_events(held_out)?;
-            let mut opts = FitOptions::from_spec(&spec);
-            if let Some(s) = strategy {
-                opts.strategy = s;
-            }
-            if let Some(s) = stages {
-                opts.stages = s;
-            }
-            if let Some(s) = seed {
-                opts.seed = s;
-            }
-            if !polish {
-                opts.polish = false;
-            }
-            if let Some(n) = particles {
-                opts.particles = n;
-            }
-            if let Some(n) = pso_iterations {
-                opts.pso_iterations = n;
-            }
-            if let Some(n) = lbfgs_iterations {
-                opts.lbfgs_iterations = n;
-            }
-            let control = calib_fit::FitControl {
-                cancel: Some(worker_cancel),
-                ..Default::default()
-            };
-            let mut result = calib_fit::fit_with(
-                &unit, &spec, &events, &held_out, &opts, &Silent, &control,
-            )?;
-            // As the command line's calibrated.toml.
-            result.unit.description = format!(
-                "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
-                unit.description,
-                opts.stages.join("+"),
-                opts.seed
-            );
-            let set = calib_diagnose::calibrated_set(&spec, &opts.stages, &unit, &result.unit);
-            Ok((result, set))
+    let work = move || -> Result<(calib_fit::FitResult, Vec<catalog::FreeBound>), Failure> {
+        let unit = match unit_src {
+            Source::Loaded(u) => u,
+            Source::Path(p) => Arc::new(read_unit(&p)?),
         };
+        let spec = CalibSpec::from_file(&calib)?;
+        let events = load_events(events)?;
+        let held_out = load_events(held_out)?;
+        let mut opts = FitOptions::from_spec(&spec);
+        if let Some(s) = strategy {
+            opts.strategy = s;
+        }
+        if let Some(s) = stages {
+            opts.stages = s;
+        }
+        if let Some(s) = seed {
+            opts.seed = s;
+        }
+        if !polish {
+            opts.polish = false;
+        }
+        if let Some(n) = particles {
+            opts.particles = n;
+        }
+        if let Some(n) = pso_iterations {
+            opts.pso_iterations = n;
+        }
+        if let Some(n) = lbfgs_iterations {
+            opts.lbfgs_iterations = n;
+        }
+        let control = calib_fit::FitControl {
+            cancel: Some(worker_cancel),
+            ..Default::default()
+        };
+        let mut result =
+            calib_fit::fit_with(&unit, &spec, &events, &held_out, &opts, &Silent, &control)?;
+        // As the command line's calibrated.toml.
+        result.unit.description = format!(
+            "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
+            unit.description,
+            opts.stages.join("+"),
+            opts.seed
+        );
+        let set = calib_diagnose::calibrated_set(&spec, &opts.stages, &unit, &result.unit);
+        Ok((result, set))
+    };
     let result = std::thread::scope(|scope| -> PyResult<_> {
         let worker = scope.spawn(work);
         loop {
