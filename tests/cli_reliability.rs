@@ -318,3 +318,33 @@ fn absurd_rk4_steps_are_refused() {
     assert_eq!(cli(&["simulate", "--method", "rk4", "--step", "1e-9"]), 2);
     assert!(t0.elapsed().as_secs_f64() < 2.0);
 }
+
+/// Run-time failures point at the data: an integration failure at t names the CSV line of the
+/// sample there, an initialisation failure the operating point (on both bases) it was given.
+#[test]
+fn run_time_failures_point_at_the_data() {
+    use itaipu_dynamics::integrate::SolveError;
+    use itaipu_dynamics::simulate::{simulate, SimError, SimOptions};
+    let event = itaipu_calib_cli::load_event(&data("itaipu/event.toml")).unwrap();
+    let unit = itaipu_calib_cli::load_unit(&data("itaipu/unit.toml")).unwrap();
+    let e = SimError::Solve(SolveError::StepUnderflow { t: 1.65, h: 1e-20 });
+    let err = itaipu_calib_cli::explain_sim_error(e, &event, &unit);
+    assert_eq!(err.code, 6);
+    // t = 1.65 s is sample 99 at 60 samples/s: line 101 of the CSV (header = line 1).
+    assert!(err.msg.contains("line 101 (t = 1.65"), "{}", err.msg);
+    assert!(err.msg.contains("itaipu_pmu_60sps.csv"), "{}", err.msg);
+    // A unit that cannot initialise at the operating point.
+    let tmp = TempDir::new("explain");
+    let text = std::fs::read_to_string(data("itaipu/unit.toml"))
+        .unwrap()
+        .replace("e_max = 4.5", "e_max = 1.01");
+    let bad = itaipu_calib_cli::load_unit(&tmp.write("u.toml", &text)).unwrap();
+    let e = simulate(&bad, &event, &SimOptions::default()).unwrap_err();
+    let err = itaipu_calib_cli::explain_sim_error(e, &event, &bad);
+    assert_eq!(err.code, 5);
+    assert!(
+        err.msg.contains("init window [0, 0.95] s") && err.msg.contains("on the machine's 737 MVA"),
+        "{}",
+        err.msg
+    );
+}

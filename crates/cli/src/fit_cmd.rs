@@ -471,7 +471,19 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
                 FitError::Output(_) => 7,
                 _ => 6,
             };
-            return Err(CliError::new(code, e.to_string()));
+            let mut msg = e.to_string();
+            if let (FitError::Setup(m), Some(ev)) = (&e, events.first()) {
+                if m.contains("initialisation failed") {
+                    msg = format!(
+                        "{msg}; {}",
+                        itaipu_dynamics::plausibility::describe_operating_point(
+                            ev,
+                            unit.machine_mva
+                        )
+                    );
+                }
+            }
+            return Err(CliError::new(code, msg));
         }
     };
     let write = |p: &Path, text: &str| crate::output::write_synced(p, text.as_bytes());

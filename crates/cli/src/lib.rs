@@ -249,6 +249,36 @@ pub fn write_warnings(dir: &Path, warnings: &[Finding]) -> Result<(), CliError> 
 /// is refused rather than run for hours).
 pub const RK4_MAX_STEPS: f64 = 1e7;
 
+/// A simulation error traced back to the data: an integration failure at time t names the
+/// samples around t, an initialisation failure the operating point it was given.
+pub fn explain_sim_error(e: SimError, event: &Event, unit: &Unit) -> CliError {
+    use itaipu_dynamics::integrate::SolveError;
+    let mut err = CliError::from(e.clone());
+    let t = match &e {
+        SimError::Solve(
+            SolveError::NonFinite { t, .. }
+            | SolveError::StepUnderflow { t, .. }
+            | SolveError::TooManySteps { t, .. }
+            | SolveError::EventLoop { t },
+        ) => Some(*t),
+        _ => None,
+    };
+    match (&e, t) {
+        (_, Some(t)) => {
+            err.msg = format!("{}; {}", err.msg, plausibility::locate_time(event, t));
+        }
+        (SimError::Init(_), None) => {
+            err.msg = format!(
+                "{}; {}",
+                err.msg,
+                plausibility::describe_operating_point(event, unit.machine_mva)
+            );
+        }
+        _ => {}
+    }
+    err
+}
+
 /// Swarm, L-BFGS and thread options shared by `fit` and `diagnose`.
 #[derive(clap::Args, Debug)]
 pub struct SearchArgs {
@@ -458,7 +488,7 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     )?;
     let out = staging.path().to_path_buf();
     let t0 = Instant::now();
-    let traces = simulate(&unit, &event, &opts)?;
+    let traces = simulate(&unit, &event, &opts).map_err(|e| explain_sim_error(e, &event, &unit))?;
     let wall = t0.elapsed();
     let csv_path = out.join("traces.csv");
     traces

@@ -424,3 +424,67 @@ pub fn check_unit(unit: &Unit, file: &Path) -> Vec<Finding> {
     }
     out
 }
+
+/// Where a run-time failure at time `t_s` points in the data: the nearest sample's CSV line
+/// (or time) and values, and the one before it, so that a failure caused by a sample (say one
+/// of 1e300) names it.
+pub fn locate_time(event: &Event, t_s: f64) -> String {
+    let rec = &event.record;
+    let n = rec.time_s.len();
+    if n == 0 || !t_s.is_finite() {
+        return String::new();
+    }
+    let k = rec.time_s.partition_point(|t| *t < t_s).min(n - 1);
+    let k = if k > 0 && (rec.time_s[k] - t_s).abs() > (t_s - rec.time_s[k - 1]).abs() {
+        k - 1
+    } else {
+        k
+    };
+    let line0 = csv_layout(event).map(|l| l.1);
+    let at = |i: usize| match line0 {
+        Some(l) => format!("line {} (t = {} s)", l + i, rec.time_s[i]),
+        None => format!("sample {i} (t = {} s)", rec.time_s[i]),
+    };
+    let vals = |i: usize| {
+        format!(
+            "|V| {} pu, angle {} rad, P {} pu, Q {} pu",
+            rec.v_mag_pu[i], rec.v_ang_rad[i], rec.p_pu[i], rec.q_pu[i]
+        )
+    };
+    let mut s = format!(
+        "the record there: {} of {}: {}",
+        at(k),
+        event.csv_path.display(),
+        vals(k)
+    );
+    if k > 0 {
+        s.push_str(&format!("; before it, {}: {}", at(k - 1), vals(k - 1)));
+    }
+    s
+}
+
+/// The operating point the initialisation was given, from the event's init window, on the
+/// system and the machine base: what to check when a unit cannot initialise (an E_fd0 beyond
+/// the ceiling from P and Q on the wrong base, say).
+pub fn describe_operating_point(event: &Event, machine_mva: f64) -> String {
+    let op = event.operating_point();
+    let k = if machine_mva > 0.0 {
+        event.system_mva / machine_mva
+    } else {
+        f64::NAN
+    };
+    format!(
+        "the operating point from the init window [{}, {}] s of {}: |V| {:.4} pu, P {:.4} pu, Q {:.4} pu on {} MVA (P {:.4} pu, Q {:.4} pu on the machine's {} MVA), f {:.4} Hz; check the columns' units and bases",
+        event.init.start_s,
+        event.init.end_s,
+        event.csv_path.display(),
+        op.v_mag_pu,
+        op.p_pu,
+        op.q_pu,
+        event.system_mva,
+        op.p_pu * k,
+        op.q_pu * k,
+        machine_mva,
+        op.freq_hz
+    )
+}
