@@ -262,7 +262,7 @@ proptest! {
         let increasing = knots.windows(2).all(|w| w[1] > w[0]);
         let mut x = [1.0];
         let r = solve(&Method::Rk4 { h }, &mut Decay(1.0), &mut x, &knots, |_, _, _, _| {});
-        if !(h > 0.0) {
+        if h <= 0.0 {
             prop_assert!(r.is_err());
         } else if !increasing {
             prop_assert!(r.is_err());
