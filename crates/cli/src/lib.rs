@@ -161,6 +161,9 @@ where
             return code;
         }
     };
+    if !matches!(cli.cmd, Cmd::Fit(_) | Cmd::Models { .. }) {
+        output::remove_partial_on_signal();
+    }
     let result = match cli.cmd {
         Cmd::Simulate(a) => cmd_simulate(&a),
         Cmd::Models { name } => cmd_models(name.as_deref()),

@@ -129,6 +129,36 @@ pub fn verify(dir: &Path) -> Result<Manifest, String> {
     Ok(m)
 }
 
+/// Temporary folders of the runs in this process, removed when SIGINT or SIGTERM ends a
+/// command that does not stop by itself at a signal (all but `fit`, which polls a flag).
+static LIVE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Makes SIGINT and SIGTERM remove the temporary folders of this process and exit with
+/// 128 + the signal (130, 143), so that an interrupted `simulate`, `diagnose` or `synth` leaves
+/// nothing behind. Installed once, by the commands that do not poll an interrupt flag.
+pub(crate) fn remove_partial_on_signal() {
+    #[cfg(unix)]
+    {
+        static ONCE: std::sync::Once = std::sync::Once::new();
+        ONCE.call_once(|| {
+            use signal_hook::consts::{SIGINT, SIGTERM};
+            let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
+                return;
+            };
+            std::thread::spawn(move || {
+                if let Some(sig) = signals.forever().next() {
+                    let dirs = LIVE.lock().map(|v| v.clone()).unwrap_or_default();
+                    for d in dirs {
+                        let _ = std::fs::remove_dir_all(d);
+                    }
+                    eprintln!("error: interrupted by signal {sig}; nothing written");
+                    std::process::exit(128 + sig);
+                }
+            });
+        });
+    }
+}
+
 /// An output folder being written: a temporary folder beside the target, renamed into place
 /// by [`Staging::commit`] (or [`Staging::keep_partial`]); removed if dropped otherwise.
 pub struct Staging {
@@ -163,6 +193,9 @@ impl Staging {
                 ),
             )
         })?;
+        if let Ok(mut v) = LIVE.lock() {
+            v.push(tmp.clone());
+        }
         let st = Self {
             target: target.to_path_buf(),
             tmp,
@@ -237,6 +270,9 @@ impl Staging {
 
 impl Drop for Staging {
     fn drop(&mut self) {
+        if let Ok(mut v) = LIVE.lock() {
+            v.retain(|d| d != &self.tmp);
+        }
         if !self.done {
             let _ = std::fs::remove_dir_all(&self.tmp);
         }

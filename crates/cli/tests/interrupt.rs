@@ -212,3 +212,40 @@ fn sigterm_also_leaves_a_marked_partial_folder_and_a_complete_folder_is_not_resu
     assert!(log.contains("complete"), "{log}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A command that does not poll the interrupt (diagnose) ends at SIGINT without leaving its
+/// temporary folder, and the target is not created.
+#[test]
+fn an_interrupted_diagnose_leaves_nothing() {
+    let dir = tmp("diag");
+    let out = dir.join("diag");
+    let mut child = bin()
+        .args(["diagnose", "--no-plot", "--out", out.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id().to_string();
+    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    // The first progress line: the run has started (its temporary folder exists).
+    let first = lines.next().unwrap().unwrap();
+    let staged: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(
+        staged.iter().any(|n| n.starts_with(".diag.partial-")),
+        "{staged:?} ({first})"
+    );
+    assert!(Command::new("kill")
+        .args(["-INT", &pid])
+        .status()
+        .unwrap()
+        .success());
+    let rest: Vec<String> = lines.map(|l| l.unwrap()).collect();
+    let code = child.wait().unwrap().code();
+    assert_eq!(code, Some(130), "{first}\n{}", rest.join("\n"));
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
