@@ -2,15 +2,20 @@
 //! naming the file, never a panic; a spec that parses has no stage whose objective sums
 //! nothing. Property tests of the bounds transforms.
 //!
-//! `PROPTEST_CASES=10000 cargo test -p itaipu-calib --test fuzz_spec` is the
-//! measurement of issue 13 (the suite runs proptest's default 256 cases).
+//! `PROPTEST_CASES=10000 cargo test -p itaipu-calib --test fuzz_spec -- --nocapture`
+//! is the measurement of issue 13 and prints what the specs gave (the suite runs 1,000 specs
+//! and proptest's default 256 cases of the bounds property).
 
 use std::path::{Path, PathBuf};
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use itaipu_calib::fit::check_spec;
 use itaipu_calib::problem::{logistic, logit, FreeParam};
 use itaipu_calib::spec::{CalibSpec, Objective};
 use itaipu_dynamics::unit_file::read_unit;
 use proptest::prelude::*;
+use proptest::test_runner::TestRunner;
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -119,11 +124,32 @@ fn seed_spec() -> &'static str {
     T.get_or_init(|| std::fs::read_to_string(repo().join("data/itaipu/calibration.toml")).unwrap())
 }
 
-proptest! {
-    #[test]
-    fn spec_parser_never_panics(e in edits()) {
+/// Specs per run: `PROPTEST_CASES` if set (10,000 for the measurement of issue 13), else 1,000.
+fn cases() -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1000)
+}
+
+/// Mutated specs give a spec or a typed error naming the file, never a panic; a spec that
+/// parses has no stage whose objective sums nothing, finite bounds and at least 2 particles, and
+/// is checked against the Itaipu unit (no panic there either). Prints the counts.
+#[test]
+fn spec_parser_never_panics() {
+    let n = cases();
+    let unit = read_unit(&repo().join("data/itaipu/unit.toml")).unwrap();
+    let config = ProptestConfig {
+        cases: n,
+        source_file: Some(file!()),
+        ..ProptestConfig::default()
+    };
+    // Parsed and checked against the unit; parsed but refused by the unit; refused by the parser.
+    let counts = [0, 1, 2].map(|_| AtomicUsize::new(0));
+    let mut runner = TestRunner::new(config);
+    let result = runner.run(&edits(), |e| {
         let text = mutate(seed_spec(), &e);
-        match CalibSpec::parse(&text, Path::new("c.toml")) {
+        let k = match CalibSpec::parse(&text, Path::new("c.toml")) {
             Ok(spec) => {
                 for s in &spec.stages {
                     let (wp, wq) = match s.objective {
@@ -137,14 +163,37 @@ proptest! {
                     }
                 }
                 prop_assert!(spec.pso.particles >= 2);
+                let stages: Vec<String> = spec.stages.iter().map(|s| s.name.clone()).collect();
+                match check_spec(&unit, &spec, &stages) {
+                    Ok(()) => 0,
+                    Err(err) => {
+                        prop_assert!(!err.to_string().is_empty());
+                        1
+                    }
+                }
             }
             Err(err) => {
                 prop_assert!(["io", "syntax", "missing", "field"].contains(&err.kind()));
                 prop_assert!(err.to_string().contains("c.toml"), "{}", err);
+                2
             }
-        }
+        };
+        counts[k].fetch_add(1, Ordering::Relaxed);
+        Ok(())
+    });
+    if let Err(e) = result {
+        panic!("fuzz calibration spec: {e}");
     }
+    let [ok, refused, rejected] = counts.map(|c| c.into_inner());
+    println!(
+        "fuzz mutated calibration spec: {} inputs, 0 panics: {ok} parsed and fit the unit, {refused} parsed but refused against the unit, {rejected} typed errors",
+        ok + refused + rejected
+    );
+    // proptest also replays the seeds saved in fuzz_spec.proptest-regressions first.
+    assert!(ok + refused + rejected >= n as usize);
+}
 
+proptest! {
     /// Box coordinates: from_unit maps [0, 1] into [lo, hi], monotonically, and to_unit
     /// inverts it (linear and logarithmic scaling); anything outside is clamped, never NaN.
     #[test]

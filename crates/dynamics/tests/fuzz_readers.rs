@@ -3,18 +3,21 @@
 //! plausibility layer and the operating point without a panic either. Property tests of the
 //! integrators.
 //!
-//! Bounded for the test suite (proptest's default 256 cases per property); the measurement of
-//! issue 13 runs 10,000 per reader:
-//! `PROPTEST_CASES=10000 cargo test -p itaipu-dynamics --test fuzz_readers`.
+//! Bounded for the test suite: 1,000 inputs per reader (a few seconds), proptest's default 256
+//! cases for the integrator properties. The measurement of issue 13 runs 10,000 per reader and
+//! prints what they gave:
+//! `PROPTEST_CASES=10000 cargo test -p itaipu-dynamics --test fuzz_readers -- --nocapture`.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use itaipu_dynamics::event::{read_csv, Event};
 use itaipu_dynamics::integrate::{solve, Dopri5Options, Method, OdeSystem};
-use itaipu_dynamics::plausibility::check_event;
+use itaipu_dynamics::plausibility::{check_event, has_errors};
+use itaipu_dynamics::simulate::{simulate, SimOptions};
 use itaipu_dynamics::unit_file::parse_unit;
 use proptest::prelude::*;
+use proptest::test_runner::{TestCaseError, TestRunner};
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -156,58 +159,259 @@ fn itaipu_unit() -> &'static str {
 
 const EVENT_TOML: &str = "name = \"f\"\ncsv = \"e.csv\"\nsystem_mva = 1000.0\nnominal_hz = 60.0\n[init]\nstart_s = 0.0\nend_s = 0.95\n[fit]\nstart_s = 0.0\nend_s = 1.9\n";
 
+/// What one fuzzed input gave (a panic or a failed assertion fails the test instead).
+#[derive(Clone, Copy, Debug)]
+enum Outcome {
+    /// Read, and the plausibility layer found no error.
+    Read,
+    /// Read, and the plausibility layer found an error (the CLI stops with exit 3).
+    Implausible,
+    /// Refused with a typed error naming the file.
+    Rejected,
+}
+
+/// Cases per reader: `PROPTEST_CASES` if set (10,000 for the measurement of issue 13), else
+/// 1,000 (a few seconds in the suite).
+fn cases() -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1000)
+}
+
+/// Runs `case` on [`cases`] inputs drawn from `strategy` (proptest: a panic or a failed
+/// assertion is a failure, shrunk to a small input), counts the outcomes, prints them and checks
+/// that every input was run.
+fn fuzz<S: Strategy>(
+    name: &str,
+    strategy: S,
+    case: impl Fn(S::Value) -> Result<Outcome, TestCaseError>,
+) {
+    let n = cases();
+    let config = ProptestConfig {
+        cases: n,
+        source_file: Some(file!()),
+        ..ProptestConfig::default()
+    };
+    let counts = [0, 1, 2].map(|_| AtomicUsize::new(0));
+    let mut runner = TestRunner::new(config);
+    let result = runner.run(&strategy, |v| {
+        let k = case(v)? as usize;
+        counts[k].fetch_add(1, Ordering::Relaxed);
+        Ok(())
+    });
+    if let Err(e) = result {
+        panic!("fuzz {name}: {e}");
+    }
+    let [read, implausible, rejected] = counts.map(|c| c.into_inner());
+    println!(
+        "fuzz {name}: {} inputs, 0 panics: {read} read, {implausible} read but implausible, {rejected} typed errors",
+        read + implausible + rejected
+    );
+    // At least n: proptest replays any seed saved in a regressions file first.
+    assert!(read + implausible + rejected >= n as usize, "{name}");
+}
+
 /// Reads an event from `toml` and `csv`; an event that reads is checked and its operating
 /// point computed (no panic either way).
-fn read_event(dir: &Path, toml: &str, csv: &str) {
+fn read_event(dir: &Path, toml: &str, csv: &str) -> Result<Outcome, TestCaseError> {
     std::fs::write(dir.join("e.toml"), toml).unwrap();
     std::fs::write(dir.join("e.csv"), csv).unwrap();
-    match Event::from_toml_file(&dir.join("e.toml")) {
+    let outcome = match Event::from_toml_file(&dir.join("e.toml")) {
         Ok(e) => {
             let _ = e.operating_point();
-            let _ = check_event(&e, Some(737.0));
+            let findings = check_event(&e, Some(737.0));
+            for f in &findings {
+                // Every finding names the file it is about.
+                prop_assert!(f.to_string().contains("e."), "{}", f);
+            }
+            if has_errors(&findings) {
+                Outcome::Implausible
+            } else {
+                Outcome::Read
+            }
         }
         Err(err) => {
             // Typed, and it names the file it is about.
-            assert!(!err.kind().is_empty());
-            assert!(err.to_string().contains("e."), "{err}");
+            prop_assert!(!err.kind().is_empty());
+            prop_assert!(err.to_string().contains("e."), "{}", err);
+            Outcome::Rejected
         }
-    }
+    };
     let _ = std::fs::remove_dir_all(dir);
+    Ok(outcome)
 }
 
-proptest! {
-    #[test]
-    fn csv_reader_never_panics_on_mutations(e in edits()) {
-        let dir = case_dir();
-        read_event(&dir, EVENT_TOML, &mutate(itaipu_csv(), &e));
-    }
+#[test]
+fn csv_reader_never_panics_on_mutations() {
+    fuzz("mutated CSV", edits(), |e| {
+        read_event(&case_dir(), EVENT_TOML, &mutate(itaipu_csv(), &e))
+    });
+}
 
-    #[test]
-    fn csv_reader_never_panics_on_arbitrary_text(text in "[-0-9a-z_,.\\n\"e+ ]{0,400}") {
-        let dir = case_dir();
-        std::fs::write(dir.join("x.csv"), &text).unwrap();
-        if let Err(err) = read_csv(&dir.join("x.csv"), 60.0) {
-            prop_assert!(!err.kind().is_empty());
-        }
-        let _ = std::fs::remove_dir_all(&dir);
-    }
+#[test]
+fn csv_reader_never_panics_on_arbitrary_text() {
+    fuzz(
+        "arbitrary CSV text",
+        "[-0-9a-z_,.\\n\"e+ ]{0,400}",
+        |text: String| {
+            let dir = case_dir();
+            std::fs::write(dir.join("x.csv"), &text).unwrap();
+            let outcome = match read_csv(&dir.join("x.csv"), 60.0) {
+                Ok(_) => Outcome::Read,
+                Err(err) => {
+                    prop_assert!(!err.kind().is_empty());
+                    prop_assert!(err.to_string().contains("x.csv"), "{}", err);
+                    Outcome::Rejected
+                }
+            };
+            let _ = std::fs::remove_dir_all(&dir);
+            Ok(outcome)
+        },
+    );
+}
 
-    #[test]
-    fn event_toml_reader_never_panics(e in edits()) {
-        let dir = case_dir();
-        read_event(&dir, &mutate(EVENT_TOML, &e), itaipu_csv());
-    }
+#[test]
+fn event_toml_reader_never_panics() {
+    fuzz("mutated event TOML", edits(), |e| {
+        read_event(&case_dir(), &mutate(EVENT_TOML, &e), itaipu_csv())
+    });
+}
 
-    #[test]
-    fn unit_toml_reader_never_panics(e in edits()) {
+#[test]
+fn unit_toml_reader_never_panics() {
+    fuzz("mutated unit TOML", edits(), |e| {
         let text = mutate(itaipu_unit(), &e);
-        match parse_unit(&text, Path::new("u.toml")) {
+        Ok(match parse_unit(&text, Path::new("u.toml")) {
             Ok(u) => {
                 let _ = itaipu_dynamics::plausibility::check_unit(&u, Path::new("u.toml"));
+                Outcome::Read
             }
-            Err(err) => prop_assert!(err.to_string().contains("u.toml"), "{}", err),
+            Err(err) => {
+                prop_assert!(err.to_string().contains("u.toml"), "{}", err);
+                Outcome::Rejected
+            }
+        })
+    });
+}
+
+/// Column layouts of a well-formed CSV (the two voltage forms, with and without frequency).
+const LAYOUTS: &[&str] = &[
+    "time_s,v_re_pu,v_im_pu,p_pu,q_pu",
+    "time_s,v_pu,angle_deg,p_pu,q_pu",
+    "time_s,v_pu,angle_deg,p_pu,q_pu,freq_hz",
+];
+
+/// Values that readers, the plausibility layer and the initialisation find hard.
+fn wild_value() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        prop::sample::select(vec![
+            0.0,
+            -0.0,
+            1e300,
+            -1e300,
+            1e-300,
+            5e-324,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::MAX,
+            1e-12,
+            3.14159,
+            180.0,
+            -180.0,
+            360.0,
+            19.99,
+            -19.99,
+            45.0,
+            65.0,
+        ]),
+        -100.0f64..100.0,
+        prop::num::f64::ANY,
+    ]
+}
+
+/// A well-formed CSV (a layout, a sample interval, 0-150 rows near the Itaipu operating point)
+/// with wild values put into some of its cells: every number parses, so these inputs go past
+/// the syntax into the readers' checks, the plausibility layer, the initialisation and, when
+/// they read without an implausibility, a short playback.
+fn wild_csv() -> impl Strategy<Value = String> {
+    (
+        0..LAYOUTS.len(),
+        prop_oneof![
+            4 => Just(1.0 / 60.0),
+            1 => prop::sample::select(vec![1.0 / 30.0, 1e-12, 0.5, 100.0, 0.0]),
+        ],
+        // Mostly long enough for the event's windows (2 s at 60 samples/s).
+        prop_oneof![3 => 118usize..150, 1 => 0usize..150],
+        // Cells (row, column, value); the time column rarely (a wild time rarely reads).
+        prop::collection::vec(
+            (
+                0usize..150,
+                prop_oneof![1 => Just(0usize), 9 => 1usize..6],
+                wild_value(),
+            ),
+            0..5,
+        ),
+    )
+        .prop_map(|(layout, dt, rows, cells)| {
+            let header = LAYOUTS[layout];
+            let cols = header.split(',').count();
+            let mut table: Vec<Vec<f64>> = (0..rows)
+                .map(|k| {
+                    let t = k as f64 * dt;
+                    let mut r = vec![t];
+                    if layout == 0 {
+                        r.extend([0.986 * (0.01 * t).cos(), 0.986 * (0.01 * t).sin()]);
+                    } else {
+                        r.extend([0.986, (0.01 * t).to_degrees()]);
+                    }
+                    r.extend([0.6235, 0.0225]);
+                    if cols == 6 {
+                        r.push(60.0);
+                    }
+                    r
+                })
+                .collect();
+            for (row, col, v) in cells {
+                if let Some(r) = table.get_mut(row) {
+                    r[if col == 0 {
+                        0
+                    } else {
+                        1 + (col - 1) % (cols - 1)
+                    }] = v;
+                }
+            }
+            let mut text = format!("{header}\n");
+            for r in table {
+                let cells: Vec<String> = r.iter().map(|x| format!("{x:?}")).collect();
+                text.push_str(&cells.join(","));
+                text.push('\n');
+            }
+            text
+        })
+}
+
+#[test]
+fn wild_numbers_in_a_well_formed_csv_never_panic() {
+    let unit = parse_unit(itaipu_unit(), Path::new("u.toml")).unwrap();
+    let opts = SimOptions {
+        method: Method::Rk4 { h: 0.01 },
+    };
+    fuzz("well-formed CSV, wild values", wild_csv(), |csv| {
+        let dir = case_dir();
+        let outcome = read_event(&dir, EVENT_TOML, &csv)?;
+        if let Outcome::Read = outcome {
+            // Recreate the files read_event removed; play the event back (result or error).
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(dir.join("e.toml"), EVENT_TOML).unwrap();
+            std::fs::write(dir.join("e.csv"), &csv).unwrap();
+            let e = Event::from_toml_file(&dir.join("e.toml")).unwrap();
+            let _ = simulate(&unit, &e, &opts);
+            let _ = std::fs::remove_dir_all(&dir);
         }
-    }
+        Ok(outcome)
+    });
 }
 
 /// dx/dt = −a·x, one state.
