@@ -90,8 +90,8 @@ pub fn has_errors(findings: &[Finding]) -> bool {
 
 struct Ctx<'a> {
     file: PathBuf,
-    /// CSV line of playback sample 0, when the CSV could be re-read.
-    line0: Option<usize>,
+    /// CSV line of each playback sample, when the CSV could be re-read.
+    lines: Option<Vec<usize>>,
     rec: &'a Record,
     out: Vec<Finding>,
 }
@@ -111,7 +111,7 @@ impl Ctx<'_> {
             severity,
             kind,
             file: self.file.clone(),
-            line: k.and_then(|k| self.line0.map(|l| l + k)),
+            line: k.and_then(|k| self.lines.as_ref().and_then(|l| l.get(k).copied())),
             time_s: k.map(|k| self.rec.time_s[k]),
             column: column.into(),
             message,
@@ -128,9 +128,32 @@ fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// The CSV header's columns and the line of the first playback sample, by re-reading the CSV
-/// (`None` for in-memory events or a CSV that no longer reads).
-fn csv_layout(event: &Event) -> Option<(Vec<String>, usize, Record)> {
+/// The CSV as read: its header's columns, the 1-based line of each of its samples (blank lines
+/// are skipped by the reader, so a sample's line is not simply its index + 2), every sample,
+/// and the index of the first playback sample; `None` for in-memory events or a CSV that no
+/// longer reads.
+struct Layout {
+    header: Vec<String>,
+    /// Line of every sample of the file (header = line 1).
+    lines: Vec<usize>,
+    full: Record,
+    /// Index in `full` of playback sample 0.
+    offset: usize,
+}
+
+impl Layout {
+    /// Line of sample `i` of the file.
+    fn line(&self, i: usize) -> usize {
+        self.lines.get(i).copied().unwrap_or(i + 2)
+    }
+
+    /// Lines of the playback samples.
+    fn playback_lines(&self, n: usize) -> Vec<usize> {
+        (0..n).map(|k| self.line(self.offset + k)).collect()
+    }
+}
+
+fn csv_layout(event: &Event) -> Option<Layout> {
     if event.csv_path.as_os_str().is_empty() {
         return None;
     }
@@ -145,7 +168,28 @@ fn csv_layout(event: &Event) -> Option<(Vec<String>, usize, Record)> {
     let full = read_csv(&event.csv_path, event.nominal_hz).ok()?;
     let t0 = *event.record.time_s.first()?;
     let offset = full.time_s.iter().position(|t| *t == t0)?;
-    Some((header, offset + 2, full))
+    // The reader's records and the file's lines: the same CSV settings, positions kept.
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let lines: Vec<usize> = rdr
+        .records()
+        .map_while(|r| r.ok())
+        .filter_map(|r| r.position().map(|p| p.line() as usize))
+        .collect();
+    let lines = if lines.len() == full.time_s.len() {
+        lines
+    } else {
+        (0..full.time_s.len()).map(|i| i + 2).collect()
+    };
+    Some(Layout {
+        header,
+        lines,
+        full,
+        offset,
+    })
 }
 
 /// Checks an event's playback record. `machine_mva` (the unit's rating) enables the checks
@@ -165,7 +209,7 @@ pub fn check_event(event: &Event, machine_mva: Option<f64>) -> Vec<Finding> {
     let n = rec.time_s.len();
     let mut c = Ctx {
         file,
-        line0: layout.as_ref().map(|l| l.1),
+        lines: layout.as_ref().map(|l| l.playback_lines(n)),
         rec,
         out: vec![],
     };
@@ -268,21 +312,25 @@ pub fn check_event(event: &Event, machine_mva: Option<f64>) -> Vec<Finding> {
         }
     }
     // Angle units: an angle_deg column that holds radians wraps at ±π, not ±180.
-    if let Some((header, _, full)) = &layout {
-        if header.iter().any(|h| h == "angle_deg") {
-            let deg: Vec<f64> = full.v_ang_rad.iter().map(|a| a.to_degrees()).collect();
+    if let Some(layout) = &layout {
+        if layout.header.iter().any(|h| h == "angle_deg") {
+            let deg: Vec<f64> = layout
+                .full
+                .v_ang_rad
+                .iter()
+                .map(|a| a.to_degrees())
+                .collect();
             let max = deg.iter().fold(0.0f64, |m, a| m.max(a.abs()));
             let wraps = deg
                 .windows(2)
                 .position(|w| ((w[1] - w[0]).abs() - std::f64::consts::TAU).abs() < 0.5);
             if max <= std::f64::consts::PI + 1e-6 {
-                let line_of = |i: usize| i + 2;
                 let (sev, msg) = match wraps {
                     Some(i) => (
                         Severity::Error,
                         format!(
                             "the angle stays within ±π and jumps by 2π at line {}: the column holds radians",
-                            line_of(i + 1)
+                            layout.line(i + 1)
                         ),
                     ),
                     None => (
@@ -440,9 +488,9 @@ pub fn locate_time(event: &Event, t_s: f64) -> String {
     } else {
         k
     };
-    let line0 = csv_layout(event).map(|l| l.1);
-    let at = |i: usize| match line0 {
-        Some(l) => format!("line {} (t = {} s)", l + i, rec.time_s[i]),
+    let lines = csv_layout(event).map(|l| l.playback_lines(n));
+    let at = |i: usize| match &lines {
+        Some(l) => format!("line {} (t = {} s)", l[i], rec.time_s[i]),
         None => format!("sample {i} (t = {} s)", rec.time_s[i]),
     };
     let vals = |i: usize| {

@@ -109,6 +109,38 @@ fn a_single_sample_dropout_is_an_error_not_a_fault() {
     assert!(check_event(&event(&t.0, &rows(), 1000.0), Some(ITAIPU_MVA)).is_empty());
 }
 
+/// Blank lines in the CSV (which the reader skips) do not shift the line a finding names, nor
+/// the line a run-time failure is traced to.
+#[test]
+fn lines_are_the_files_lines_with_blank_lines_in_it() {
+    let t = Tmp::new("blank");
+    let mut r = rows();
+    r[200][1] = 0.0;
+    r[200][2] = 0.0;
+    let e = event(&t.0, &r, 1000.0);
+    // Three blank lines after the header, two after the 50th sample (line 52).
+    let csv = std::fs::read_to_string(t.0.join("e.csv")).unwrap();
+    let mut lines: Vec<&str> = csv.lines().collect();
+    lines.splice(52..52, ["", ""]);
+    lines.splice(1..1, ["", "", ""]);
+    std::fs::write(t.0.join("e.csv"), lines.join("\n") + "\n").unwrap();
+    let e2 = Event::from_toml_file(&t.0.join("e.toml")).unwrap();
+    assert_eq!(e2.record.time_s, e.record.time_s);
+    let d = find(&check_event(&e2, Some(ITAIPU_MVA)), "dropout").clone();
+    // Sample 200: line 202 without the blank lines, 207 with them.
+    assert_eq!(d.line, Some(207), "{d}");
+    let written = std::fs::read_to_string(t.0.join("e.csv")).unwrap();
+    assert!(written
+        .lines()
+        .nth(206)
+        .unwrap()
+        .starts_with(&format!("{:?},0.0,0.0", r[200][0])));
+    // A failure at t = 1.65 s (sample 99) is traced to line 99 + 2 + 5 = 106.
+    let at = itaipu_dynamics::plausibility::locate_time(&e2, 1.65);
+    assert!(at.contains("line 106 (t = 1.65"), "{at}");
+    assert!(written.lines().nth(105).unwrap().starts_with("1.65"));
+}
+
 #[test]
 fn a_time_column_scaled_absurdly_is_an_error() {
     let t = Tmp::new("timescale");
