@@ -266,6 +266,114 @@ fn implausible_events_stop_or_warn_through_the_cli() {
     itaipu_calib_cli::output::verify(&out).unwrap();
 }
 
+/// The rest of the bad-input table through the command line. A sample of 1e300 (it ended in
+/// a step-size underflow at t = 1.65 s) and P and Q on a base 20 times too small though below
+/// the reader's MW check (it ended in an E_fd0 beyond the ceiling) stop before anything is
+/// computed, exit 3, naming the line or the base and the fix, and so does an angle column in
+/// radians that wraps at ±π; h = 1e308 runs with its warning kept in warnings.json.
+#[test]
+fn the_rest_of_the_bad_input_table_through_the_cli() {
+    let tmp = TempDir::new("table");
+    let out = tmp.path().join("o");
+    let o = out.to_str().unwrap();
+    let unit_path = data("itaipu/unit.toml");
+    let unit = itaipu_calib_cli::load_unit(&unit_path).unwrap();
+    // The message the run stops with: the reader's or the plausibility layer's.
+    let stop_message = |ev: &std::path::Path| match itaipu_calib_cli::load_event(ev) {
+        Err(e) => (e.code, e.msg),
+        Ok(e) => {
+            let e = itaipu_calib_cli::plausibility(&[&e], &unit, &unit_path).unwrap_err();
+            (e.code, e.msg)
+        }
+    };
+    // Row 99 is t = 1.65 s, line 101 of the CSV.
+    let huge = itaipu_event_with(&tmp, "huge", |i, v| {
+        if i == 99 {
+            v[1] = 1e300;
+        }
+    });
+    let (code, msg) = stop_message(&huge);
+    assert_eq!(code, 3);
+    assert!(
+        msg.contains("huge.csv line 101 (t = 1.65 s), |V|: 1e300 is far beyond"),
+        "{msg}"
+    );
+    assert!(msg.contains("fix: "), "{msg}");
+    let small_base = itaipu_event_with(&tmp, "small_base", |_, v| {
+        v[3] *= 20.0;
+        v[4] *= 20.0;
+    });
+    // Below the reader's MW check (|P| < 20 pu), so only the plausibility layer finds it.
+    let e = itaipu_calib_cli::load_event(&small_base).unwrap();
+    assert!(e.record.p_pu.iter().all(|p| p.abs() < 20.0));
+    let (code, msg) = stop_message(&small_base);
+    assert_eq!(code, 3);
+    assert!(
+        msg.contains("exceeds the machine's rating 737 MVA") && msg.contains("set system_mva"),
+        "{msg}"
+    );
+    assert!(!msg.contains("E_fd0"), "{msg}");
+    for ev in [&huge, &small_base] {
+        for cmd in ["simulate", "fit"] {
+            assert_eq!(cli(&[cmd, "--event", ev.to_str().unwrap(), "--out", o]), 3);
+            assert!(!out.exists());
+        }
+    }
+    // The angle in radians in an angle_deg column: |V| and the angle from the record's phasor.
+    let text = std::fs::read_to_string(data("itaipu/itaipu_pmu_60sps.csv")).unwrap();
+    let mut csv = String::from("time_s,v_pu,angle_deg,p_pu,q_pu\n");
+    for l in text.lines().skip(1) {
+        let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+        csv.push_str(&format!(
+            "{:?},{:?},{:?},{:?},{:?}\n",
+            v[0],
+            v[1].hypot(v[2]),
+            v[2].atan2(v[1]),
+            v[3],
+            v[4]
+        ));
+    }
+    tmp.write("radians.csv", &csv);
+    let ev = std::fs::read_to_string(data("itaipu/event.toml"))
+        .unwrap()
+        .replace("itaipu_pmu_60sps.csv", "radians.csv");
+    let radians = tmp.write("radians.toml", &ev);
+    // The Itaipu angle crosses ±180° in the record, so the radians wrap by 2π: an error.
+    let (code, msg) = stop_message(&radians);
+    assert_eq!(code, 3);
+    assert!(
+        msg.contains("radians.csv line 1, angle_deg: the angle stays within ±π and jumps by 2π")
+            && msg.contains("fix: convert the column to degrees"),
+        "{msg}"
+    );
+    assert_eq!(
+        cli(&["simulate", "--event", radians.to_str().unwrap(), "--out", o]),
+        3
+    );
+    assert!(!out.exists());
+    // h = 1e308: a warning naming the parameter, kept with the results.
+    let u = std::fs::read_to_string(&unit_path)
+        .unwrap()
+        .replace("h = 4.5 ", "h = 1e308 ");
+    assert!(u.contains("h = 1e308 "));
+    let u = tmp.write("h.toml", &u);
+    let code = cli(&[
+        "simulate",
+        "--no-plot",
+        "--out",
+        o,
+        "--unit",
+        u.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0);
+    itaipu_calib_cli::output::verify(&out).unwrap();
+    let w: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("warnings.json")).unwrap()).unwrap();
+    assert_eq!(w[0]["kind"], "parameter_range");
+    assert_eq!(w[0]["column"], "machine.h");
+    assert!(w[0]["file"].as_str().unwrap().ends_with("h.toml"));
+}
+
 /// A start value outside its bounds is no longer clamped in silence: the fit's report lists
 /// the warning with the spec's field.
 #[test]

@@ -258,9 +258,35 @@ pub fn check_event(event: &Event, machine_mva: Option<f64>) -> Vec<Finding> {
             );
         }
     }
-    // Absurd magnitudes (one sample of 1e300, |V| in the wrong unit...).
+    // Base: the pre-event P and Q against the machine's rating. Checked before the absurd
+    // magnitudes so that a whole column on the wrong base is named as such (its fix is the base,
+    // not a sample), unless an absurd sample in the init window would make the mean meaningless.
     let rating = machine_mva.filter(|m| *m > 0.0).unwrap_or(event.system_mva);
     let pq_max = PQ_ABSURD_RATING * rating / event.system_mva;
+    let init_sane = (0..n)
+        .filter(|&k| rec.time_s[k] >= event.init.start_s && rec.time_s[k] <= event.init.end_s)
+        .all(|k| rec.p_pu[k].abs() <= pq_max && rec.q_pu[k].abs() <= pq_max);
+    let op = event.operating_point();
+    if let (Some(m), true) = (machine_mva.filter(|m| *m > 0.0), init_sane) {
+        let s = op.p_pu.hypot(op.q_pu) * event.system_mva;
+        if s > P_RATING_FACTOR * m {
+            c.push(
+                Severity::Error,
+                "above_rating",
+                Some(0),
+                "p_pu",
+                format!(
+                    "the pre-event apparent power {s:.1} MVA (P {:.4} pu, Q {:.4} pu on {} MVA) exceeds the machine's rating {m} MVA by {:.0} %",
+                    op.p_pu,
+                    op.q_pu,
+                    event.system_mva,
+                    (s / m - 1.0) * 100.0
+                ),
+                "P and Q must be per unit on the event's system_mva base: if they are on another base (the machine's, say), set system_mva to that base or convert the columns",
+            );
+        }
+    }
+    // Absurd magnitudes (one sample of 1e300, |V| in the wrong unit...).
     for (col, v, lim) in [
         ("|V|", &rec.v_mag_pu, V_MAX_PU),
         ("p_pu", &rec.p_pu, pq_max),
@@ -274,7 +300,8 @@ pub fn check_event(event: &Event, machine_mva: Option<f64>) -> Vec<Finding> {
                 col,
                 format!(
                     "{} is far beyond anything a unit of {rating} MVA records (limit {lim:.3} pu on {} MVA)",
-                    v[k], event.system_mva
+                    short(v[k]),
+                    event.system_mva
                 ),
                 "correct or remove the sample in the CSV",
             );
@@ -371,7 +398,6 @@ pub fn check_event(event: &Event, machine_mva: Option<f64>) -> Vec<Finding> {
             );
         }
     }
-    let op = event.operating_point();
     if !(op.freq_hz >= FREQ_RANGE_HZ.0 && op.freq_hz <= FREQ_RANGE_HZ.1) {
         c.push(
             Severity::Error,
@@ -400,25 +426,6 @@ pub fn check_event(event: &Event, machine_mva: Option<f64>) -> Vec<Finding> {
             "if P and Q have the load convention, negate both columns; a pump or motor is not a generating unit's model",
         );
     }
-    if let Some(m) = machine_mva.filter(|m| *m > 0.0) {
-        let s = op.p_pu.hypot(op.q_pu) * event.system_mva;
-        if s > P_RATING_FACTOR * m {
-            c.push(
-                Severity::Error,
-                "above_rating",
-                Some(0),
-                "p_pu",
-                format!(
-                    "the pre-event apparent power {s:.1} MVA (P {:.4} pu, Q {:.4} pu on {} MVA) exceeds the machine's rating {m} MVA by {:.0} %",
-                    op.p_pu,
-                    op.q_pu,
-                    event.system_mva,
-                    (s / m - 1.0) * 100.0
-                ),
-                "P and Q must be on the event's system_mva base: if they are on the machine base, set system_mva to the machine's MVA",
-            );
-        }
-    }
     // One-sample spikes of P or Q that come straight back.
     let spike = SPIKE_PU * rating / event.system_mva;
     for (col, v) in [("p_pu", &rec.p_pu), ("q_pu", &rec.q_pu)] {
@@ -444,6 +451,16 @@ pub fn check_event(event: &Event, machine_mva: Option<f64>) -> Vec<Finding> {
     c.out
 }
 
+/// A number as written by hand: plain when moderate, in exponent form when huge or tiny (1e308,
+/// not 309 digits).
+fn short(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e6).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// Parameters of `unit` far outside the model library's typical ranges (more than a range's
 /// width beyond it): warnings naming the file and the parameter.
 pub fn check_unit(unit: &Unit, file: &Path) -> Vec<Finding> {
@@ -463,8 +480,10 @@ pub fn check_unit(unit: &Unit, file: &Path) -> Vec<Finding> {
                 time_s: None,
                 column: path.clone(),
                 message: format!(
-                    "{v} {} lies far outside the library's typical range {lo}-{hi} ({})",
-                    spec.unit, spec.doc
+                    "{} {} lies far outside the library's typical range {lo}-{hi} ({})",
+                    short(v),
+                    spec.unit,
+                    spec.doc
                 ),
                 fix: "check the value and its unit (itaipu-calib models shows every range)".into(),
             });

@@ -279,4 +279,10 @@ fn parameters_far_outside_the_library_ranges_warn() {
         (f[0].kind, f[0].column.as_str()),
         ("parameter_range", "machine.h")
     );
+    assert!(
+        f[0].message
+            .starts_with("1e308 s lies far outside the library's typical range 3-6"),
+        "{}",
+        f[0].message
+    );
 }
