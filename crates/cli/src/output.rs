@@ -147,8 +147,10 @@ pub(crate) fn remove_partial_on_signal() {
             };
             std::thread::spawn(move || {
                 if let Some(sig) = signals.forever().next() {
-                    let dirs = LIVE.lock().map(|v| v.clone()).unwrap_or_default();
-                    for d in dirs {
+                    // The lock is kept to the exit: a folder being renamed into place is
+                    // finished first, and none is started after.
+                    let dirs = LIVE.lock().unwrap_or_else(|p| p.into_inner());
+                    for d in dirs.iter() {
                         let _ = std::fs::remove_dir_all(d);
                     }
                     eprintln!("error: interrupted by signal {sig}; nothing written");
@@ -248,6 +250,11 @@ impl Staging {
         let err = |e: std::io::Error, what: &str| {
             CliError::new(7, format!("cannot {what} {}: {e}", self.target.display()))
         };
+        // Held until the folder is in place and the old one gone: a signal arriving meanwhile
+        // waits for it (see `remove_partial_on_signal`), so that it never removes the new
+        // folder after the old one was moved aside, nor leaves the old one beside it.
+        let mut live = LIVE.lock().unwrap_or_else(|p| p.into_inner());
+        live.retain(|d| d != &self.tmp);
         if self.target.exists() {
             // Replace whole: move the old folder aside, the new one in, then delete the old.
             let old = self.tmp.with_file_name(format!(
