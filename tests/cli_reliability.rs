@@ -408,6 +408,9 @@ fn a_clamped_start_is_reported() {
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let w = r["warnings"].as_array().unwrap();
+    // Only this one: the bundled record, unit and spec are plausible as given (the spec gives
+    // the starts of the parameters whose datasheet values lie outside RaPId's bounds).
+    assert_eq!(w.len(), 1, "{w:#?}");
     let c = w
         .iter()
         .find(|x| x["kind"] == "start_clamped")
@@ -455,4 +458,29 @@ fn run_time_failures_point_at_the_data() {
         "{}",
         err.msg
     );
+    // diagnose and fit stop on it before any computation (exit 5), nothing written.
+    let out = tmp.path().join("o");
+    let bad_path = tmp.path().join("u.toml");
+    let calib = data("itaipu/calibration.toml");
+    for cmd in ["diagnose", "fit"] {
+        let t0 = std::time::Instant::now();
+        let mut args = vec![
+            cmd,
+            "--unit",
+            bad_path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        if cmd == "fit" {
+            args.extend(["--calib", calib.to_str().unwrap()]);
+        }
+        let code = cli(&args);
+        assert_eq!(code, 5, "{cmd}");
+        assert!(!out.exists(), "{cmd}");
+        assert!(
+            t0.elapsed().as_secs_f64() < 5.0,
+            "{cmd}: {:?}",
+            t0.elapsed()
+        );
+    }
 }

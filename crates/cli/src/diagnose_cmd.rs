@@ -183,6 +183,13 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     )?;
     // The output folder: checked and started before the (long) diagnosis.
     let staging = prepare_out(a.out.as_deref(), &format!("diagnose-{name}"), a.force)?;
+    // One playback of the unit on every event first (milliseconds): a unit that does not
+    // initialise or integrate on an event stops here with the sample or the operating point
+    // the failure comes from, not after the diagnosis with the event's name only.
+    for e in events.iter().chain(&held_out) {
+        itaipu_dynamics::simulate::simulate(&unit, e, &Default::default())
+            .map_err(|err| crate::explain_sim_error(err, e, &unit))?;
+    }
     let tried = if opts.causes.is_empty() {
         format!("all {} causes", catalog::CAUSES.len())
     } else {

@@ -466,14 +466,19 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
             ));
         }
         Err(e) => {
+            // The starting unit cannot initialise at the measured operating point: exit 5, as
+            // for simulate.
+            let init_failed =
+                matches!(&e, FitError::Setup(m) if m.contains("initialisation failed"));
             let code = match e {
                 FitError::Spec(_) => 4,
                 FitError::Output(_) => 7,
+                _ if init_failed => 5,
                 _ => 6,
             };
             let mut msg = e.to_string();
-            if let (FitError::Setup(m), Some(ev)) = (&e, events.first()) {
-                if m.contains("initialisation failed") {
+            if let (true, Some(ev)) = (init_failed, events.first()) {
+                {
                     msg = format!(
                         "{msg}; {}",
                         itaipu_dynamics::plausibility::describe_operating_point(
