@@ -71,10 +71,11 @@ fn files_in(dir: &Path) -> Vec<String> {
 fn diagnose_names_a_hidden_pmu_skew_and_writes_the_extended_unit() {
     let tmp = TempDir::new("diag-skew");
     let event = synth(&tmp, "12");
-    // An existing folder with a file of an earlier run: --force replaces the folder whole
+    // An existing folder with the files of an earlier run: --force replaces the folder whole
     // (issue 13: nothing of an earlier run may sit beside the new results).
     let out = tmp.path().join("diag");
-    let mine = tmp.write("diag/notes.txt", "mine");
+    tmp.write("diag/diagnosis.json", "{}");
+    let mine = tmp.write("diag/evidence_old.svg", "stale");
     let code = diagnose(
         &event,
         &out,

@@ -135,6 +135,7 @@ fn force_replaces_the_whole_folder_and_the_manifest_matches() {
     assert_eq!(names(tmp.path()), ["fit"]);
     // simulate too.
     let sim = tmp.path().join("sim");
+    tmp.write("sim/traces.csv", "stale");
     tmp.write("sim/old.svg", "stale");
     assert_eq!(
         cli(&[

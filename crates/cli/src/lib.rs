@@ -350,8 +350,9 @@ impl SearchArgs {
     }
 }
 
-/// Refuses an explicit `--out` that is not a folder, or a non-empty folder without `force`
-/// (exit 7). Called before a long run, so that it fails before the work, not after.
+/// Refuses an explicit `--out` that is not a folder, a non-empty folder without `force`, and
+/// with `force` a non-empty folder that is not an output of this tool (exit 7). Called before a
+/// long run, so that it fails before the work, not after.
 pub fn check_out(out: Option<&Path>, force: bool) -> Result<(), CliError> {
     let Some(d) = out else {
         return Ok(());
@@ -375,7 +376,68 @@ pub fn check_out(out: Option<&Path>, force: bool) -> Result<(), CliError> {
             ),
         ));
     }
+    if nonempty && !looks_like_output(d) {
+        return Err(CliError::new(
+            7,
+            format!(
+                "{} is not an output folder of itaipu-calib (none of {}); --force replaces a folder whole, so it only replaces one of ours: give another --out, or empty the folder first",
+                d.display(),
+                OUTPUT_MARKERS.join(", ")
+            ),
+        ));
+    }
+    if nonempty {
+        let foreign = foreign_files(d);
+        if !foreign.is_empty() {
+            let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
+            return Err(CliError::new(
+                7,
+                format!(
+                    "{} holds {} file(s) that its manifest.json does not list ({}{}): --force replaces the folder whole and would delete them; move them out first, or give another --out",
+                    d.display(),
+                    foreign.len(),
+                    shown.join(", "),
+                    if foreign.len() > 5 { ", ..." } else { "" }
+                ),
+            ));
+        }
+    }
     Ok(())
+}
+
+/// Files of a complete output folder that its manifest does not list (put there after the
+/// run); empty when there is no readable manifest.
+fn foreign_files(dir: &Path) -> Vec<String> {
+    let Ok(text) = std::fs::read_to_string(dir.join(output::MANIFEST)) else {
+        return vec![];
+    };
+    let Ok(m) = serde_json::from_str::<output::Manifest>(&text) else {
+        return vec![];
+    };
+    let Ok(now) = output::list_files(dir) else {
+        return vec![];
+    };
+    now.into_iter()
+        .map(|f| f.path)
+        .filter(|p| p != output::MANIFEST && !m.files.iter().any(|f| &f.path == p))
+        .collect()
+}
+
+/// Files at the top of a folder that mark it as an output of this tool (the manifest, the
+/// partial marker, and the main result of each command, as written before manifests existed).
+pub const OUTPUT_MARKERS: &[&str] = &[
+    output::MANIFEST,
+    output::PARTIAL,
+    "report.json",
+    "traces.csv",
+    "diagnosis.json",
+    "truth.json",
+];
+
+/// Whether `--force` may replace `dir` whole: it holds one of [`OUTPUT_MARKERS`]. A folder of
+/// the user's own (say the one holding the event files) is never deleted by a mistyped `--out`.
+pub fn looks_like_output(dir: &Path) -> bool {
+    OUTPUT_MARKERS.iter().any(|m| dir.join(m).is_file())
 }
 
 /// Chooses the output folder and starts writing it ([`output::Staging`]: a temporary folder
