@@ -391,8 +391,8 @@ fn diagnose_refuses_bad_input_before_running() {
         ]),
         4
     );
-    // A unit that cannot initialise on the event (E_fd0 above the exciter ceiling): the
-    // simulation failure code, as fit uses.
+    // A unit that cannot initialise on the event (E_fd0 above the exciter ceiling): exit 5, as
+    // simulate and fit, found by the playback before the diagnosis.
     let text = std::fs::read_to_string(data(UNIT)).unwrap();
     assert!(text.contains("e_max = 4.5"));
     let stuck = tmp.write("stuck.toml", &text.replace("e_max = 4.5", "e_max = 0.5"));
@@ -409,7 +409,7 @@ fn diagnose_refuses_bad_input_before_running() {
             "--out",
             o
         ]),
-        6
+        5
     );
     assert!(!out.exists(), "no output folder for a refused run");
     // An existing, non-empty --out folder is left alone without --force.

@@ -317,7 +317,7 @@ fn wild_value() -> impl Strategy<Value = f64> {
             f64::NEG_INFINITY,
             f64::MAX,
             1e-12,
-            3.14159,
+            std::f64::consts::PI,
             180.0,
             -180.0,
             360.0,
