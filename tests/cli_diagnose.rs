@@ -71,9 +71,11 @@ fn files_in(dir: &Path) -> Vec<String> {
 fn diagnose_names_a_hidden_pmu_skew_and_writes_the_extended_unit() {
     let tmp = TempDir::new("diag-skew");
     let event = synth(&tmp, "12");
-    // An existing folder with a file of the user's: written into with --force, the file kept.
+    // An existing folder with the files of an earlier run: --force replaces the folder whole
+    // (issue 13: nothing of an earlier run may sit beside the new results).
     let out = tmp.path().join("diag");
-    let mine = tmp.write("diag/notes.txt", "mine");
+    tmp.write("diag/diagnosis.json", "{}");
+    let mine = tmp.write("diag/evidence_old.svg", "stale");
     let code = diagnose(
         &event,
         &out,
@@ -89,17 +91,14 @@ fn diagnose_names_a_hidden_pmu_skew_and_writes_the_extended_unit() {
         ],
     );
     assert_eq!(code, 0);
-    assert_eq!(
-        std::fs::read_to_string(&mine).unwrap(),
-        "mine",
-        "--force must not clear the folder"
-    );
+    assert!(!mine.exists(), "--force replaces the folder whole");
+    itaipu_calib_cli::output::verify(&out).unwrap();
     assert_eq!(
         files_in(&out),
         [
             "diagnosis.json",
             "extended.toml",
-            "notes.txt",
+            "manifest.json",
             "report.html"
         ],
         "--no-plot: no svg files"
@@ -292,7 +291,10 @@ fn diagnose_writes_no_extended_unit_when_no_cause_is_named() {
     assert_eq!(d["candidates"][0]["significant"], false);
     assert!(d["evidence_after"].as_array().unwrap().is_empty());
     assert!(!out.join("extended.toml").exists());
-    assert_eq!(files_in(&out), ["diagnosis.json", "report.html"]);
+    assert_eq!(
+        files_in(&out),
+        ["diagnosis.json", "manifest.json", "report.html"]
+    );
 }
 
 #[test]
@@ -389,8 +391,8 @@ fn diagnose_refuses_bad_input_before_running() {
         ]),
         4
     );
-    // A unit that cannot initialise on the event (E_fd0 above the exciter ceiling): the
-    // simulation failure code, as fit uses.
+    // A unit that cannot initialise on the event (E_fd0 above the exciter ceiling): exit 5, as
+    // simulate and fit, found by the playback before the diagnosis.
     let text = std::fs::read_to_string(data(UNIT)).unwrap();
     assert!(text.contains("e_max = 4.5"));
     let stuck = tmp.write("stuck.toml", &text.replace("e_max = 4.5", "e_max = 0.5"));
@@ -407,7 +409,7 @@ fn diagnose_refuses_bad_input_before_running() {
             "--out",
             o
         ]),
-        6
+        5
     );
     assert!(!out.exists(), "no output folder for a refused run");
     // An existing, non-empty --out folder is left alone without --force.

@@ -85,12 +85,23 @@ fn an_existing_output_folder_is_not_overwritten_without_force() {
     assert_eq!(cli(&["simulate", "--out", out, "--no-plot"]), 7);
     assert_eq!(std::fs::read_to_string(&keep).unwrap(), "mine");
     assert!(!tmp.path().join("traces.csv").exists());
-    assert_eq!(cli(&["simulate", "--out", out, "--no-plot", "--force"]), 0);
-    assert_eq!(
-        std::fs::read_to_string(&keep).unwrap(),
-        "mine",
-        "--force writes our files, it does not clear the folder"
-    );
+    // --force replaces a folder whole (issue 13), so it refuses one that is not an output of
+    // ours: the user's notes stay.
+    assert_eq!(cli(&["simulate", "--out", out, "--no-plot", "--force"]), 7);
+    assert_eq!(std::fs::read_to_string(&keep).unwrap(), "mine");
+    // An earlier run's folder is replaced whole: nothing of it stays beside the new results.
+    let sim = tmp.path().join("sim");
+    let o = sim.to_str().unwrap();
+    assert_eq!(cli(&["simulate", "--out", o]), 0);
+    assert!(sim.join("plot.svg").is_file());
+    assert_eq!(cli(&["simulate", "--out", o, "--no-plot", "--force"]), 0);
+    assert!(!sim.join("plot.svg").exists(), "replaced whole");
+    itaipu_calib_cli::output::verify(&sim).unwrap();
+    // A file the user put into it after the run is not deleted by --force.
+    let added = tmp.write("sim/my-notes.txt", "mine");
+    assert_eq!(cli(&["simulate", "--out", o, "--no-plot", "--force"]), 7);
+    assert_eq!(std::fs::read_to_string(&added).unwrap(), "mine");
+    assert!(sim.join("traces.csv").is_file());
 }
 
 #[test]

@@ -51,7 +51,19 @@ exactly as the ``itaipu-calib fit`` command line::
   stage's unit (``gen`` runs without exciter, stabiliser and governor). Non-finite numbers in
   ``report`` (e.g. the standard error of an undetermined parameter) are ``None``.
 * The GIL is released during the fit (a full fit of the bundled problem takes some tens of
-  seconds; it cannot be interrupted with Ctrl-C).
+  seconds); Ctrl-C stops it at its next candidate evaluation and raises ``KeyboardInterrupt``.
+
+Plausibility
+------------
+:func:`check` runs the checks the command line runs on every event before using it (time gaps,
+dropouts, an angle in radians, frequency outside 45-65 Hz, a unit absorbing P, P and Q above
+the unit's rating, absurd samples, spikes; with a unit, its parameters against the library's
+ranges) and returns the findings, each a dict naming the file, the CSV line, the column and the
+fix; ``severity == "error"`` is what stops the command line (exit 3)::
+
+    [f for f in ic.check("event.toml", "unit.toml") if f["severity"] == "error"]
+
+:func:`simulate`, :func:`fit` and :func:`diagnose` do not run it themselves.
 
 Diagnosis
 ---------
@@ -126,6 +138,7 @@ from ._core import (
     Unit,
     UnitModelError,
     __version__,
+    check,
     diagnose,
     fit,
     load_event,
@@ -148,6 +161,7 @@ __all__ = [
     "Unit",
     "UnitModelError",
     "__version__",
+    "check",
     "diagnose",
     "fit",
     "load_event",

@@ -129,6 +129,9 @@ _Hide = Union[
 
 def load_event(path: _PathLike) -> Event: ...
 def load_unit(path: _PathLike) -> Unit: ...
+def check(
+    event: Union[_PathLike, Event], unit: Optional[Union[_PathLike, Unit]] = None
+) -> List[Dict[str, Any]]: ...
 def simulate(
     event: Union[_PathLike, Event],
     unit: Union[_PathLike, Unit],

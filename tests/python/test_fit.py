@@ -5,6 +5,7 @@ glue (arguments, results, errors, the GIL), not the quality of a calibration, wh
 tests and the command line's end-to-end tests cover.
 """
 
+import _thread
 import re
 import threading
 import time
@@ -183,6 +184,26 @@ def test_gil_released_while_fitting():
         thread.join()
     assert elapsed > 0.05, "fit too short to tell"
     assert spins > 0.1 * rate * elapsed, (spins, rate, elapsed)
+
+
+def test_ctrl_c_stops_a_fit_promptly():
+    """Ctrl-C (KeyboardInterrupt) during fit() stops it at its next candidate evaluation and is
+    raised at once, instead of after the whole calibration (issue 13)."""
+    timer = threading.Timer(0.3, _thread.interrupt_main)
+    t0 = time.perf_counter()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            # Tens of seconds uninterrupted.
+            ic.fit(EVENT, UNIT, calib=CALIB, stages="gen,avr,pss", particles=40,
+                   pso_iterations=400, lbfgs_iterations=100)
+    finally:
+        timer.cancel()
+    elapsed = time.perf_counter() - t0
+    assert 0.3 <= elapsed < 5.0, elapsed
+    # The module works on afterwards.
+    r = ic.fit(EVENT, UNIT, calib=CALIB, stages="gen", **QUICK)
+    assert r.stages == ["gen"]
 
 
 # --- errors -----------------------------------------------------------------------------------

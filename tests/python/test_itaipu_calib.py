@@ -308,3 +308,33 @@ def test_frequency_mismatch_names_the_event(tmp_path):
         ic.simulate(EVENT, path)
     assert info.value.kind == "frequency_mismatch"
     assert "itaipu-60hz-fault" in str(info.value) and "50 Hz" in str(info.value)
+
+
+# --- plausibility ------------------------------------------------------------------------------
+
+
+def test_check_finds_a_dropout_at_its_line_and_passes_the_bundled_record(tmp_path):
+    """ic.check runs the command line's plausibility layer (issue 13): nothing on the bundled
+    record and unit; a one-sample |V| = 0 is an error naming the CSV line, the column and a fix;
+    h = 1e308 in the unit a warning naming the parameter."""
+    assert ic.check(EVENT, UNIT) == []
+    assert ic.check(ic.load_event(EVENT), ic.load_unit(UNIT)) == []
+    lines = (DATA / "itaipu" / "itaipu_pmu_60sps.csv").read_text().splitlines()
+    cells = lines[201].split(",")  # sample 200, line 202 of the file
+    cells[1] = cells[2] = "0"
+    lines[201] = ",".join(cells)
+    (tmp_path / "e.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "e.toml").write_text(
+        EVENT.read_text().replace("itaipu_pmu_60sps.csv", "e.csv"))
+    findings = ic.check(tmp_path / "e.toml", UNIT)
+    assert [(f["severity"], f["kind"], f["line"], f["column"]) for f in findings] == [
+        ("error", "dropout", 202, "|V|")]
+    assert findings[0]["file"].endswith("e.csv") and findings[0]["fix"]
+    (tmp_path / "u.toml").write_text(UNIT.read_text().replace("h = 4.5 ", "h = 1e308 "))
+    w = ic.check(EVENT, tmp_path / "u.toml")
+    assert [(f["severity"], f["kind"], f["column"]) for f in w] == [
+        ("warning", "parameter_range", "machine.h")]
+    with pytest.raises(ic.EventError):
+        ic.check(tmp_path / "missing.toml")
+    with pytest.raises(TypeError):
+        ic.check(EVENT, 3)

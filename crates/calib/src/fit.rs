@@ -7,6 +7,8 @@
 //! an accurate re-evaluation is kept. The Gauss-Newton (Fisher) approximation at that point
 //! gives standard errors and correlations. Results carry over to the next stage.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 use itaipu_dynamics::event::Event;
@@ -99,6 +101,13 @@ pub enum FitError {
     Stage { stage: String, msg: String },
     #[error("{0}")]
     Setup(String),
+    /// Stopped by [`FitControl::cancel`] at a candidate boundary; `finished` names the passes
+    /// (stages) that completed and were handed to [`FitControl::on_stage`].
+    #[error("interrupted; finished stages: {}", if finished.is_empty() { "none".to_string() } else { finished.join(", ") })]
+    Interrupted { finished: Vec<String> },
+    /// [`FitControl::on_stage`] failed (e.g. a stage's outputs could not be written).
+    #[error("{0}")]
+    Output(String),
 }
 
 impl FitError {
@@ -108,6 +117,8 @@ impl FitError {
             FitError::Spec(_) => "spec",
             FitError::Stage { .. } => "stage",
             FitError::Setup(_) => "setup",
+            FitError::Interrupted { .. } => "interrupted",
+            FitError::Output(_) => "output",
         }
     }
 }
@@ -217,6 +228,55 @@ pub struct FitResult {
     /// The calibrated full unit (every block, with the stages' results).
     pub unit: Unit,
     pub stages: Vec<StageOutput>,
+}
+
+/// What a pass hands out as it finishes: its report, its units and traces, and the full unit
+/// (every stage's results so far) that the next pass starts from.
+pub type OnStage<'a> = dyn Fn(&StageReport, &StageOutput, &Unit) -> Result<(), String> + Sync + 'a;
+
+/// Passes finished by an earlier, interrupted run, to go on from.
+#[derive(Clone)]
+pub struct Resume {
+    /// Labels of the finished passes, in order (a prefix of the passes this run would make).
+    pub finished: Vec<String>,
+    /// The full unit after the last finished pass (what [`FitControl::on_stage`] was given).
+    pub master: Unit,
+}
+
+/// Control of a running fit beyond its options.
+#[derive(Default)]
+pub struct FitControl<'a> {
+    /// When set (by a signal handler, say), every later candidate evaluation fails at once;
+    /// the pass under way is dropped and the fit returns [`FitError::Interrupted`].
+    pub cancel: Option<Arc<AtomicBool>>,
+    /// Called after every finished pass, before the next starts.
+    pub on_stage: Option<&'a OnStage<'a>>,
+    /// Go on after these finished passes instead of running them again. Every pass depends
+    /// only on the unit it starts from and the options (the swarm's seed is per pass), so the
+    /// numbers are those of an uninterrupted run.
+    pub resume: Option<Resume>,
+}
+
+impl FitControl<'_> {
+    fn cancelled(&self) -> bool {
+        self.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+    }
+}
+
+/// The labels of the passes `fit` makes with `opts`, in order (`simultaneous`, the stages,
+/// `joint`).
+pub fn pass_labels(opts: &FitOptions) -> Vec<String> {
+    let mut v = vec![];
+    if opts.strategy == Strategy::SimultaneousFirst {
+        v.push("simultaneous".to_string());
+    }
+    v.extend(opts.stages.iter().cloned());
+    if opts.polish && opts.stages.len() > 1 {
+        v.push("joint".to_string());
+    }
+    v
 }
 
 /// P+Q fitness of `unit` on `event` (accurate integrator); `None` if it fails.
@@ -545,6 +605,7 @@ fn run_stage(
     progress: &dyn Progress,
     use_pso: bool,
     also_from: &[Vec<f64>],
+    cancel: Option<Arc<AtomicBool>>,
 ) -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
     let t0 = Instant::now();
     let data: Vec<EventData> = events
@@ -556,6 +617,7 @@ fn run_stage(
     let ties = resolve_ties(&unit, spec)?;
     let mut problem = Problem::new(unit, free, data, weights);
     problem.ties = ties;
+    problem.cancel = cancel;
     if problem.free.iter().any(|f| f.prior.is_some()) {
         problem.prior_weight = problem.measured_noise_variance();
     }
@@ -586,6 +648,7 @@ fn run_stage(
             sub.penalty = problem.penalty;
             sub.ties = problem.ties.clone();
             sub.prior_weight = problem.prior_weight;
+            sub.cancel = problem.cancel.clone();
             let (b, ph) = search(
                 &sub,
                 opts,
@@ -791,6 +854,29 @@ pub fn fit(
     opts: &FitOptions,
     progress: &dyn Progress,
 ) -> Result<FitResult, FitError> {
+    fit_with(
+        unit,
+        spec,
+        events,
+        held_out,
+        opts,
+        progress,
+        &FitControl::default(),
+    )
+}
+
+/// [`fit`] with an interrupt flag, a hook called after every finished pass, and a resume from
+/// the passes of an interrupted run ([`FitControl`]). On resume the returned report and
+/// outputs hold only the passes run now.
+pub fn fit_with(
+    unit: &Unit,
+    spec: &CalibSpec,
+    events: &[Event],
+    held_out: &[Event],
+    opts: &FitOptions,
+    progress: &dyn Progress,
+    control: &FitControl<'_>,
+) -> Result<FitResult, FitError> {
     let t0 = Instant::now();
     if events.is_empty() {
         return Err(FitError::Setup("no event to fit".into()));
@@ -808,6 +894,20 @@ pub fn fit(
         }
     }
     check_spec(unit, spec, &opts.stages)?;
+    let labels = pass_labels(opts);
+    let skip = match &control.resume {
+        None => 0,
+        Some(r) => {
+            if r.finished.len() > labels.len() || r.finished[..] != labels[..r.finished.len()] {
+                return Err(FitError::Setup(format!(
+                    "cannot resume: the finished stages ({}) are not the first passes of this fit ({}); give the same stages, strategy and options as the interrupted run",
+                    r.finished.join(", "),
+                    labels.join(", ")
+                )));
+            }
+            r.finished.len()
+        }
+    };
     let mut master = unit.clone();
     let mut start_fitness = vec![];
     for e in events {
@@ -822,48 +922,94 @@ pub fn fit(
             start_fitness.push(f);
         }
     }
+    if let Some(r) = &control.resume {
+        if skip > 0 {
+            master = r.master.clone();
+        }
+    }
     let mut reports = vec![];
     let mut outputs = vec![];
+    let mut finished: Vec<String> = labels[..skip].to_vec();
+    let mut pass = 0usize;
+    let cancel = control.cancel.clone();
+    // Runs before each pass: skips it when resumed past it, stops when interrupted.
+    let before = |pass: usize, finished: &Vec<String>| -> Result<bool, FitError> {
+        if control.cancelled() {
+            return Err(FitError::Interrupted {
+                finished: finished.clone(),
+            });
+        }
+        Ok(pass >= skip)
+    };
+    // Runs after each pass: drops it when interrupted, hands it out otherwise.
+    let after = |res: Result<(StageReport, StageOutput, Vec<f64>), FitError>,
+                 finished: &Vec<String>|
+     -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
+        if control.cancelled() {
+            return Err(FitError::Interrupted {
+                finished: finished.clone(),
+            });
+        }
+        res
+    };
+    let hand_out = |rep: &StageReport, out: &StageOutput, master: &Unit| -> Result<(), FitError> {
+        match control.on_stage {
+            Some(f) => f(rep, out, master).map_err(FitError::Output),
+            None => Ok(()),
+        }
+    };
 
     if opts.strategy == Strategy::SimultaneousFirst {
-        // All listed stages' parameters at once on the full unit, objective P+Q.
-        let mut full = master.clone();
-        for s in &opts.stages {
-            apply_stage_edits(&mut full, spec.stage(s).expect("checked"))?;
+        if before(pass, &finished)? {
+            // All listed stages' parameters at once on the full unit, objective P+Q.
+            let mut full = master.clone();
+            for s in &opts.stages {
+                apply_stage_edits(&mut full, spec.stage(s).expect("checked"))?;
+            }
+            let all = combined_stage("all", spec, &opts.stages);
+            let free = free_params(&full, &all, unit, spec.prior)?;
+            let res = run_stage(
+                "all",
+                "simultaneous",
+                full.clone(),
+                free.clone(),
+                &all,
+                events,
+                held_out,
+                opts,
+                progress,
+                true,
+                &[],
+                cancel.clone(),
+            );
+            let (rep, out, best) = after(res, &finished)?;
+            // The full unit (with every stage's replacements) carries on with the joint result.
+            master = full;
+            for (f, v) in free.iter().zip(&best) {
+                master.set(f.r, *v);
+            }
+            apply_ties(&mut master, &all)?;
+            hand_out(&rep, &out, &master)?;
+            finished.push(rep.stage.clone());
+            reports.push(rep);
+            outputs.push(out);
         }
-        let all = combined_stage("all", spec, &opts.stages);
-        let free = free_params(&full, &all, unit, spec.prior)?;
-        let (rep, out, best) = run_stage(
-            "all",
-            "simultaneous",
-            full.clone(),
-            free.clone(),
-            &all,
-            events,
-            held_out,
-            opts,
-            progress,
-            true,
-            &[],
-        )?;
-        // The full unit (with every stage's replacements) carries on with the joint result.
-        master = full;
-        for (f, v) in free.iter().zip(&best) {
-            master.set(f.r, *v);
-        }
-        apply_ties(&mut master, &all)?;
-        reports.push(rep);
-        outputs.push(out);
+        pass += 1;
     }
 
     for s in &opts.stages {
+        if !before(pass, &finished)? {
+            pass += 1;
+            continue;
+        }
+        pass += 1;
         let st = spec.stage(s).expect("checked");
         apply_stage_edits(&mut master, st)?;
         let stage_unit = master
             .without(spec.removed_blocks(s))
             .map_err(|e| stage_err(s, e.to_string()))?;
         let free = free_params(&stage_unit, st, unit, spec.prior)?;
-        let (rep, out, best) = run_stage(
+        let res = run_stage(
             s,
             s,
             stage_unit,
@@ -875,7 +1021,9 @@ pub fn fit(
             progress,
             true,
             &[],
-        )?;
+            cancel.clone(),
+        );
+        let (rep, out, best) = after(res, &finished)?;
         for (f, v) in free.iter().zip(&best) {
             let r = master
                 .param(&f.path)
@@ -883,11 +1031,13 @@ pub fn fit(
             master.set(r, *v);
         }
         apply_ties(&mut master, st)?;
+        hand_out(&rep, &out, &master)?;
+        finished.push(rep.stage.clone());
         reports.push(rep);
         outputs.push(out);
     }
 
-    if opts.polish && opts.stages.len() > 1 {
+    if opts.polish && opts.stages.len() > 1 && before(pass, &finished)? {
         // Joint refinement of everything the stages freed, on the full unit.
         let mut joint = combined_stage("joint", spec, &opts.stages);
         joint.lowpass_hz = None;
@@ -907,7 +1057,7 @@ pub fn fit(
             .iter()
             .map(|f| f.prior.map_or(f.start, |p| p.center).clamp(f.lo, f.hi))
             .collect();
-        let (rep, out, best) = run_stage(
+        let res = run_stage(
             "joint",
             "joint",
             full,
@@ -919,11 +1069,14 @@ pub fn fit(
             progress,
             true,
             &[datasheet],
-        )?;
+            cancel.clone(),
+        );
+        let (rep, out, best) = after(res, &finished)?;
         for (f, v) in free.iter().zip(&best) {
             master.set(f.r, *v);
         }
         apply_ties(&mut master, &joint)?;
+        hand_out(&rep, &out, &master)?;
         reports.push(rep);
         outputs.push(out);
     }

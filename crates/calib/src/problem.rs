@@ -15,8 +15,8 @@
 //! (time constants and gains spanning decades), so the swarm searches decades evenly. L-BFGS,
 //! which has no bounds, works on `z ∈ ℝ` with `u = 1/(1 + e^{−z})`.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::integrate::{Dopri5Options, Method};
@@ -274,6 +274,9 @@ pub struct Problem {
     /// Variance of one measured residual that scales the priors' residuals ([`Prior`]);
     /// 0 = no prior term.
     pub prior_weight: f64,
+    /// Set from outside (an interrupt) to make every later evaluation fail at once, without
+    /// simulating: the search then runs out in moments and the caller discards its result.
+    pub cancel: Option<Arc<AtomicBool>>,
     evaluations: AtomicUsize,
     failures: AtomicUsize,
     failure_log: Mutex<Vec<String>>,
@@ -300,10 +303,18 @@ impl Problem {
             penalty: FAILURE_PENALTY,
             ties: Vec::new(),
             prior_weight: 0.0,
+            cancel: None,
             evaluations: AtomicUsize::new(0),
             failures: AtomicUsize::new(0),
             failure_log: Mutex::new(Vec::new()),
         }
+    }
+
+    /// Whether the run was interrupted ([`Problem::cancel`]).
+    pub fn cancelled(&self) -> bool {
+        self.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
     }
 
     /// Number of free parameters.
@@ -357,6 +368,9 @@ impl Problem {
     /// (only the signals with a non-zero weight), then the priors' residuals
     /// ([`Problem::prior_residuals`]).
     pub fn residuals(&self, x: &[f64], sim: &SimOptions) -> Result<Vec<f64>, String> {
+        if self.cancelled() {
+            return Err("interrupted".into());
+        }
         let mut unit = self.unit_at(x);
         let (sp, sq) = (self.weights.0.sqrt(), self.weights.1.sqrt());
         let mut r = Vec::new();

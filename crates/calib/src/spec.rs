@@ -396,8 +396,36 @@ impl CalibSpec {
                     ));
                 }
             }
-            if !(s.weights.p >= 0.0 && s.weights.q >= 0.0) {
-                return Err(err(format!("{ctx}.weights"), "weights must be >= 0".into()));
+            if !(s.weights.p >= 0.0
+                && s.weights.q >= 0.0
+                && s.weights.p.is_finite()
+                && s.weights.q.is_finite())
+            {
+                return Err(err(
+                    format!("{ctx}.weights"),
+                    "weights must be finite and >= 0".into(),
+                ));
+            }
+            // The objective sums only the signals it names, each with its weight: with every
+            // one of those weights zero there is nothing to fit (no residual at all).
+            let (wp, wq) = match s.objective {
+                Objective::Pq => (s.weights.p, s.weights.q),
+                Objective::P => (s.weights.p, 0.0),
+                Objective::Q => (0.0, s.weights.q),
+            };
+            if wp == 0.0 && wq == 0.0 {
+                let (field, what) = match s.objective {
+                    Objective::Pq => ("weights", "weights p and q are both 0"),
+                    Objective::P => ("weights.p", "objective \"p\" with weight p = 0"),
+                    Objective::Q => ("weights.q", "objective \"q\" with weight q = 0"),
+                };
+                return Err(err(
+                    format!("{ctx}.{field} (stage {})", s.name),
+                    format!(
+                        "{what}: the stage's objective would sum nothing; give the signal \
+                         a weight > 0 or change the objective"
+                    ),
+                ));
             }
             for (j, f) in s.free.iter().enumerate() {
                 let fctx = format!("{ctx}.free[{j}] ({})", f.param);

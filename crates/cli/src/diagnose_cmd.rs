@@ -16,9 +16,7 @@ use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::fit_cmd::Reporter;
-use crate::{
-    bundled, check_out, load_event, load_unit, plot, prepare_out, CliError, SearchArgs, EXIT_CODES,
-};
+use crate::{bundled, load_event, load_unit, plot, prepare_out, CliError, SearchArgs, EXIT_CODES};
 
 #[derive(clap::Args, Debug)]
 #[command(after_help = EXIT_CODES)]
@@ -141,7 +139,7 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         &mut opts.particles,
         &mut opts.pso_iterations,
         &mut opts.lbfgs_iterations,
-    );
+    )?;
     let pool = a.search.pool()?;
     let threads = pool.current_num_threads();
     let unit_path = match (&a.unit, &a.fit) {
@@ -178,7 +176,20 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         .map(|p| load_event(p))
         .collect::<Result<Vec<_>, _>>()?;
     let name = events.first().map(|e| e.name.clone()).unwrap_or_default();
-    check_out(a.out.as_deref(), a.force)?;
+    let warnings = crate::plausibility(
+        &events.iter().chain(&held_out).collect::<Vec<_>>(),
+        &unit,
+        &unit_path,
+    )?;
+    // The output folder: checked and started before the (long) diagnosis.
+    let staging = prepare_out(a.out.as_deref(), &format!("diagnose-{name}"), a.force)?;
+    // One playback of the unit on every event first (milliseconds): a unit that does not
+    // initialise or integrate on an event stops here with the sample or the operating point
+    // the failure comes from, not after the diagnosis with the event's name only.
+    for e in events.iter().chain(&held_out) {
+        itaipu_dynamics::simulate::simulate(&unit, e, &Default::default())
+            .map_err(|err| crate::explain_sim_error(err, e, &unit))?;
+    }
     let tried = if opts.causes.is_empty() {
         format!("all {} causes", catalog::CAUSES.len())
     } else {
@@ -224,7 +235,7 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     let result = result.map_err(|e| CliError::new(error_code(&e), format!("diagnose: {e}")))?;
     let report = &result.report;
 
-    let out = prepare_out(a.out.as_deref(), &format!("diagnose-{name}"), a.force)?;
+    let out = staging.path().to_path_buf();
     let write = |p: &Path, text: &str| {
         std::fs::write(p, text)
             .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))
@@ -269,7 +280,13 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     if let Some(n) = extended_note {
         println!("{n}");
     }
-    println!("wrote    {}/", out.display());
+    crate::write_warnings(&out, &warnings)?;
+    if !warnings.is_empty() {
+        written.push("warnings.json".into());
+    }
+    let target = staging.commit(Some(opts.seed))?;
+    written.push(crate::output::MANIFEST.into());
+    println!("wrote    {}/", target.display());
     let files: Vec<&str> = written.iter().map(String::as_str).collect();
     println!(
         "{}",

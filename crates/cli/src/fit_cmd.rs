@@ -2,12 +2,18 @@
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use clap::ValueEnum;
 use indicatif::{ProgressBar, ProgressStyle};
-use itaipu_calib::fit::{fit, FitOptions, FitReport, Progress};
+use itaipu_calib::fit::{
+    fit_with, FitControl, FitError, FitOptions, FitReport, Progress, Resume, StageOutput,
+    StageReport,
+};
 use itaipu_calib::spec::{CalibSpec, Strategy};
+use itaipu_dynamics::plausibility::{Finding, Severity};
+use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::{
@@ -43,9 +49,14 @@ pub struct FitArgs {
     /// overwritten unless --force is given.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
-    /// Allow writing into an existing, non-empty --out folder.
+    /// Replace an existing, non-empty --out folder (whole: nothing of the earlier run stays).
     #[arg(long)]
     force: bool,
+    /// Go on from an interrupted fit: --out must be the partial folder it left (partial.json);
+    /// its finished stages are kept and the others run, with the same numbers as an
+    /// uninterrupted run. Give the same inputs and options as the interrupted run.
+    #[arg(long, conflicts_with = "force")]
+    resume: bool,
     #[command(flatten)]
     search: SearchArgs,
     /// Do not draw the plots.
@@ -139,6 +150,81 @@ fn strategy(s: StrategyArg) -> Strategy {
     }
 }
 
+/// The interrupt flag of `fit` and the signal that set it, registered once per process
+/// (SIGINT, SIGTERM). A second signal while the first is being handled ends the process at
+/// once (exit 130 or 143).
+fn interrupt_flags() -> (Arc<AtomicBool>, Arc<AtomicUsize>) {
+    static FLAGS: OnceLock<(Arc<AtomicBool>, Arc<AtomicUsize>)> = OnceLock::new();
+    FLAGS
+        .get_or_init(|| {
+            let flag = Arc::new(AtomicBool::new(false));
+            let which = Arc::new(AtomicUsize::new(0));
+            #[cfg(unix)]
+            {
+                use signal_hook::consts::{SIGINT, SIGTERM};
+                for (sig, code) in [(SIGINT, 130), (SIGTERM, 143)] {
+                    // Registration fails only for forbidden signals; then a signal ends the
+                    // process as usual, which loses nothing written (the folder is temporary).
+                    let _ =
+                        signal_hook::flag::register_conditional_shutdown(sig, code, flag.clone());
+                    let _ = signal_hook::flag::register_usize(sig, which.clone(), sig as usize);
+                    let _ = signal_hook::flag::register(sig, flag.clone());
+                }
+            }
+            (flag, which)
+        })
+        .clone()
+}
+
+/// Name and exit code of the signal that interrupted the run.
+fn signal_name(which: usize) -> (&'static str, u8) {
+    #[cfg(unix)]
+    {
+        if which == signal_hook::consts::SIGTERM as usize {
+            return ("SIGTERM", 143);
+        }
+    }
+    let _ = which;
+    ("SIGINT", 130)
+}
+
+/// The unit the next stage starts from, kept in a partial folder for `--resume`.
+const RESUME_UNIT: &str = "resume-unit.toml";
+
+/// What a partial folder records (`partial.json`).
+#[derive(serde::Serialize, serde::Deserialize)]
+struct PartialState {
+    complete: bool,
+    note: String,
+    interrupted_by: String,
+    finished_stages: Vec<String>,
+    command: Vec<String>,
+    /// The fit options (stages, strategy, seed, swarm and local settings) in full.
+    options: String,
+    /// SHA-256 of every input file (unit, spec, events).
+    inputs: Vec<(String, String)>,
+    /// The finished stages' reports, as in report.json.
+    stage_reports: Vec<serde_json::Value>,
+}
+
+/// Finished stages so far: labels and reports.
+#[derive(Default)]
+struct Finished {
+    labels: Vec<String>,
+    reports: Vec<serde_json::Value>,
+}
+
+fn input_hashes(paths: &[&Path]) -> Result<Vec<(String, String)>, CliError> {
+    paths
+        .iter()
+        .map(|p| {
+            let h = crate::output::sha256_file(p)
+                .map_err(|e| CliError::new(3, format!("cannot read {}: {e}", p.display())))?;
+            Ok((p.display().to_string(), h))
+        })
+        .collect()
+}
+
 pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     let bundled_unit = a.unit.is_none();
     let unit_path = match &a.unit {
@@ -191,11 +277,128 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         &mut opts.particles,
         &mut opts.pso_iterations,
         &mut opts.lbfgs_iterations,
-    );
+    )?;
     let pool = a.search.pool()?;
+    let mut warnings = crate::plausibility(
+        &events.iter().chain(&held_out).collect::<Vec<_>>(),
+        &unit,
+        &unit_path,
+    )?;
+    warnings.extend(start_warnings(&unit, &spec, &opts.stages, &calib_path));
+    for w in warnings.iter().filter(|w| w.kind == "start_clamped") {
+        eprintln!("warning: {w}");
+    }
     let name = events.first().map(|e| e.name.clone()).unwrap_or_default();
-    // Check the output folder before the (long) fit, create it after.
-    check_out(a.out.as_deref(), a.force)?;
+    let mut input_paths: Vec<&Path> = vec![&unit_path, &calib_path];
+    input_paths.extend(event_paths.iter().map(|p| p.as_path()));
+    input_paths.extend(a.held_out.iter().map(|p| p.as_path()));
+    let inputs = input_hashes(&input_paths)?;
+    let options = format!("{opts:?}");
+
+    // --resume: the partial folder of an interrupted run with the same inputs and options.
+    let resumed: Option<(PathBuf, PartialState, Unit)> = if a.resume {
+        let Some(dir) = a.out.as_deref() else {
+            return Err(CliError::new(
+                2,
+                "--resume needs --out: the folder an interrupted fit left",
+            ));
+        };
+        if dir.join(crate::output::MANIFEST).is_file() {
+            return Err(CliError::new(
+                2,
+                format!(
+                    "--resume: {} is complete (it has manifest.json); nothing to resume",
+                    dir.display()
+                ),
+            ));
+        }
+        let pj = dir.join(crate::output::PARTIAL);
+        let text = std::fs::read_to_string(&pj).map_err(|e| {
+            CliError::new(
+                2,
+                format!(
+                    "--resume: {}: {e} (not the folder of an interrupted fit)",
+                    pj.display()
+                ),
+            )
+        })?;
+        let st: PartialState = serde_json::from_str(&text)
+            .map_err(|e| CliError::new(2, format!("--resume: {}: {e}", pj.display())))?;
+        if st.options != options {
+            return Err(CliError::new(
+                2,
+                format!(
+                    "--resume: the options differ from the interrupted run's (give the same stages, strategy, seed and search settings)\n  then: {}\n  now:  {options}",
+                    st.options
+                ),
+            ));
+        }
+        if st.inputs != inputs {
+            let diff = st
+                .inputs
+                .iter()
+                .zip(&inputs)
+                .find(|(x, y)| x != y)
+                .map(|(x, y)| format!("{} (then) / {} (now)", x.0, y.0))
+                .unwrap_or_else(|| "a different number of input files".into());
+            return Err(CliError::new(
+                2,
+                format!("--resume: the input files differ from the interrupted run's: {diff}"),
+            ));
+        }
+        let master = if st.finished_stages.is_empty() {
+            unit.clone()
+        } else {
+            load_unit(&dir.join(RESUME_UNIT))?
+        };
+        Some((dir.to_path_buf(), st, master))
+    } else {
+        check_out(a.out.as_deref(), a.force)?;
+        None
+    };
+    // The output folder, started before the (long) fit: the writability check.
+    let staging = prepare_out(
+        a.out.as_deref(),
+        &format!("fit-{name}"),
+        a.force || a.resume,
+    )?;
+    let out = staging.path().to_path_buf();
+    let finished = Mutex::new(Finished::default());
+    let mut resume = None;
+    if let Some((dir, st, master)) = &resumed {
+        for label in &st.finished_stages {
+            crate::output::copy_dir(&dir.join(label), &out.join(label)).map_err(|e| {
+                CliError::new(
+                    7,
+                    format!("--resume: cannot copy {}: {e}", dir.join(label).display()),
+                )
+            })?;
+        }
+        if !st.finished_stages.is_empty() {
+            std::fs::copy(dir.join(RESUME_UNIT), out.join(RESUME_UNIT)).map_err(|e| {
+                CliError::new(
+                    7,
+                    format!(
+                        "--resume: cannot copy {}: {e}",
+                        dir.join(RESUME_UNIT).display()
+                    ),
+                )
+            })?;
+        }
+        let mut f = finished.lock().expect("finished");
+        f.labels = st.finished_stages.clone();
+        f.reports = st.stage_reports.clone();
+        resume = Some(Resume {
+            finished: st.finished_stages.clone(),
+            master: master.clone(),
+        });
+        println!(
+            "resume {} finished stage(s) from {}: {}",
+            st.finished_stages.len(),
+            dir.display(),
+            st.finished_stages.join(", ")
+        );
+    }
     println!(
         "fit    unit {} ({}), events {}, spec {}, stages {}, strategy {}, seed {}, {} threads",
         unit.name,
@@ -212,23 +415,96 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         pool.current_num_threads()
     );
     let reporter = Reporter::new();
-    let result = pool.install(|| fit(&unit, &spec, &events, &held_out, &opts, &reporter));
-    let result = result.map_err(|e| {
-        let code = if matches!(e, itaipu_calib::fit::FitError::Spec(_)) {
-            4
-        } else {
-            6
-        };
-        CliError::new(code, e.to_string())
-    })?;
-    reporter.finish();
-    let out = prepare_out(a.out.as_deref(), &format!("fit-{name}"), a.force)?;
-    let write = |p: &Path, text: &str| {
-        std::fs::write(p, text)
-            .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))
+    let (flag, which) = interrupt_flags();
+    flag.store(false, Ordering::SeqCst);
+    which.store(0, Ordering::SeqCst);
+    let no_plot = a.no_plot;
+    let on_stage = |rep: &StageReport, st: &StageOutput, master: &Unit| -> Result<(), String> {
+        write_stage(&out, st, rep, no_plot).map_err(|e| e.msg)?;
+        crate::output::write_synced(&out.join(RESUME_UNIT), unit_to_toml(master).as_bytes())
+            .map_err(|e| e.msg)?;
+        let mut f = finished.lock().expect("finished");
+        f.labels.push(rep.stage.clone());
+        f.reports
+            .push(serde_json::to_value(rep).map_err(|e| e.to_string())?);
+        Ok(())
     };
-    let json = serde_json::to_string_pretty(&result.report)
-        .map_err(|e| CliError::new(7, e.to_string()))?;
+    let control = FitControl {
+        cancel: Some(flag.clone()),
+        on_stage: Some(&on_stage),
+        resume,
+    };
+    let result =
+        pool.install(|| fit_with(&unit, &spec, &events, &held_out, &opts, &reporter, &control));
+    reporter.finish();
+    let result = match result {
+        Ok(r) => r,
+        Err(FitError::Interrupted { .. }) => {
+            let (sig, code) = signal_name(which.load(Ordering::SeqCst));
+            let f = finished.lock().expect("finished");
+            let state = PartialState {
+                complete: false,
+                note: "interrupted: an incomplete result. Every stage folder listed in finished_stages is complete and usable (its unit.toml simulates); run the same command again with --resume to go on".into(),
+                interrupted_by: sig.into(),
+                finished_stages: f.labels.clone(),
+                command: crate::output::command(),
+                options: options.clone(),
+                inputs: inputs.clone(),
+                stage_reports: f.reports.clone(),
+            };
+            let text = serde_json::to_string_pretty(&state)
+                .map_err(|e| CliError::new(7, e.to_string()))?;
+            crate::output::write_synced(&out.join(crate::output::PARTIAL), text.as_bytes())?;
+            let target = staging.keep_partial()?;
+            return Err(CliError::new(
+                code,
+                format!(
+                    "interrupted by {sig}: finished stage(s) {} kept in {} (marked incomplete by partial.json); run the same command with --resume to go on",
+                    if f.labels.is_empty() { "none".to_string() } else { f.labels.join(", ") },
+                    target.display()
+                ),
+            ));
+        }
+        Err(e) => {
+            // The starting unit cannot initialise at the measured operating point: exit 5, as
+            // for simulate.
+            let init_failed =
+                matches!(&e, FitError::Setup(m) if m.contains("initialisation failed"));
+            let code = match e {
+                FitError::Spec(_) => 4,
+                FitError::Output(_) => 7,
+                _ if init_failed => 5,
+                _ => 6,
+            };
+            let mut msg = e.to_string();
+            if let (true, Some(ev)) = (init_failed, events.first()) {
+                {
+                    msg = format!(
+                        "{msg}; {}",
+                        itaipu_dynamics::plausibility::describe_operating_point(
+                            ev,
+                            unit.machine_mva
+                        )
+                    );
+                }
+            }
+            return Err(CliError::new(code, msg));
+        }
+    };
+    let write = |p: &Path, text: &str| crate::output::write_synced(p, text.as_bytes());
+    let mut report =
+        serde_json::to_value(&result.report).map_err(|e| CliError::new(7, e.to_string()))?;
+    {
+        let f = finished.lock().expect("finished");
+        report["stages"] = serde_json::Value::Array(f.reports.clone());
+        report["warnings"] =
+            serde_json::to_value(&warnings).map_err(|e| CliError::new(7, e.to_string()))?;
+        if let Some((_, st, _)) = &resumed {
+            report["resumed_stages"] = serde_json::json!(st.finished_stages);
+        }
+    }
+    let json =
+        serde_json::to_string_pretty(&report).map_err(|e| CliError::new(7, e.to_string()))?;
     write(&out.join("report.json"), &json)?;
     let mut calibrated = result.unit.clone();
     calibrated.description = format!(
@@ -244,110 +520,137 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     let spec_text = std::fs::read_to_string(&calib_path)
         .map_err(|e| CliError::new(7, format!("cannot read {}: {e}", calib_path.display())))?;
     write(&out.join("calibration.toml"), &spec_text)?;
-    for st in &result.stages {
-        let dir = out.join(&st.stage);
-        std::fs::create_dir_all(&dir)
-            .map_err(|e| CliError::new(7, format!("cannot create {}: {e}", dir.display())))?;
-        write(&dir.join("unit.toml"), &unit_to_toml(&st.calibrated_unit))?;
-        for (ev, start, end) in &st.traces {
-            let suffix = if st.traces.len() > 1 {
-                format!("_{ev}")
-            } else {
-                String::new()
+    let _ = std::fs::remove_file(out.join(RESUME_UNIT));
+    let target = staging.commit(Some(opts.seed))?;
+    print_report(&result.report);
+    println!("wrote  {}/report.json, calibrated.toml, datasheet.toml, calibration.toml, <stage>/{{unit.toml, traces.csv, traces_start.csv{}}}, manifest.json", target.display(), if a.no_plot { "" } else { ", plot.svg" });
+    Ok(())
+}
+
+/// A free parameter without `start` whose value in the unit lies outside its bounds starts
+/// from the nearest bound: said, not done in silence.
+fn start_warnings(
+    unit: &Unit,
+    spec: &CalibSpec,
+    stages: &[String],
+    calib_path: &Path,
+) -> Vec<Finding> {
+    let mut out = vec![];
+    for (k, st) in spec.stages.iter().enumerate() {
+        if !stages.contains(&st.name) {
+            continue;
+        }
+        for (j, f) in st.free.iter().enumerate() {
+            if f.start.is_some() {
+                continue;
+            }
+            let v = match st.set.get(&f.param) {
+                Some(v) => *v,
+                None => match unit.param(&f.param) {
+                    Ok(r) => unit.get(r),
+                    Err(_) => continue,
+                },
             };
-            let p = dir.join(format!("traces{suffix}.csv"));
-            end.write_csv(&p)
-                .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))?;
-            let p = dir.join(format!("traces_start{suffix}.csv"));
-            start
-                .write_csv(&p)
-                .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))?;
-            if !a.no_plot {
-                let t = &end.time_s;
-                let g =
-                    |tr: &itaipu_dynamics::simulate::Traces, n: &str| tr.get(n).unwrap().to_vec();
-                let (pm, qm, ps, qs, pe, qe) = (
-                    g(end, "p_meas_pu"),
-                    g(end, "q_meas_pu"),
-                    g(start, "p_pu"),
-                    g(start, "q_pu"),
-                    g(end, "p_pu"),
-                    g(end, "q_pu"),
-                );
-                let panels = vec![
-                    plot::Panel {
-                        y_label: "P [pu, system base]".into(),
-                        series: vec![
-                            plot::Series {
-                                label: "measured".into(),
-                                x: t,
-                                y: &pm,
-                                color: plot::MEASURED,
-                                thin: true,
-                            },
-                            plot::Series {
-                                label: "start".into(),
-                                x: t,
-                                y: &ps,
-                                color: plot::START,
-                                thin: true,
-                            },
-                            plot::Series {
-                                label: "calibrated".into(),
-                                x: t,
-                                y: &pe,
-                                color: plot::SIMULATED,
-                                thin: false,
-                            },
-                        ],
-                    },
-                    plot::Panel {
-                        y_label: "Q [pu, system base]".into(),
-                        series: vec![
-                            plot::Series {
-                                label: "measured".into(),
-                                x: t,
-                                y: &qm,
-                                color: plot::MEASURED,
-                                thin: true,
-                            },
-                            plot::Series {
-                                label: "start".into(),
-                                x: t,
-                                y: &qs,
-                                color: plot::START,
-                                thin: true,
-                            },
-                            plot::Series {
-                                label: "calibrated".into(),
-                                x: t,
-                                y: &qe,
-                                color: plot::SIMULATED,
-                                thin: false,
-                            },
-                        ],
-                    },
-                ];
-                let rep = result.report.stages.iter().find(|r| r.stage == st.stage);
-                let title = match rep {
-                    Some(r) => format!(
-                        "{ev}, stage {}: objective {:.4} -> {:.4}",
-                        st.stage, r.objective_before, r.objective_after
+            if !(v >= f.min && v <= f.max) {
+                out.push(Finding {
+                    severity: Severity::Warning,
+                    kind: "start_clamped",
+                    file: calib_path.to_path_buf(),
+                    line: None,
+                    time_s: None,
+                    column: format!("calibration.stage[{k}].free[{j}] ({})", f.param),
+                    message: format!(
+                        "the unit's value {v} lies outside [{}, {}]; stage {} starts from {}",
+                        f.min,
+                        f.max,
+                        st.name,
+                        v.clamp(f.min, f.max)
                     ),
-                    None => format!("{ev}, stage {}", st.stage),
-                };
-                plot::draw(
-                    &dir.join(format!("plot{suffix}.svg")),
-                    &title,
-                    "time [s]",
-                    &panels,
-                )
-                .map_err(|e| CliError::new(7, e))?;
+                    fix: "widen the bounds, or give start = ... in the free entry".into(),
+                });
             }
         }
     }
-    print_report(&result.report);
-    println!("wrote  {}/report.json, calibrated.toml, datasheet.toml, calibration.toml, <stage>/{{unit.toml, traces.csv, traces_start.csv{}}}", out.display(), if a.no_plot { "" } else { ", plot.svg" });
+    out
+}
+
+/// Writes a finished stage's folder: unit, traces and plots.
+fn write_stage(
+    out: &Path,
+    st: &StageOutput,
+    rep: &StageReport,
+    no_plot: bool,
+) -> Result<(), CliError> {
+    let write = |p: &Path, text: &str| crate::output::write_synced(p, text.as_bytes());
+    let dir = out.join(&st.stage);
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| CliError::new(7, format!("cannot create {}: {e}", dir.display())))?;
+    for (ev, start, end) in &st.traces {
+        let suffix = if st.traces.len() > 1 {
+            format!("_{ev}")
+        } else {
+            String::new()
+        };
+        let p = dir.join(format!("traces{suffix}.csv"));
+        end.write_csv(&p)
+            .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))?;
+        let p = dir.join(format!("traces_start{suffix}.csv"));
+        start
+            .write_csv(&p)
+            .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))?;
+        if !no_plot {
+            let t = &end.time_s;
+            let g = |tr: &itaipu_dynamics::simulate::Traces, n: &str| {
+                tr.get(n).map(|c| c.to_vec()).unwrap_or_default()
+            };
+            let (pm, qm, ps, qs, pe, qe) = (
+                g(end, "p_meas_pu"),
+                g(end, "q_meas_pu"),
+                g(start, "p_pu"),
+                g(start, "q_pu"),
+                g(end, "p_pu"),
+                g(end, "q_pu"),
+            );
+            let series = |label: &str, y, color, thin| plot::Series {
+                label: label.into(),
+                x: t,
+                y,
+                color,
+                thin,
+            };
+            let panels = vec![
+                plot::Panel {
+                    y_label: "P [pu, system base]".into(),
+                    series: vec![
+                        series("measured", pm.as_slice(), plot::MEASURED, true),
+                        series("start", ps.as_slice(), plot::START, true),
+                        series("calibrated", pe.as_slice(), plot::SIMULATED, false),
+                    ],
+                },
+                plot::Panel {
+                    y_label: "Q [pu, system base]".into(),
+                    series: vec![
+                        series("measured", qm.as_slice(), plot::MEASURED, true),
+                        series("start", qs.as_slice(), plot::START, true),
+                        series("calibrated", qe.as_slice(), plot::SIMULATED, false),
+                    ],
+                },
+            ];
+            let title = format!(
+                "{ev}, stage {}: objective {:.4} -> {:.4}",
+                st.stage, rep.objective_before, rep.objective_after
+            );
+            plot::draw(
+                &dir.join(format!("plot{suffix}.svg")),
+                &title,
+                "time [s]",
+                &panels,
+            )
+            .map_err(|e| CliError::new(7, e))?;
+        }
+    }
+    // Last: the stage's unit, so that a stage folder with unit.toml is complete.
+    write(&dir.join("unit.toml"), &unit_to_toml(&st.calibrated_unit))?;
     Ok(())
 }
 

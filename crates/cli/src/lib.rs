@@ -2,7 +2,8 @@
 //!
 //! Exit codes (also in `--help`): 0 success, 2 usage error, 3 bad event data (event TOML or
 //! CSV), 4 bad unit model, 5 the model cannot initialise at the measured operating point,
-//! 6 the simulation failed, 7 output could not be written (or would overwrite).
+//! 6 the simulation failed, 7 output could not be written (or would overwrite), 130/143 a fit
+//! interrupted by SIGINT/SIGTERM (partial folder kept; `--resume` goes on).
 
 // Checks are written `!(x > 0.0)` on purpose: that form also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -14,6 +15,7 @@ use std::time::Instant;
 use clap::{Parser, Subcommand, ValueEnum};
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::integrate::{Dopri5Options, Method};
+use itaipu_dynamics::plausibility::{self, Finding, Severity};
 use itaipu_dynamics::registry;
 use itaipu_dynamics::simulate::{simulate, SimError, SimOptions, Traces};
 use itaipu_dynamics::unit::Unit;
@@ -21,13 +23,16 @@ use itaipu_dynamics::unit_file::read_unit;
 
 pub mod diagnose_cmd;
 pub mod fit_cmd;
+pub mod output;
 pub mod plot;
 pub mod synth_cmd;
 
 pub const EXIT_CODES: &str =
     "Exit codes: 0 success, 2 usage error, 3 bad event data (event TOML or CSV), \
 4 bad unit model or calibration spec, 5 model cannot initialise at the measured operating point, \
-6 simulation or fit failed, 7 output could not be written (or would overwrite an existing folder).";
+6 simulation or fit failed, 7 output could not be written (or would overwrite an existing folder), \
+130/143 fit interrupted by SIGINT/SIGTERM (finished stages kept in a folder marked by partial.json; \
+rerun with --resume). A complete output folder holds manifest.json (written last).";
 
 #[derive(Parser, Debug)]
 #[command(
@@ -142,6 +147,12 @@ where
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
 {
+    let args: Vec<OsString> = args.into_iter().map(Into::into).collect();
+    output::set_command(
+        args.iter()
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect(),
+    );
     let cli = match Cli::try_parse_from(args) {
         Ok(c) => c,
         Err(e) => {
@@ -150,6 +161,9 @@ where
             return code;
         }
     };
+    if !matches!(cli.cmd, Cmd::Fit(_) | Cmd::Models { .. }) {
+        output::remove_partial_on_signal();
+    }
     let result = match cli.cmd {
         Cmd::Simulate(a) => cmd_simulate(&a),
         Cmd::Models { name } => cmd_models(name.as_deref()),
@@ -194,6 +208,80 @@ pub fn load_unit(path: &Path) -> Result<Unit, CliError> {
     read_unit(path).map_err(|e| CliError::new(4, e.to_string()))
 }
 
+/// The plausibility layer ([`itaipu_dynamics::plausibility`]) on events (against the unit's
+/// rating) and on the unit's parameters: an error stops the run (exit 3, every error listed
+/// with file, line, column and fix); warnings are printed and returned, for the outputs.
+pub fn plausibility(
+    events: &[&Event],
+    unit: &Unit,
+    unit_path: &Path,
+) -> Result<Vec<Finding>, CliError> {
+    let mut all = vec![];
+    for e in events {
+        all.extend(plausibility::check_event(e, Some(unit.machine_mva)));
+    }
+    all.extend(plausibility::check_unit(unit, unit_path));
+    let errors: Vec<String> = all
+        .iter()
+        .filter(|f| f.severity == Severity::Error)
+        .map(|f| f.to_string())
+        .collect();
+    if !errors.is_empty() {
+        return Err(CliError::new(
+            3,
+            format!("implausible data:\n  {}", errors.join("\n  ")),
+        ));
+    }
+    for f in &all {
+        eprintln!("warning: {f}");
+    }
+    Ok(all)
+}
+
+/// Writes `warnings.json` into `dir` when there are warnings.
+pub fn write_warnings(dir: &Path, warnings: &[Finding]) -> Result<(), CliError> {
+    if warnings.is_empty() {
+        return Ok(());
+    }
+    let text =
+        serde_json::to_string_pretty(warnings).map_err(|e| CliError::new(7, e.to_string()))?;
+    output::write_synced(&dir.join("warnings.json"), text.as_bytes())
+}
+
+/// Largest number of fixed RK4 steps a playback may take (`--step` too small for the record
+/// is refused rather than run for hours).
+pub const RK4_MAX_STEPS: f64 = 1e7;
+
+/// A simulation error traced back to the data: an integration failure at time t names the
+/// samples around t, an initialisation failure the operating point it was given.
+pub fn explain_sim_error(e: SimError, event: &Event, unit: &Unit) -> CliError {
+    use itaipu_dynamics::integrate::SolveError;
+    let mut err = CliError::from(e.clone());
+    let t = match &e {
+        SimError::Solve(
+            SolveError::NonFinite { t, .. }
+            | SolveError::StepUnderflow { t, .. }
+            | SolveError::TooManySteps { t, .. }
+            | SolveError::EventLoop { t },
+        ) => Some(*t),
+        _ => None,
+    };
+    match (&e, t) {
+        (_, Some(t)) => {
+            err.msg = format!("{}; {}", err.msg, plausibility::locate_time(event, t));
+        }
+        (SimError::Init(_), None) => {
+            err.msg = format!(
+                "{}; {}",
+                err.msg,
+                plausibility::describe_operating_point(event, unit.machine_mva)
+            );
+        }
+        _ => {}
+    }
+    err
+}
+
 /// Swarm, L-BFGS and thread options shared by `fit` and `diagnose`.
 #[derive(clap::Args, Debug)]
 pub struct SearchArgs {
@@ -218,12 +306,25 @@ pub struct SearchArgs {
 
 impl SearchArgs {
     /// Overrides the given search settings with the options given on the command line.
-    pub fn apply(&self, seed: &mut u64, particles: &mut usize, pso: &mut usize, lbfgs: &mut u64) {
+    /// `--particles` below 2 is a usage error (exit 2; it used to become 2 in silence).
+    pub fn apply(
+        &self,
+        seed: &mut u64,
+        particles: &mut usize,
+        pso: &mut usize,
+        lbfgs: &mut u64,
+    ) -> Result<(), CliError> {
         if let Some(s) = self.seed {
             *seed = s;
         }
         if let Some(n) = self.particles {
-            *particles = n.max(2);
+            if n < 2 {
+                return Err(CliError::new(
+                    2,
+                    format!("--particles {n}: a swarm needs at least 2 particles"),
+                ));
+            }
+            *particles = n;
         }
         if let Some(n) = self.pso_iterations {
             *pso = n;
@@ -231,6 +332,7 @@ impl SearchArgs {
         if let Some(n) = self.lbfgs_iterations {
             *lbfgs = n;
         }
+        Ok(())
     }
 
     /// A worker pool of its own with `--threads` workers (all cores by default), so that the
@@ -248,8 +350,9 @@ impl SearchArgs {
     }
 }
 
-/// Refuses an explicit `--out` that is not a folder, or a non-empty folder without `force`
-/// (exit 7). Called before a long run, so that it fails before the work, not after.
+/// Refuses an explicit `--out` that is not a folder, a non-empty folder without `force`, and
+/// with `force` a non-empty folder that is not an output of this tool (exit 7). Called before a
+/// long run, so that it fails before the work, not after.
 pub fn check_out(out: Option<&Path>, force: bool) -> Result<(), CliError> {
     let Some(d) = out else {
         return Ok(());
@@ -273,13 +376,80 @@ pub fn check_out(out: Option<&Path>, force: bool) -> Result<(), CliError> {
             ),
         ));
     }
+    if nonempty && !looks_like_output(d) {
+        return Err(CliError::new(
+            7,
+            format!(
+                "{} is not an output folder of itaipu-calib (none of {}); --force replaces a folder whole, so it only replaces one of ours: give another --out, or empty the folder first",
+                d.display(),
+                OUTPUT_MARKERS.join(", ")
+            ),
+        ));
+    }
+    if nonempty {
+        let foreign = foreign_files(d);
+        if !foreign.is_empty() {
+            let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
+            return Err(CliError::new(
+                7,
+                format!(
+                    "{} holds {} file(s) that its manifest.json does not list ({}{}): --force replaces the folder whole and would delete them; move them out first, or give another --out",
+                    d.display(),
+                    foreign.len(),
+                    shown.join(", "),
+                    if foreign.len() > 5 { ", ..." } else { "" }
+                ),
+            ));
+        }
+    }
     Ok(())
 }
 
-/// Chooses and creates the output folder. With an explicit `--out`, an existing non-empty
-/// folder is refused unless `force` ([`check_out`]); by default `out/<name>` or the first free
-/// `out/<name>-N`.
-pub fn prepare_out(out: Option<&Path>, name: &str, force: bool) -> Result<PathBuf, CliError> {
+/// Files of a complete output folder that its manifest does not list (put there after the
+/// run); empty when there is no readable manifest.
+fn foreign_files(dir: &Path) -> Vec<String> {
+    let Ok(text) = std::fs::read_to_string(dir.join(output::MANIFEST)) else {
+        return vec![];
+    };
+    let Ok(m) = serde_json::from_str::<output::Manifest>(&text) else {
+        return vec![];
+    };
+    let Ok(now) = output::list_files(dir) else {
+        return vec![];
+    };
+    now.into_iter()
+        .map(|f| f.path)
+        .filter(|p| p != output::MANIFEST && !m.files.iter().any(|f| &f.path == p))
+        .collect()
+}
+
+/// Files at the top of a folder that mark it as an output of this tool (the manifest, the
+/// partial marker, and the main result of each command, as written before manifests existed).
+pub const OUTPUT_MARKERS: &[&str] = &[
+    output::MANIFEST,
+    output::PARTIAL,
+    "report.json",
+    "traces.csv",
+    "diagnosis.json",
+    "truth.json",
+];
+
+/// Whether `--force` may replace `dir` whole: it holds one of [`OUTPUT_MARKERS`]. A folder of
+/// the user's own (say the one holding the event files) is never deleted by a mistyped `--out`.
+pub fn looks_like_output(dir: &Path) -> bool {
+    OUTPUT_MARKERS.iter().any(|m| dir.join(m).is_file())
+}
+
+/// Chooses the output folder and starts writing it ([`output::Staging`]: a temporary folder
+/// beside it, renamed into place when complete). With an explicit `--out`, an existing
+/// non-empty folder is refused unless `force` ([`check_out`]), and then replaced whole; by
+/// default `out/<name>` or the first free `out/<name>-N`. Call it before the computation: it
+/// is the writability check.
+pub fn prepare_out(
+    out: Option<&Path>,
+    name: &str,
+    force: bool,
+) -> Result<output::Staging, CliError> {
     check_out(out, force)?;
     let dir = match out {
         Some(d) => d.to_path_buf(),
@@ -294,9 +464,7 @@ pub fn prepare_out(out: Option<&Path>, name: &str, force: bool) -> Result<PathBu
             d
         }
     };
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| CliError::new(7, format!("cannot create {}: {e}", dir.display())))?;
-    Ok(dir)
+    output::Staging::begin(&dir)
 }
 
 fn sim_options(a: &SimulateArgs) -> Result<SimOptions, CliError> {
@@ -363,14 +531,30 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     let opts = sim_options(a)?;
     let event = load_event(&event_path)?;
     let unit = load_unit(&unit_path)?;
-    let t0 = Instant::now();
-    let traces = simulate(&unit, &event, &opts)?;
-    let wall = t0.elapsed();
-    let out = prepare_out(
+    if let Method::Rk4 { h } = opts.method {
+        let steps = event.playback.duration_s() / h;
+        if steps > RK4_MAX_STEPS {
+            return Err(CliError::new(
+                2,
+                format!(
+                    "--step {h}: {steps:.3e} RK4 steps over the {:.3} s playback of {}; the cap is {RK4_MAX_STEPS:e} (use --step {:.1e} or larger, or --method dopri5)",
+                    event.playback.duration_s(),
+                    event_path.display(),
+                    event.playback.duration_s() / RK4_MAX_STEPS
+                ),
+            ));
+        }
+    }
+    let warnings = plausibility(&[&event], &unit, &unit_path)?;
+    let staging = prepare_out(
         a.out.as_deref(),
         &format!("simulate-{}", event.name),
         a.force,
     )?;
+    let out = staging.path().to_path_buf();
+    let t0 = Instant::now();
+    let traces = simulate(&unit, &event, &opts).map_err(|e| explain_sim_error(e, &event, &unit))?;
+    let wall = t0.elapsed();
     let csv_path = out.join("traces.csv");
     traces
         .write_csv(&csv_path)
@@ -423,7 +607,7 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
         "misfit fit window {:.2}-{:.2} s ({n_fit} samples): RMS P {rms_p:.4} pu, RMS Q {rms_q:.4} pu, J = sum(dP^2 + dQ^2) = {j:.4}",
         event.fit.start_s, event.fit.end_s
     );
-    let mut written = vec![csv_path.display().to_string()];
+    let mut written = vec!["traces.csv".to_string()];
     if !a.no_plot {
         let plot_path = out.join("plot.svg");
         let t = &traces.time_s;
@@ -480,9 +664,15 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
         ];
         let title = format!("{}: {} playback, J = {j:.3}", event.name, unit.name);
         plot::draw(&plot_path, &title, "time [s]", &panels).map_err(|e| CliError::new(7, e))?;
-        written.push(plot_path.display().to_string());
+        written.push("plot.svg".to_string());
     }
-    println!("wrote  {}", written.join(", "));
+    write_warnings(&out, &warnings)?;
+    if !warnings.is_empty() {
+        written.push("warnings.json".to_string());
+    }
+    let target = staging.commit(None)?;
+    written.push(output::MANIFEST.to_string());
+    println!("wrote  {}/{{{}}}", target.display(), written.join(", "));
     Ok(())
 }
 

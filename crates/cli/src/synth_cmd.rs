@@ -184,7 +184,8 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
             )
         }
     })?;
-    let out = prepare_out(a.out.as_deref(), &format!("synth-{name}"), a.force)?;
+    let staging = prepare_out(a.out.as_deref(), &format!("synth-{name}"), a.force)?;
+    let out = staging.path().to_path_buf();
     let csv_name = format!("{name}.csv");
     let csv_path = out.join(&csv_name);
     event
@@ -243,9 +244,10 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
     for h in &a.hide {
         println!("hidden {h}");
     }
+    let target = staging.commit(Some(a.seed))?;
     println!(
-        "wrote  {}/event.toml, {csv_name}, truth.toml, truth.json",
-        out.display()
+        "wrote  {}/event.toml, {csv_name}, truth.toml, truth.json, manifest.json",
+        target.display()
     );
     Ok(())
 }

@@ -21,6 +21,7 @@ pub mod event;
 pub mod integrate;
 pub mod models;
 pub mod params;
+pub mod plausibility;
 pub mod registry;
 pub mod simulate;
 pub mod synthetic;

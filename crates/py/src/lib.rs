@@ -10,6 +10,7 @@
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use numpy::PyArray1;
@@ -26,6 +27,7 @@ use itaipu_calib::spec::{CalibSpec, SpecError, Strategy, STAGES};
 use itaipu_dynamics::block::Dir;
 use itaipu_dynamics::event::{Event, EventError as RsEventError};
 use itaipu_dynamics::integrate::{Dopri5Options, Method};
+use itaipu_dynamics::plausibility::{check_event, check_unit, Finding, Severity};
 use itaipu_dynamics::registry::MODELS;
 use itaipu_dynamics::simulate::{SimError, SimOptions, Traces};
 use itaipu_dynamics::unit::Unit;
@@ -340,6 +342,79 @@ fn load_event(py: Python<'_>, path: PathBuf) -> PyResult<PyEvent> {
     py.detach(|| Event::from_toml_file(&path))
         .map(|e| PyEvent { inner: Arc::new(e) })
         .map_err(|e| Failure::from(e).into_pyerr(py))
+}
+
+/// The plausibility layer (the checks `simulate`, `fit` and `diagnose` of the command line run
+/// on every event, and on the unit's parameters): a list of findings, each a dict with
+/// `severity` ("error": the command line stops with exit 3; "warning"), `kind` (`time_gap`,
+/// `dropout`, `angle_radians`, `frequency`, `time_scale`, `absorbing_p`, `above_rating`,
+/// `absurd_value`, `spike`, `parameter_range`), `file`, `line` (CSV line, or None), `time_s`,
+/// `column`, `message` and `fix`. `unit` (optional) gives the rating the P and Q checks use and
+/// has its parameters checked against the library's ranges. Empty when nothing is implausible.
+/// Raises EventError or UnitModelError when a path given does not read.
+#[pyfunction]
+#[pyo3(signature = (event, unit = None))]
+fn check<'py>(
+    py: Python<'py>,
+    event: &Bound<'py, PyAny>,
+    unit: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let event = source::<PyEvent, _>(event, "event", |e| e.inner.clone())?;
+    // The unit (None: read it from the path) and the file its findings name.
+    let unit: Option<(Option<Arc<Unit>>, PathBuf)> = unit
+        .map(|u| {
+            source::<PyUnit, _>(u, "unit", |u| u.inner.clone()).map(|src| match src {
+                Source::Loaded(inner) => {
+                    let path = u
+                        .downcast::<PyUnit>()
+                        .ok()
+                        .and_then(|o| o.get().path.clone())
+                        .unwrap_or_else(|| PathBuf::from(format!("<unit '{}'>", inner.name)));
+                    (Some(inner), path)
+                }
+                Source::Path(p) => (None, p),
+            })
+        })
+        .transpose()?;
+    let findings = py
+        .detach(move || -> Result<Vec<Finding>, Failure> {
+            let event = match event {
+                Source::Loaded(e) => e,
+                Source::Path(p) => Arc::new(Event::from_toml_file(&p)?),
+            };
+            let unit = match unit {
+                None => None,
+                Some((Some(u), p)) => Some((u, p)),
+                Some((None, p)) => Some((Arc::new(read_unit(&p)?), p)),
+            };
+            let mut out = check_event(&event, unit.as_ref().map(|(u, _)| u.machine_mva));
+            if let Some((u, p)) = &unit {
+                out.extend(check_unit(u, p));
+            }
+            Ok(out)
+        })
+        .map_err(|e| e.into_pyerr(py))?;
+    findings
+        .iter()
+        .map(|f| {
+            let d = PyDict::new(py);
+            d.set_item(
+                "severity",
+                match f.severity {
+                    Severity::Error => "error",
+                    Severity::Warning => "warning",
+                },
+            )?;
+            d.set_item("kind", f.kind)?;
+            d.set_item("file", f.file.display().to_string())?;
+            d.set_item("line", f.line)?;
+            d.set_item("time_s", f.time_s)?;
+            d.set_item("column", &f.column)?;
+            d.set_item("message", &f.message)?;
+            d.set_item("fix", &f.fix)?;
+            Ok(d)
+        })
+        .collect()
 }
 
 // -------------------------------------------------------------------------------------------
@@ -934,49 +1009,73 @@ fn fit(
             )));
         }
     }
-    let result = py.detach(
-        move || -> Result<(calib_fit::FitResult, Vec<catalog::FreeBound>), Failure> {
-            let unit = match unit_src {
-                Source::Loaded(u) => u,
-                Source::Path(p) => Arc::new(read_unit(&p)?),
-            };
-            let spec = CalibSpec::from_file(&calib)?;
-            let events = load_events(events)?;
-            let held_out = load_events(held_out)?;
-            let mut opts = FitOptions::from_spec(&spec);
-            if let Some(s) = strategy {
-                opts.strategy = s;
+    // The fit runs on a worker thread while this thread, without the GIL between checks,
+    // looks for signals every 20 ms: Ctrl-C (KeyboardInterrupt) stops the fit at its next
+    // candidate evaluation and is raised as soon as the worker has come back.
+    let cancel = Arc::new(AtomicBool::new(false));
+    let worker_cancel = cancel.clone();
+    let work = move || -> Result<(calib_fit::FitResult, Vec<catalog::FreeBound>), Failure> {
+        let unit = match unit_src {
+            Source::Loaded(u) => u,
+            Source::Path(p) => Arc::new(read_unit(&p)?),
+        };
+        let spec = CalibSpec::from_file(&calib)?;
+        let events = load_events(events)?;
+        let held_out = load_events(held_out)?;
+        let mut opts = FitOptions::from_spec(&spec);
+        if let Some(s) = strategy {
+            opts.strategy = s;
+        }
+        if let Some(s) = stages {
+            opts.stages = s;
+        }
+        if let Some(s) = seed {
+            opts.seed = s;
+        }
+        if !polish {
+            opts.polish = false;
+        }
+        if let Some(n) = particles {
+            opts.particles = n;
+        }
+        if let Some(n) = pso_iterations {
+            opts.pso_iterations = n;
+        }
+        if let Some(n) = lbfgs_iterations {
+            opts.lbfgs_iterations = n;
+        }
+        let control = calib_fit::FitControl {
+            cancel: Some(worker_cancel),
+            ..Default::default()
+        };
+        let mut result =
+            calib_fit::fit_with(&unit, &spec, &events, &held_out, &opts, &Silent, &control)?;
+        // As the command line's calibrated.toml.
+        result.unit.description = format!(
+            "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
+            unit.description,
+            opts.stages.join("+"),
+            opts.seed
+        );
+        let set = calib_diagnose::calibrated_set(&spec, &opts.stages, &unit, &result.unit);
+        Ok((result, set))
+    };
+    let result = std::thread::scope(|scope| -> PyResult<_> {
+        let worker = scope.spawn(work);
+        loop {
+            if worker.is_finished() {
+                return Ok(worker
+                    .join()
+                    .unwrap_or_else(|p| std::panic::resume_unwind(p)));
             }
-            if let Some(s) = stages {
-                opts.stages = s;
+            py.detach(|| std::thread::sleep(std::time::Duration::from_millis(20)));
+            if let Err(e) = py.check_signals() {
+                cancel.store(true, Ordering::SeqCst);
+                let _ = py.detach(|| worker.join());
+                return Err(e);
             }
-            if let Some(s) = seed {
-                opts.seed = s;
-            }
-            if !polish {
-                opts.polish = false;
-            }
-            if let Some(n) = particles {
-                opts.particles = n;
-            }
-            if let Some(n) = pso_iterations {
-                opts.pso_iterations = n;
-            }
-            if let Some(n) = lbfgs_iterations {
-                opts.lbfgs_iterations = n;
-            }
-            let mut result = calib_fit::fit(&unit, &spec, &events, &held_out, &opts, &Silent)?;
-            // As the command line's calibrated.toml.
-            result.unit.description = format!(
-                "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
-                unit.description,
-                opts.stages.join("+"),
-                opts.seed
-            );
-            let set = calib_diagnose::calibrated_set(&spec, &opts.stages, &unit, &result.unit);
-            Ok((result, set))
-        },
-    );
+        }
+    })?;
     let (result, calibrated_set) = result.map_err(|e| e.into_pyerr(py))?;
     let report_json = serde_json::to_string(&result.report)
         .map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
@@ -1639,6 +1738,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDiagnosis>()?;
     m.add_function(wrap_pyfunction!(load_event, m)?)?;
     m.add_function(wrap_pyfunction!(load_unit, m)?)?;
+    m.add_function(wrap_pyfunction!(check, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(models, m)?)?;

@@ -1,0 +1,557 @@
+//! Plausibility of an event's data (and of a unit's parameters) beyond what the readers reject.
+//!
+//! The readers of [`crate::event`] reject what cannot be read (non-numbers, non-increasing
+//! time, values that look like kV or MW, ...). What reads fine but is implausible would
+//! otherwise be played back without a word: a 100 s gap in the record, a single sample with
+//! |V| = 0 (played back as a fault), an angle column in radians, a time column in the wrong
+//! unit, a generator absorbing P, P above the machine's rating on the system base, a sample of
+//! 1e300. [`check_event`] finds these and returns one [`Finding`] each, naming the file, the
+//! line (where the CSV can be re-read to find it) or the time of the sample, the column and
+//! the fix; [`Severity::Error`] findings should stop a run, warnings be reported with it.
+//! [`check_unit`] warns about parameters far outside the model library's ranges.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use crate::event::{read_csv, Event, Record};
+use crate::unit::Unit;
+
+/// Sample intervals above this many times the median interval are a gap.
+pub const GAP_FACTOR: f64 = 5.0;
+/// A gap above this many times the median interval (and above [`GAP_ERROR_MIN_S`]) is an error.
+pub const GAP_ERROR_FACTOR: f64 = 100.0;
+/// Gaps shorter than this are never errors.
+pub const GAP_ERROR_MIN_S: f64 = 1.0;
+/// |V| below this [pu] is "near zero" (a dropout when it lasts a sample or two).
+pub const DROPOUT_PU: f64 = 0.05;
+/// Plausible grid frequencies [Hz].
+pub const FREQ_RANGE_HZ: (f64, f64) = (45.0, 65.0);
+/// Plausible PMU sample intervals [s] (10 kHz to 1 sample/s).
+pub const DT_RANGE_S: (f64, f64) = (1e-4, 1.0);
+/// |V| above this [pu] in any sample is an error.
+pub const V_MAX_PU: f64 = 3.0;
+/// |P| or |Q| above this many times the machine rating in any sample is an error.
+pub const PQ_ABSURD_RATING: f64 = 20.0;
+/// Pre-event P above this many times the machine rating is an error (base mismatch).
+pub const P_RATING_FACTOR: f64 = 1.2;
+/// Pre-event P below this [pu of the machine rating] is a warning (absorbing P).
+pub const P_ABSORB_PU: f64 = -0.02;
+/// A one-sample jump of P or Q above this [pu of the machine rating] that comes straight back
+/// is a warning (no machine follows it).
+pub const SPIKE_PU: f64 = 1.0;
+
+/// How bad a finding is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Severity {
+    Warning,
+    Error,
+}
+
+/// One implausibility.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Finding {
+    pub severity: Severity,
+    /// Stable identifier: `time_gap`, `dropout`, `angle_radians`, `frequency`, `time_scale`,
+    /// `absorbing_p`, `above_rating`, `absurd_value`, `spike`, `parameter_range`.
+    pub kind: &'static str,
+    /// The file the data are in (the CSV, or the unit file).
+    pub file: PathBuf,
+    /// 1-based CSV line (header = line 1) of the first sample concerned, where known.
+    pub line: Option<usize>,
+    /// Time of the first sample concerned [s].
+    pub time_s: Option<f64>,
+    /// Column or parameter.
+    pub column: String,
+    pub message: String,
+    /// What to do about it.
+    pub fix: String,
+}
+
+impl fmt::Display for Finding {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file.display())?;
+        if let Some(l) = self.line {
+            write!(f, " line {l}")?;
+        }
+        if let Some(t) = self.time_s {
+            write!(f, " (t = {t} s)")?;
+        }
+        write!(f, ", {}: {}; fix: {}", self.column, self.message, self.fix)
+    }
+}
+
+/// Whether any finding is an error.
+pub fn has_errors(findings: &[Finding]) -> bool {
+    findings.iter().any(|f| f.severity == Severity::Error)
+}
+
+struct Ctx<'a> {
+    file: PathBuf,
+    /// CSV line of each playback sample, when the CSV could be re-read.
+    lines: Option<Vec<usize>>,
+    rec: &'a Record,
+    out: Vec<Finding>,
+}
+
+impl Ctx<'_> {
+    #[allow(clippy::too_many_arguments)]
+    fn push(
+        &mut self,
+        severity: Severity,
+        kind: &'static str,
+        k: Option<usize>,
+        column: &str,
+        message: String,
+        fix: &str,
+    ) {
+        self.out.push(Finding {
+            severity,
+            kind,
+            file: self.file.clone(),
+            line: k.and_then(|k| self.lines.as_ref().and_then(|l| l.get(k).copied())),
+            time_s: k.map(|k| self.rec.time_s[k]),
+            column: column.into(),
+            message,
+            fix: fix.into(),
+        });
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// The CSV as read: its header's columns, the 1-based line of each of its samples (blank lines
+/// are skipped by the reader, so a sample's line is not simply its index + 2), every sample,
+/// and the index of the first playback sample; `None` for in-memory events or a CSV that no
+/// longer reads.
+struct Layout {
+    header: Vec<String>,
+    /// Line of every sample of the file (header = line 1).
+    lines: Vec<usize>,
+    full: Record,
+    /// Index in `full` of playback sample 0.
+    offset: usize,
+}
+
+impl Layout {
+    /// Line of sample `i` of the file.
+    fn line(&self, i: usize) -> usize {
+        self.lines.get(i).copied().unwrap_or(i + 2)
+    }
+
+    /// Lines of the playback samples.
+    fn playback_lines(&self, n: usize) -> Vec<usize> {
+        (0..n).map(|k| self.line(self.offset + k)).collect()
+    }
+}
+
+fn csv_layout(event: &Event) -> Option<Layout> {
+    if event.csv_path.as_os_str().is_empty() {
+        return None;
+    }
+    let text = std::fs::read_to_string(&event.csv_path).ok()?;
+    let header: Vec<String> = text
+        .lines()
+        .next()?
+        .trim_start_matches('\u{feff}')
+        .split(',')
+        .map(|c| c.trim().to_string())
+        .collect();
+    let full = read_csv(&event.csv_path, event.nominal_hz).ok()?;
+    let t0 = *event.record.time_s.first()?;
+    let offset = full.time_s.iter().position(|t| *t == t0)?;
+    // The reader's records and the file's lines: the same CSV settings, positions kept.
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let lines: Vec<usize> = rdr
+        .records()
+        .map_while(|r| r.ok())
+        .filter_map(|r| r.position().map(|p| p.line() as usize))
+        .collect();
+    let lines = if lines.len() == full.time_s.len() {
+        lines
+    } else {
+        (0..full.time_s.len()).map(|i| i + 2).collect()
+    };
+    Some(Layout {
+        header,
+        lines,
+        full,
+        offset,
+    })
+}
+
+/// Checks an event's playback record. `machine_mva` (the unit's rating) enables the checks
+/// against the rating (base mismatch, absurd values, spikes; without it the system base is
+/// used for the last two).
+pub fn check_event(event: &Event, machine_mva: Option<f64>) -> Vec<Finding> {
+    let layout = csv_layout(event);
+    let file = if event.csv_path.as_os_str().is_empty() {
+        event
+            .toml_path
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(format!("<in-memory event '{}'>", event.name)))
+    } else {
+        event.csv_path.clone()
+    };
+    let rec = &event.record;
+    let n = rec.time_s.len();
+    let mut c = Ctx {
+        file,
+        lines: layout.as_ref().map(|l| l.playback_lines(n)),
+        rec,
+        out: vec![],
+    };
+    if n < 3 {
+        return c.out;
+    }
+    // Time axis: scale, then gaps.
+    let mut dts: Vec<f64> = rec.time_s.windows(2).map(|w| w[1] - w[0]).collect();
+    let dt = median(&mut dts.clone());
+    if !(dt >= DT_RANGE_S.0 && dt <= DT_RANGE_S.1) {
+        let hint = if dt > DT_RANGE_S.1 && dt < 1000.0 {
+            "the time column looks like milliseconds: divide it by 1000"
+        } else if dt < DT_RANGE_S.0 {
+            "the time column looks scaled (nanoseconds? a factor applied twice?): give time_s in seconds"
+        } else {
+            "give time_s in seconds"
+        };
+        c.push(
+            Severity::Error,
+            "time_scale",
+            Some(0),
+            "time_s",
+            format!(
+                "median sample interval {dt:e} s: PMU records have {} to {} s",
+                DT_RANGE_S.0, DT_RANGE_S.1
+            ),
+            hint,
+        );
+        // Every later check assumes a sane time axis.
+        return c.out;
+    }
+    for (k, d) in dts.iter_mut().enumerate() {
+        if *d > GAP_FACTOR * dt {
+            let error = *d > GAP_ERROR_FACTOR * dt && *d > GAP_ERROR_MIN_S;
+            c.push(
+                if error { Severity::Error } else { Severity::Warning },
+                "time_gap",
+                Some(k + 1),
+                "time_s",
+                format!(
+                    "a gap of {:.6} s before this sample ({:.0} × the median interval {dt:.6} s); the playback interpolates |V| and the angle linearly across it",
+                    *d,
+                    *d / dt
+                ),
+                "trim [playback] to one side of the gap, or split the record into two events",
+            );
+        }
+    }
+    // Base: the pre-event P and Q against the machine's rating. Checked before the absurd
+    // magnitudes so that a whole column on the wrong base is named as such (its fix is the base,
+    // not a sample), unless an absurd sample in the init window would make the mean meaningless.
+    let rating = machine_mva.filter(|m| *m > 0.0).unwrap_or(event.system_mva);
+    let pq_max = PQ_ABSURD_RATING * rating / event.system_mva;
+    let init_sane = (0..n)
+        .filter(|&k| rec.time_s[k] >= event.init.start_s && rec.time_s[k] <= event.init.end_s)
+        .all(|k| rec.p_pu[k].abs() <= pq_max && rec.q_pu[k].abs() <= pq_max);
+    let op = event.operating_point();
+    if let (Some(m), true) = (machine_mva.filter(|m| *m > 0.0), init_sane) {
+        let s = op.p_pu.hypot(op.q_pu) * event.system_mva;
+        if s > P_RATING_FACTOR * m {
+            c.push(
+                Severity::Error,
+                "above_rating",
+                Some(0),
+                "p_pu",
+                format!(
+                    "the pre-event apparent power {s:.1} MVA (P {:.4} pu, Q {:.4} pu on {} MVA) exceeds the machine's rating {m} MVA by {:.0} %",
+                    op.p_pu,
+                    op.q_pu,
+                    event.system_mva,
+                    (s / m - 1.0) * 100.0
+                ),
+                "P and Q must be per unit on the event's system_mva base: if they are on another base (the machine's, say), set system_mva to that base or convert the columns",
+            );
+        }
+    }
+    // Absurd magnitudes (one sample of 1e300, |V| in the wrong unit...).
+    for (col, v, lim) in [
+        ("|V|", &rec.v_mag_pu, V_MAX_PU),
+        ("p_pu", &rec.p_pu, pq_max),
+        ("q_pu", &rec.q_pu, pq_max),
+    ] {
+        if let Some(k) = v.iter().position(|x| !(x.abs() <= lim)) {
+            c.push(
+                Severity::Error,
+                "absurd_value",
+                Some(k),
+                col,
+                format!(
+                    "{} is far beyond anything a unit of {rating} MVA records (limit {lim:.3} pu on {} MVA)",
+                    short(v[k]),
+                    event.system_mva
+                ),
+                "correct or remove the sample in the CSV",
+            );
+        }
+    }
+    if has_errors(&c.out) {
+        return c.out;
+    }
+    // Dropouts: |V| near zero for one or two samples between normal ones.
+    let mut k = 0;
+    while k < n {
+        if rec.v_mag_pu[k] < DROPOUT_PU {
+            let start = k;
+            while k < n && rec.v_mag_pu[k] < DROPOUT_PU {
+                k += 1;
+            }
+            let len = k - start;
+            let before = start > 0 && rec.v_mag_pu[start - 1] > 0.5;
+            let after = k < n && rec.v_mag_pu[k] > 0.5;
+            if len <= 2 && (before || start == 0) && (after || k == n) {
+                c.push(
+                    Severity::Error,
+                    "dropout",
+                    Some(start),
+                    "|V|",
+                    format!(
+                        "|V| = {:.4} pu for {len} sample(s) between normal samples: a PMU dropout, which the playback would play as a bolted fault",
+                        rec.v_mag_pu[start]
+                    ),
+                    "remove the sample(s) or replace them by interpolated values in the CSV",
+                );
+            }
+        } else {
+            k += 1;
+        }
+    }
+    // Angle units: an angle_deg column that holds radians wraps at ±π, not ±180.
+    if let Some(layout) = &layout {
+        if layout.header.iter().any(|h| h == "angle_deg") {
+            let deg: Vec<f64> = layout
+                .full
+                .v_ang_rad
+                .iter()
+                .map(|a| a.to_degrees())
+                .collect();
+            let max = deg.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+            let wraps = deg
+                .windows(2)
+                .position(|w| ((w[1] - w[0]).abs() - std::f64::consts::TAU).abs() < 0.5);
+            if max <= std::f64::consts::PI + 1e-6 {
+                let (sev, msg) = match wraps {
+                    Some(i) => (
+                        Severity::Error,
+                        format!(
+                            "the angle stays within ±π and jumps by 2π at line {}: the column holds radians",
+                            layout.line(i + 1)
+                        ),
+                    ),
+                    None => (
+                        Severity::Warning,
+                        "every angle lies within ±π (±3.14°): the column may hold radians".into(),
+                    ),
+                };
+                c.out.push(Finding {
+                    severity: sev,
+                    kind: "angle_radians",
+                    file: c.file.clone(),
+                    line: Some(1),
+                    time_s: None,
+                    column: "angle_deg".into(),
+                    message: msg,
+                    fix: "convert the column to degrees, or rename it if it is in degrees already"
+                        .into(),
+                });
+            }
+        }
+    }
+    // Frequency: the measured channel, and the operating point's (from the angle's slope).
+    if let Some(f) = &rec.freq_hz {
+        if let Some(k) = f
+            .iter()
+            .position(|x| !(*x >= FREQ_RANGE_HZ.0 && *x <= FREQ_RANGE_HZ.1))
+        {
+            c.push(
+                Severity::Error,
+                "frequency",
+                Some(k),
+                "freq_hz",
+                format!(
+                    "{} Hz lies outside {}-{} Hz",
+                    f[k], FREQ_RANGE_HZ.0, FREQ_RANGE_HZ.1
+                ),
+                "check the column's unit (Hz) and the sample",
+            );
+        }
+    }
+    if !(op.freq_hz >= FREQ_RANGE_HZ.0 && op.freq_hz <= FREQ_RANGE_HZ.1) {
+        c.push(
+            Severity::Error,
+            "frequency",
+            Some(0),
+            "angle",
+            format!(
+                "the initial frequency from the angle's slope over the init window [{}, {}] s is {:.6e} Hz, outside {}-{} Hz",
+                event.init.start_s, event.init.end_s, op.freq_hz, FREQ_RANGE_HZ.0, FREQ_RANGE_HZ.1
+            ),
+            "check the time column's unit (seconds) and the angle's unit (degrees in angle_deg)",
+        );
+    }
+    // Sign convention and base.
+    let p_mach = op.p_pu * event.system_mva;
+    if op.p_pu < P_ABSORB_PU * rating / event.system_mva {
+        c.push(
+            Severity::Warning,
+            "absorbing_p",
+            Some(0),
+            "p_pu",
+            format!(
+                "the unit absorbs {:.1} MW before the event (mean P {:.4} pu): generator convention is P delivered > 0",
+                -p_mach, op.p_pu
+            ),
+            "if P and Q have the load convention, negate both columns; a pump or motor is not a generating unit's model",
+        );
+    }
+    // One-sample spikes of P or Q that come straight back.
+    let spike = SPIKE_PU * rating / event.system_mva;
+    for (col, v) in [("p_pu", &rec.p_pu), ("q_pu", &rec.q_pu)] {
+        for k in 1..n - 1 {
+            let (a, b, x) = (v[k - 1], v[k + 1], v[k]);
+            let out = (x - 0.5 * (a + b)).abs();
+            if out > spike && (a - b).abs() < 0.1 * out {
+                c.push(
+                    Severity::Warning,
+                    "spike",
+                    Some(k),
+                    col,
+                    format!(
+                        "{x:.4} pu between {a:.4} and {b:.4}: a one-sample step of {:.2} × the rating that no machine could follow",
+                        out / (rating / event.system_mva)
+                    ),
+                    "check the sample; remove or interpolate it if it is a recording error",
+                );
+                break;
+            }
+        }
+    }
+    c.out
+}
+
+/// A number as written by hand: plain when moderate, in exponent form when huge or tiny (1e308,
+/// not 309 digits).
+fn short(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e6).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// Parameters of `unit` far outside the model library's typical ranges (more than a range's
+/// width beyond it): warnings naming the file and the parameter.
+pub fn check_unit(unit: &Unit, file: &Path) -> Vec<Finding> {
+    let mut out = vec![];
+    for (path, spec, v) in unit.params() {
+        let (lo, hi) = spec.range;
+        if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+            continue;
+        }
+        let w = hi - lo;
+        if !(v >= lo - w && v <= hi + w) {
+            out.push(Finding {
+                severity: Severity::Warning,
+                kind: "parameter_range",
+                file: file.to_path_buf(),
+                line: None,
+                time_s: None,
+                column: path.clone(),
+                message: format!(
+                    "{} {} lies far outside the library's typical range {lo}-{hi} ({})",
+                    short(v),
+                    spec.unit,
+                    spec.doc
+                ),
+                fix: "check the value and its unit (itaipu-calib models shows every range)".into(),
+            });
+        }
+    }
+    out
+}
+
+/// Where a run-time failure at time `t_s` points in the data: the nearest sample's CSV line
+/// (or time) and values, and the one before it, so that a failure caused by a sample (say one
+/// of 1e300) names it.
+pub fn locate_time(event: &Event, t_s: f64) -> String {
+    let rec = &event.record;
+    let n = rec.time_s.len();
+    if n == 0 || !t_s.is_finite() {
+        return String::new();
+    }
+    let k = rec.time_s.partition_point(|t| *t < t_s).min(n - 1);
+    let k = if k > 0 && (rec.time_s[k] - t_s).abs() > (t_s - rec.time_s[k - 1]).abs() {
+        k - 1
+    } else {
+        k
+    };
+    let lines = csv_layout(event).map(|l| l.playback_lines(n));
+    let at = |i: usize| match &lines {
+        Some(l) => format!("line {} (t = {} s)", l[i], rec.time_s[i]),
+        None => format!("sample {i} (t = {} s)", rec.time_s[i]),
+    };
+    let vals = |i: usize| {
+        format!(
+            "|V| {} pu, angle {} rad, P {} pu, Q {} pu",
+            rec.v_mag_pu[i], rec.v_ang_rad[i], rec.p_pu[i], rec.q_pu[i]
+        )
+    };
+    let mut s = format!(
+        "the record there: {} of {}: {}",
+        at(k),
+        event.csv_path.display(),
+        vals(k)
+    );
+    if k > 0 {
+        s.push_str(&format!("; before it, {}: {}", at(k - 1), vals(k - 1)));
+    }
+    s
+}
+
+/// The operating point the initialisation was given, from the event's init window, on the
+/// system and the machine base: what to check when a unit cannot initialise (an E_fd0 beyond
+/// the ceiling from P and Q on the wrong base, say).
+pub fn describe_operating_point(event: &Event, machine_mva: f64) -> String {
+    let op = event.operating_point();
+    let k = if machine_mva > 0.0 {
+        event.system_mva / machine_mva
+    } else {
+        f64::NAN
+    };
+    format!(
+        "the operating point from the init window [{}, {}] s of {}: |V| {:.4} pu, P {:.4} pu, Q {:.4} pu on {} MVA (P {:.4} pu, Q {:.4} pu on the machine's {} MVA), f {:.4} Hz; check the columns' units and bases",
+        event.init.start_s,
+        event.init.end_s,
+        event.csv_path.display(),
+        op.v_mag_pu,
+        op.p_pu,
+        op.q_pu,
+        event.system_mva,
+        op.p_pu * k,
+        op.q_pu * k,
+        machine_mva,
+        op.freq_hz
+    )
+}
