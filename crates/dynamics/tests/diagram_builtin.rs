@@ -122,8 +122,9 @@ fn sexs_stab3_hygov_diagrams_reproduce_the_builtin_blocks_on_the_itaipu_record()
 fn the_diagrams_reproduce_the_builtin_blocks_on_synthetic_events_with_limits_hit() {
     let base_text = std::fs::read_to_string(data("synthetic/unit_gensae_sexs_stab3_hygov.toml")).unwrap();
     // A low ceiling so that the dip drives E_fd onto it.
-    let base = base_text.replacen("e_max = 4.0", "e_max = 2.6", 1);
-    assert_ne!(base, base_text, "the synthetic unit's e_max line changed");
+    // And a slow gate so that the frequency excursion drives the gate-rate limit.
+    let base = base_text.replacen("e_max = 4.5", "e_max = 2.6", 1).replacen("velm = 0.2", "velm = 0.004", 1);
+    assert!(base.contains("e_max = 2.6") && base.contains("velm = 0.004"), "the synthetic unit's e_max / velm lines changed");
     for kind in [EventKind::FaultDip, EventKind::FrequencyExcursion] {
         let profile = VoltageProfile::preset(kind, 12.0, 60.0, 7);
         let ev = synthesize("diagram-test", &unit(&base), &profile, 1000.0, &PmuNoise::none(), &SimOptions::default()).unwrap();
@@ -137,7 +138,8 @@ fn the_diagrams_reproduce_the_builtin_blocks_on_synthetic_events_with_limits_hit
             let c = tr.get("governor.c").unwrap();
             let t = &tr.time_s;
             let rate = c.windows(2).zip(t.windows(2)).map(|(c, t)| ((c[1] - c[0]) / (t[1] - t[0])).abs()).fold(0.0, f64::max);
-            println!("FrequencyExcursion: fastest gate rate {rate:.4} pu/s");
+            println!("FrequencyExcursion: fastest gate rate {rate:.5} pu/s");
+            assert!(rate > 0.0039 && rate < 0.0040001, "the gate moves at VELM = 0.004 pu/s (fastest {rate})");
         }
     }
 }
