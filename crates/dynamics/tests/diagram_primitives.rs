@@ -102,24 +102,24 @@ fn lead_lag_washout_derivative() {
 
 #[test]
 fn integrators_pi_pid_with_windup_and_non_windup_limits() {
-    // Integrator of a unit step: y = k t, from the steady state it starts in. With u(0⁻) = 0
-    // its state is free: the initialisation starts it at `guess`.
-    let mut d = make("", &one("type = \"integrator\"\nk = 0.5\nguess = 0.2"));
+    // Integrator of a unit step: y = x0 + k t. With u(0⁻) = 0 and no feedback its steady state
+    // is not unique (the initialisation would refuse it): `x0` fixes it.
+    let mut d = make("", &one("type = \"integrator\"\nk = 0.5\nx0 = 0.2"));
     compare(&run(&mut d, 0.0, STEP, 2.0), &|t| 0.2 + 0.5 * t, 1e-9, "integrator ramp");
     // Non-windup at 0.6: pinned from t = 0.8 and, when the input reverses at t = 2, leaves at once.
-    let mut d = make("", &one("type = \"integrator\"\nk = 0.5\nmin = -1.0\nmax = 0.6\nguess = 0.2"));
+    let mut d = make("", &one("type = \"integrator\"\nk = 0.5\nmin = -1.0\nmax = 0.6\nx0 = 0.2"));
     let tr = run(&mut d, 0.0, &|t| if t < 2.0 { 1.0 } else { -1.0 }, 3.0);
     compare(&tr, &|t| if t < 0.8 { 0.2 + 0.5 * t } else if t < 2.0 { 0.6 } else { 0.6 - 0.5 * (t - 2.0) }, 2e-3, "non-windup integrator");
     // Windup: the state keeps integrating to 1.2 at t = 2, so the output stays at 0.6 until
     // the state comes back down at t = 3.2.
-    let mut d = make("", &one("type = \"integrator\"\nk = 0.5\nmin = -1.0\nmax = 0.6\nguess = 0.2\nlimit = \"windup\""));
+    let mut d = make("", &one("type = \"integrator\"\nk = 0.5\nmin = -1.0\nmax = 0.6\nx0 = 0.2\nlimit = \"windup\""));
     let tr = run(&mut d, 0.0, &|t| if t < 2.0 { 1.0 } else { -1.0 }, 4.0);
     compare(&tr, &|t| if t < 0.8 { 0.2 + 0.5 * t } else if t < 3.2 { 0.6 } else { 1.2 - 0.5 * (t - 2.0) }, 2e-3, "windup integrator");
-    // PI step: y = k_p + k_i t (+ guess).
-    let mut d = make("", &one("type = \"pi\"\nk_p = 2.0\nk_i = 0.5\nguess = 0.0"));
+    // PI step: y = k_p + k_i t (+ x0).
+    let mut d = make("", &one("type = \"pi\"\nk_p = 2.0\nk_i = 0.5\nx0 = 0.0"));
     compare(&run(&mut d, 0.0, STEP, 2.0), &|t| 2.0 + 0.5 * t, 1e-9, "pi step");
     // PID step: y = k_p + k_i t + (k_d/T_d) e^{−t/T_d}.
-    let mut d = make("", &one("type = \"pid\"\nk_p = 1.0\nk_i = 0.5\nk_d = 0.2\nt_d = 0.1\nguess = 0.0"));
+    let mut d = make("", &one("type = \"pid\"\nk_p = 1.0\nk_i = 0.5\nk_d = 0.2\nt_d = 0.1\nx0 = 0.0"));
     compare(&run(&mut d, 0.0, STEP, 2.0), &|t| 1.0 + 0.5 * t + 2.0 * (-t / 0.1).exp(), 1e-8, "pid step");
 }
 

@@ -47,9 +47,10 @@ fn evaluate(
                     Kind::LeadLag | Kind::Washout | Kind::Derivative | Kind::RateLimiter => {
                         x[o] = u
                     }
-                    Kind::Integrator | Kind::Pi => x[o] = unknown.unwrap_or(0.0),
+                    Kind::Integrator => x[o] = unknown.unwrap_or(n.v[slot::I_X0]),
+                    Kind::Pi => x[o] = unknown.unwrap_or(n.v[slot::PI_X0]),
                     Kind::Pid => {
-                        x[o] = unknown.unwrap_or(0.0);
+                        x[o] = unknown.unwrap_or(n.v[slot::PID_X0]);
                         x[o + 1] = u;
                     }
                     _ => {}
@@ -145,9 +146,12 @@ pub(super) fn steady_state(
     let mut r2 = vec![0.0; n];
     let mut zt = vec![0.0; n];
     let mut iter = 0;
-    while norm > tol {
+    // Newton's method; the Jacobian is also formed at the solution, because a singular one
+    // there means the steady state is not unique even when the first guess satisfies it.
+    loop {
+        let done = norm <= tol;
         iter += 1;
-        if iter > 60 || !norm.is_finite() {
+        if !done && (iter > 60 || !norm.is_finite()) {
             let (worst, _) = res
                 .iter()
                 .enumerate()
@@ -172,6 +176,9 @@ pub(super) fn steady_state(
         let mut dz: Vec<f64> = res.iter().map(|r| -r).collect();
         if let Err(col) = solve(&mut jac, &mut dz, n) {
             return Err(ModelError::Init(describe(def, def.unknowns[col])));
+        }
+        if done {
+            break;
         }
         // Backtracking line search on the largest residual.
         let mut lambda = 1.0;

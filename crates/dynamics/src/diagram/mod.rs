@@ -292,8 +292,8 @@ impl Diagram {
                     Some(e) => e.eval(p),
                     None => f.default.unwrap_or(f64::NAN),
                 };
-                // `guess` NaN means "choose".
-                if !(f.name == "guess" && nd.fields[k].is_none()) {
+                // `guess` and `x0` NaN mean "choose" and "solve".
+                if !((f.name == "guess" || f.name == "x0") && nd.fields[k].is_none()) {
                     f.dom.check(val).map_err(|m| {
                         ModelError::param(
                             &format!("{}.{}", nd.label(), f.name),
@@ -1077,7 +1077,8 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
     };
     let mut unknowns = vec![];
     for k in 0..nn {
-        if nodes[k].info.kind.integrating() {
+        let x0_given = nodes[k].info.fields.iter().position(|f| f.name == "x0").is_some_and(|i| nodes[k].fields[i].is_some());
+        if nodes[k].info.kind.integrating() && !x0_given {
             unknowns.push(Unknown::Integrator(k as u32));
         }
     }

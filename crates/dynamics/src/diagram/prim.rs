@@ -19,7 +19,7 @@
 //! | `lead_lag` | `k (1 + s T_a)/(1 + s T_b)`: `T_b dx/dt = u − x`, `y = k ((T_a/T_b) u + (1 − T_a/T_b) x)` | `x = u`, `y = k u` |
 //! | `washout` | `k s T/(1 + s T)`: `T dx/dt = u − x`, `y = k (u − x)` | `x = u`, `y = 0` |
 //! | `derivative` | `k s/(1 + s T)`: `T dx/dt = u − x`, `y = k (u − x)/T` | `x = u`, `y = 0` |
-//! | `integrator` | `dx/dt = k u`, `y = clamp(x)`; `limit = "non_windup"` (default: x frozen at a limit while pushing outwards) or `"windup"` (x free, only y clamped) | `u = 0`, `x` unknown |
+//! | `integrator` | `dx/dt = k u`, `y = clamp(x)`; `limit = "non_windup"` (default: x frozen at a limit while pushing outwards) or `"windup"` (x free, only y clamped) | `u = 0`, `x` unknown (or `x0` when given) |
 //! | `pi` | `dx/dt = k_i u`, `y = clamp(k_p u + x)`; limits on x as for `integrator` | `u = 0`, `x` unknown |
 //! | `pid` | `dx_i/dt = k_i u`, `T_d dx_d/dt = u − x_d`, `y = clamp(k_p u + x_i + k_d (u − x_d)/T_d)` | `u = 0`, `x_d = u`, `x_i` unknown |
 //! | `limiter` | `y = clamp(u)` | |
@@ -165,6 +165,12 @@ const GUESS: Field = opt(
     Dom::Any,
     "starting value of the state for the initialisation's solve (default: mid-limits, else 1)",
 );
+const X0: Field = opt(
+    "x0",
+    f64::NAN,
+    Dom::Any,
+    "fixed initial state: not solved for (its input must then be 0 at t = 0 by itself)",
+);
 const LIMIT_OPT: (&str, &str) = (
     "limit",
     "\"non_windup\" (default: the state freezes at a limit) or \"windup\" (only the output is clamped)",
@@ -184,9 +190,9 @@ pub static PRIMITIVES: &[PrimInfo] = &[
     PrimInfo { name: "lead_lag", kind: Kind::LeadLag, arity: Arity::One, fields: &[opt("k", 1.0, Dom::Finite, "gain"), req("t_a", Dom::NonNegative, "lead time constant [s]"), req("t_b", Dom::Positive, "lag time constant [s]")], options: &[], states: &["x"], equation: "k (1 + s T_a)/(1 + s T_b): T_b dx/dt = u − x, y = k ((T_a/T_b) u + (1 − T_a/T_b) x)" },
     PrimInfo { name: "washout", kind: Kind::Washout, arity: Arity::One, fields: &[opt("k", 1.0, Dom::Finite, "gain"), req("t", Dom::Positive, "time constant [s]")], options: &[], states: &["x"], equation: "k sT/(1 + sT): T dx/dt = u − x, y = k (u − x)" },
     PrimInfo { name: "derivative", kind: Kind::Derivative, arity: Arity::One, fields: &[opt("k", 1.0, Dom::Finite, "gain [s]"), req("t", Dom::Positive, "filter time constant [s]")], options: &[], states: &["x"], equation: "k s/(1 + sT): T dx/dt = u − x, y = k (u − x)/T" },
-    PrimInfo { name: "integrator", kind: Kind::Integrator, arity: Arity::One, fields: &[opt("k", 1.0, Dom::Finite, "gain [1/s]"), LIM[0], LIM[1], GUESS], options: &[LIMIT_OPT], states: &["x"], equation: "dx/dt = k u, y = clamp(x)" },
-    PrimInfo { name: "pi", kind: Kind::Pi, arity: Arity::One, fields: &[req("k_p", Dom::Finite, "proportional gain"), req("k_i", Dom::Finite, "integral gain [1/s]"), LIM[0], LIM[1], GUESS], options: &[LIMIT_OPT], states: &["x"], equation: "dx/dt = k_i u, y = clamp(k_p u + x)" },
-    PrimInfo { name: "pid", kind: Kind::Pid, arity: Arity::One, fields: &[req("k_p", Dom::Finite, "proportional gain"), req("k_i", Dom::Finite, "integral gain [1/s]"), req("k_d", Dom::Finite, "derivative gain [s]"), req("t_d", Dom::Positive, "derivative filter time constant [s]"), LIM[0], LIM[1], GUESS], options: &[LIMIT_OPT], states: &["i", "d"], equation: "dx_i/dt = k_i u, T_d dx_d/dt = u − x_d, y = clamp(k_p u + x_i + k_d (u − x_d)/T_d)" },
+    PrimInfo { name: "integrator", kind: Kind::Integrator, arity: Arity::One, fields: &[opt("k", 1.0, Dom::Finite, "gain [1/s]"), LIM[0], LIM[1], GUESS, X0], options: &[LIMIT_OPT], states: &["x"], equation: "dx/dt = k u, y = clamp(x)" },
+    PrimInfo { name: "pi", kind: Kind::Pi, arity: Arity::One, fields: &[req("k_p", Dom::Finite, "proportional gain"), req("k_i", Dom::Finite, "integral gain [1/s]"), LIM[0], LIM[1], GUESS, X0], options: &[LIMIT_OPT], states: &["x"], equation: "dx/dt = k_i u, y = clamp(k_p u + x)" },
+    PrimInfo { name: "pid", kind: Kind::Pid, arity: Arity::One, fields: &[req("k_p", Dom::Finite, "proportional gain"), req("k_i", Dom::Finite, "integral gain [1/s]"), req("k_d", Dom::Finite, "derivative gain [s]"), req("t_d", Dom::Positive, "derivative filter time constant [s]"), LIM[0], LIM[1], GUESS, X0], options: &[LIMIT_OPT], states: &["i", "d"], equation: "dx_i/dt = k_i u, T_d dx_d/dt = u − x_d, y = clamp(k_p u + x_i + k_d (u − x_d)/T_d)" },
     PrimInfo { name: "limiter", kind: Kind::Limiter, arity: Arity::One, fields: &[LIM[0], LIM[1]], options: &[], states: &[], equation: "y = clamp(u)" },
     PrimInfo { name: "rate_limiter", kind: Kind::RateLimiter, arity: Arity::One, fields: &[req("t", Dom::Positive, "tracking time constant [s]"), req("rise", Dom::Positive, "largest rate up [1/s]"), req("fall", Dom::Positive, "largest rate down [1/s]")], options: &[], states: &["x"], equation: "dx/dt = clamp((u − x)/T, −fall, rise), y = x" },
     PrimInfo { name: "deadband", kind: Kind::Deadband, arity: Arity::One, fields: &[req("width", Dom::NonNegative, "half-width of the band")], options: &[], states: &[], equation: "y = 0 for |u| ≤ width, u − width·sign(u) outside" },
@@ -264,18 +270,21 @@ pub mod slot {
     pub const I_MIN: usize = 1;
     pub const I_MAX: usize = 2;
     pub const I_GUESS: usize = 3;
+    pub const I_X0: usize = 4;
     // pi: k_p, k_i, min, max, guess
     pub const PI_KI: usize = 1;
     pub const PI_MIN: usize = 2;
     pub const PI_MAX: usize = 3;
     pub const PI_GUESS: usize = 4;
+    pub const PI_X0: usize = 5;
     // pid: k_p, k_i, k_d, t_d, min, max, guess, 1/t_d
     pub const PID_KI: usize = 1;
     pub const PID_KD: usize = 2;
     pub const PID_MIN: usize = 4;
     pub const PID_MAX: usize = 5;
     pub const PID_GUESS: usize = 6;
-    pub const PID_INV_TD: usize = 7;
+    pub const PID_X0: usize = 7;
+    pub const PID_INV_TD: usize = 8;
     // limiter: min, max
     // rate_limiter: t, rise, fall, 1/t
     pub const RL_RISE: usize = 1;
@@ -286,7 +295,7 @@ pub mod slot {
 }
 
 /// Number of value slots per node.
-pub const NV: usize = 8;
+pub const NV: usize = 9;
 
 /// A compiled node: kind, wiring into the scratch slots, and its values.
 #[derive(Debug, Clone, PartialEq)]
