@@ -326,6 +326,38 @@ pub fn build_diagram_block(
         .map_err(|(f, m)| field(path, f, m))
 }
 
+/// What [`read_diagram_or_unit`] found in a file.
+pub enum DiagramFile {
+    /// A diagram definition (a file with `[[block]]` entries and no `[machine]`).
+    Definition(Box<diagram::Diagram>),
+    /// A unit file.
+    Unit(Box<Unit>),
+}
+
+/// Reads a diagram definition file, or a unit file (told apart by a `[machine]` table).
+pub fn read_diagram_or_unit(path: &Path) -> Result<DiagramFile, UnitFileError> {
+    let text = std::fs::read_to_string(path).map_err(|e| UnitFileError::Io {
+        path: path.into(),
+        source: e,
+    })?;
+    let table: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| UnitFileError::Syntax {
+            path: path.into(),
+            msg: e.to_string().trim().replace('\n', " "),
+        })?;
+    if table.contains_key("machine") {
+        return parse_unit(&text, path).map(|u| DiagramFile::Unit(Box::new(u)));
+    }
+    diagram::from_table(&table)
+        .map(|d| DiagramFile::Definition(Box::new(d)))
+        .map_err(|e| UnitFileError::Field {
+            path: path.into(),
+            field: e.field,
+            msg: e.msg,
+        })
+}
+
 /// Builds a block from a unit-file table, a registry model or a diagram (the calibrator's
 /// replacement blocks). `base` resolves a diagram's definition file.
 pub fn build_any_block(
