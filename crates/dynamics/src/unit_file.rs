@@ -18,6 +18,10 @@
 //! [pss]                # optional
 //! [governor]           # optional: without it P_m stays at P_m0 (same as model = "constant_pm")
 //!
+//! # any section may hold a user-defined diagram (see [`crate::diagram`]):
+//! # model = "diagram", diagram = "file.toml" or an inline [<section>.diagram] table, then the
+//! # diagram's parameter values as keys
+//!
 //! [[block]]            # any further block, wired by signal names
 //! name = "my_filter"
 //! model = "…"
