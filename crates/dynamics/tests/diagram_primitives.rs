@@ -181,3 +181,18 @@ fn initial_holds_the_value_at_t0() {
     let mut d = make("", "[[block]]\nname = \"h\"\ntype = \"initial\"\nin = \"u\"\nout = \"u0\"\n[[block]]\nname = \"b\"\ntype = \"sum\"\nin = [\"u\", \"u0\"]\nsigns = \"+-\"\nout = \"y\"\n");
     compare(&run(&mut d, 3.0, &|t| 3.0 + t, 1.0), &|t| t, 1e-12, "initial");
 }
+
+#[test]
+fn a_washout_declared_before_its_input_still_starts_in_steady_state() {
+    // The washout's steady output is 0 whatever its input, so the steady-state order may
+    // evaluate it before the gain that feeds it: its state must still take the input's value.
+    let mut d = make(
+        "",
+        "[[block]]\nname = \"w\"\ntype = \"washout\"\nin = \"g\"\nt = 1.0\nout = \"wo\"\n\
+         [[block]]\nname = \"g\"\ntype = \"gain\"\nin = \"u\"\nk = 3.0\nout = \"g\"\n\
+         [[block]]\nname = \"d\"\ntype = \"derivative\"\nin = \"g\"\nt = 0.5\nout = \"do\"\n\
+         [[block]]\nname = \"s\"\ntype = \"sum\"\nin = [\"wo\", \"do\"]\nout = \"y\"\n",
+    );
+    // Constant input 2: nothing moves.
+    compare(&run(&mut d, 2.0, &|_| 2.0, 1.0), &|_| 0.0, 1e-15, "washout at rest");
+}

@@ -60,6 +60,13 @@ fn evaluate(
         };
         s.set(n.out, y);
     }
+    // A washout's or derivative's output is 0 in steady state whatever its input, so the
+    // steady order may place it before its input is known: its state follows the input now.
+    for n in nodes.iter() {
+        if matches!(n.kind, Kind::Washout | Kind::Derivative) {
+            x[n.x as usize] = s.s(n.ins[0]);
+        }
+    }
     let mut r = 0;
     for unk in &def.unknowns {
         match *unk {
