@@ -189,3 +189,43 @@ fn diagrams_that_cannot_initialise_name_the_block() {
     assert_eq!(tr.get("pss.drift").unwrap()[0], 0.0);
 }
 
+
+#[test]
+fn a_diagram_beside_a_builtin_block_takes_a_limiter_role() {
+    // An over-excitation limiter written as a diagram, in a [[block]] beside the built-in SEXS,
+    // writing the SEXS's `voel` input: inactive at the operating point, it pulls E_fd down when
+    // the field current exceeds a pickup set just above its initial value.
+    let base = std::fs::read_to_string(data("itaipu/unit.toml")).unwrap();
+    let oel = |pickup: f64| {
+        format!(
+            "{base}\n[[block]]\nname = \"oel\"\nmodel = \"diagram\"\npickup = {pickup}\n[block.diagram]\n\
+             inputs = {{ ifd = \"xadifd\" }}\noutputs = {{ v_oel = \"voel\" }}\n\
+             [block.diagram.params]\npickup = {{ min = 0.0, unit = \"pu\" }}\n\
+             [[block.diagram.block]]\nname = \"limit\"\ntype = \"constant\"\nvalue = \"pickup\"\nout = \"lim\"\n\
+             [[block.diagram.block]]\nname = \"excess\"\ntype = \"sum\"\nin = [\"lim\", \"ifd\"]\nsigns = \"+-\"\nout = \"e\"\n\
+             [[block.diagram.block]]\nname = \"integral\"\ntype = \"lag\"\nin = \"e\"\nk = 5.0\nt = 0.5\nout = \"ei\"\n\
+             [[block.diagram.block]]\nname = \"only_above\"\ntype = \"min\"\nin = [\"ei\", \"zero\"]\nout = \"v_oel\"\n\
+             [[block.diagram.block]]\nname = \"zero\"\ntype = \"constant\"\nvalue = 0\nout = \"zero\"\n"
+        )
+    };
+    let ev = Event::from_toml_file(&data("itaipu/event.toml")).unwrap();
+    let opts = SimOptions::default();
+    let plain = simulate(&parse_unit(&base, Path::new("u.toml")).unwrap(), &ev, &opts).unwrap();
+    let ifd = plain.get("xadifd").unwrap();
+    let (ifd0, top) = (ifd[0], ifd.iter().cloned().fold(f64::NEG_INFINITY, f64::max));
+    assert!(top > ifd0 * 1.02, "the record drives the field current up ({ifd0} → {top})");
+    // Far above: no effect at all.
+    let far = simulate(&parse_unit(&oel(10.0), Path::new("u.toml")).unwrap(), &ev, &opts).unwrap();
+    // (Its one state joins the adaptive step's error norm: equal to the integrator's tolerance.)
+    let d = plain.get("q_pu").unwrap().iter().zip(far.get("q_pu").unwrap()).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(d < 1e-6, "an inactive limiter changes Q by {d:.3e}");
+    assert!(far.get("voel").unwrap().iter().all(|v| *v == 0.0));
+    // Just above the initial value: the limiter acts and the field current peaks lower.
+    let u = parse_unit(&oel(ifd0 * 1.01), Path::new("u.toml")).unwrap();
+    let near = simulate(&u, &ev, &opts).unwrap();
+    let voel = near.get("voel").unwrap();
+    assert_eq!(voel[0], 0.0, "inactive at t = 0");
+    assert!(voel.iter().cloned().fold(0.0, f64::min) < -1e-3, "acts during the event");
+    let top2 = near.get("xadifd").unwrap().iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    assert!(top2 < top, "the limiter lowers the field-current peak ({top} → {top2})");
+}
