@@ -308,3 +308,24 @@ def test_frequency_mismatch_names_the_event(tmp_path):
         ic.simulate(EVENT, path)
     assert info.value.kind == "frequency_mismatch"
     assert "itaipu-60hz-fault" in str(info.value) and "50 Hz" in str(info.value)
+
+
+# --- user-defined diagrams ------------------------------------------------------------------
+
+
+def test_a_unit_with_diagrams_matches_the_builtin_blocks(traces):
+    """data/diagrams/unit_itaipu_diagrams.toml: the bundled unit with SEXS and STAB3 as diagrams."""
+    d = ic.simulate(EVENT, DATA / "diagrams" / "unit_itaipu_diagrams.toml")
+    assert np.max(np.abs(d.p_pu - traces.p_pu)) < 1e-6
+    assert np.max(np.abs(d.q_pu - traces.q_pu)) < 1e-6
+
+
+def test_a_bad_diagram_names_the_file_block_and_field(tmp_path):
+    text = (DATA / "diagrams" / "sexs.toml").read_text().replace('type = "lead_lag"', 'type = "leadlag"')
+    (tmp_path / "sexs.toml").write_text(text)
+    unit = tmp_path / "unit.toml"
+    unit.write_text(UNIT.read_text().replace('model = "SEXS"', 'model = "diagram"\ndiagram = "sexs.toml"'))
+    with pytest.raises(ic.UnitModelError) as info:
+        ic.simulate(EVENT, unit)
+    msg = str(info.value)
+    assert "sexs.toml" in msg and "block 'lead_lag'" in msg and "leadlag" in msg
