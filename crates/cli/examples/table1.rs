@@ -16,7 +16,8 @@ use std::path::{Path, PathBuf};
 
 fn stage_j(report: &Path) -> Result<Vec<(String, f64)>, String> {
     let text = std::fs::read_to_string(report).map_err(|e| format!("{}: {e}", report.display()))?;
-    let r: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", report.display()))?;
+    let r: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", report.display()))?;
     let j = |v: &serde_json::Value| -> f64 {
         v.as_array()
             .map(|a| a.iter().filter_map(|e| e["j_pq"].as_f64()).sum())
@@ -24,7 +25,10 @@ fn stage_j(report: &Path) -> Result<Vec<(String, f64)>, String> {
     };
     let mut out = vec![("start".to_string(), j(&r["start_fitness"]))];
     for s in r["stages"].as_array().into_iter().flatten() {
-        out.push((s["stage"].as_str().unwrap_or("?").to_string(), j(&s["fitness"])));
+        out.push((
+            s["stage"].as_str().unwrap_or("?").to_string(),
+            j(&s["fitness"]),
+        ));
     }
     Ok(out)
 }
@@ -38,16 +42,32 @@ fn main() {
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from("out/table1"));
     let cases = [
-        ("generic", "data/itaipu/unit.toml", "data/itaipu/calibration.toml"),
-        ("user-defined", "data/itaipu/unit_ud.toml", "data/itaipu/calibration_ud.toml"),
+        (
+            "generic",
+            "data/itaipu/unit.toml",
+            "data/itaipu/calibration.toml",
+        ),
+        (
+            "user-defined",
+            "data/itaipu/unit_ud.toml",
+            "data/itaipu/calibration_ud.toml",
+        ),
     ];
     let mut cols = vec![];
     for (name, unit, calib) in cases {
         let dir = out.join(name);
         if !reuse {
             let code = itaipu_calib_cli::run([
-                "itaipu-calib", "fit", "--unit", unit, "--calib", calib, "--out",
-                dir.to_str().expect("utf-8 path"), "--force", "--no-plot",
+                "itaipu-calib",
+                "fit",
+                "--unit",
+                unit,
+                "--calib",
+                calib,
+                "--out",
+                dir.to_str().expect("utf-8 path"),
+                "--force",
+                "--no-plot",
             ]);
             if code != 0 {
                 eprintln!("fit of the {name} unit failed (exit {code})");
@@ -64,17 +84,22 @@ fn main() {
     }
     fn label(s: &str) -> &str {
         match s {
-        "start" => "as given (datasheet)",
-        "gen" => "GENSAE generator",
-        "avr" => "AVR",
-        "pss" => "AVR/PSS",
-        "tg" => "AVR/PSS/TG",
-        "joint" => "joint pass (all stages)",
-        other => other,
+            "start" => "as given (datasheet)",
+            "gen" => "GENSAE generator",
+            "avr" => "AVR",
+            "pss" => "AVR/PSS",
+            "tg" => "AVR/PSS/TG",
+            "joint" => "joint pass (all stages)",
+            other => other,
         }
     }
-    println!("\nTable 1 (paper 000) for the bundled Itaipu record: J = Σ(ΔP² + ΔQ²), system base\n");
-    println!("{:<26} {:>12} {:>14}", "model setup", "generic", "user-defined");
+    println!(
+        "\nTable 1 (paper 000) for the bundled Itaipu record: J = Σ(ΔP² + ΔQ²), system base\n"
+    );
+    println!(
+        "{:<26} {:>12} {:>14}",
+        "model setup", "generic", "user-defined"
+    );
     let rows: Vec<&String> = cols[0].iter().map(|(s, _)| s).collect();
     for s in rows {
         let g = cols[0].iter().find(|(n, _)| n == s).map(|x| x.1);

@@ -535,8 +535,9 @@ fn cmd_diagram(a: &DiagramArgs) -> Result<(), CliError> {
     }
     let out = dots.join("\n");
     match &a.out {
-        Some(p) => std::fs::write(p, out)
-            .map_err(|e| CliError::new(7, format!("{}: {e}", p.display())))?,
+        Some(p) => {
+            std::fs::write(p, out).map_err(|e| CliError::new(7, format!("{}: {e}", p.display())))?
+        }
         None => print!("{out}"),
     }
     Ok(())
@@ -551,7 +552,10 @@ fn cmd_models(name: Option<&str>) -> Result<(), CliError> {
         Some(n) => vec![registry::find(n).ok_or_else(|| {
             CliError::new(
                 2,
-                format!("unknown model '{n}' (known: {}, diagram)", registry::names()),
+                format!(
+                    "unknown model '{n}' (known: {}, diagram)",
+                    registry::names()
+                ),
             )
         })?],
         None => registry::MODELS.iter().collect(),

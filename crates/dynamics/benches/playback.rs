@@ -114,10 +114,22 @@ fn itaipu_sexs_diagram() -> (Unit, PreparedEvent) {
 /// record (RK4 at 1 ms: the same number of right-hand sides for both).
 #[divan::bench(sample_count = 100)]
 fn itaipu_rk4_1ms_builtin_sexs(bencher: Bencher) {
-    bench(bencher, itaipu(), SimOptions { method: Method::Rk4 { h: 1e-3 } });
+    bench(
+        bencher,
+        itaipu(),
+        SimOptions {
+            method: Method::Rk4 { h: 1e-3 },
+        },
+    );
 }
 
 #[divan::bench(sample_count = 100)]
 fn itaipu_rk4_1ms_diagram_sexs(bencher: Bencher) {
-    bench(bencher, itaipu_sexs_diagram(), SimOptions { method: Method::Rk4 { h: 1e-3 } });
+    bench(
+        bencher,
+        itaipu_sexs_diagram(),
+        SimOptions {
+            method: Method::Rk4 { h: 1e-3 },
+        },
+    );
 }

@@ -225,6 +225,15 @@ fn add_block(
         )
     })?;
     if model.eq_ignore_ascii_case(diagram::MODEL) {
+        if name == "machine" {
+            return Err(field(
+                format!("{ctx}.model"),
+                format!(
+                    "the machine is a built-in model (one of the machine models of: {})",
+                    registry::names()
+                ),
+            ));
+        }
         let base = path.parent().unwrap_or(Path::new("."));
         let (block, rewire) = build_diagram_block(ctx, t, base, path)?;
         return unit
@@ -292,37 +301,39 @@ pub fn build_diagram_block(
         field: f,
         msg,
     };
-    let (def_table, def_path, def_ctx) = match t.get("diagram") {
-        Some(toml::Value::String(file)) => {
-            let p = base.join(file);
-            let text = std::fs::read_to_string(&p).map_err(|e| UnitFileError::Io {
-                path: p.clone(),
-                source: e,
-            })?;
-            let tab: toml::Table =
-                text.parse()
-                    .map_err(|e: toml::de::Error| UnitFileError::Syntax {
-                        path: p.clone(),
-                        msg: e.to_string().trim().replace('\n', " "),
-                    })?;
-            (tab, p, String::new())
-        }
-        Some(toml::Value::Table(tab)) => (tab.clone(), path.to_path_buf(), format!("{ctx}.diagram.")),
-        Some(_) => {
-            return Err(field(
+    let (def_table, def_path, def_ctx) =
+        match t.get("diagram") {
+            Some(toml::Value::String(file)) => {
+                let p = base.join(file);
+                let text = std::fs::read_to_string(&p).map_err(|e| UnitFileError::Io {
+                    path: p.clone(),
+                    source: e,
+                })?;
+                let tab: toml::Table =
+                    text.parse()
+                        .map_err(|e: toml::de::Error| UnitFileError::Syntax {
+                            path: p.clone(),
+                            msg: e.to_string().trim().replace('\n', " "),
+                        })?;
+                (tab, p, String::new())
+            }
+            Some(toml::Value::Table(tab)) => {
+                (tab.clone(), path.to_path_buf(), format!("{ctx}.diagram."))
+            }
+            Some(_) => {
+                return Err(field(
+                    path,
+                    format!("{ctx}.diagram"),
+                    "must be a file name or a table (the diagram definition)".into(),
+                ))
+            }
+            None => return Err(field(
                 path,
                 format!("{ctx}.diagram"),
-                "must be a file name or a table (the diagram definition)".into(),
-            ))
-        }
-        None => {
-            return Err(field(
-                path,
-                format!("{ctx}.diagram"),
-                "missing: a diagram needs diagram = \"file.toml\" or a [<section>.diagram] table".into(),
-            ))
-        }
-    };
+                "missing: a diagram needs diagram = \"file.toml\" or a [<section>.diagram] table"
+                    .into(),
+            )),
+        };
     let d = diagram::from_table(&def_table)
         .map_err(|e| field(&def_path, format!("{def_ctx}{}", e.field), e.msg))?;
     let declared: Vec<bool> = d.def().defaults.iter().map(|x| x.is_some()).collect();
@@ -364,18 +375,13 @@ pub fn read_diagram_or_unit(path: &Path) -> Result<DiagramFile, UnitFileError> {
 
 /// Builds a block from a unit-file table, a registry model or a diagram (the calibrator's
 /// replacement blocks). `base` resolves a diagram's definition file.
-pub fn build_any_block(
-    ctx: &str,
-    t: &toml::Table,
-    base: &Path,
-) -> Result<BuiltBlock, String> {
+pub fn build_any_block(ctx: &str, t: &toml::Table, base: &Path) -> Result<BuiltBlock, String> {
     let model = t
         .get("model")
         .and_then(|v| v.as_str())
         .ok_or_else(|| format!("{ctx}: needs model = \"...\""))?;
     if model.eq_ignore_ascii_case(diagram::MODEL) {
-        return build_diagram_block(ctx, t, base, &base.join("(spec)"))
-            .map_err(|e| e.to_string());
+        return build_diagram_block(ctx, t, base, &base.join("(spec)")).map_err(|e| e.to_string());
     }
     let info = registry::find(model).ok_or_else(|| {
         format!(
@@ -396,7 +402,9 @@ pub fn build_block(
 ) -> Result<BuiltBlock, (String, String)> {
     let block = info.create();
     let specs = block.params().specs();
-    fill_block(block, info.name, ctx, t, &|i| specs[i].name.ends_with("_offset"))
+    fill_block(block, info.name, ctx, t, &|i| {
+        specs[i].name.ends_with("_offset")
+    })
 }
 
 /// Sets a block's parameters, options and wiring from a table; `optional(i)` says whether
@@ -580,7 +588,10 @@ fn write_table_body(s: &mut String, prefix: &str, table: &toml::Table) {
 }
 
 fn toml_key(k: &str) -> String {
-    if !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+    if !k.is_empty()
+        && k.chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+    {
         k.to_string()
     } else {
         toml_str(k)

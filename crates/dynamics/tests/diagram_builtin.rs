@@ -16,7 +16,9 @@ use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::parse_unit;
 
 fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data")
+        .join(rel)
 }
 
 fn unit(text: &str) -> Unit {
@@ -29,7 +31,10 @@ fn replace_section(text: &str, name: &str, with: &str) -> String {
     let head = format!("[{name}]\n");
     let a = text.find(&head).unwrap_or_else(|| panic!("no [{name}]"));
     let rest = &text[a + head.len()..];
-    let b = rest.find("\n[").map(|k| a + head.len() + k + 1).unwrap_or(text.len());
+    let b = rest
+        .find("\n[")
+        .map(|k| a + head.len() + k + 1)
+        .unwrap_or(text.len());
     format!("{}{}\n{}", &text[..a], with, &text[b..])
 }
 
@@ -86,7 +91,11 @@ fn check(base: &str, ev: &Event, what: &str) -> f64 {
     let opts = SimOptions::default();
     let reference = simulate(&unit(base), ev, &opts).unwrap();
     let mut worst = 0.0f64;
-    for (section, file) in [("exciter", "sexs.toml"), ("pss", "stab3.toml"), ("governor", "hygov.toml")] {
+    for (section, file) in [
+        ("exciter", "sexs.toml"),
+        ("pss", "stab3.toml"),
+        ("governor", "hygov.toml"),
+    ] {
         let text = as_diagram(base, section, file);
         let u = unit(&text);
         assert_eq!(u.block(section).unwrap().model(), "diagram");
@@ -97,7 +106,15 @@ fn check(base: &str, ev: &Event, what: &str) -> f64 {
         worst = worst.max(d);
     }
     // All three at once.
-    let all = as_diagram(&as_diagram(&as_diagram(base, "exciter", "sexs.toml"), "pss", "stab3.toml"), "governor", "hygov.toml");
+    let all = as_diagram(
+        &as_diagram(
+            &as_diagram(base, "exciter", "sexs.toml"),
+            "pss",
+            "stab3.toml",
+        ),
+        "governor",
+        "hygov.toml",
+    );
     let tr = simulate(&unit(&all), ev, &opts).unwrap();
     let (d, at) = max_dev(&reference, &tr, COLS);
     println!("{what}: all three diagrams deviate by at most {d:.3e} ({at})");
@@ -113,33 +130,63 @@ fn sexs_stab3_hygov_diagrams_reproduce_the_builtin_blocks_on_the_itaipu_record()
     // The record moves the unit: the comparison is not between two flat lines.
     let tr = simulate(&unit(&base), &ev, &SimOptions::default()).unwrap();
     let efd = tr.get("efd").unwrap();
-    let span = efd.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - efd.iter().cloned().fold(f64::INFINITY, f64::min);
+    let span = efd.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+        - efd.iter().cloned().fold(f64::INFINITY, f64::min);
     assert!(span > 0.1, "E_fd moves by {span}");
     println!("itaipu: max deviation {d:.3e}");
 }
 
 #[test]
 fn the_diagrams_reproduce_the_builtin_blocks_on_synthetic_events_with_limits_hit() {
-    let base_text = std::fs::read_to_string(data("synthetic/unit_gensae_sexs_stab3_hygov.toml")).unwrap();
+    let base_text =
+        std::fs::read_to_string(data("synthetic/unit_gensae_sexs_stab3_hygov.toml")).unwrap();
     // A low ceiling so that the dip drives E_fd onto it.
     // And a slow gate so that the frequency excursion drives the gate-rate limit.
-    let base = base_text.replacen("e_max = 4.5", "e_max = 2.6", 1).replacen("velm = 0.2", "velm = 0.004", 1);
-    assert!(base.contains("e_max = 2.6") && base.contains("velm = 0.004"), "the synthetic unit's e_max / velm lines changed");
+    let base = base_text
+        .replacen("e_max = 4.5", "e_max = 2.6", 1)
+        .replacen("velm = 0.2", "velm = 0.004", 1);
+    assert!(
+        base.contains("e_max = 2.6") && base.contains("velm = 0.004"),
+        "the synthetic unit's e_max / velm lines changed"
+    );
     for kind in [EventKind::FaultDip, EventKind::FrequencyExcursion] {
         let profile = VoltageProfile::preset(kind, 12.0, 60.0, 7);
-        let ev = synthesize("diagram-test", &unit(&base), &profile, 1000.0, &PmuNoise::none(), &SimOptions::default()).unwrap();
+        let ev = synthesize(
+            "diagram-test",
+            &unit(&base),
+            &profile,
+            1000.0,
+            &PmuNoise::none(),
+            &SimOptions::default(),
+        )
+        .unwrap();
         check(&base, &ev, &format!("{kind:?}"));
         let tr = simulate(&unit(&base), &ev, &SimOptions::default()).unwrap();
         if kind == EventKind::FaultDip {
-            let top = tr.get("efd").unwrap().iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-            assert!((top - 2.6).abs() < 1e-9, "the ceiling is hit (E_fd max {top})");
+            let top = tr
+                .get("efd")
+                .unwrap()
+                .iter()
+                .cloned()
+                .fold(f64::NEG_INFINITY, f64::max);
+            assert!(
+                (top - 2.6).abs() < 1e-9,
+                "the ceiling is hit (E_fd max {top})"
+            );
         } else {
             // The gate moves at the rate limit at least once.
             let c = tr.get("governor.c").unwrap();
             let t = &tr.time_s;
-            let rate = c.windows(2).zip(t.windows(2)).map(|(c, t)| ((c[1] - c[0]) / (t[1] - t[0])).abs()).fold(0.0, f64::max);
+            let rate = c
+                .windows(2)
+                .zip(t.windows(2))
+                .map(|(c, t)| ((c[1] - c[0]) / (t[1] - t[0])).abs())
+                .fold(0.0, f64::max);
             println!("FrequencyExcursion: fastest gate rate {rate:.5} pu/s");
-            assert!(rate > 0.0039 && rate < 0.0040001, "the gate moves at VELM = 0.004 pu/s (fastest {rate})");
+            assert!(
+                rate > 0.0039 && rate < 0.0040001,
+                "the gate moves at VELM = 0.004 pu/s (fastest {rate})"
+            );
         }
     }
 }

@@ -9,7 +9,9 @@ use itaipu_dynamics::simulate::{simulate, SimOptions};
 use itaipu_dynamics::unit_file::{parse_unit, unit_to_toml, UnitFileError};
 
 fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data")
+        .join(rel)
 }
 
 const UNIT_HEAD: &str = "name = \"u\"\nmachine_mva = 737.0\nnominal_hz = 60.0\n";
@@ -50,10 +52,14 @@ max = 6.0
 out = "efd"
 "#;
 
-const PSS: &str = "[pss]\nmodel = \"STAB3\"\nt_t = 0.1\nt_x1 = 0.04\nt_x2 = 3.0\nk_x = 1.0\nv_lim = 0.1\n";
+const PSS: &str =
+    "[pss]\nmodel = \"STAB3\"\nt_t = 0.1\nt_x1 = 0.04\nt_x2 = 3.0\nk_x = 1.0\nv_lim = 0.1\n";
 
 fn unit_text(def: &str) -> String {
-    format!("{UNIT_HEAD}{}[exciter]\nmodel = \"diagram\"\nk = 100.0\nte = 0.05\n{def}\n{PSS}", machine())
+    format!(
+        "{UNIT_HEAD}{}[exciter]\nmodel = \"diagram\"\nk = 100.0\nte = 0.05\n{def}\n{PSS}",
+        machine()
+    )
 }
 
 fn err(text: &str) -> UnitFileError {
@@ -73,7 +79,10 @@ fn an_inline_diagram_runs_round_trips_and_exposes_its_parameters() {
     assert!(u.param("exciter.nope").is_err());
     // Written back with its definition inline, it reads again and simulates identically.
     let back = unit_to_toml(&u);
-    assert!(back.contains("[exciter.diagram]") && back.contains("[[exciter.diagram.block]]"), "{back}");
+    assert!(
+        back.contains("[exciter.diagram]") && back.contains("[[exciter.diagram.block]]"),
+        "{back}"
+    );
     let u2 = parse_unit(&back, Path::new("again.toml")).unwrap_or_else(|e| panic!("{e}\n{back}"));
     let ev = Event::from_toml_file(&data("itaipu/event.toml")).unwrap();
     let a = simulate(&u, &ev, &SimOptions::default()).unwrap();
@@ -83,7 +92,13 @@ fn an_inline_diagram_runs_round_trips_and_exposes_its_parameters() {
     let mut u3 = u.clone();
     u3.set(r, 50.0);
     let c = simulate(&u3, &ev, &SimOptions::default()).unwrap();
-    let dq = a.get("q_pu").unwrap().iter().zip(c.get("q_pu").unwrap()).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    let dq = a
+        .get("q_pu")
+        .unwrap()
+        .iter()
+        .zip(c.get("q_pu").unwrap())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
     assert!(dq > 1e-3, "K changes Q by {dq}");
     // The unit starts in steady state.
     let mut u4 = u.clone();
@@ -94,8 +109,15 @@ fn an_inline_diagram_runs_round_trips_and_exposes_its_parameters() {
     u4.eval_derivatives(0.0, &x, &mut dx);
     // (The machine's angle turns with the pre-event frequency offset; the controls must not move.)
     let names = u4.state_names();
-    let worst = names.iter().zip(&dx).filter(|(n, _)| !n.starts_with("machine")).fold(0.0f64, |m, (_, v)| m.max(v.abs()));
-    assert!(worst < 1e-9, "max |dx/dt| of the controls at t = 0: {worst:.3e}");
+    let worst = names
+        .iter()
+        .zip(&dx)
+        .filter(|(n, _)| !n.starts_with("machine"))
+        .fold(0.0f64, |m, (_, v)| m.max(v.abs()));
+    assert!(
+        worst < 1e-9,
+        "max |dx/dt| of the controls at t = 0: {worst:.3e}"
+    );
 }
 
 #[test]
@@ -142,14 +164,30 @@ fn an_error_in_a_diagram_file_names_that_file() {
     let dir = std::env::temp_dir().join(format!("itaipu-diagram-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let def = std::fs::read_to_string(data("diagrams/sexs.toml")).unwrap();
-    std::fs::write(dir.join("bad.toml"), def.replace("type = \"lead_lag\"", "type = \"leadlag\"")).unwrap();
-    let unit = std::fs::read_to_string(data("itaipu/unit.toml")).unwrap().replace("model = \"SEXS\"", "model = \"diagram\"\ndiagram = \"bad.toml\"");
-    let e = parse_unit(&unit, &dir.join("unit.toml")).err().expect("refused");
+    std::fs::write(
+        dir.join("bad.toml"),
+        def.replace("type = \"lead_lag\"", "type = \"leadlag\""),
+    )
+    .unwrap();
+    let unit = std::fs::read_to_string(data("itaipu/unit.toml"))
+        .unwrap()
+        .replace(
+            "model = \"SEXS\"",
+            "model = \"diagram\"\ndiagram = \"bad.toml\"",
+        );
+    let e = parse_unit(&unit, &dir.join("unit.toml"))
+        .err()
+        .expect("refused");
     let msg = e.to_string();
-    assert!(msg.contains("bad.toml") && msg.contains("block 'lead_lag'") && msg.contains("leadlag"), "{msg}");
+    assert!(
+        msg.contains("bad.toml") && msg.contains("block 'lead_lag'") && msg.contains("leadlag"),
+        "{msg}"
+    );
     // A missing file is an I/O error naming it.
     let unit2 = unit.replace("bad.toml", "absent.toml");
-    let e = parse_unit(&unit2, &dir.join("unit.toml")).err().expect("refused");
+    let e = parse_unit(&unit2, &dir.join("unit.toml"))
+        .err()
+        .expect("refused");
     assert_eq!(e.kind(), "io");
     assert!(e.to_string().contains("absent.toml"));
     std::fs::remove_dir_all(&dir).ok();
@@ -171,7 +209,10 @@ fn diagrams_that_cannot_initialise_name_the_block() {
     // A ceiling below the machine's E_fd0: a limit violated at t = 0.
     let low = unit_text(SEXS_DEF).replace("max = 6.0", "max = 1.0");
     let m = init_err(&low);
-    assert!(m.contains("block 'exc' (lag)") && m.contains("limit violated at t = 0"), "{m}");
+    assert!(
+        m.contains("block 'exc' (lag)") && m.contains("limit violated at t = 0"),
+        "{m}"
+    );
     // An integrator whose steady state is not unique: it integrates ΔP = P_e − P_e(0), which
     // is zero whatever its state, and nothing feeds its state back (no reference to solve it).
     let pss = "[pss]\nmodel = \"diagram\"\n[pss.diagram]\ninputs = { pe = \"pe\" }\noutputs = { vs = \"vs\" }\n\
@@ -181,14 +222,19 @@ fn diagrams_that_cannot_initialise_name_the_block() {
 [[pss.diagram.block]]\nname = \"out\"\ntype = \"gain\"\nin = \"xi\"\nk = 0.01\nout = \"vs\"\n";
     let text = unit_text(SEXS_DEF).replace(PSS, pss);
     let m = init_err(&text);
-    assert!(m.contains("block 'drift' (integrator)") && m.contains("not determined"), "{m}");
+    assert!(
+        m.contains("block 'drift' (integrator)") && m.contains("not determined"),
+        "{m}"
+    );
     // With feedback (dx/dt = ΔP − 0.5 x) the same diagram starts, at x = 0.
-    let ok = text.replace("in = [\"pe\", \"p0\"]\nsigns = \"+-\"", "in = [\"pe\", \"p0\", \"xi\"]\ngains = [1, -1, -0.5]");
+    let ok = text.replace(
+        "in = [\"pe\", \"p0\"]\nsigns = \"+-\"",
+        "in = [\"pe\", \"p0\", \"xi\"]\ngains = [1, -1, -0.5]",
+    );
     let u = parse_unit(&ok, Path::new("u.toml")).unwrap();
     let tr = simulate(&u, &ev, &opts).unwrap();
     assert_eq!(tr.get("pss.drift").unwrap()[0], 0.0);
 }
-
 
 #[test]
 fn a_diagram_beside_a_builtin_block_takes_a_limiter_role() {
@@ -212,12 +258,29 @@ fn a_diagram_beside_a_builtin_block_takes_a_limiter_role() {
     let opts = SimOptions::default();
     let plain = simulate(&parse_unit(&base, Path::new("u.toml")).unwrap(), &ev, &opts).unwrap();
     let ifd = plain.get("xadifd").unwrap();
-    let (ifd0, top) = (ifd[0], ifd.iter().cloned().fold(f64::NEG_INFINITY, f64::max));
-    assert!(top > ifd0 * 1.02, "the record drives the field current up ({ifd0} → {top})");
+    let (ifd0, top) = (
+        ifd[0],
+        ifd.iter().cloned().fold(f64::NEG_INFINITY, f64::max),
+    );
+    assert!(
+        top > ifd0 * 1.02,
+        "the record drives the field current up ({ifd0} → {top})"
+    );
     // Far above: no effect at all.
-    let far = simulate(&parse_unit(&oel(10.0), Path::new("u.toml")).unwrap(), &ev, &opts).unwrap();
+    let far = simulate(
+        &parse_unit(&oel(10.0), Path::new("u.toml")).unwrap(),
+        &ev,
+        &opts,
+    )
+    .unwrap();
     // (Its one state joins the adaptive step's error norm: equal to the integrator's tolerance.)
-    let d = plain.get("q_pu").unwrap().iter().zip(far.get("q_pu").unwrap()).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let d = plain
+        .get("q_pu")
+        .unwrap()
+        .iter()
+        .zip(far.get("q_pu").unwrap())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
     assert!(d < 1e-6, "an inactive limiter changes Q by {d:.3e}");
     assert!(far.get("voel").unwrap().iter().all(|v| *v == 0.0));
     // Just above the initial value: the limiter acts and the field current peaks lower.
@@ -225,7 +288,18 @@ fn a_diagram_beside_a_builtin_block_takes_a_limiter_role() {
     let near = simulate(&u, &ev, &opts).unwrap();
     let voel = near.get("voel").unwrap();
     assert_eq!(voel[0], 0.0, "inactive at t = 0");
-    assert!(voel.iter().cloned().fold(0.0, f64::min) < -1e-3, "acts during the event");
-    let top2 = near.get("xadifd").unwrap().iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-    assert!(top2 < top, "the limiter lowers the field-current peak ({top} → {top2})");
+    assert!(
+        voel.iter().cloned().fold(0.0, f64::min) < -1e-3,
+        "acts during the event"
+    );
+    let top2 = near
+        .get("xadifd")
+        .unwrap()
+        .iter()
+        .cloned()
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        top2 < top,
+        "the limiter lowers the field-current peak ({top} → {top2})"
+    );
 }

@@ -112,7 +112,9 @@ fn tokenize(s: &str) -> Result<Vec<Tok>, String> {
                 i += 1;
             }
             let t: String = cs[st..i].iter().collect();
-            let v: f64 = t.parse().map_err(|_| format!("bad number '{t}' in '{s}'"))?;
+            let v: f64 = t
+                .parse()
+                .map_err(|_| format!("bad number '{t}' in '{s}'"))?;
             out.push(Tok::Num(v));
         } else if c.is_alphabetic() || c == '_' {
             let st = i;

@@ -77,7 +77,11 @@ fn evaluate(
             Unknown::Tear(k) => {
                 let n = &nodes[k as usize];
                 let u = s.s(n.ins[0]);
-                let steady = if n.kind == Kind::Lag { n.v[slot::K] * u } else { u };
+                let steady = if n.kind == Kind::Lag {
+                    n.v[slot::K] * u
+                } else {
+                    u
+                };
                 res[r] = steady - z[z_of[k as usize].expect("torn")];
                 r += 1;
             }
@@ -145,7 +149,13 @@ pub(super) fn steady_state(
     let mut res = vec![0.0; n];
     let eval = |z: &[f64], x: &mut [f64], res: &mut [f64], nodes: &mut [Node]| {
         evaluate(def, nodes, s, z, &z_of, targets, x, res);
-        res.iter().fold(0.0f64, |m, r| if r.is_nan() { f64::INFINITY } else { m.max(r.abs()) })
+        res.iter().fold(0.0f64, |m, r| {
+            if r.is_nan() {
+                f64::INFINITY
+            } else {
+                m.max(r.abs())
+            }
+        })
     };
     let mut norm = eval(&z, x, &mut res, nodes);
     let tol = 1e-11 * (1.0 + targets.iter().fold(0.0f64, |m, t| m.max(t.abs())));
@@ -159,10 +169,13 @@ pub(super) fn steady_state(
         let done = norm <= tol;
         iter += 1;
         if !done && (iter > 60 || !norm.is_finite()) {
-            let (worst, _) = res
-                .iter()
-                .enumerate()
-                .fold((0, -1.0), |b, (i, r)| if r.abs() > b.1 || r.is_nan() { (i, r.abs()) } else { b });
+            let (worst, _) = res.iter().enumerate().fold((0, -1.0), |b, (i, r)| {
+                if r.abs() > b.1 || r.is_nan() {
+                    (i, r.abs())
+                } else {
+                    b
+                }
+            });
             let what = residual_name(def, worst);
             return Err(ModelError::Init(format!(
                 "the steady state was not found ({what} stays at {:.3e} after {} Newton steps)",
@@ -215,7 +228,11 @@ pub(super) fn steady_state(
         let o = node.x as usize;
         let v = node.output(0.0, &x[o..], s, false);
         // A saturated limiter has a flat steady state nothing can be solved through.
-        let what = if node.kind == Kind::Limiter { "its input" } else { "the steady state" };
+        let what = if node.kind == Kind::Limiter {
+            "its input"
+        } else {
+            "the steady state"
+        };
         if !(v >= lo && v <= hi) {
             return Err(ModelError::Init(format!(
                 "{}: {what} at t = 0 is {v:.4}, outside [min, max] = [{lo}, {hi}] (a limit violated at t = 0)",
@@ -240,7 +257,9 @@ fn residual_name(def: &DiagramDef, i: usize) -> String {
             .nth(i)
             .copied();
         match u {
-            Some(Unknown::Integrator(k)) => format!("the input of {}", def.nodes[k as usize].label()),
+            Some(Unknown::Integrator(k)) => {
+                format!("the input of {}", def.nodes[k as usize].label())
+            }
             Some(Unknown::Tear(k)) => format!("the loop through {}", def.nodes[k as usize].label()),
             _ => "a residual".into(),
         }

@@ -256,7 +256,7 @@ impl Diagram {
         &self.def
     }
 
-    /// Value of a node's field, for reports: the compiled nodes after initialisation.
+    /// The `reference` blocks' values solved at the last initialisation, by block name.
     pub fn reference_values(&self) -> Vec<(String, f64)> {
         self.def
             .nodes
@@ -275,7 +275,10 @@ impl Diagram {
             let v = p[i];
             let (lo, hi) = def.allowed[i];
             if !v.is_finite() {
-                return Err(ModelError::param(s.name, format!("must be finite (got {v})")));
+                return Err(ModelError::param(
+                    s.name,
+                    format!("must be finite (got {v})"),
+                ));
             }
             if v < lo || v > hi {
                 return Err(ModelError::param(
@@ -434,7 +437,9 @@ impl Block for Diagram {
 
     fn init(&mut self, _op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
         self.nodes = self.compile()?;
-        self.modes.iter_mut().for_each(|m| *m = NonWindup::default());
+        self.modes
+            .iter_mut()
+            .for_each(|m| *m = NonWindup::default());
         self.load_inputs(io);
         let def = self.def.clone();
         let targets: Vec<f64> = (0..def.out_slot.len())
@@ -588,7 +593,8 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
             if !valid_name(name) {
                 return Err(derr(&f, "a parameter name is letters, digits and _"));
             }
-            let (mut default, mut range, mut lo, mut hi) = (None, None, f64::NEG_INFINITY, f64::INFINITY);
+            let (mut default, mut range, mut lo, mut hi) =
+                (None, None, f64::NEG_INFINITY, f64::INFINITY);
             let (mut unit, mut doc, mut alias) = ("-".to_string(), String::new(), name.clone());
             match decl {
                 v if as_f64(v).is_some() => default = as_f64(v),
@@ -632,7 +638,10 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
             }
             if let Some(d) = default {
                 if !(d >= lo && d <= hi) {
-                    return Err(derr(&f, format!("default {d} lies outside [min, max] = [{lo}, {hi}]")));
+                    return Err(derr(
+                        &f,
+                        format!("default {d} lies outside [min, max] = [{lo}, {hi}]"),
+                    ));
                 }
             }
             if default.is_none() && name.ends_with("_offset") {
@@ -651,7 +660,11 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
                 name: intern::str(name),
                 alias: intern::str(&alias),
                 unit: intern::str(&unit),
-                doc: intern::str(if doc.is_empty() { "diagram parameter" } else { &doc }),
+                doc: intern::str(if doc.is_empty() {
+                    "diagram parameter"
+                } else {
+                    &doc
+                }),
                 typical,
                 range,
             });
@@ -684,12 +697,25 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
                         match (k.as_str(), v) {
                             ("signal", toml::Value::String(s)) => sig = Some(s.clone()),
                             ("optional", toml::Value::Boolean(b)) => optional = *b,
-                            _ => return Err(derr(format!("{f}.{k}"), "expected signal = \"...\" and optional = true|false")),
+                            _ => {
+                                return Err(derr(
+                                    format!("{f}.{k}"),
+                                    "expected signal = \"...\" and optional = true|false",
+                                ))
+                            }
                         }
                     }
-                    (sig.ok_or_else(|| derr(&f, "needs signal = \"...\""))?, optional)
+                    (
+                        sig.ok_or_else(|| derr(&f, "needs signal = \"...\""))?,
+                        optional,
+                    )
                 }
-                _ => return Err(derr(&f, "must be a unit signal name or { signal, optional }")),
+                _ => {
+                    return Err(derr(
+                        &f,
+                        "must be a unit signal name or { signal, optional }",
+                    ))
+                }
             };
             inputs.push(InDecl {
                 local: local.clone(),
@@ -718,7 +744,10 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
                     .and_then(|v| v.as_str())
                     .map(|n| format!("block '{n}'"))
                     .unwrap_or(format!("block[{k}]"));
-                return Err(derr(format!("{who}.out"), "missing: every block needs out = \"signal\""));
+                return Err(derr(
+                    format!("{who}.out"),
+                    "missing: every block needs out = \"signal\"",
+                ));
             }
         };
         let name = match bt.get("name") {
@@ -727,12 +756,17 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
             Some(_) => return Err(derr(format!("block[{k}].name"), "must be a string")),
         };
         let who = format!("block '{name}'");
-        let ty = bt
-            .get("type")
-            .and_then(|v| v.as_str())
-            .ok_or_else(|| derr(format!("{who}.type"), format!("missing (one of: {})", prim::names())))?;
+        let ty = bt.get("type").and_then(|v| v.as_str()).ok_or_else(|| {
+            derr(
+                format!("{who}.type"),
+                format!("missing (one of: {})", prim::names()),
+            )
+        })?;
         let info = prim::find(ty).ok_or_else(|| {
-            derr(format!("{who}.type"), format!("unknown primitive '{ty}' (known: {})", prim::names()))
+            derr(
+                format!("{who}.type"),
+                format!("unknown primitive '{ty}' (known: {})", prim::names()),
+            )
         })?;
         let label = format!("block '{name}' ({})", info.name);
         if nodes.iter().any(|n| n.name == name) {
@@ -745,8 +779,18 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
                 .iter()
                 .map(|v| v.as_str().map(str::to_string))
                 .collect::<Option<_>>()
-                .ok_or_else(|| derr(format!("{label}.in"), "must be a signal name or a list of them"))?,
-            Some(_) => return Err(derr(format!("{label}.in"), "must be a signal name or a list of them")),
+                .ok_or_else(|| {
+                    derr(
+                        format!("{label}.in"),
+                        "must be a signal name or a list of them",
+                    )
+                })?,
+            Some(_) => {
+                return Err(derr(
+                    format!("{label}.in"),
+                    "must be a signal name or a list of them",
+                ))
+            }
         };
         let arity_ok = match info.arity {
             prim::Arity::None => ins.is_empty(),
@@ -763,7 +807,10 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
                 prim::Arity::Exactly(n) => format!("exactly {n} inputs"),
                 prim::Arity::AtLeast(n) => format!("at least {n} input(s)"),
             };
-            return Err(derr(format!("{label}.in"), format!("{} takes {want} (got {})", info.name, ins.len())));
+            return Err(derr(
+                format!("{label}.in"),
+                format!("{} takes {want} (got {})", info.name, ins.len()),
+            ));
         }
         let mut fields: Vec<Option<Expr>> = vec![None; info.fields.len()];
         let mut field_text: Vec<Option<String>> = vec![None; info.fields.len()];
@@ -772,9 +819,23 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
         let mut windup = false;
         let parse_expr = |v: &toml::Value, f: &str| -> Result<(Expr, String), DefError> {
             match v {
-                toml::Value::String(s) => Expr::parse(s, &lookup)
-                    .map(|e| (e, s.clone()))
-                    .map_err(|m| derr(f, format!("{m} (parameters: {})", if pnames.is_empty() { "none declared".to_string() } else { pnames.join(", ") }))),
+                toml::Value::String(s) => {
+                    Expr::parse(s, &lookup)
+                        .map(|e| (e, s.clone()))
+                        .map_err(|m| {
+                            derr(
+                                f,
+                                format!(
+                                    "{m} (parameters: {})",
+                                    if pnames.is_empty() {
+                                        "none declared".to_string()
+                                    } else {
+                                        pnames.join(", ")
+                                    }
+                                ),
+                            )
+                        })
+                }
                 v => as_f64(v)
                     .map(|x| (Expr::Num(x), format!("{x}")))
                     .ok_or_else(|| derr(f, "must be a number or an expression of the parameters")),
@@ -785,17 +846,49 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
             let f = format!("{label}.{key}");
             match key.as_str() {
                 "name" | "type" | "in" | "out" => {}
-                "signs" if info.kind == Kind::Sum => signs = Some(v.as_str().ok_or_else(|| derr(&f, "must be a string of + and -"))?.to_string()),
-                "gains" if info.kind == Kind::Sum => gains = Some(v.as_array().ok_or_else(|| derr(&f, "must be a list"))?.clone()),
-                "ops" if info.kind == Kind::Product => {
-                    let s = v.as_str().ok_or_else(|| derr(&f, "must be a string of * and /"))?;
-                    if s.chars().count() != ins.len() || s.chars().any(|c| c != '*' && c != '/') {
-                        return Err(derr(&f, format!("must be one * or / per input ({} inputs)", ins.len())));
-                    }
-                    exps = s.chars().map(|c| if c == '*' { 1.0 } else { -1.0 }).collect();
+                "signs" if info.kind == Kind::Sum => {
+                    signs = Some(
+                        v.as_str()
+                            .ok_or_else(|| derr(&f, "must be a string of + and -"))?
+                            .to_string(),
+                    )
                 }
-                "x" if info.kind == Kind::Pwl => xs = Some(v.as_array().ok_or_else(|| derr(&f, "must be a list"))?.clone()),
-                "y" if info.kind == Kind::Pwl => ys = Some(v.as_array().ok_or_else(|| derr(&f, "must be a list"))?.clone()),
+                "gains" if info.kind == Kind::Sum => {
+                    gains = Some(
+                        v.as_array()
+                            .ok_or_else(|| derr(&f, "must be a list"))?
+                            .clone(),
+                    )
+                }
+                "ops" if info.kind == Kind::Product => {
+                    let s = v
+                        .as_str()
+                        .ok_or_else(|| derr(&f, "must be a string of * and /"))?;
+                    if s.chars().count() != ins.len() || s.chars().any(|c| c != '*' && c != '/') {
+                        return Err(derr(
+                            &f,
+                            format!("must be one * or / per input ({} inputs)", ins.len()),
+                        ));
+                    }
+                    exps = s
+                        .chars()
+                        .map(|c| if c == '*' { 1.0 } else { -1.0 })
+                        .collect();
+                }
+                "x" if info.kind == Kind::Pwl => {
+                    xs = Some(
+                        v.as_array()
+                            .ok_or_else(|| derr(&f, "must be a list"))?
+                            .clone(),
+                    )
+                }
+                "y" if info.kind == Kind::Pwl => {
+                    ys = Some(
+                        v.as_array()
+                            .ok_or_else(|| derr(&f, "must be a list"))?
+                            .clone(),
+                    )
+                }
                 "limit" if matches!(info.kind, Kind::Integrator | Kind::Pi | Kind::Pid) => {
                     windup = match v.as_str() {
                         Some("non_windup") => false,
@@ -807,11 +900,18 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
                     let Some(i) = info.fields.iter().position(|x| x.name == key) else {
                         let mut known: Vec<&str> = info.fields.iter().map(|x| x.name).collect();
                         known.extend(info.options.iter().map(|o| o.0));
-                        return Err(derr(&f, format!(
-                            "unknown field of {} (fields: {})",
-                            info.name,
-                            if known.is_empty() { "none".to_string() } else { known.join(", ") }
-                        )));
+                        return Err(derr(
+                            &f,
+                            format!(
+                                "unknown field of {} (fields: {})",
+                                info.name,
+                                if known.is_empty() {
+                                    "none".to_string()
+                                } else {
+                                    known.join(", ")
+                                }
+                            ),
+                        ));
                     };
                     let (e, txt) = parse_expr(v, &f)?;
                     fields[i] = Some(e);
@@ -821,17 +921,26 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
         }
         for (i, fs) in info.fields.iter().enumerate() {
             if fs.default.is_none() && fields[i].is_none() {
-                return Err(derr(format!("{label}.{}", fs.name), format!("missing: {} needs {} ({})", info.name, fs.name, fs.doc)));
+                return Err(derr(
+                    format!("{label}.{}", fs.name),
+                    format!("missing: {} needs {} ({})", info.name, fs.name, fs.doc),
+                ));
             }
         }
         match info.kind {
             Kind::Sum => {
                 if signs.is_some() && gains.is_some() {
-                    return Err(derr(format!("{label}.gains"), "give signs or gains, not both"));
+                    return Err(derr(
+                        format!("{label}.gains"),
+                        "give signs or gains, not both",
+                    ));
                 }
                 if let Some(g) = gains {
                     if g.len() != ins.len() {
-                        return Err(derr(format!("{label}.gains"), format!("needs one gain per input ({})", ins.len())));
+                        return Err(derr(
+                            format!("{label}.gains"),
+                            format!("needs one gain per input ({})", ins.len()),
+                        ));
                     }
                     for (k, v) in g.iter().enumerate() {
                         list.push(parse_expr(v, &format!("{label}.gains[{k}]"))?.0);
@@ -839,18 +948,33 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
                 } else {
                     let s = signs.unwrap_or_else(|| "+".repeat(ins.len()));
                     if s.chars().count() != ins.len() || s.chars().any(|c| c != '+' && c != '-') {
-                        return Err(derr(format!("{label}.signs"), format!("must be one + or - per input ({} inputs, got \"{s}\")", ins.len())));
+                        return Err(derr(
+                            format!("{label}.signs"),
+                            format!(
+                                "must be one + or - per input ({} inputs, got \"{s}\")",
+                                ins.len()
+                            ),
+                        ));
                     }
-                    list = s.chars().map(|c| Expr::Num(if c == '+' { 1.0 } else { -1.0 })).collect();
+                    list = s
+                        .chars()
+                        .map(|c| Expr::Num(if c == '+' { 1.0 } else { -1.0 }))
+                        .collect();
                 }
             }
             Kind::Product if exps.is_empty() => exps = vec![1.0; ins.len()],
             Kind::Pwl => {
                 let (Some(xs), Some(ys)) = (xs, ys) else {
-                    return Err(derr(format!("{label}.x"), "pwl needs x = [..] and y = [..]"));
+                    return Err(derr(
+                        format!("{label}.x"),
+                        "pwl needs x = [..] and y = [..]",
+                    ));
                 };
                 if xs.len() != ys.len() || xs.len() < 2 {
-                    return Err(derr(format!("{label}.y"), "x and y need the same length, at least 2"));
+                    return Err(derr(
+                        format!("{label}.y"),
+                        "x and y need the same length, at least 2",
+                    ));
                 }
                 for (k, v) in xs.iter().enumerate() {
                     list.push(parse_expr(v, &format!("{label}.x[{k}]"))?.0);
@@ -861,11 +985,16 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
             }
             _ => {}
         }
-        let has_limits = info.fields.iter().position(|f| f.name == "min").is_some_and(|a| {
-            fields[a].is_some() || fields[a + 1].is_some()
-        });
+        let has_limits = info
+            .fields
+            .iter()
+            .position(|f| f.name == "min")
+            .is_some_and(|a| fields[a].is_some() || fields[a + 1].is_some());
         let limited = has_limits
-            && matches!(info.kind, Kind::Lag | Kind::Integrator | Kind::Pi | Kind::Pid)
+            && matches!(
+                info.kind,
+                Kind::Lag | Kind::Integrator | Kind::Pi | Kind::Pid
+            )
             && !windup;
         nodes.push(NodeDef {
             name,
@@ -897,7 +1026,12 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
             };
             return Err(derr(
                 format!("{}.out", n.label()),
-                format!("signal '{}' has two writers: {} and {}", n.out, other, n.label()),
+                format!(
+                    "signal '{}' has two writers: {} and {}",
+                    n.out,
+                    other,
+                    n.label()
+                ),
             ));
         }
         writer.insert(n.out.clone(), n_in + k);
@@ -952,7 +1086,12 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
     let mut target = vec![];
     let ot = match t.get("outputs") {
         Some(toml::Value::Table(o)) if !o.is_empty() => o,
-        _ => return Err(derr("outputs", "missing: a diagram needs outputs = { signal = \"unit signal\" }")),
+        _ => {
+            return Err(derr(
+                "outputs",
+                "missing: a diagram needs outputs = { signal = \"unit signal\" }",
+            ))
+        }
     };
     for (local, spec) in ot {
         let f = format!("outputs.{local}");
@@ -966,16 +1105,26 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
                         ("signal", Some(s)) => sig = Some(s.to_string()),
                         ("init", Some("target")) => init = Some(true),
                         ("init", Some("free")) => init = Some(false),
-                        _ => return Err(derr(format!("{f}.{k}"), "expected signal = \"...\" and init = \"target\" | \"free\"")),
+                        _ => {
+                            return Err(derr(
+                                format!("{f}.{k}"),
+                                "expected signal = \"...\" and init = \"target\" | \"free\"",
+                            ))
+                        }
                     }
                 }
                 (sig.ok_or_else(|| derr(&f, "needs signal = \"...\""))?, init)
             }
             _ => return Err(derr(&f, "must be a unit signal name or { signal, init }")),
         };
-        let &w = writer.get(local).ok_or_else(|| derr(&f, format!("no block writes signal '{local}'")))?;
+        let &w = writer
+            .get(local)
+            .ok_or_else(|| derr(&f, format!("no block writes signal '{local}'")))?;
         if w < n_in {
-            return Err(derr(&f, format!("'{local}' is an input; an output must be written by a block")));
+            return Err(derr(
+                &f,
+                format!("'{local}' is an input; an output must be written by a block"),
+            ));
         }
         read[w] = true;
         let is_target = init.unwrap_or(TARGET_SIGNALS.contains(&signal.as_str()));
@@ -987,7 +1136,10 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
         if !read[n_in + k] {
             return Err(derr(
                 format!("{}.out", n.label()),
-                format!("signal '{}' is read by no block and is not an output (dangling)", n.out),
+                format!(
+                    "signal '{}' is read by no block and is not an output (dangling)",
+                    n.out
+                ),
             ));
         }
     }
@@ -1021,7 +1173,10 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
         Ok(o) => o,
         Err(left) => {
             let cyc = find_cycle(&deps, &left);
-            let names: Vec<String> = cyc.iter().map(|&k| format!("'{}'", nodes[k].name)).collect();
+            let names: Vec<String> = cyc
+                .iter()
+                .map(|&k| format!("'{}'", nodes[k].name))
+                .collect();
             return Err(derr(
                 format!("block '{}'", nodes[cyc[0]].name),
                 format!(
@@ -1042,7 +1197,11 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
         need[k] = true;
         stack.extend(deps[k].iter().copied());
     }
-    let out_order: Vec<u32> = order.iter().filter(|&&k| need[k]).map(|&k| k as u32).collect();
+    let out_order: Vec<u32> = order
+        .iter()
+        .filter(|&&k| need[k])
+        .map(|&k| k as u32)
+        .collect();
     // Feed-through of the input ports.
     let mut in_ft = vec![false; n_in];
     for k in 0..nn {
@@ -1077,7 +1236,12 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
     };
     let mut unknowns = vec![];
     for k in 0..nn {
-        let x0_given = nodes[k].info.fields.iter().position(|f| f.name == "x0").is_some_and(|i| nodes[k].fields[i].is_some());
+        let x0_given = nodes[k]
+            .info
+            .fields
+            .iter()
+            .position(|f| f.name == "x0")
+            .is_some_and(|i| nodes[k].fields[i].is_some());
         if nodes[k].info.kind.integrating() && !x0_given {
             unknowns.push(Unknown::Integrator(k as u32));
         }
@@ -1087,11 +1251,20 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
             unknowns.push(Unknown::Tear(k as u32));
         }
     }
-    let refs: Vec<usize> = (0..nn).filter(|&k| nodes[k].info.kind == Kind::Reference).collect();
+    let refs: Vec<usize> = (0..nn)
+        .filter(|&k| nodes[k].info.kind == Kind::Reference)
+        .collect();
     let n_targets = target.iter().filter(|&&t| t).count();
     if refs.len() != n_targets {
-        let tnames: Vec<&str> = out_ports.iter().filter(|o| o.2).map(|o| o.0.as_str()).collect();
-        let rnames: Vec<String> = refs.iter().map(|&k| format!("'{}'", nodes[k].name)).collect();
+        let tnames: Vec<&str> = out_ports
+            .iter()
+            .filter(|o| o.2)
+            .map(|o| o.0.as_str())
+            .collect();
+        let rnames: Vec<String> = refs
+            .iter()
+            .map(|&k| format!("'{}'", nodes[k].name))
+            .collect();
         return Err(derr(
             if refs.is_empty() { "outputs".to_string() } else { format!("block '{}'", nodes[refs[0]].name) },
             format!(
@@ -1125,7 +1298,11 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
             signal: intern::str(signal),
             optional: false,
             dir: Dir::Out,
-            init: if *is_target { PortInit::Needs } else { PortInit::Gives },
+            init: if *is_target {
+                PortInit::Needs
+            } else {
+                PortInit::Gives
+            },
             feedthrough: false,
             doc: if *is_target {
                 "diagram output (target: its initial value is fixed by the machine)"
@@ -1304,7 +1481,14 @@ pub fn describe_primitives() -> String {
                 Some(v) if v.is_nan() => "optional".to_string(),
                 Some(v) => format!("default {v}"),
             };
-            let _ = writeln!(s, "      {:<10} {} ({}; {})", f.name, f.doc, f.dom.describe(), d);
+            let _ = writeln!(
+                s,
+                "      {:<10} {} ({}; {})",
+                f.name,
+                f.doc,
+                f.dom.describe(),
+                d
+            );
         }
         for (o, doc) in p.options {
             let _ = writeln!(s, "      {o:<10} {doc}");

@@ -178,39 +178,307 @@ const LIMIT_OPT: (&str, &str) = (
 
 /// The library, in the order `itaipu-calib models` prints it.
 pub static PRIMITIVES: &[PrimInfo] = &[
-    PrimInfo { name: "constant", kind: Kind::Constant, arity: Arity::None, fields: &[req("value", Dom::Finite, "output value")], options: &[], states: &[], equation: "y = value" },
-    PrimInfo { name: "reference", kind: Kind::Reference, arity: Arity::None, fields: &[opt("offset", 0.0, Dom::Finite, "nuisance offset added after initialisation"), opt("guess", 1.0, Dom::Finite, "starting value for the initialisation's solve")], options: &[], states: &[], equation: "y = r + offset, r solved at initialisation (one reference per target output)" },
-    PrimInfo { name: "initial", kind: Kind::Initial, arity: Arity::One, fields: &[], options: &[], states: &[], equation: "y = u(0), held" },
-    PrimInfo { name: "time", kind: Kind::Time, arity: Arity::None, fields: &[], options: &[], states: &[], equation: "y = t [s]" },
-    PrimInfo { name: "gain", kind: Kind::Gain, arity: Arity::One, fields: &[req("k", Dom::Finite, "gain")], options: &[], states: &[], equation: "y = k u" },
-    PrimInfo { name: "sum", kind: Kind::Sum, arity: Arity::AtLeast(1), fields: &[], options: &[("signs", "one + or - per input, e.g. \"+-+\" (default all +)"), ("gains", "a number or expression per input, instead of signs")], states: &[], equation: "y = Σ g_i u_i" },
-    PrimInfo { name: "product", kind: Kind::Product, arity: Arity::AtLeast(1), fields: &[], options: &[("ops", "one * or / per input, e.g. \"*/\" (default all *)")], states: &[], equation: "y = Π u_i^(±1)" },
-    PrimInfo { name: "abs", kind: Kind::Abs, arity: Arity::One, fields: &[], options: &[], states: &[], equation: "y = |u|" },
-    PrimInfo { name: "lag", kind: Kind::Lag, arity: Arity::One, fields: &[opt("k", 1.0, Dom::Finite, "gain"), req("t", Dom::Positive, "time constant [s]"), LIM[0], LIM[1]], options: &[], states: &["x"], equation: "T dx/dt = k u − x (non-windup in [min, max]), y = clamp(x)" },
-    PrimInfo { name: "lead_lag", kind: Kind::LeadLag, arity: Arity::One, fields: &[opt("k", 1.0, Dom::Finite, "gain"), req("t_a", Dom::NonNegative, "lead time constant [s]"), req("t_b", Dom::Positive, "lag time constant [s]")], options: &[], states: &["x"], equation: "k (1 + s T_a)/(1 + s T_b): T_b dx/dt = u − x, y = k ((T_a/T_b) u + (1 − T_a/T_b) x)" },
-    PrimInfo { name: "washout", kind: Kind::Washout, arity: Arity::One, fields: &[opt("k", 1.0, Dom::Finite, "gain"), req("t", Dom::Positive, "time constant [s]")], options: &[], states: &["x"], equation: "k sT/(1 + sT): T dx/dt = u − x, y = k (u − x)" },
-    PrimInfo { name: "derivative", kind: Kind::Derivative, arity: Arity::One, fields: &[opt("k", 1.0, Dom::Finite, "gain [s]"), req("t", Dom::Positive, "filter time constant [s]")], options: &[], states: &["x"], equation: "k s/(1 + sT): T dx/dt = u − x, y = k (u − x)/T" },
-    PrimInfo { name: "integrator", kind: Kind::Integrator, arity: Arity::One, fields: &[opt("k", 1.0, Dom::Finite, "gain [1/s]"), LIM[0], LIM[1], GUESS, X0], options: &[LIMIT_OPT], states: &["x"], equation: "dx/dt = k u, y = clamp(x)" },
-    PrimInfo { name: "pi", kind: Kind::Pi, arity: Arity::One, fields: &[req("k_p", Dom::Finite, "proportional gain"), req("k_i", Dom::Finite, "integral gain [1/s]"), LIM[0], LIM[1], GUESS, X0], options: &[LIMIT_OPT], states: &["x"], equation: "dx/dt = k_i u, y = clamp(k_p u + x)" },
-    PrimInfo { name: "pid", kind: Kind::Pid, arity: Arity::One, fields: &[req("k_p", Dom::Finite, "proportional gain"), req("k_i", Dom::Finite, "integral gain [1/s]"), req("k_d", Dom::Finite, "derivative gain [s]"), req("t_d", Dom::Positive, "derivative filter time constant [s]"), LIM[0], LIM[1], GUESS, X0], options: &[LIMIT_OPT], states: &["i", "d"], equation: "dx_i/dt = k_i u, T_d dx_d/dt = u − x_d, y = clamp(k_p u + x_i + k_d (u − x_d)/T_d)" },
-    PrimInfo { name: "limiter", kind: Kind::Limiter, arity: Arity::One, fields: &[LIM[0], LIM[1]], options: &[], states: &[], equation: "y = clamp(u)" },
-    PrimInfo { name: "rate_limiter", kind: Kind::RateLimiter, arity: Arity::One, fields: &[req("t", Dom::Positive, "tracking time constant [s]"), req("rise", Dom::Positive, "largest rate up [1/s]"), req("fall", Dom::Positive, "largest rate down [1/s]")], options: &[], states: &["x"], equation: "dx/dt = clamp((u − x)/T, −fall, rise), y = x" },
-    PrimInfo { name: "deadband", kind: Kind::Deadband, arity: Arity::One, fields: &[req("width", Dom::NonNegative, "half-width of the band")], options: &[], states: &[], equation: "y = 0 for |u| ≤ width, u − width·sign(u) outside" },
-    PrimInfo { name: "min", kind: Kind::Min, arity: Arity::AtLeast(1), fields: &[], options: &[], states: &[], equation: "y = min_i u_i" },
-    PrimInfo { name: "max", kind: Kind::Max, arity: Arity::AtLeast(1), fields: &[], options: &[], states: &[], equation: "y = max_i u_i" },
-    PrimInfo { name: "switch", kind: Kind::Switch, arity: Arity::Exactly(3), fields: &[opt("threshold", 0.0, Dom::Finite, "switching threshold on the first input")], options: &[], states: &[], equation: "in = [c, a, b]: y = a if c ≥ threshold, else b" },
-    PrimInfo { name: "pwl", kind: Kind::Pwl, arity: Arity::One, fields: &[], options: &[("x", "breakpoints, increasing (numbers or expressions)"), ("y", "values at the breakpoints")], states: &[], equation: "linear between breakpoints, constant outside" },
-    PrimInfo { name: "pulso", kind: Kind::Pulso, arity: Arity::OneOrTime, fields: &[opt("p1", 0.0, Dom::Finite, "lower threshold"), opt("p2", 1.0, Dom::Finite, "value between p1 and p3"), opt("p3", 1e10, Dom::Finite, "upper threshold"), opt("p4", 1.0, Dom::Finite, "value above p3")], options: &[], states: &[], equation: "y = 0 for u < p1, p2 for p1 < u < p3, p4 otherwise (u = t without an input)" },
+    PrimInfo {
+        name: "constant",
+        kind: Kind::Constant,
+        arity: Arity::None,
+        fields: &[req("value", Dom::Finite, "output value")],
+        options: &[],
+        states: &[],
+        equation: "y = value",
+    },
+    PrimInfo {
+        name: "reference",
+        kind: Kind::Reference,
+        arity: Arity::None,
+        fields: &[
+            opt(
+                "offset",
+                0.0,
+                Dom::Finite,
+                "nuisance offset added after initialisation",
+            ),
+            opt(
+                "guess",
+                1.0,
+                Dom::Finite,
+                "starting value for the initialisation's solve",
+            ),
+        ],
+        options: &[],
+        states: &[],
+        equation: "y = r + offset, r solved at initialisation (one reference per target output)",
+    },
+    PrimInfo {
+        name: "initial",
+        kind: Kind::Initial,
+        arity: Arity::One,
+        fields: &[],
+        options: &[],
+        states: &[],
+        equation: "y = u(0), held",
+    },
+    PrimInfo {
+        name: "time",
+        kind: Kind::Time,
+        arity: Arity::None,
+        fields: &[],
+        options: &[],
+        states: &[],
+        equation: "y = t [s]",
+    },
+    PrimInfo {
+        name: "gain",
+        kind: Kind::Gain,
+        arity: Arity::One,
+        fields: &[req("k", Dom::Finite, "gain")],
+        options: &[],
+        states: &[],
+        equation: "y = k u",
+    },
+    PrimInfo {
+        name: "sum",
+        kind: Kind::Sum,
+        arity: Arity::AtLeast(1),
+        fields: &[],
+        options: &[
+            (
+                "signs",
+                "one + or - per input, e.g. \"+-+\" (default all +)",
+            ),
+            (
+                "gains",
+                "a number or expression per input, instead of signs",
+            ),
+        ],
+        states: &[],
+        equation: "y = Σ g_i u_i",
+    },
+    PrimInfo {
+        name: "product",
+        kind: Kind::Product,
+        arity: Arity::AtLeast(1),
+        fields: &[],
+        options: &[("ops", "one * or / per input, e.g. \"*/\" (default all *)")],
+        states: &[],
+        equation: "y = Π u_i^(±1)",
+    },
+    PrimInfo {
+        name: "abs",
+        kind: Kind::Abs,
+        arity: Arity::One,
+        fields: &[],
+        options: &[],
+        states: &[],
+        equation: "y = |u|",
+    },
+    PrimInfo {
+        name: "lag",
+        kind: Kind::Lag,
+        arity: Arity::One,
+        fields: &[
+            opt("k", 1.0, Dom::Finite, "gain"),
+            req("t", Dom::Positive, "time constant [s]"),
+            LIM[0],
+            LIM[1],
+        ],
+        options: &[],
+        states: &["x"],
+        equation: "T dx/dt = k u − x (non-windup in [min, max]), y = clamp(x)",
+    },
+    PrimInfo {
+        name: "lead_lag",
+        kind: Kind::LeadLag,
+        arity: Arity::One,
+        fields: &[
+            opt("k", 1.0, Dom::Finite, "gain"),
+            req("t_a", Dom::NonNegative, "lead time constant [s]"),
+            req("t_b", Dom::Positive, "lag time constant [s]"),
+        ],
+        options: &[],
+        states: &["x"],
+        equation:
+            "k (1 + s T_a)/(1 + s T_b): T_b dx/dt = u − x, y = k ((T_a/T_b) u + (1 − T_a/T_b) x)",
+    },
+    PrimInfo {
+        name: "washout",
+        kind: Kind::Washout,
+        arity: Arity::One,
+        fields: &[
+            opt("k", 1.0, Dom::Finite, "gain"),
+            req("t", Dom::Positive, "time constant [s]"),
+        ],
+        options: &[],
+        states: &["x"],
+        equation: "k sT/(1 + sT): T dx/dt = u − x, y = k (u − x)",
+    },
+    PrimInfo {
+        name: "derivative",
+        kind: Kind::Derivative,
+        arity: Arity::One,
+        fields: &[
+            opt("k", 1.0, Dom::Finite, "gain [s]"),
+            req("t", Dom::Positive, "filter time constant [s]"),
+        ],
+        options: &[],
+        states: &["x"],
+        equation: "k s/(1 + sT): T dx/dt = u − x, y = k (u − x)/T",
+    },
+    PrimInfo {
+        name: "integrator",
+        kind: Kind::Integrator,
+        arity: Arity::One,
+        fields: &[
+            opt("k", 1.0, Dom::Finite, "gain [1/s]"),
+            LIM[0],
+            LIM[1],
+            GUESS,
+            X0,
+        ],
+        options: &[LIMIT_OPT],
+        states: &["x"],
+        equation: "dx/dt = k u, y = clamp(x)",
+    },
+    PrimInfo {
+        name: "pi",
+        kind: Kind::Pi,
+        arity: Arity::One,
+        fields: &[
+            req("k_p", Dom::Finite, "proportional gain"),
+            req("k_i", Dom::Finite, "integral gain [1/s]"),
+            LIM[0],
+            LIM[1],
+            GUESS,
+            X0,
+        ],
+        options: &[LIMIT_OPT],
+        states: &["x"],
+        equation: "dx/dt = k_i u, y = clamp(k_p u + x)",
+    },
+    PrimInfo {
+        name: "pid",
+        kind: Kind::Pid,
+        arity: Arity::One,
+        fields: &[
+            req("k_p", Dom::Finite, "proportional gain"),
+            req("k_i", Dom::Finite, "integral gain [1/s]"),
+            req("k_d", Dom::Finite, "derivative gain [s]"),
+            req("t_d", Dom::Positive, "derivative filter time constant [s]"),
+            LIM[0],
+            LIM[1],
+            GUESS,
+            X0,
+        ],
+        options: &[LIMIT_OPT],
+        states: &["i", "d"],
+        equation:
+            "dx_i/dt = k_i u, T_d dx_d/dt = u − x_d, y = clamp(k_p u + x_i + k_d (u − x_d)/T_d)",
+    },
+    PrimInfo {
+        name: "limiter",
+        kind: Kind::Limiter,
+        arity: Arity::One,
+        fields: &[LIM[0], LIM[1]],
+        options: &[],
+        states: &[],
+        equation: "y = clamp(u)",
+    },
+    PrimInfo {
+        name: "rate_limiter",
+        kind: Kind::RateLimiter,
+        arity: Arity::One,
+        fields: &[
+            req("t", Dom::Positive, "tracking time constant [s]"),
+            req("rise", Dom::Positive, "largest rate up [1/s]"),
+            req("fall", Dom::Positive, "largest rate down [1/s]"),
+        ],
+        options: &[],
+        states: &["x"],
+        equation: "dx/dt = clamp((u − x)/T, −fall, rise), y = x",
+    },
+    PrimInfo {
+        name: "deadband",
+        kind: Kind::Deadband,
+        arity: Arity::One,
+        fields: &[req("width", Dom::NonNegative, "half-width of the band")],
+        options: &[],
+        states: &[],
+        equation: "y = 0 for |u| ≤ width, u − width·sign(u) outside",
+    },
+    PrimInfo {
+        name: "min",
+        kind: Kind::Min,
+        arity: Arity::AtLeast(1),
+        fields: &[],
+        options: &[],
+        states: &[],
+        equation: "y = min_i u_i",
+    },
+    PrimInfo {
+        name: "max",
+        kind: Kind::Max,
+        arity: Arity::AtLeast(1),
+        fields: &[],
+        options: &[],
+        states: &[],
+        equation: "y = max_i u_i",
+    },
+    PrimInfo {
+        name: "switch",
+        kind: Kind::Switch,
+        arity: Arity::Exactly(3),
+        fields: &[opt(
+            "threshold",
+            0.0,
+            Dom::Finite,
+            "switching threshold on the first input",
+        )],
+        options: &[],
+        states: &[],
+        equation: "in = [c, a, b]: y = a if c ≥ threshold, else b",
+    },
+    PrimInfo {
+        name: "pwl",
+        kind: Kind::Pwl,
+        arity: Arity::One,
+        fields: &[],
+        options: &[
+            ("x", "breakpoints, increasing (numbers or expressions)"),
+            ("y", "values at the breakpoints"),
+        ],
+        states: &[],
+        equation: "linear between breakpoints, constant outside",
+    },
+    PrimInfo {
+        name: "pulso",
+        kind: Kind::Pulso,
+        arity: Arity::OneOrTime,
+        fields: &[
+            opt("p1", 0.0, Dom::Finite, "lower threshold"),
+            opt("p2", 1.0, Dom::Finite, "value between p1 and p3"),
+            opt("p3", 1e10, Dom::Finite, "upper threshold"),
+            opt("p4", 1.0, Dom::Finite, "value above p3"),
+        ],
+        options: &[],
+        states: &[],
+        equation: "y = 0 for u < p1, p2 for p1 < u < p3, p4 otherwise (u = t without an input)",
+    },
 ];
 
 /// Looks a primitive up by name (case-insensitive).
 pub fn find(name: &str) -> Option<&'static PrimInfo> {
-    PRIMITIVES.iter().find(|p| p.name.eq_ignore_ascii_case(name))
+    PRIMITIVES
+        .iter()
+        .find(|p| p.name.eq_ignore_ascii_case(name))
 }
 
 /// Names of all primitives, for messages.
 pub fn names() -> String {
-    PRIMITIVES.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")
+    PRIMITIVES
+        .iter()
+        .map(|p| p.name)
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 impl Kind {
@@ -223,10 +491,7 @@ impl Kind {
     }
     /// In steady state, does the output depend on the inputs?
     pub fn steady_feedthrough(self) -> bool {
-        !matches!(
-            self,
-            Kind::Integrator | Kind::Washout | Kind::Derivative
-        )
+        !matches!(self, Kind::Integrator | Kind::Washout | Kind::Derivative)
     }
     /// Does the steady state leave the state free (the input must be zero instead)?
     pub fn integrating(self) -> bool {
