@@ -40,6 +40,7 @@
 
 pub mod catalog;
 pub mod trial;
+pub mod user_cause;
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -62,6 +63,9 @@ use catalog::{Context, Extension, FreeBound, CAUSES};
 pub struct DiagnoseOptions {
     /// Causes to try (ids from [`catalog::CAUSES`]); empty = the whole catalog.
     pub causes: Vec<String>,
+    /// Causes written by the user ([`user_cause`]), tried after the catalog's (or named in
+    /// `causes`).
+    pub user_causes: Vec<user_cause::UserCause>,
     /// Calibrated parameters to free again in every re-fit (baselines and extensions alike),
     /// with their bounds: the parameters a calibration without the cause may have bent to make
     /// up for it (typically the stage parameters of the preceding fit). Empty = only each
@@ -88,6 +92,7 @@ impl Default for DiagnoseOptions {
     fn default() -> Self {
         Self {
             causes: vec![],
+            user_causes: vec![],
             refit: vec![],
             seed: 1,
             particles: 16,
@@ -1136,10 +1141,10 @@ pub fn diagnose(
         return Err(DiagnoseError::Setup("no event to diagnose".into()));
     }
     for c in &opts.causes {
-        if catalog::find(c).is_none() {
+        if !user_cause::known(c, &opts.user_causes) {
             return Err(DiagnoseError::Setup(format!(
                 "unknown cause '{c}' (known: {})",
-                catalog::ids()
+                user_cause::ids(&opts.user_causes)
             )));
         }
     }
@@ -1262,21 +1267,22 @@ pub fn diagnose(
 
     // 4. Candidates.
     let ids: Vec<&str> = if opts.causes.is_empty() {
-        CAUSES.iter().map(|c| c.id).collect()
+        let users = opts.user_causes.iter().map(|u| u.id.as_str());
+        CAUSES.iter().map(|c| c.id).chain(users).collect()
     } else {
         opts.causes.iter().map(|s| s.as_str()).collect()
     };
     let mut reports = vec![];
     let mut refits: BTreeMap<String, RefitRecord> = BTreeMap::new();
     for id in ids {
-        let info = catalog::find(id).expect("checked");
+        let (title, extension) = user_cause::describe(id, &opts.user_causes).expect("checked");
         let t0 = Instant::now();
         let mut rep = CandidateReport {
             cause: id.to_string(),
-            title: info.title.to_string(),
+            title,
             applicable: false,
             note: String::new(),
-            extension: info.extension.to_string(),
+            extension,
             parameters: vec![],
             fixed: vec![],
             gains: None,
@@ -1287,7 +1293,7 @@ pub fn diagnose(
             wall_s: 0.0,
             distortion: vec![],
         };
-        let ext: Extension = match catalog::extend(id, unit, &ctx) {
+        let ext: Extension = match user_cause::extend(id, unit, &ctx, &opts.user_causes) {
             Err(msg) => {
                 rep.note = format!("could not build the extension: {msg}");
                 reports.push(rep);
