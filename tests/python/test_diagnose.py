@@ -168,7 +168,9 @@ def test_a_user_cause_file_is_tried_and_named(tmp_path):
 
 def test_a_bad_user_cause_file_raises_naming_the_file_and_field(tmp_path):
     bad = tmp_path / "bad.toml"
-    bad.write_text(DROOP.read_text().replace('param = "droop.x_c"', 'param = "droop.k"'))
+    diagram = str(DATA / "causes" / "reactive_droop.diagram.toml")
+    text = DROOP.read_text().replace("reactive_droop.diagram.toml", diagram)
+    bad.write_text(text.replace('param = "droop.x_c"', 'param = "droop.k"'))
     with pytest.raises(ic.CalibrationError) as e:
         ic.diagnose(TRUTH, DATA / "itaipu" / "event.toml", user_causes=[bad], **QUICK)
     assert "bad.toml" in str(e.value) and "free[0].param" in str(e.value)
