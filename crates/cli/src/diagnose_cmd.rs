@@ -1249,14 +1249,17 @@ mod tests {
 
     #[test]
     fn causes_are_checked_and_deduplicated() {
-        let ok = causes(&[
-            "saturation".into(),
-            "measurement_skew".into(),
-            "saturation".into(),
-        ])
+        let ok = causes(
+            &[
+                "saturation".into(),
+                "measurement_skew".into(),
+                "saturation".into(),
+            ],
+            &[],
+        )
         .unwrap();
         assert_eq!(ok, ["saturation", "measurement_skew"]);
-        let e = causes(&["saturation".into(), "gremlins".into()]).unwrap_err();
+        let e = causes(&["saturation".into(), "gremlins".into()], &[]).unwrap_err();
         assert_eq!(e.code, 2);
         assert!(
             e.msg.contains("gremlins") && e.msg.contains("measurement_skew"),

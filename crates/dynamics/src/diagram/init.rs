@@ -8,12 +8,12 @@ use crate::block::ModelError;
 
 /// Evaluates the diagram in steady state with the unknowns `z`: sets every state in `x`, the
 /// held and reference values in `nodes`, every signal in `s`, and writes the residuals.
+/// `(z, z_of)`: the unknowns' values and, per node, the index of its unknown.
 fn evaluate(
     def: &DiagramDef,
     nodes: &mut [Node],
     s: &Scratch,
-    z: &[f64],
-    z_of: &[Option<usize>],
+    (z, z_of): (&[f64], &[Option<usize>]),
     targets: &[f64],
     x: &mut [f64],
     res: &mut [f64],
@@ -148,7 +148,7 @@ pub(super) fn steady_state(
     }
     let mut res = vec![0.0; n];
     let eval = |z: &[f64], x: &mut [f64], res: &mut [f64], nodes: &mut [Node]| {
-        evaluate(def, nodes, s, z, &z_of, targets, x, res);
+        evaluate(def, nodes, s, (z, &z_of), targets, x, res);
         res.iter().fold(0.0f64, |m, r| {
             if r.is_nan() {
                 f64::INFINITY

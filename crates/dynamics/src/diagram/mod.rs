@@ -1235,14 +1235,14 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
         }
     };
     let mut unknowns = vec![];
-    for k in 0..nn {
-        let x0_given = nodes[k]
+    for (k, nd) in nodes.iter().enumerate() {
+        let x0_given = nd
             .info
             .fields
             .iter()
             .position(|f| f.name == "x0")
-            .is_some_and(|i| nodes[k].fields[i].is_some());
-        if nodes[k].info.kind.integrating() && !x0_given {
+            .is_some_and(|i| nd.fields[i].is_some());
+        if nd.info.kind.integrating() && !x0_given {
             unknowns.push(Unknown::Integrator(k as u32));
         }
     }
