@@ -204,4 +204,5 @@ def diagnose(
     threads: Optional[int] = None,
     refit: Union[str, Sequence[str], Mapping[str, Tuple[float, float]], None] = None,
     fit: Optional[FitResult] = None,
+    user_causes: Union[_PathLike, Sequence[_PathLike], None] = None,
 ) -> Diagnosis: ...

@@ -143,3 +143,37 @@ def test_diagnose_refits_the_whole_calibrated_set_of_a_fit(skewed):
     assert all(b["polish_only"] for b in d.report["refit"])
     with pytest.raises(TypeError, match="FitResult"):
         ic.diagnose(f.unit, skewed, causes=["measurement_skew"], fit="not a fit", **QUICK)
+
+
+# --- a cause written by the user ------------------------------------------------------------
+
+DROOP = DATA / "causes" / "reactive_droop.toml"
+
+
+def test_a_user_cause_file_is_tried_and_named(tmp_path):
+    """The truth has a reactive-current compensator (a user-defined diagram) in front of its SEXS;
+    the cause file data/causes/reactive_droop.toml adds the same diagram as an extension."""
+    diagram = DATA / "causes" / "reactive_droop.diagram.toml"
+    text = TRUTH.read_text().replace('model = "SEXS"', 'model = "SEXS"\nwiring = { v_term = "v_comp" }')
+    text += f'\n[[block]]\nname = "droop"\nmodel = "diagram"\ndiagram = "{diagram}"\nx_c = 0.07\n'
+    truth = tmp_path / "truth.toml"
+    truth.write_text(text)
+    ev = ic.synth(truth, duration=10.0, seed=5)
+    d = ic.diagnose(TRUTH, ev, causes=["reactive_droop", "terminal_load"], user_causes=DROOP, **QUICK)
+    assert d.cause == "reactive_droop"
+    x_c = {p: v for p, v, _ in d.verdict["key_parameters"]}["droop.x_c"]
+    assert abs(x_c - 0.07) < 0.01
+    assert "diagram" in d.extended_unit.models()
+
+
+def test_a_bad_user_cause_file_raises_naming_the_file_and_field(tmp_path):
+    bad = tmp_path / "bad.toml"
+    diagram = str(DATA / "causes" / "reactive_droop.diagram.toml")
+    text = DROOP.read_text().replace("reactive_droop.diagram.toml", diagram)
+    bad.write_text(text.replace('param = "droop.x_c"', 'param = "droop.k"'))
+    with pytest.raises(ic.CalibrationError) as e:
+        ic.diagnose(TRUTH, DATA / "itaipu" / "event.toml", user_causes=[bad], **QUICK)
+    assert "bad.toml" in str(e.value) and "free[0].param" in str(e.value)
+    assert e.value.kind == "spec"
+    with pytest.raises(TypeError):
+        ic.diagnose(TRUTH, DATA / "itaipu" / "event.toml", user_causes=3, **QUICK)

@@ -338,3 +338,24 @@ def test_check_finds_a_dropout_at_its_line_and_passes_the_bundled_record(tmp_pat
         ic.check(tmp_path / "missing.toml")
     with pytest.raises(TypeError):
         ic.check(EVENT, 3)
+
+
+# --- user-defined diagrams ------------------------------------------------------------------
+
+
+def test_a_unit_with_diagrams_matches_the_builtin_blocks(traces):
+    """data/diagrams/unit_itaipu_diagrams.toml: the bundled unit with SEXS and STAB3 as diagrams."""
+    d = ic.simulate(EVENT, DATA / "diagrams" / "unit_itaipu_diagrams.toml")
+    assert np.max(np.abs(d.p_pu - traces.p_pu)) < 1e-6
+    assert np.max(np.abs(d.q_pu - traces.q_pu)) < 1e-6
+
+
+def test_a_bad_diagram_names_the_file_block_and_field(tmp_path):
+    text = (DATA / "diagrams" / "sexs.toml").read_text().replace('type = "lead_lag"', 'type = "leadlag"')
+    (tmp_path / "sexs.toml").write_text(text)
+    unit = tmp_path / "unit.toml"
+    unit.write_text(UNIT.read_text().replace('model = "SEXS"', 'model = "diagram"\ndiagram = "sexs.toml"'))
+    with pytest.raises(ic.UnitModelError) as info:
+        ic.simulate(EVENT, unit)
+    msg = str(info.value)
+    assert "sexs.toml" in msg and "block 'lead_lag'" in msg and "leadlag" in msg

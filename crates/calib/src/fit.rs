@@ -12,7 +12,6 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use itaipu_dynamics::event::Event;
-use itaipu_dynamics::registry;
 use itaipu_dynamics::simulate::{simulate_prepared, Traces};
 use itaipu_dynamics::unit::{ParamRef, Unit};
 use itaipu_dynamics::unit_file;
@@ -336,23 +335,18 @@ fn apply_stage_edits(master: &mut Unit, spec: &StageSpec) -> Result<(), FitError
     Ok(())
 }
 
-/// Builds a replacement block from a unit-file table (the unit-file parser's own function).
+/// Builds a replacement block from a unit-file table (the unit-file parser's own function): a
+/// registry model or a user-defined diagram (`model = "diagram"`, inline `diagram` table or a
+/// file relative to the working directory).
 fn build_block(
     section: &str,
     table: &toml::Table,
 ) -> Result<Box<dyn itaipu_dynamics::block::Block>, String> {
-    let model = table
-        .get("model")
-        .and_then(|v| v.as_str())
-        .ok_or_else(|| format!("replace.{section}: needs model = \"...\""))?;
-    let info = registry::find(model).ok_or_else(|| {
-        format!(
-            "replace.{section}: unknown model '{model}' (known: {})",
-            registry::names()
-        )
-    })?;
-    let (block, _) = unit_file::build_block(info, &format!("replace.{section}"), table)
-        .map_err(|(f, m)| format!("{f}: {m}"))?;
+    let (block, _) = unit_file::build_any_block(
+        &format!("replace.{section}"),
+        table,
+        std::path::Path::new("."),
+    )?;
     Ok(block)
 }
 

@@ -339,10 +339,21 @@ impl CalibSpec {
             path: path.into(),
             msg: e.to_string().trim().replace('\n', " "),
         })?;
-        let spec = f
+        let mut spec = f
             .calibration
             .ok_or_else(|| SpecError::Missing { path: path.into() })?;
         spec.validate(path)?;
+        // A replacement diagram's definition file is relative to the spec's file.
+        let base = path.parent().unwrap_or(Path::new(""));
+        for s in &mut spec.stages {
+            for t in s.replace.values_mut() {
+                if let Some(toml::Value::String(file)) = t.get_mut("diagram") {
+                    if Path::new(file.as_str()).is_relative() {
+                        *file = base.join(file.as_str()).to_string_lossy().into_owned();
+                    }
+                }
+            }
+        }
         Ok(spec)
     }
 

@@ -7,8 +7,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use itaipu_calib::diagnose::{
-    calibrated_set, catalog, diagnose, refit_bounds, CandidateReport, DiagnoseError,
-    DiagnoseOptions, Diagnosis, EventEvidence, RefitRequest,
+    calibrated_set, catalog, diagnose, refit_bounds,
+    user_cause::{self, read_all, UserCause},
+    CandidateReport, DiagnoseError, DiagnoseOptions, Diagnosis, EventEvidence, RefitRequest,
 };
 use itaipu_calib::evidence::{SignalEvidence, WindowStats};
 use itaipu_calib::spec::CalibSpec;
@@ -43,6 +44,12 @@ pub struct DiagnoseArgs {
     /// `--cause measurement_skew,saturation`. Default: the whole catalog.
     #[arg(long, value_name = "ID", num_args = 1.., value_delimiter = ',')]
     cause: Vec<String>,
+    /// A cause written by the user (repeatable): a TOML file declaring the blocks its model
+    /// extension adds (user-defined diagrams or library models), the ports of the unit it
+    /// rewires and the parameters the re-fit frees (see data/causes/reactive_droop.toml). It is
+    /// tried after the catalog's causes, or alone with `--cause ITS_ID`.
+    #[arg(long, value_name = "FILE")]
+    user_cause: Vec<PathBuf>,
     /// Calibrated parameter(s) to free again in every re-fit, baselines and extensions alike
     /// (repeatable or comma-separated): `PARAM` within the model's declared range, or
     /// `PARAM=MIN:MAX`, e.g. `--refit machine.h,exciter.k=50:200`. For the stage parameters a
@@ -110,15 +117,18 @@ fn refit_requests(requested: &[String]) -> Result<Vec<RefitRequest>, CliError> {
 }
 
 /// The `--cause` ids, checked against the catalog, without duplicates, in the order given.
-fn causes(requested: &[String]) -> Result<Vec<String>, CliError> {
+fn causes(requested: &[String], users: &[UserCause]) -> Result<Vec<String>, CliError> {
     let mut seen = BTreeSet::new();
     let mut out = vec![];
     for c in requested {
         let c = c.trim();
-        if catalog::find(c).is_none() {
+        if !user_cause::known(c, users) {
             return Err(CliError::new(
                 2,
-                format!("--cause: unknown cause '{c}' (known: {})", catalog::ids()),
+                format!(
+                    "--cause: unknown cause '{c}' (known: {})",
+                    user_cause::ids(users)
+                ),
             ));
         }
         if seen.insert(c.to_string()) {
@@ -130,8 +140,10 @@ fn causes(requested: &[String]) -> Result<Vec<String>, CliError> {
 
 pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     // Usage errors first, then the input files, then the output folder, then the (long) run.
+    let user_causes = read_all(&a.user_cause).map_err(|e| CliError::new(4, e.to_string()))?;
     let mut opts = DiagnoseOptions {
-        causes: causes(&a.cause)?,
+        causes: causes(&a.cause, &user_causes)?,
+        user_causes,
         ..Default::default()
     };
     a.search.apply(
@@ -191,7 +203,10 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
             .map_err(|err| crate::explain_sim_error(err, e, &unit))?;
     }
     let tried = if opts.causes.is_empty() {
-        format!("all {} causes", catalog::CAUSES.len())
+        format!(
+            "all {} causes",
+            catalog::CAUSES.len() + opts.user_causes.len()
+        )
     } else {
         opts.causes.join(", ")
     };
@@ -1251,14 +1266,17 @@ mod tests {
 
     #[test]
     fn causes_are_checked_and_deduplicated() {
-        let ok = causes(&[
-            "saturation".into(),
-            "measurement_skew".into(),
-            "saturation".into(),
-        ])
+        let ok = causes(
+            &[
+                "saturation".into(),
+                "measurement_skew".into(),
+                "saturation".into(),
+            ],
+            &[],
+        )
         .unwrap();
         assert_eq!(ok, ["saturation", "measurement_skew"]);
-        let e = causes(&["saturation".into(), "gremlins".into()]).unwrap_err();
+        let e = causes(&["saturation".into(), "gremlins".into()], &[]).unwrap_err();
         assert_eq!(e.code, 2);
         assert!(
             e.msg.contains("gremlins") && e.msg.contains("measurement_skew"),

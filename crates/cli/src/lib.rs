@@ -66,11 +66,27 @@ enum Cmd {
     /// quantisation, optionally a hidden effect; writes the event, its CSV and the truth.
     Synth(synth_cmd::SynthArgs),
     /// List the model library: models, their parameters (name, PSS/E alias, unit, meaning,
-    /// typical value and range) and ports.
+    /// typical value and range) and ports, then the primitives of user-defined diagrams.
     Models {
-        /// Show one model only (e.g. GENSAE).
+        /// Show one model only (e.g. GENSAE), or `diagram` for the diagram primitives.
         name: Option<String>,
     },
+    /// Draw a user-defined diagram as Graphviz dot text (render with `dot -Tsvg`), to check
+    /// the wiring. FILE is a diagram definition or a unit file (every diagram block in it, or
+    /// the one named by --block).
+    Diagram(DiagramArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct DiagramArgs {
+    /// A diagram definition (TOML with [[block]] entries) or a unit file.
+    file: PathBuf,
+    /// In a unit file: the block (section) to draw, e.g. exciter.
+    #[arg(long)]
+    block: Option<String>,
+    /// Write the dot text here instead of the standard output.
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -167,6 +183,7 @@ where
     let result = match cli.cmd {
         Cmd::Simulate(a) => cmd_simulate(&a),
         Cmd::Models { name } => cmd_models(name.as_deref()),
+        Cmd::Diagram(a) => cmd_diagram(&a),
         Cmd::Fit(a) => fit_cmd::cmd_fit(&a),
         Cmd::Diagnose(a) => diagnose_cmd::cmd_diagnose(&a),
         Cmd::Synth(a) => synth_cmd::cmd_synth(&a),
@@ -676,12 +693,59 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     Ok(())
 }
 
+/// `itaipu-calib diagram`: the dot text of a diagram file or of a unit's diagram blocks.
+fn cmd_diagram(a: &DiagramArgs) -> Result<(), CliError> {
+    use itaipu_dynamics::unit_file::{read_diagram_or_unit, DiagramFile};
+    let mut dots = vec![];
+    match read_diagram_or_unit(&a.file).map_err(|e| CliError::new(4, e.to_string()))? {
+        DiagramFile::Unit(unit) => {
+            for inst in unit.instances() {
+                if a.block.as_deref().is_some_and(|b| b != inst.name) {
+                    continue;
+                }
+                if let Some(d) = inst.block.diagram() {
+                    dots.push(d.to_dot().replacen(
+                        "digraph diagram",
+                        &format!("digraph {}", inst.name),
+                        1,
+                    ));
+                }
+            }
+            if dots.is_empty() {
+                return Err(CliError::new(
+                    2,
+                    match &a.block {
+                        Some(b) => format!("{}: no diagram block named '{b}'", a.file.display()),
+                        None => format!("{}: the unit has no diagram block", a.file.display()),
+                    },
+                ));
+            }
+        }
+        DiagramFile::Definition(d) => dots.push(d.to_dot()),
+    }
+    let out = dots.join("\n");
+    match &a.out {
+        Some(p) => {
+            std::fs::write(p, out).map_err(|e| CliError::new(7, format!("{}: {e}", p.display())))?
+        }
+        None => print!("{out}"),
+    }
+    Ok(())
+}
+
 fn cmd_models(name: Option<&str>) -> Result<(), CliError> {
+    if name.is_some_and(|n| n.eq_ignore_ascii_case("diagram")) {
+        print!("{}", itaipu_dynamics::diagram::describe_primitives());
+        return Ok(());
+    }
     let models: Vec<_> = match name {
         Some(n) => vec![registry::find(n).ok_or_else(|| {
             CliError::new(
                 2,
-                format!("unknown model '{n}' (known: {})", registry::names()),
+                format!(
+                    "unknown model '{n}' (known: {}, diagram)",
+                    registry::names()
+                ),
             )
         })?],
         None => registry::MODELS.iter().collect(),
@@ -713,6 +777,9 @@ fn cmd_models(name: Option<&str>) -> Result<(), CliError> {
             );
         }
         println!();
+    }
+    if name.is_none() {
+        print!("{}", itaipu_dynamics::diagram::describe_primitives());
     }
     Ok(())
 }

@@ -93,3 +93,43 @@ fn itaipu_record_rk4_1ms(bencher: Bencher) {
         },
     );
 }
+
+/// The Itaipu unit with its SEXS as the user-defined diagram `data/diagrams/sexs.toml`.
+fn itaipu_sexs_diagram() -> (Unit, PreparedEvent) {
+    let text = std::fs::read_to_string(data("itaipu/unit.toml"))
+        .unwrap()
+        .replacen(
+            "model = \"SEXS\"",
+            "model = \"diagram\"\ndiagram = \"../diagrams/sexs.toml\"",
+            1,
+        );
+    let unit =
+        itaipu_dynamics::unit_file::parse_unit(&text, &data("itaipu/unit_sexs_diagram.toml"))
+            .unwrap();
+    let event = Event::from_toml_file(&data("itaipu/event.toml")).unwrap();
+    (unit, PreparedEvent::new(&event))
+}
+
+/// Built-in SEXS against the same SEXS as a user-defined diagram, per playback of the Itaipu
+/// record (RK4 at 1 ms: the same number of right-hand sides for both).
+#[divan::bench(sample_count = 100)]
+fn itaipu_rk4_1ms_builtin_sexs(bencher: Bencher) {
+    bench(
+        bencher,
+        itaipu(),
+        SimOptions {
+            method: Method::Rk4 { h: 1e-3 },
+        },
+    );
+}
+
+#[divan::bench(sample_count = 100)]
+fn itaipu_rk4_1ms_diagram_sexs(bencher: Bencher) {
+    bench(
+        bencher,
+        itaipu_sexs_diagram(),
+        SimOptions {
+            method: Method::Rk4 { h: 1e-3 },
+        },
+    );
+}

@@ -218,6 +218,12 @@ pub trait Block: Send + Sync {
         vec![]
     }
 
+    /// The block as a user-defined diagram, when it is one (written back with its definition,
+    /// drawn by `itaipu-calib diagram`). Default: `None`.
+    fn diagram(&self) -> Option<&crate::diagram::Diagram> {
+        None
+    }
+
     fn clone_box(&self) -> Box<dyn Block>;
 }
 

@@ -11,12 +11,14 @@
 //!   event location for limiter switches.
 //! * [`event`]: measured events (TOML + CSV), validation, pre-event operating point.
 //! * [`unit_file`]: unit model files (TOML).
+//! * [`diagram`]: user-defined control models (block diagrams declared in TOML).
 //! * [`simulate`]: the playback simulation and its traces.
 
 // Parameter and state guards are written `!(x > 0.0)` on purpose: that form also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod block;
+pub mod diagram;
 pub mod event;
 pub mod integrate;
 pub mod models;

@@ -18,6 +18,10 @@
 //! [pss]                # optional
 //! [governor]           # optional: without it P_m stays at P_m0 (same as model = "constant_pm")
 //!
+//! # any section may hold a user-defined diagram (see [`crate::diagram`]):
+//! # model = "diagram", diagram = "file.toml" or an inline [<section>.diagram] table, then the
+//! # diagram's parameter values as keys
+//!
 //! [[block]]            # any further block, wired by signal names
 //! name = "my_filter"
 //! model = "…"
@@ -31,6 +35,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use crate::diagram;
 use crate::registry::{self, Role};
 use crate::unit::{Unit, UnitError};
 
@@ -216,9 +221,28 @@ fn add_block(
     let model = t.get("model").and_then(|v| v.as_str()).ok_or_else(|| {
         field(
             format!("{ctx}.model"),
-            format!("missing (one of: {})", registry::names()),
+            format!("missing (one of: {}, diagram)", registry::names()),
         )
     })?;
+    if model.eq_ignore_ascii_case(diagram::MODEL) {
+        if name == "machine" {
+            return Err(field(
+                format!("{ctx}.model"),
+                format!(
+                    "the machine is a built-in model (one of the machine models of: {})",
+                    registry::names()
+                ),
+            ));
+        }
+        let base = path.parent().unwrap_or(Path::new("."));
+        let (block, rewire) = build_diagram_block(ctx, t, base, path)?;
+        return unit
+            .add(name, block, &rewire)
+            .map_err(|e| UnitFileError::Unit {
+                path: path.into(),
+                source: e,
+            });
+    }
     let info = registry::find(model).ok_or_else(|| {
         field(
             format!("{ctx}.model"),
@@ -262,6 +286,112 @@ fn add_block(
 /// A block built from a table, with its `(port, signal)` rewiring.
 pub type BuiltBlock = (Box<dyn crate::block::Block>, Vec<(String, String)>);
 
+/// Builds a user-defined diagram block (`model = "diagram"`) from a unit-file section: the
+/// definition from `diagram = "file.toml"` (relative to `base`) or an inline `[….diagram]`
+/// table, then the parameter values and `wiring` as for any model. `path` is the unit file,
+/// for messages; an error in a definition file names that file.
+pub fn build_diagram_block(
+    ctx: &str,
+    t: &toml::Table,
+    base: &Path,
+    path: &Path,
+) -> Result<BuiltBlock, UnitFileError> {
+    let field = |p: &Path, f: String, msg: String| UnitFileError::Field {
+        path: p.into(),
+        field: f,
+        msg,
+    };
+    let (def_table, def_path, def_ctx) =
+        match t.get("diagram") {
+            Some(toml::Value::String(file)) => {
+                let p = base.join(file);
+                let text = std::fs::read_to_string(&p).map_err(|e| UnitFileError::Io {
+                    path: p.clone(),
+                    source: e,
+                })?;
+                let tab: toml::Table =
+                    text.parse()
+                        .map_err(|e: toml::de::Error| UnitFileError::Syntax {
+                            path: p.clone(),
+                            msg: e.to_string().trim().replace('\n', " "),
+                        })?;
+                (tab, p, String::new())
+            }
+            Some(toml::Value::Table(tab)) => {
+                (tab.clone(), path.to_path_buf(), format!("{ctx}.diagram."))
+            }
+            Some(_) => {
+                return Err(field(
+                    path,
+                    format!("{ctx}.diagram"),
+                    "must be a file name or a table (the diagram definition)".into(),
+                ))
+            }
+            None => return Err(field(
+                path,
+                format!("{ctx}.diagram"),
+                "missing: a diagram needs diagram = \"file.toml\" or a [<section>.diagram] table"
+                    .into(),
+            )),
+        };
+    let d = diagram::from_table(&def_table)
+        .map_err(|e| field(&def_path, format!("{def_ctx}{}", e.field), e.msg))?;
+    let declared: Vec<bool> = d.def().defaults.iter().map(|x| x.is_some()).collect();
+    fill_block(Box::new(d), diagram::MODEL, ctx, t, &|i| declared[i])
+        .map_err(|(f, m)| field(path, f, m))
+}
+
+/// What [`read_diagram_or_unit`] found in a file.
+pub enum DiagramFile {
+    /// A diagram definition (a file with `[[block]]` entries and no `[machine]`).
+    Definition(Box<diagram::Diagram>),
+    /// A unit file.
+    Unit(Box<Unit>),
+}
+
+/// Reads a diagram definition file, or a unit file (told apart by a `[machine]` table).
+pub fn read_diagram_or_unit(path: &Path) -> Result<DiagramFile, UnitFileError> {
+    let text = std::fs::read_to_string(path).map_err(|e| UnitFileError::Io {
+        path: path.into(),
+        source: e,
+    })?;
+    let table: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| UnitFileError::Syntax {
+            path: path.into(),
+            msg: e.to_string().trim().replace('\n', " "),
+        })?;
+    if table.contains_key("machine") {
+        return parse_unit(&text, path).map(|u| DiagramFile::Unit(Box::new(u)));
+    }
+    diagram::from_table(&table)
+        .map(|d| DiagramFile::Definition(Box::new(d)))
+        .map_err(|e| UnitFileError::Field {
+            path: path.into(),
+            field: e.field,
+            msg: e.msg,
+        })
+}
+
+/// Builds a block from a unit-file table, a registry model or a diagram (the calibrator's
+/// replacement blocks). `base` resolves a diagram's definition file.
+pub fn build_any_block(ctx: &str, t: &toml::Table, base: &Path) -> Result<BuiltBlock, String> {
+    let model = t
+        .get("model")
+        .and_then(|v| v.as_str())
+        .ok_or_else(|| format!("{ctx}: needs model = \"...\""))?;
+    if model.eq_ignore_ascii_case(diagram::MODEL) {
+        return build_diagram_block(ctx, t, base, &base.join("(spec)")).map_err(|e| e.to_string());
+    }
+    let info = registry::find(model).ok_or_else(|| {
+        format!(
+            "{ctx}: unknown model '{model}' (known: {}, diagram)",
+            registry::names()
+        )
+    })?;
+    build_block(info, ctx, t).map_err(|(f, m)| format!("{f}: {m}"))
+}
+
 /// Builds a block of model `info` from a unit-file table: every parameter (nuisance offsets
 /// default to 0), word options, and `wiring`. Errors are `(field, message)`, the field prefixed
 /// with `ctx`. Used for unit files and for the calibrator's replacement blocks alike.
@@ -270,13 +400,29 @@ pub fn build_block(
     ctx: &str,
     t: &toml::Table,
 ) -> Result<BuiltBlock, (String, String)> {
-    let mut block = info.create();
+    let block = info.create();
+    let specs = block.params().specs();
+    fill_block(block, info.name, ctx, t, &|i| {
+        specs[i].name.ends_with("_offset")
+    })
+}
+
+/// Sets a block's parameters, options and wiring from a table; `optional(i)` says whether
+/// parameter `i` may be omitted (it keeps its current value).
+fn fill_block(
+    mut block: Box<dyn crate::block::Block>,
+    model: &str,
+    ctx: &str,
+    t: &toml::Table,
+    optional: &dyn Fn(usize) -> bool,
+) -> Result<BuiltBlock, (String, String)> {
     let mut given = vec![false; block.params().specs().len()];
     let mut rewire = vec![];
     for (key, value) in t {
         let f = format!("{ctx}.{key}");
         match key.as_str() {
             "model" | "name" => {}
+            "diagram" if model == diagram::MODEL => {}
             "wiring" => {
                 let w = value.as_table().ok_or_else(|| {
                     (
@@ -303,7 +449,7 @@ pub fn build_block(
                             f.clone(),
                             format!(
                                 "unknown parameter of {} (parameters: {})",
-                                info.name,
+                                model,
                                 names.join(", ")
                             ),
                         )
@@ -324,22 +470,28 @@ pub fn build_block(
     let missing: Vec<String> = specs
         .iter()
         .zip(&given)
-        .filter(|(s, g)| !**g && !s.name.ends_with("_offset"))
-        .map(|(s, _)| format!("{} ({}, {} [{}])", s.name, s.alias, s.doc, s.unit))
+        .enumerate()
+        .filter(|(i, (_, g))| !**g && !optional(*i))
+        .map(|(_, (s, _))| format!("{} ({}, {} [{}])", s.name, s.alias, s.doc, s.unit))
         .collect();
     if !missing.is_empty() {
         return Err((
             ctx.to_string(),
-            format!(
-                "{} needs these parameters: {}",
-                info.name,
-                missing.join("; ")
-            ),
+            format!("{} needs these parameters: {}", model, missing.join("; ")),
         ));
     }
-    block
-        .validate()
-        .map_err(|e| (ctx.to_string(), format!("{}: {e}", info.name)))?;
+    block.validate().map_err(|e| {
+        // A parameter of the block's own table names its field.
+        let f = match &e {
+            crate::block::ModelError::BadParam { param, .. }
+                if block.params().index_of(param).is_some() =>
+            {
+                format!("{ctx}.{param}")
+            }
+            _ => ctx.to_string(),
+        };
+        (f, format!("{model}: {e}"))
+    })?;
     Ok((block, rewire))
 }
 
@@ -385,8 +537,65 @@ pub fn unit_to_toml(unit: &Unit) -> String {
         if !rew.is_empty() {
             let _ = writeln!(s, "wiring = {{ {} }}", rew.join(", "));
         }
+        if let Some(d) = b.diagram() {
+            // The definition goes inline, so the file stands on its own.
+            let prefix = if ROLE_SECTIONS.contains(&inst.name.as_str()) {
+                format!("{}.diagram", inst.name)
+            } else {
+                "block.diagram".to_string()
+            };
+            s.push('\n');
+            write_table(&mut s, &prefix, &d.def().source);
+        }
     }
     s
+}
+
+/// Writes `table` under the header `[prefix]`: plain keys first, then sub-tables, then arrays
+/// of tables (`[[prefix.key]]`), recursively.
+fn write_table(s: &mut String, prefix: &str, table: &toml::Table) {
+    let _ = writeln!(s, "[{prefix}]");
+    write_table_body(s, prefix, table);
+}
+
+fn write_table_body(s: &mut String, prefix: &str, table: &toml::Table) {
+    let is_array_of_tables = |v: &toml::Value| {
+        v.as_array()
+            .is_some_and(|a| !a.is_empty() && a.iter().all(|x| x.is_table()))
+    };
+    for (k, v) in table {
+        if !v.is_table() && !is_array_of_tables(v) {
+            let _ = writeln!(s, "{} = {}", toml_key(k), v);
+        }
+    }
+    for (k, v) in table {
+        if let Some(t) = v.as_table() {
+            s.push('\n');
+            write_table(s, &format!("{prefix}.{}", toml_key(k)), t);
+        }
+    }
+    for (k, v) in table {
+        if is_array_of_tables(v) {
+            for item in v.as_array().into_iter().flatten() {
+                let p = format!("{prefix}.{}", toml_key(k));
+                let _ = writeln!(s, "\n[[{p}]]");
+                if let Some(t) = item.as_table() {
+                    write_table_body(s, &p, t);
+                }
+            }
+        }
+    }
+}
+
+fn toml_key(k: &str) -> String {
+    if !k.is_empty()
+        && k.chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+    {
+        k.to_string()
+    } else {
+        toml_str(k)
+    }
 }
 
 fn toml_str(s: &str) -> String {

@@ -1573,8 +1573,9 @@ fn refit_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<calib_diagnose::Re
 /// re-fit (a list of paths, or a dict of path to (min, max)), e.g. the stage parameters a
 /// calibration may have bent for the missing cause. `fit` (a FitResult, normally the one whose
 /// `.unit` is diagnosed) re-frees its whole calibrated set, within the spec's bounds and with the
-/// calibration's datasheet prior, as `itaipu-calib diagnose --fit`. The GIL is released while it
-/// runs. Returns a Diagnosis.
+/// calibration's datasheet prior, as `itaipu-calib diagnose --fit`. `user_causes` (a path or a
+/// list of paths) adds causes written by the user, as `itaipu-calib diagnose --user-cause`. The
+/// GIL is released while it runs. Returns a Diagnosis.
 ///
 /// Raises CalibrationError (kind 'setup': e.g. an unknown cause), SimulationError (kind
 /// 'simulation': the unit does not simulate on an event as given), EventError,
@@ -1582,9 +1583,9 @@ fn refit_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<calib_diagnose::Re
 #[pyfunction]
 #[pyo3(
     signature = (unit, events, held_out = None, *, causes = None, seed = 1, particles = 16, pso_iterations = 20,
-                 lbfgs_iterations = 15, threads = None, refit = None, fit = None),
+                 lbfgs_iterations = 15, threads = None, refit = None, fit = None, user_causes = None),
     text_signature = "(unit, events, held_out=None, *, causes=None, seed=1, particles=16, pso_iterations=20, \
-                      lbfgs_iterations=15, threads=None, refit=None, fit=None)"
+                      lbfgs_iterations=15, threads=None, refit=None, fit=None, user_causes=None)"
 )]
 #[allow(clippy::too_many_arguments)]
 fn diagnose(
@@ -1600,8 +1601,22 @@ fn diagnose(
     threads: Option<usize>,
     refit: Option<&Bound<'_, PyAny>>,
     fit: Option<&Bound<'_, PyAny>>,
+    user_causes: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PyDiagnosis> {
     let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
+    // Cause files written by the user (`diagnose --user-cause`): a path or a list of paths.
+    let user_paths: Vec<PathBuf> = match user_causes {
+        None => vec![],
+        Some(a) if a.is_none() => vec![],
+        Some(a) => match a.extract::<PathBuf>() {
+            Ok(p) => vec![p],
+            Err(_) => a.extract::<Vec<PathBuf>>().map_err(|_| {
+                PyTypeError::new_err("user_causes must be None, a path or a list of paths")
+            })?,
+        },
+    };
+    let user_causes = calib_diagnose::user_cause::read_all(&user_paths)
+        .map_err(|e| raise::<CalibrationError>(py, e.to_string(), Some("spec")))?;
     let refit = refit_list(refit)?;
     // A FitResult: its whole calibrated set is re-freed with the calibration's prior (as
     // `itaipu-calib diagnose --fit`).
@@ -1639,6 +1654,7 @@ fn diagnose(
     };
     let mut opts = DiagnoseOptions {
         causes,
+        user_causes,
         seed,
         particles,
         pso_iterations,

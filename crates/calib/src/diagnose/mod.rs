@@ -41,6 +41,7 @@
 pub mod catalog;
 pub mod causes;
 pub mod trial;
+pub mod user_cause;
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -63,6 +64,9 @@ use catalog::{Context, Extension, FreeBound, CAUSES};
 pub struct DiagnoseOptions {
     /// Causes to try (ids from [`catalog::CAUSES`]); empty = the whole catalog.
     pub causes: Vec<String>,
+    /// Causes written by the user ([`user_cause`]), tried after the catalog's (or named in
+    /// `causes`).
+    pub user_causes: Vec<user_cause::UserCause>,
     /// Calibrated parameters to free again in every re-fit (baselines and extensions alike),
     /// with their bounds: the parameters a calibration without the cause may have bent to make
     /// up for it (typically the stage parameters of the preceding fit). Empty = only each
@@ -89,6 +93,7 @@ impl Default for DiagnoseOptions {
     fn default() -> Self {
         Self {
             causes: vec![],
+            user_causes: vec![],
             refit: vec![],
             seed: 1,
             particles: 16,
@@ -1072,10 +1077,11 @@ pub fn diagnose(
         return Err(DiagnoseError::Setup("no event to diagnose".into()));
     }
     for c in &opts.causes {
-        if catalog::find(c).is_none() {
-            return Err(DiagnoseError::Setup(
-                catalog::CauseError::Unknown(c.clone()).to_string(),
-            ));
+        if !user_cause::known(c, &opts.user_causes) {
+            return Err(DiagnoseError::Setup(format!(
+                "unknown cause '{c}' (known: {})",
+                user_cause::ids(&opts.user_causes)
+            )));
         }
     }
     check_refit(unit, &opts.refit)?;
@@ -1197,33 +1203,35 @@ pub fn diagnose(
 
     // 4. Candidates.
     let ids: Vec<&str> = if opts.causes.is_empty() {
-        CAUSES.iter().map(|c| c.info().id).collect()
+        let users = opts.user_causes.iter().map(|u| u.id.as_str());
+        CAUSES.iter().map(|c| c.info().id).chain(users).collect()
     } else {
         opts.causes.iter().map(|s| s.as_str()).collect()
     };
     let mut reports = vec![];
     let mut refits: BTreeMap<String, RefitRecord> = BTreeMap::new();
     for id in ids {
-        let cause = catalog::cause(id).expect("checked");
-        let info = cause.info();
+        // A catalog cause (its evidence rules and signature), or a user cause (none).
+        let cause = catalog::cause(id);
+        let (title, extension) = user_cause::describe(id, &opts.user_causes).expect("checked");
         let t0 = Instant::now();
         let mut rep = CandidateReport {
             cause: id.to_string(),
-            title: info.title.to_string(),
+            title,
             applicable: false,
             note: String::new(),
-            extension: info.extension.to_string(),
+            extension,
             parameters: vec![],
             fixed: vec![],
             gains: None,
             significant: false,
-            signature: cause.signature(&evidence_before, &ctx),
+            signature: cause.map_or_else(Vec::new, |c| c.signature(&evidence_before, &ctx)),
             simulations: 0,
             failed_candidates: 0,
             wall_s: 0.0,
             distortion: vec![],
         };
-        let ext: Extension = match catalog::extend(id, unit, &ctx) {
+        let ext: Extension = match user_cause::extend(id, unit, &ctx, &opts.user_causes) {
             Err(catalog::CauseError::NotApplicable(why)) => {
                 rep.note = format!("not applicable: {why}");
                 reports.push(rep);
@@ -1482,14 +1490,14 @@ pub fn diagnose(
             .zip(&r.values)
             .map(|(f, v)| (f.path.clone(), *v))
             .collect();
-        if let Some(why) = cause.below_resolution(&fitted, &ctx) {
+        if let Some(why) = cause.and_then(|c| c.below_resolution(&fitted, &ctx)) {
             if rep.significant {
                 rep.significant = false;
                 rep.note = format!("not named: {why}");
             }
         }
         if !rep.significant {
-            if let Some(why) = cause.named_by_evidence(&ctx) {
+            if let Some(why) = cause.and_then(|c| c.named_by_evidence(&ctx)) {
                 rep.significant = true;
                 rep.note = format!("named by the evidence: {why}");
             }

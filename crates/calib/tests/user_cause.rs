@@ -1,0 +1,280 @@
+//! A cause written by the user (issue 12, "Diagnosis"): `data/causes/reactive_droop.toml` adds
+//! a user-defined diagram (reactive-current compensation in front of the AVR) as a model
+//! extension. The diagnosis must try it like a catalog cause: name it when it is hidden in the
+//! truth of a synthetic event (with its X_c recovered), and not on a clean event.
+
+use std::path::{Path, PathBuf};
+
+use itaipu_calib::diagnose::trial::{base_unit, trial_noise};
+use itaipu_calib::diagnose::user_cause::{read_all, UserCause};
+use itaipu_calib::diagnose::{context, diagnose, DiagnoseOptions};
+use itaipu_calib::fit::Silent;
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::simulate::{simulate, SimOptions};
+use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
+use itaipu_dynamics::unit::Unit;
+
+fn data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data")
+        .join(rel)
+}
+
+fn droop() -> UserCause {
+    UserCause::read(&data("causes/reactive_droop.toml")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn dip_event(truth: &Unit, seed: u64) -> Event {
+    let profile = VoltageProfile::preset(EventKind::FaultDip, 20.0, 60.0, seed);
+    synthesize(
+        "droop-trial",
+        truth,
+        &profile,
+        737.0,
+        &trial_noise(seed),
+        &SimOptions::default(),
+    )
+    .unwrap()
+}
+
+/// The truth: the synthetic unit with X_c in front of its SEXS.
+fn truth(x_c: f64) -> Unit {
+    let base = base_unit();
+    let profile = VoltageProfile::preset(EventKind::FaultDip, 20.0, 60.0, 1);
+    let probe = synthesize(
+        "probe",
+        &base,
+        &profile,
+        737.0,
+        &PmuNoise::none(),
+        &SimOptions::default(),
+    )
+    .unwrap();
+    let ctx = context(&base, &probe).unwrap();
+    droop()
+        .hide(&base, &ctx, &[("droop.x_c", x_c)])
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn max_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn the_extension_is_neutral_at_its_start_and_acts_with_a_droop() {
+    let base = base_unit();
+    let ev = dip_event(&base, 3);
+    let plain = simulate(&base, &ev, &SimOptions::default()).unwrap();
+    let neutral = simulate(&truth(0.0), &ev, &SimOptions::default()).unwrap();
+    let with = simulate(&truth(0.08), &ev, &SimOptions::default()).unwrap();
+    let q = |t: &itaipu_dynamics::simulate::Traces| t.get("q_pu").unwrap().to_vec();
+    // X_c = 0: the compensated voltage is the terminal voltage, the same unit.
+    assert!(max_diff(&q(&plain), &q(&neutral)) < 1e-9);
+    // A droop lowers the AVR's answer to the dip: Q rises, so the regulated voltage looks
+    // higher and the field is forced less (a lower mean E_fd over the event, both ride the
+    // ceiling in the dip), and Q moves well above the noise level of a PMU (0.002 pu).
+    let e = |t: &itaipu_dynamics::simulate::Traces| t.get("efd").unwrap().to_vec();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (e0, e1) = (mean(&e(&plain)), mean(&e(&with)));
+    let dq = max_diff(&q(&plain), &q(&with));
+    println!("mean E_fd {e0} -> {e1}; largest change of Q {dq}");
+    assert!(e1 < e0 - 1e-3, "mean E_fd {e1} with droop vs {e0} without");
+    assert!(dq > 0.01, "Q changes by {dq}");
+    // Its exciter reads the compensated voltage: V_c = V_t + X_c Q/V_t (machine base) at t = 0.
+    let u = truth(0.08);
+    let tr = simulate(&u, &ev, &SimOptions::default()).unwrap();
+    let (vt, qe, vc) = (
+        tr.get("v_term").unwrap()[0],
+        tr.get("qe").unwrap()[0],
+        tr.get("v_comp").unwrap()[0],
+    );
+    assert!((vc - (vt + 0.08 * qe / vt)).abs() < 1e-12, "{vc} {vt} {qe}");
+}
+
+#[test]
+fn a_hidden_droop_is_named_by_the_user_cause_with_its_reactance() {
+    let x_true = 0.06;
+    let ev = dip_event(&truth(x_true), 11);
+    let opts = DiagnoseOptions {
+        causes: vec!["reactive_droop".into(), "terminal_load".into()],
+        user_causes: vec![droop()],
+        seed: 11,
+        ..Default::default()
+    };
+    let res = diagnose(&base_unit(), std::slice::from_ref(&ev), &[], &opts, &Silent).unwrap();
+    let v = &res.report.verdict;
+    println!("{}", v.statement);
+    assert_eq!(v.cause, "reactive_droop", "{}", v.statement);
+    let got = v
+        .key_parameters
+        .iter()
+        .find(|(p, _, _)| p == "droop.x_c")
+        .map(|(_, x, _)| *x)
+        .expect("X_c reported");
+    assert!(
+        (got - x_true).abs() <= 0.1 * x_true,
+        "X_c recovered {got}, truth {x_true}"
+    );
+    let cand = &res.report.candidates[0];
+    assert_eq!(cand.cause, "reactive_droop");
+    assert_eq!(
+        cand.title,
+        "reactive-current compensation (droop) in the AVR"
+    );
+    assert!(cand.significant);
+}
+
+#[test]
+fn on_a_clean_event_the_user_cause_is_not_named() {
+    let ev = dip_event(&base_unit(), 12);
+    let opts = DiagnoseOptions {
+        causes: vec!["reactive_droop".into()],
+        user_causes: vec![droop()],
+        seed: 12,
+        ..Default::default()
+    };
+    let res = diagnose(&base_unit(), std::slice::from_ref(&ev), &[], &opts, &Silent).unwrap();
+    assert_ne!(
+        res.report.verdict.cause, "reactive_droop",
+        "{}",
+        res.report.verdict.statement
+    );
+    assert!(res
+        .report
+        .candidates
+        .iter()
+        .any(|c| c.cause == "reactive_droop" && c.applicable));
+}
+
+#[test]
+fn a_cause_that_does_not_apply_is_reported_as_such() {
+    // A unit without a block named 'exciter' to rewire.
+    let u = base_unit().without(&["pss", "exciter"]).unwrap();
+    let ev = dip_event(&base_unit(), 13);
+    let ext = droop().extend(&u, &context(&u, &ev).unwrap()).unwrap();
+    let why = ext.err().expect("not applicable");
+    assert!(why.contains("no block named 'exciter'"), "{why}");
+}
+
+#[test]
+fn each_bad_cause_file_is_refused_naming_the_file_and_the_field() {
+    let dir = std::env::temp_dir().join(format!("itaipu-user-cause-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(
+        data("causes/reactive_droop.diagram.toml"),
+        dir.join("reactive_droop.diagram.toml"),
+    )
+    .unwrap();
+    let good = std::fs::read_to_string(data("causes/reactive_droop.toml")).unwrap();
+    let path = dir.join("cause.toml");
+    UserCause::parse(&good, &path).unwrap();
+    let diagram = std::fs::read_to_string(data("causes/reactive_droop.diagram.toml")).unwrap();
+    let cases: Vec<(&str, String, &[&str])> = vec![
+        (
+            "a catalog id",
+            good.replace("id = \"reactive_droop\"", "id = \"oel\""),
+            &["id", "taken"],
+        ),
+        (
+            "no title",
+            good.replace("title = ", "titel = "),
+            &["titel", "unknown key"],
+        ),
+        (
+            "no block",
+            good.replace("[[block]]", "[[blocks]]"),
+            &["blocks", "unknown key"],
+        ),
+        (
+            "unknown model",
+            good.replace("model = \"diagram\"", "model = \"SEXX\""),
+            &["block 'droop'.model", "unknown model 'SEXX'"],
+        ),
+        (
+            "diagram parameter unknown",
+            good.replace("x_c = 0.0", "x_d = 0.0"),
+            &["block 'droop'.x_d", "unknown parameter"],
+        ),
+        (
+            "diagram file missing",
+            good.replace("reactive_droop.diagram.toml", "absent.toml"),
+            &["block 'droop'", "absent.toml"],
+        ),
+        (
+            "free parameter unknown",
+            good.replace("param = \"droop.x_c\"", "param = \"droop.x\""),
+            &["free[0].param", "no parameter 'x'"],
+        ),
+        (
+            "free bounds",
+            good.replace("max = 0.15", "max = -0.2"),
+            &["free[0].max", "must exceed min"],
+        ),
+        (
+            "free without bounds",
+            good.replace("min = -0.15\nmax = 0.15\n", ""),
+            &["free[0]", "min and max"],
+        ),
+        (
+            "interacting both",
+            good.replace("factor = 3.0", "factor = 3.0\nmin = 1.0\nmax = 2.0"),
+            &["interacting[0]", "not both"],
+        ),
+        (
+            "rewire not a table",
+            good.replace("exciter = { v_term = \"v_comp\" }", "exciter = 1"),
+            &["rewire.exciter", "must be a table"],
+        ),
+        (
+            "no free",
+            good.replace("[[free]]", "[[freed]]"),
+            &["freed", "unknown key"],
+        ),
+    ];
+    for (what, text, mentions) in cases {
+        let e = UserCause::parse(&text, &path)
+            .err()
+            .unwrap_or_else(|| panic!("{what}: accepted"));
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with(&path.display().to_string()),
+            "{what}: {msg}"
+        );
+        for m in mentions {
+            assert!(msg.contains(m), "{what}: '{msg}' should mention '{m}'");
+        }
+    }
+    // A bad diagram of the cause names the diagram file, the block and the field.
+    std::fs::write(
+        dir.join("reactive_droop.diagram.toml"),
+        diagram.replace("type = \"gain\"", "type = \"gian\""),
+    )
+    .unwrap();
+    let msg = UserCause::parse(&good, &path).unwrap_err().to_string();
+    assert!(
+        msg.contains("reactive_droop.diagram.toml")
+            && msg.contains("block 'drop'")
+            && msg.contains("gian"),
+        "{msg}"
+    );
+    // Two files with one id.
+    std::fs::write(dir.join("reactive_droop.diagram.toml"), &diagram).unwrap();
+    std::fs::write(&path, &good).unwrap();
+    let e = read_all(&[path.clone(), path.clone()]).unwrap_err();
+    assert!(e.to_string().contains("also the id"), "{e}");
+    // Extended on a unit that already has a block of its name: not applicable.
+    let mut u = base_unit();
+    let first = droop().hide(&u, &Default::default(), &[]).unwrap();
+    u = first;
+    let ev = dip_event(&base_unit(), 14);
+    let why = droop()
+        .extend(&u, &context(&u, &ev).unwrap())
+        .unwrap()
+        .err()
+        .unwrap();
+    assert!(why.contains("already has a block named 'droop'"), "{why}");
+    std::fs::remove_dir_all(&dir).ok();
+}
