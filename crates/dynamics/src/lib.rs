@@ -17,6 +17,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod block;
+pub mod dyr;
 pub mod event;
 pub mod integrate;
 pub mod models;
