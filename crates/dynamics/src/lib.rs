@@ -22,6 +22,7 @@ pub mod event;
 pub mod integrate;
 pub mod models;
 pub mod params;
+pub mod pmu_import;
 pub mod registry;
 pub mod simulate;
 pub mod synthetic;
