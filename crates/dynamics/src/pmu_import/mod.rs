@@ -569,18 +569,26 @@ pub(crate) fn finish(
             ));
         }
     }
-    let mut dts: Vec<f64> = kept.windows(2).map(|w| w[1].0 - w[0].0).collect();
+    // Gaps are time stamps that never came (on every sample read, so that a dropout removed
+    // here is not also a gap); the rate is over the intervals without a gap.
+    let all: Vec<(f64, &str)> = samples.iter().map(|s| (rel(s), s.at.as_str())).collect();
+    let mut dts: Vec<f64> = all.windows(2).map(|w| w[1].0 - w[0].0).filter(|d| *d > 0.0).collect();
+    if dts.is_empty() {
+        dts = kept.windows(2).map(|w| w[1].0 - w[0].0).collect();
+    }
     dts.sort_by(|x, y| x.partial_cmp(y).expect("finite"));
-    let dt = dts[dts.len() / 2];
+    let dt_median = dts[dts.len() / 2];
+    let regular: Vec<f64> = dts.iter().copied().filter(|d| *d <= 1.5 * dt_median).collect();
+    let dt = regular.iter().sum::<f64>() / regular.len() as f64;
     let mut gaps = vec![];
-    for w in kept.windows(2) {
+    for w in all.windows(2) {
         let d = w[1].0 - w[0].0;
-        if d > 1.5 * dt {
+        if d > 1.5 * dt_median {
             gaps.push(Gap {
                 from_s: w[0].0 - t0,
                 to_s: w[1].0 - t0,
                 missing: ((d / dt).round() as usize).saturating_sub(1).max(1),
-                at: w[1].6.clone(),
+                at: w[1].1.to_string(),
             });
         }
     }
