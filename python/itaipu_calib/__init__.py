@@ -128,11 +128,14 @@ from ._core import (
     __version__,
     diagnose,
     fit,
+    import_pmu,
     load_event,
     load_unit,
     models,
+    read_dyr,
     simulate,
     synth,
+    write_dyr,
 )
 
 __all__ = [
@@ -150,9 +153,12 @@ __all__ = [
     "__version__",
     "diagnose",
     "fit",
+    "import_pmu",
     "load_event",
     "load_unit",
     "models",
+    "read_dyr",
     "simulate",
     "synth",
+    "write_dyr",
 ]

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::Subcommand;
-use itaipu_dynamics::dyr::{read_dyr, write_dyr, DyrBases, DyrError, DyrUnit, PartialBases};
+use itaipu_dynamics::dyr::{read_dyr, resolve_bases, side_file, write_dyr, DyrError, DyrUnit, PartialBases};
 use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::{load_unit, CliError};
@@ -90,35 +90,22 @@ fn dyr_error(e: DyrError) -> CliError {
     CliError::new(4, e.to_string())
 }
 
-/// Reads a unit from a .dyr with bases from the options, the side file, or `<stem>.bases.toml`.
+/// Reads a unit from a .dyr with bases from the options, the side file, or `<stem>.bases.toml`
+/// (a missing base is a usage error, exit 2; a bad file exit 4).
 pub fn load_dyr(path: &Path, bus: Option<i64>, id: Option<&str>, b: &BasesArgs) -> Result<DyrUnit, CliError> {
     let over = PartialBases { mbase: b.mbase, nominal_hz: b.nominal_hz, zr: b.zr, zx: b.zx, name: None };
-    let side = b.bases.clone().or_else(|| {
-        let p = side_file(path);
-        p.is_file().then_some(p)
-    });
-    let bases = match &side {
-        Some(s) => {
-            let text = std::fs::read_to_string(s)
-                .map_err(|e| CliError::new(4, format!("{}: cannot read the bases: {e}", s.display())))?;
-            DyrBases::parse(&text, s, Some(&over)).map_err(dyr_error)?
+    let bases = resolve_bases(path, b.bases.as_deref(), &over).map_err(|e| match &e {
+        DyrError::Bases { path: p, .. } if p == path => {
+            CliError::new(2, format!("{e} (give --mbase and --nominal-hz, or a side file with --bases or beside the .dyr as {})", side_file(path).display()))
         }
-        None => over.finish(Path::new("command line")).map_err(|e| {
-            CliError::new(2, format!("{e} (give --mbase and --nominal-hz, or a side file with --bases)"))
-        })?,
-    };
+        _ => dyr_error(e),
+    })?;
     let select = match (bus, id) {
         (Some(b), i) => Some((b, i.unwrap_or("1"))),
         (None, Some(_)) => return Err(CliError::new(2, "--id needs --bus")),
         (None, None) => None,
     };
     read_dyr(path, select, &bases).map_err(dyr_error)
-}
-
-/// `<stem>.bases.toml` beside a .dyr.
-pub fn side_file(dyr: &Path) -> PathBuf {
-    let stem = dyr.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    dyr.with_file_name(format!("{stem}.bases.toml"))
 }
 
 fn refuse_existing(p: &Path, force: bool) -> Result<(), CliError> {

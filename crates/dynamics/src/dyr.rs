@@ -245,6 +245,26 @@ impl PartialBases {
     }
 }
 
+/// `<stem>.bases.toml` beside a `.dyr`: the side file read by default.
+pub fn side_file(dyr: &Path) -> PathBuf {
+    let stem = dyr.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    dyr.with_file_name(format!("{stem}.bases.toml"))
+}
+
+/// The bases of `dyr`: the side file `side` (else [`side_file`] if it exists) with the values
+/// of `over` on top; without a side file, `over` alone (a missing value names the `.dyr`).
+pub fn resolve_bases(dyr: &Path, side: Option<&Path>, over: &PartialBases) -> Result<DyrBases, DyrError> {
+    let default = side_file(dyr);
+    let side = side.map(Path::to_path_buf).or_else(|| default.is_file().then_some(default));
+    match side {
+        Some(s) => {
+            let text = std::fs::read_to_string(&s).map_err(|source| DyrError::Io { path: s.clone(), source })?;
+            DyrBases::parse(&text, &s, Some(over))
+        }
+        None => over.clone().finish(dyr),
+    }
+}
+
 /// A bad `.dyr`, side file or unit. Messages name the file and the line or field.
 #[derive(Debug, thiserror::Error)]
 pub enum DyrError {
