@@ -4,7 +4,9 @@
 use std::path::{Path, PathBuf};
 
 use clap::Subcommand;
-use itaipu_dynamics::dyr::{read_dyr, resolve_bases, side_file, write_dyr, DyrError, DyrUnit, PartialBases};
+use itaipu_dynamics::dyr::{
+    read_dyr, resolve_bases, side_file, write_dyr, DyrError, DyrUnit, PartialBases,
+};
 use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::{load_unit, CliError};
@@ -92,8 +94,19 @@ fn dyr_error(e: DyrError) -> CliError {
 
 /// Reads a unit from a .dyr with bases from the options, the side file, or `<stem>.bases.toml`
 /// (a missing base is a usage error, exit 2; a bad file exit 4).
-pub fn load_dyr(path: &Path, bus: Option<i64>, id: Option<&str>, b: &BasesArgs) -> Result<DyrUnit, CliError> {
-    let over = PartialBases { mbase: b.mbase, nominal_hz: b.nominal_hz, zr: b.zr, zx: b.zx, name: None };
+pub fn load_dyr(
+    path: &Path,
+    bus: Option<i64>,
+    id: Option<&str>,
+    b: &BasesArgs,
+) -> Result<DyrUnit, CliError> {
+    let over = PartialBases {
+        mbase: b.mbase,
+        nominal_hz: b.nominal_hz,
+        zr: b.zr,
+        zx: b.zx,
+        name: None,
+    };
     let bases = resolve_bases(path, b.bases.as_deref(), &over).map_err(|e| match &e {
         DyrError::Bases { path: p, .. } if p == path => {
             CliError::new(2, format!("{e} (give --mbase and --nominal-hz, or a side file with --bases or beside the .dyr as {})", side_file(path).display()))
@@ -110,19 +123,29 @@ pub fn load_dyr(path: &Path, bus: Option<i64>, id: Option<&str>, b: &BasesArgs) 
 
 fn refuse_existing(p: &Path, force: bool) -> Result<(), CliError> {
     if p.exists() && !force {
-        return Err(CliError::new(7, format!("{} exists; refusing to overwrite (use --force, or another --out)", p.display())));
+        return Err(CliError::new(
+            7,
+            format!(
+                "{} exists; refusing to overwrite (use --force, or another --out)",
+                p.display()
+            ),
+        ));
     }
     Ok(())
 }
 
 fn write(p: &Path, text: &str) -> Result<(), CliError> {
-    std::fs::write(p, text).map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))
+    std::fs::write(p, text)
+        .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))
 }
 
 pub fn cmd_dyr(a: &DyrArgs) -> Result<(), CliError> {
     match &a.cmd {
         DyrCmd::Read(r) => {
-            let out = r.out.clone().unwrap_or_else(|| r.file.with_extension("toml"));
+            let out = r
+                .out
+                .clone()
+                .unwrap_or_else(|| r.file.with_extension("toml"));
             refuse_existing(&out, r.force)?;
             let d = load_dyr(&r.file, r.bus, r.id.as_deref(), &r.bases)?;
             for w in &d.warnings {
@@ -134,8 +157,16 @@ pub fn cmd_dyr(a: &DyrArgs) -> Result<(), CliError> {
                 r.file.display(),
                 d.bus,
                 d.id,
-                d.used.iter().map(|u| u.1.as_str()).collect::<Vec<_>>().join(" + "),
-                d.used.iter().map(|u| u.0.to_string()).collect::<Vec<_>>().join(", "),
+                d.used
+                    .iter()
+                    .map(|u| u.1.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" + "),
+                d.used
+                    .iter()
+                    .map(|u| u.0.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 d.unit.machine_mva,
                 d.unit.nominal_hz
             );
@@ -143,7 +174,10 @@ pub fn cmd_dyr(a: &DyrArgs) -> Result<(), CliError> {
         }
         DyrCmd::Write(w) => {
             let unit = load_unit(&w.unit)?;
-            let out = w.out.clone().unwrap_or_else(|| w.unit.with_extension("dyr"));
+            let out = w
+                .out
+                .clone()
+                .unwrap_or_else(|| w.unit.with_extension("dyr"));
             let side = side_file(&out);
             refuse_existing(&out, w.force)?;
             refuse_existing(&side, w.force)?;

@@ -50,7 +50,11 @@ pub struct ImportArgs {
 
 /// Exit code of an import error: 2 for an option, 3 for the data.
 pub fn import_error(e: ImportError) -> CliError {
-    let code = if matches!(e, ImportError::Options { .. }) { 2 } else { 3 };
+    let code = if matches!(e, ImportError::Options { .. }) {
+        2
+    } else {
+        3
+    };
     CliError::new(code, e.to_string())
 }
 
@@ -77,7 +81,8 @@ pub fn cmd_import(a: &ImportArgs) -> Result<(), CliError> {
     crate::check_out(a.out.as_deref(), a.force)?;
     let (event, report) = import(&a.file, &opts).map_err(import_error)?;
     let out = prepare_out(a.out.as_deref(), &format!("import-{}", event.name), a.force)?;
-    let written = write_event_folder(&event, &report, &out).map_err(|e| CliError::new(7, e.to_string()))?;
+    let written =
+        write_event_folder(&event, &report, &out).map_err(|e| CliError::new(7, e.to_string()))?;
     print!("{report}");
     println!(
         "event  {}: {} samples, {:.3}-{:.3} s, system base {} MVA, {} Hz",
@@ -90,7 +95,11 @@ pub fn cmd_import(a: &ImportArgs) -> Result<(), CliError> {
     );
     println!(
         "wrote  {}",
-        written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+        written
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     Ok(())
 }

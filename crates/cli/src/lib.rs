@@ -204,7 +204,10 @@ pub fn load_event(path: &Path) -> Result<Event, CliError> {
 /// Reads a unit file (exit code 4 on error). A `.dyr` is read with the bases of
 /// `<stem>.bases.toml` beside it (its warnings printed).
 pub fn load_unit(path: &Path) -> Result<Unit, CliError> {
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("dyr")) {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("dyr"))
+    {
         let d = dyr_cmd::load_dyr(path, None, None, &dyr_cmd::BasesArgs::default())?;
         for w in &d.warnings {
             eprintln!("warning: {w}");

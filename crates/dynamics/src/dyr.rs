@@ -52,23 +52,60 @@ struct DyrModel {
 }
 
 const SALIENT: &[&str] = &[
-    "t_d0_prime", "t_d0_pp", "t_q0_pp", "h", "d", "x_d", "x_q", "x_d_prime", "x_d_pp", "x_l", "s10",
+    "t_d0_prime",
+    "t_d0_pp",
+    "t_q0_pp",
+    "h",
+    "d",
+    "x_d",
+    "x_q",
+    "x_d_prime",
+    "x_d_pp",
+    "x_l",
+    "s10",
     "s12",
 ];
 
 static DYR_MODELS: &[DyrModel] = &[
-    DyrModel { name: "GENSAE", role: Role::Machine, icons: &[], cons: SALIENT },
-    DyrModel { name: "GENSAL", role: Role::Machine, icons: &[], cons: SALIENT },
+    DyrModel {
+        name: "GENSAE",
+        role: Role::Machine,
+        icons: &[],
+        cons: SALIENT,
+    },
+    DyrModel {
+        name: "GENSAL",
+        role: Role::Machine,
+        icons: &[],
+        cons: SALIENT,
+    },
     DyrModel {
         name: "GENROU",
         role: Role::Machine,
         icons: &[],
         cons: &[
-            "t_d0_prime", "t_d0_pp", "t_q0_prime", "t_q0_pp", "h", "d", "x_d", "x_q", "x_d_prime",
-            "x_q_prime", "x_d_pp", "x_l", "s10", "s12",
+            "t_d0_prime",
+            "t_d0_pp",
+            "t_q0_prime",
+            "t_q0_pp",
+            "h",
+            "d",
+            "x_d",
+            "x_q",
+            "x_d_prime",
+            "x_q_prime",
+            "x_d_pp",
+            "x_l",
+            "s10",
+            "s12",
         ],
     },
-    DyrModel { name: "GENCLS", role: Role::Machine, icons: &[], cons: &["h", "d"] },
+    DyrModel {
+        name: "GENCLS",
+        role: Role::Machine,
+        icons: &[],
+        cons: &["h", "d"],
+    },
     DyrModel {
         name: "SEXS",
         role: Role::Exciter,
@@ -109,7 +146,9 @@ const IEEEST_INPUTS: &[(i64, &str, &str)] = &[
 ];
 
 fn dyr_model(name: &str) -> Option<&'static DyrModel> {
-    DYR_MODELS.iter().find(|m| m.name.eq_ignore_ascii_case(name))
+    DYR_MODELS
+        .iter()
+        .find(|m| m.name.eq_ignore_ascii_case(name))
 }
 
 /// The models this module reads and writes.
@@ -147,7 +186,11 @@ impl DyrBases {
 
     /// Parses side-file text; values in `over` (e.g. from the command line) replace the file's
     /// and may stand in for missing keys.
-    pub fn parse(text: &str, path: &Path, over: Option<&PartialBases>) -> Result<DyrBases, DyrError> {
+    pub fn parse(
+        text: &str,
+        path: &Path,
+        over: Option<&PartialBases>,
+    ) -> Result<DyrBases, DyrError> {
         let field = |f: &str, msg: String| DyrError::Bases {
             path: path.into(),
             field: f.into(),
@@ -160,7 +203,10 @@ impl DyrBases {
         })?;
         for k in table.keys() {
             if !BASES_KEYS.contains(&k.as_str()) {
-                return Err(field(k, format!("unknown key (accepted: {})", BASES_KEYS.join(", "))));
+                return Err(field(
+                    k,
+                    format!("unknown key (accepted: {})", BASES_KEYS.join(", ")),
+                ));
             }
         }
         let num = |k: &str| -> Result<Option<f64>, DyrError> {
@@ -217,21 +263,33 @@ impl PartialBases {
             msg,
         };
         let mbase = self.mbase.ok_or_else(|| {
-            field("mbase", "missing: the machine base MBASE [MVA] from the power-flow machine record".into())
+            field(
+                "mbase",
+                "missing: the machine base MBASE [MVA] from the power-flow machine record".into(),
+            )
         })?;
         if !(mbase.is_finite() && mbase > 0.0) {
-            return Err(field("mbase", format!("must be a finite number > 0 MVA (got {mbase})")));
+            return Err(field(
+                "mbase",
+                format!("must be a finite number > 0 MVA (got {mbase})"),
+            ));
         }
         let nominal_hz = self
             .nominal_hz
             .ok_or_else(|| field("nominal_hz", "missing: the nominal frequency [Hz]".into()))?;
         if !(nominal_hz.is_finite() && nominal_hz > 0.0) {
-            return Err(field("nominal_hz", format!("must be a finite number > 0 Hz (got {nominal_hz})")));
+            return Err(field(
+                "nominal_hz",
+                format!("must be a finite number > 0 Hz (got {nominal_hz})"),
+            ));
         }
         for (k, v) in [("zr", self.zr), ("zx", self.zx)] {
             if let Some(x) = v {
                 if !(x.is_finite() && x >= 0.0) {
-                    return Err(field(k, format!("must be a finite number >= 0 pu (got {x})")));
+                    return Err(field(
+                        k,
+                        format!("must be a finite number >= 0 pu (got {x})"),
+                    ));
                 }
             }
         }
@@ -247,18 +305,30 @@ impl PartialBases {
 
 /// `<stem>.bases.toml` beside a `.dyr`: the side file read by default.
 pub fn side_file(dyr: &Path) -> PathBuf {
-    let stem = dyr.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = dyr
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
     dyr.with_file_name(format!("{stem}.bases.toml"))
 }
 
 /// The bases of `dyr`: the side file `side` (else [`side_file`] if it exists) with the values
 /// of `over` on top; without a side file, `over` alone (a missing value names the `.dyr`).
-pub fn resolve_bases(dyr: &Path, side: Option<&Path>, over: &PartialBases) -> Result<DyrBases, DyrError> {
+pub fn resolve_bases(
+    dyr: &Path,
+    side: Option<&Path>,
+    over: &PartialBases,
+) -> Result<DyrBases, DyrError> {
     let default = side_file(dyr);
-    let side = side.map(Path::to_path_buf).or_else(|| default.is_file().then_some(default));
+    let side = side
+        .map(Path::to_path_buf)
+        .or_else(|| default.is_file().then_some(default));
     match side {
         Some(s) => {
-            let text = std::fs::read_to_string(&s).map_err(|source| DyrError::Io { path: s.clone(), source })?;
+            let text = std::fs::read_to_string(&s).map_err(|source| DyrError::Io {
+                path: s.clone(),
+                source,
+            })?;
             DyrBases::parse(&text, &s, Some(over))
         }
         None => over.clone().finish(dyr),
@@ -379,7 +449,10 @@ pub fn parse_records(text: &str, path: &Path) -> Result<Vec<RawRecord>, DyrError
                         s.push(d);
                     }
                     if !closed {
-                        return Err(syntax(line, format!("string {c}{s} is not closed on its line")));
+                        return Err(syntax(
+                            line,
+                            format!("string {c}{s} is not closed on its line"),
+                        ));
                     }
                     // A quoted empty string still counts as a field.
                     fields.push((format!("\u{1}{}", s.trim()), line));
@@ -420,7 +493,11 @@ fn make_record(fields: Vec<(String, usize)>, path: &Path) -> Result<RawRecord, D
     if fields.len() < 3 {
         return Err(syntax(format!(
             "record '{}' is too short: a record is IBUS 'MODEL' ID data… /",
-            fields.iter().map(|f| unquote(&f.0)).collect::<Vec<_>>().join(" ")
+            fields
+                .iter()
+                .map(|f| unquote(&f.0))
+                .collect::<Vec<_>>()
+                .join(" ")
         )));
     }
     let bus_text = unquote(&fields[0].0);
@@ -429,7 +506,9 @@ fn make_record(fields: Vec<(String, usize)>, path: &Path) -> Result<RawRecord, D
         .map_err(|_| syntax(format!("bus number '{bus_text}' is not an integer")))?;
     let model = unquote(&fields[1].0).to_ascii_uppercase();
     if model.is_empty() || model.parse::<f64>().is_ok() {
-        return Err(syntax(format!("'{model}' is not a model name (record: IBUS 'MODEL' ID data… /)")));
+        return Err(syntax(format!(
+            "'{model}' is not a model name (record: IBUS 'MODEL' ID data… /)"
+        )));
     }
     let id = unquote(&fields[2].0).to_string();
     Ok(RawRecord {
@@ -460,7 +539,11 @@ pub struct DyrUnit {
 }
 
 /// Reads the unit `select` = (bus, id) from a `.dyr` file (any unit if the file holds one).
-pub fn read_dyr(path: &Path, select: Option<(i64, &str)>, bases: &DyrBases) -> Result<DyrUnit, DyrError> {
+pub fn read_dyr(
+    path: &Path,
+    select: Option<(i64, &str)>,
+    bases: &DyrBases,
+) -> Result<DyrUnit, DyrError> {
     let text = std::fs::read_to_string(path).map_err(|source| DyrError::Io {
         path: path.into(),
         source,
@@ -500,19 +583,18 @@ pub fn parse_dyr(
                 0 => {
                     return Err(DyrError::Selection {
                         path: path.into(),
-                        msg: "no machine record (GENSAE, GENSAL, GENROU, GENCLS) in the file".into(),
+                        msg: "no machine record (GENSAE, GENSAL, GENROU, GENCLS) in the file"
+                            .into(),
                     })
                 }
-                _ => {
-                    return Err(DyrError::Selection {
-                        path: path.into(),
-                        msg: format!(
-                            "the file holds {} machines ({}); choose one by bus number and machine id",
-                            units.len(),
-                            list_units(&units)
-                        ),
-                    })
-                }
+                _ => return Err(DyrError::Selection {
+                    path: path.into(),
+                    msg: format!(
+                        "the file holds {} machines ({}); choose one by bus number and machine id",
+                        units.len(),
+                        list_units(&units)
+                    ),
+                }),
             }
         }
     };
@@ -531,7 +613,10 @@ pub fn parse_dyr(
         }
         let Some(m) = dyr_model(&r.model) else {
             let name = if r.model == "USRMDL" {
-                format!("user model {}", r.data.first().map(|d| d.0.as_str()).unwrap_or("?"))
+                format!(
+                    "user model {}",
+                    r.data.first().map(|d| d.0.as_str()).unwrap_or("?")
+                )
             } else {
                 format!("model {}", r.model)
             };
@@ -591,7 +676,10 @@ pub fn parse_dyr(
         });
     };
     let name = bases.name.clone().unwrap_or_else(|| {
-        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
         format!("{stem} bus {bus} id {id}")
     });
     let mut unit = Unit::new(&name, bases.mbase, bases.nominal_hz);
@@ -608,16 +696,24 @@ pub fn parse_dyr(
                 path: path.into(),
                 line: r.line,
                 model: m.name.into(),
-                msg: format!("GENCLS (line {}) has no field winding: an exciter cannot be attached", mrec.line),
+                msg: format!(
+                    "GENCLS (line {}) has no field winding: an exciter cannot be attached",
+                    mrec.line
+                ),
             });
         }
         let (block, rewire) = build(r, m, bases, path, &mut warnings)?;
         unit.add(role.section(), block, &rewire)
-            .map_err(|source| DyrError::Unit { path: path.into(), source })?;
+            .map_err(|source| DyrError::Unit {
+                path: path.into(),
+                source,
+            })?;
         used.push((r.line, m.name.to_string()));
     }
-    unit.finish()
-        .map_err(|source| DyrError::Unit { path: path.into(), source })?;
+    unit.finish().map_err(|source| DyrError::Unit {
+        path: path.into(),
+        source,
+    })?;
     Ok(DyrUnit {
         unit,
         bus,
@@ -628,7 +724,11 @@ pub fn parse_dyr(
 }
 
 fn list_units(u: &[(i64, String)]) -> String {
-    let mut s: Vec<String> = u.iter().take(12).map(|(b, i)| format!("bus {b} id '{i}'")).collect();
+    let mut s: Vec<String> = u
+        .iter()
+        .take(12)
+        .map(|(b, i)| format!("bus {b} id '{i}'"))
+        .collect();
     if u.len() > 12 {
         s.push(format!("and {} more", u.len() - 12));
     }
@@ -652,7 +752,12 @@ fn build(
     };
     let n = m.icons.len() + m.cons.len();
     if r.data.len() != n {
-        let names: Vec<String> = m.icons.iter().map(|s| s.to_string()).chain(m.cons.iter().map(|c| alias_of(m, c))).collect();
+        let names: Vec<String> = m
+            .icons
+            .iter()
+            .map(|s| s.to_string())
+            .chain(m.cons.iter().map(|c| alias_of(m, c)))
+            .collect();
         return Err(err(
             r.line,
             format!(
@@ -676,9 +781,19 @@ fn build(
     for (k, con) in m.cons.iter().enumerate() {
         let (text, line) = &r.data[m.icons.len() + k];
         let v = parse_number(text).ok_or_else(|| {
-            err(*line, format!("CON {} ({}) = '{text}' is not a number", k + 1, alias_of(m, con)))
+            err(
+                *line,
+                format!(
+                    "CON {} ({}) = '{text}' is not a number",
+                    k + 1,
+                    alias_of(m, con)
+                ),
+            )
         })?;
-        let idx = block.params().index_of(con).expect("CON names are canonical parameter names");
+        let idx = block
+            .params()
+            .index_of(con)
+            .expect("CON names are canonical parameter names");
         block.params_mut().set(idx, v);
     }
     let mut set = |name: &str, v: f64| {
@@ -694,7 +809,10 @@ fn build(
         Role::Machine => {
             set("r_a", bases.zr.unwrap_or(0.0));
             if bases.zr.is_none() {
-                warnings.push(wline(format!("{}: R_a = 0 (ZSORCE R not given: zr in the bases)", m.name)));
+                warnings.push(wline(format!(
+                    "{}: R_a = 0 (ZSORCE R not given: zr in the bases)",
+                    m.name
+                )));
             }
             if m.name == "GENCLS" {
                 let zx = bases.zx.ok_or_else(|| DyrError::Bases {
@@ -726,7 +844,11 @@ fn build(
                     r.data[0].1,
                     format!(
                         "input code IC = {ic} has no signal in the engine (supported: {})",
-                        IEEEST_INPUTS.iter().map(|(c, _, d)| format!("{c} {d}")).collect::<Vec<_>>().join(", ")
+                        IEEEST_INPUTS
+                            .iter()
+                            .map(|(c, _, d)| format!("{c} {d}"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
                     ),
                 ));
             };
@@ -742,9 +864,7 @@ fn build(
         }
         _ => {}
     }
-    block
-        .validate()
-        .map_err(|e| err(r.line, e.to_string()))?;
+    block.validate().map_err(|e| err(r.line, e.to_string()))?;
     Ok((block, rewire))
 }
 
@@ -753,7 +873,11 @@ fn alias_of(m: &DyrModel, name: &str) -> String {
     registry::find(m.name)
         .and_then(|i| {
             let b = i.create();
-            b.params().specs().iter().find(|s| s.name == name).map(|s| s.alias.to_string())
+            b.params()
+                .specs()
+                .iter()
+                .find(|s| s.name == name)
+                .map(|s| s.alias.to_string())
         })
         .unwrap_or_else(|| name.to_string())
 }
@@ -798,8 +922,15 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
         let mut vals: Vec<String> = vec![];
         let rew = inst.rewiring();
         if m.name == "IEEEST" {
-            let sig = rew.iter().find(|(p, _)| p == "u").map(|(_, s)| s.as_str()).unwrap_or("speed");
-            let ic = IEEEST_INPUTS.iter().find(|(_, s, _)| *s == sig).map(|(c, _, _)| *c);
+            let sig = rew
+                .iter()
+                .find(|(p, _)| p == "u")
+                .map(|(_, s)| s.as_str())
+                .unwrap_or("speed");
+            let ic = IEEEST_INPUTS
+                .iter()
+                .find(|(_, s, _)| *s == sig)
+                .map(|(c, _, _)| *c);
             match ic {
                 Some(c) => vals.push(c.to_string()),
                 None => {
@@ -841,7 +972,10 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
         }
         for (o, v) in b.options() {
             if !(o == "swing" && v == "pm_over_speed") {
-                warnings.push(format!("{} option {o} = {v} has no PSS/E form: not written", inst.name));
+                warnings.push(format!(
+                    "{} option {o} = {v} has no PSS/E form: not written",
+                    inst.name
+                ));
             }
         }
         let _ = write!(dyr, "{bus} '{}' '{id}'", m.name);
@@ -854,17 +988,29 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
         dyr.push_str(" /\n");
     }
     let mut bases = String::new();
-    let _ = writeln!(bases, "# bases of {} for the .dyr beside (from the power-flow machine record)", unit.name);
+    let _ = writeln!(
+        bases,
+        "# bases of {} for the .dyr beside (from the power-flow machine record)",
+        unit.name
+    );
     let _ = writeln!(bases, "name = {}", toml::Value::String(unit.name.clone()));
     let _ = writeln!(bases, "mbase = {}  # MVA", fmt_num(unit.machine_mva));
     let _ = writeln!(bases, "nominal_hz = {}", fmt_num(unit.nominal_hz));
     if let Some(r) = zr {
-        let _ = writeln!(bases, "zr = {}  # ZSORCE R: armature resistance, pu on MBASE", fmt_num(r));
+        let _ = writeln!(
+            bases,
+            "zr = {}  # ZSORCE R: armature resistance, pu on MBASE",
+            fmt_num(r)
+        );
     }
     if let Some(x) = zx {
         let _ = writeln!(bases, "zx = {}  # ZSORCE X, pu on MBASE", fmt_num(x));
     }
-    DyrText { dyr, bases, warnings }
+    DyrText {
+        dyr,
+        bases,
+        warnings,
+    }
 }
 
 /// Shortest text that reads back to the same `f64`, always with a decimal point or exponent.
@@ -901,8 +1047,14 @@ mod tests {
         let text = "1 'GENCLS' 1 4.5\n  0.0 / the classical machine\n\n2,'SEXS','G1',\n0.1,10,100,0.05,0,4 / exciter\n";
         let r = parse_records(text, Path::new("x.dyr")).unwrap();
         assert_eq!(r.len(), 2);
-        assert_eq!((r[0].line, r[0].bus, r[0].model.as_str(), r[0].id.as_str()), (1, 1, "GENCLS", "1"));
-        assert_eq!(r[0].data.iter().map(|d| d.1).collect::<Vec<_>>(), vec![1, 2]);
+        assert_eq!(
+            (r[0].line, r[0].bus, r[0].model.as_str(), r[0].id.as_str()),
+            (1, 1, "GENCLS", "1")
+        );
+        assert_eq!(
+            r[0].data.iter().map(|d| d.1).collect::<Vec<_>>(),
+            vec![1, 2]
+        );
         assert_eq!((r[1].line, r[1].id.as_str(), r[1].data.len()), (4, "G1", 6));
         assert_eq!(parse_number("1.5D-3"), Some(1.5e-3));
     }

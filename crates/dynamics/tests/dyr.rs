@@ -13,7 +13,9 @@ use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::read_unit;
 
 fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data")
+        .join(rel)
 }
 
 fn bases(mbase: f64, zx: Option<f64>) -> DyrBases {
@@ -71,7 +73,8 @@ fn unit_of(models: &[(&str, &str)], ieeest_input: Option<&str>) -> Unit {
             let v = b.params().get(i) * f;
             b.params_mut().set(i, v);
         }
-        if let (Some(xd), Some(xq)) = (b.params().index_of("x_d_pp"), b.params().index_of("x_q_pp")) {
+        if let (Some(xd), Some(xq)) = (b.params().index_of("x_d_pp"), b.params().index_of("x_q_pp"))
+        {
             let v = b.params().get(xd);
             b.params_mut().set(xq, v);
         }
@@ -89,10 +92,40 @@ fn unit_of(models: &[(&str, &str)], ieeest_input: Option<&str>) -> Unit {
 #[test]
 fn read_write_read_keeps_every_parameter_of_every_supported_model() {
     let combos: Vec<(Vec<(&str, &str)>, Option<&str>)> = vec![
-        (vec![("machine", "GENSAE"), ("exciter", "SEXS"), ("pss", "STAB3"), ("governor", "HYGOV")], None),
-        (vec![("machine", "GENSAL"), ("exciter", "SEXS"), ("pss", "IEEEST"), ("governor", "HYGOV")], Some("pe")),
-        (vec![("machine", "GENROU"), ("exciter", "SEXS"), ("pss", "IEEEST")], None),
-        (vec![("machine", "GENROU"), ("exciter", "SEXS"), ("pss", "IEEEST")], Some("v_term")),
+        (
+            vec![
+                ("machine", "GENSAE"),
+                ("exciter", "SEXS"),
+                ("pss", "STAB3"),
+                ("governor", "HYGOV"),
+            ],
+            None,
+        ),
+        (
+            vec![
+                ("machine", "GENSAL"),
+                ("exciter", "SEXS"),
+                ("pss", "IEEEST"),
+                ("governor", "HYGOV"),
+            ],
+            Some("pe"),
+        ),
+        (
+            vec![
+                ("machine", "GENROU"),
+                ("exciter", "SEXS"),
+                ("pss", "IEEEST"),
+            ],
+            None,
+        ),
+        (
+            vec![
+                ("machine", "GENROU"),
+                ("exciter", "SEXS"),
+                ("pss", "IEEEST"),
+            ],
+            Some("v_term"),
+        ),
         (vec![("machine", "GENCLS"), ("governor", "HYGOV")], None),
     ];
     for (models, input) in combos {
@@ -104,8 +137,15 @@ fn read_write_read_keeps_every_parameter_of_every_supported_model() {
         assert!(d.warnings.is_empty(), "{models:?}: {:?}", d.warnings);
         assert_eq!(params_of(&d.unit), params_of(&u), "{models:?}\n{}", w.dyr);
         assert_eq!(
-            d.unit.instances().iter().map(|i| i.rewiring()).collect::<Vec<_>>(),
-            u.instances().iter().map(|i| i.rewiring()).collect::<Vec<_>>(),
+            d.unit
+                .instances()
+                .iter()
+                .map(|i| i.rewiring())
+                .collect::<Vec<_>>(),
+            u.instances()
+                .iter()
+                .map(|i| i.rewiring())
+                .collect::<Vec<_>>(),
             "{models:?}: wiring"
         );
         // Written again, the same text.
@@ -124,7 +164,13 @@ fn a_dyr_read_unit_initialises_in_steady_state_and_plays_back() {
  1 'IEEEST' 'G1' 3 0  0 0 0 0 0 0  0.15 0.03 0.15 0.03 1.65 1.65  -0.3 0.26 -0.1 0 0 /
  1 'HYGOV' 'G1' 0.05 0.3 5 0.05 0.5 0.2 1 0 1.2 1.2 0.5 0.08 /
 ";
-    let d = parse_dyr(text, Path::new("sys.dyr"), Some((1, "G1")), &bases(737.0, None)).unwrap();
+    let d = parse_dyr(
+        text,
+        Path::new("sys.dyr"),
+        Some((1, "G1")),
+        &bases(737.0, None),
+    )
+    .unwrap();
     assert_eq!(
         d.used.iter().map(|u| u.1.as_str()).collect::<Vec<_>>(),
         ["GENROU", "SEXS", "IEEEST", "HYGOV"]
@@ -134,11 +180,22 @@ fn a_dyr_read_unit_initialises_in_steady_state_and_plays_back() {
     // A flat record at a lagging operating point: a unit in exact steady state keeps P and Q.
     let n = 121;
     let t: Vec<f64> = (0..n).map(|k| k as f64 / 60.0).collect();
-    let rec = Record::from_rectangular(t, &vec![1.01; n], &vec![0.12; n], vec![0.55; n], vec![0.11; n]);
+    let rec = Record::from_rectangular(
+        t,
+        &vec![1.01; n],
+        &vec![0.12; n],
+        vec![0.55; n],
+        vec![0.11; n],
+    );
     let event = Event::from_record("flat", rec, 1000.0, 60.0, None, None).unwrap();
     let tr = simulate(&d.unit, &event, &SimOptions::default()).unwrap();
     for (col, want) in [("p_pu", 0.55), ("q_pu", 0.11)] {
-        let dev = tr.get(col).unwrap().iter().map(|x| (x - want).abs()).fold(0.0, f64::max);
+        let dev = tr
+            .get(col)
+            .unwrap()
+            .iter()
+            .map(|x| (x - want).abs())
+            .fold(0.0, f64::max);
         assert!(dev < 1e-7, "{col}: off steady state by {dev}");
     }
 }
@@ -175,12 +232,18 @@ fn malformed_records_are_errors_naming_file_and_line() {
         let msg = e.to_string();
         assert_eq!(e.kind(), kind, "{what}: {msg}");
         assert!(msg.starts_with("bad.dyr"), "{what}: {msg}");
-        assert!(msg.contains(mention), "{what}: '{msg}' should contain '{mention}'");
+        assert!(
+            msg.contains(mention),
+            "{what}: '{msg}' should contain '{mention}'"
+        );
     }
     // GENCLS takes X'd from ZSORCE X: without it, a bases error naming zx.
     let e = err(good, None, &bases(700.0, None));
     assert_eq!(e.kind(), "bases");
-    assert!(e.to_string().contains("zx") && e.to_string().contains("line 1"), "{e}");
+    assert!(
+        e.to_string().contains("zx") && e.to_string().contains("line 1"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -191,14 +254,37 @@ fn unsupported_records_are_warnings_naming_the_line_and_the_unit_is_built_withou
 1 'USRMDL' 1 'MYGOV' 501 0 0 3 0 0 1 2 3 /
 1 'SEXS' 1 0.2 10 100 0.05 0 4.5 /
 ";
-    let b = DyrBases { zr: None, zx: Some(0.25), ..bases(737.0, None) };
+    let b = DyrBases {
+        zr: None,
+        zx: Some(0.25),
+        ..bases(737.0, None)
+    };
     let d = parse_dyr(text, Path::new("u.dyr"), None, &b).unwrap();
     let w: Vec<String> = d.warnings.iter().map(|w| w.to_string()).collect();
-    assert!(w.iter().any(|m| m.starts_with("u.dyr line 2: model ESST1A (bus 1, id '1') is not supported")), "{w:?}");
-    assert!(w.iter().any(|m| m.starts_with("u.dyr line 3: user model MYGOV")), "{w:?}");
-    assert!(w.iter().any(|m| m.starts_with("u.dyr line 1: GENSAE: R_a = 0")), "{w:?}");
-    assert!(w.iter().any(|m| m.contains("ZSORCE X = 0.25 differs from X'' = 0.22")), "{w:?}");
-    assert_eq!(d.used, vec![(1, "GENSAE".to_string()), (4, "SEXS".to_string())]);
+    assert!(
+        w.iter()
+            .any(|m| m.starts_with("u.dyr line 2: model ESST1A (bus 1, id '1') is not supported")),
+        "{w:?}"
+    );
+    assert!(
+        w.iter()
+            .any(|m| m.starts_with("u.dyr line 3: user model MYGOV")),
+        "{w:?}"
+    );
+    assert!(
+        w.iter()
+            .any(|m| m.starts_with("u.dyr line 1: GENSAE: R_a = 0")),
+        "{w:?}"
+    );
+    assert!(
+        w.iter()
+            .any(|m| m.contains("ZSORCE X = 0.25 differs from X'' = 0.22")),
+        "{w:?}"
+    );
+    assert_eq!(
+        d.used,
+        vec![(1, "GENSAE".to_string()), (4, "SEXS".to_string())]
+    );
 }
 
 #[test]
@@ -209,8 +295,18 @@ fn the_writer_names_what_pss_e_cannot_hold() {
     let shaft = registry::find("two_mass_shaft").unwrap().create();
     u.add("shaft", shaft, &[]).unwrap();
     let w = write_dyr(&u, 1, "1");
-    assert!(w.warnings.iter().any(|m| m.contains("X''q = 0.25")), "{:?}", w.warnings);
-    assert!(w.warnings.iter().any(|m| m.contains("'shaft' (two_mass_shaft)")), "{:?}", w.warnings);
+    assert!(
+        w.warnings.iter().any(|m| m.contains("X''q = 0.25")),
+        "{:?}",
+        w.warnings
+    );
+    assert!(
+        w.warnings
+            .iter()
+            .any(|m| m.contains("'shaft' (two_mass_shaft)")),
+        "{:?}",
+        w.warnings
+    );
 }
 
 #[test]
@@ -218,11 +314,17 @@ fn bases_come_from_the_side_file_or_the_command_line() {
     let p = Path::new("b.toml");
     let e = DyrBases::parse("nominal_hz = 60\n", p, None).unwrap_err();
     assert!(e.to_string().starts_with("b.toml: mbase: missing"), "{e}");
-    let over = PartialBases { mbase: Some(800.0), ..Default::default() };
+    let over = PartialBases {
+        mbase: Some(800.0),
+        ..Default::default()
+    };
     let b = DyrBases::parse("nominal_hz = 60\nmbase = 1\n", p, Some(&over)).unwrap();
     assert_eq!(b.mbase, 800.0);
     let e = DyrBases::parse("mbase = 1\nnominal_hz = 60\nsbase = 100\n", p, None).unwrap_err();
     assert!(e.to_string().contains("sbase: unknown key"), "{e}");
     let e = DyrBases::parse("mbase = -1\nnominal_hz = 60\n", p, None).unwrap_err();
-    assert!(e.to_string().contains("mbase: must be a finite number > 0"), "{e}");
+    assert!(
+        e.to_string().contains("mbase: must be a finite number > 0"),
+        "{e}"
+    );
 }

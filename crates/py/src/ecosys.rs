@@ -40,7 +40,13 @@ pub fn read_dyr(
     zr: Option<f64>,
     zx: Option<f64>,
 ) -> PyResult<PyUnit> {
-    let over = PartialBases { mbase, nominal_hz, zr, zx, name: None };
+    let over = PartialBases {
+        mbase,
+        nominal_hz,
+        zr,
+        zx,
+        name: None,
+    };
     let select = match (bus, id.as_deref()) {
         (Some(b), i) => Some((b, i.unwrap_or("1"))),
         (None, Some(_)) => return Err(PyValueError::new_err("id needs bus")),
@@ -53,9 +59,17 @@ pub fn read_dyr(
         })
         .map_err(|e| dyr_err(py, e))?;
     for w in &d.warnings {
-        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &std::ffi::CString::new(w.to_string()).unwrap_or_default(), 1)?;
+        PyErr::warn(
+            py,
+            &py.get_type::<PyUserWarning>(),
+            &std::ffi::CString::new(w.to_string()).unwrap_or_default(),
+            1,
+        )?;
     }
-    Ok(PyUnit { inner: Arc::new(d.unit), path: Some(path) })
+    Ok(PyUnit {
+        inner: Arc::new(d.unit),
+        path: Some(path),
+    })
 }
 
 /// Writes `unit` as .dyr records for `bus`, `id` to `path` and its bases to
@@ -63,12 +77,19 @@ pub fn read_dyr(
 /// record, X''q ≠ X''d, …) as a list of messages.
 #[pyfunction]
 #[pyo3(signature = (unit, path, *, bus=1, id="1"))]
-pub fn write_dyr(py: Python<'_>, unit: &PyUnit, path: PathBuf, bus: i64, id: &str) -> PyResult<Vec<String>> {
+pub fn write_dyr(
+    py: Python<'_>,
+    unit: &PyUnit,
+    path: PathBuf,
+    bus: i64,
+    id: &str,
+) -> PyResult<Vec<String>> {
     let t = dyr::write_dyr(&unit.inner, bus, id);
     let side = dyr::side_file(&path);
     for (p, text) in [(&path, &t.dyr), (&side, &t.bases)] {
-        std::fs::write(p, text)
-            .map_err(|e| pyo3::exceptions::PyOSError::new_err(format!("cannot write {}: {e}", p.display())))?;
+        std::fs::write(p, text).map_err(|e| {
+            pyo3::exceptions::PyOSError::new_err(format!("cannot write {}: {e}", p.display()))
+        })?;
     }
     let _ = py;
     Ok(t.warnings)
@@ -123,7 +144,12 @@ pub fn import_pmu<'py>(
     let json = serde_json::to_string(&report).expect("a report serialises");
     let d = py.import("json")?.call_method1("loads", (json,))?;
     let _: &Bound<'_, PyDict> = d.downcast()?;
-    Ok((PyEvent { inner: Arc::new(event) }, d))
+    Ok((
+        PyEvent {
+            inner: Arc::new(event),
+        },
+        d,
+    ))
 }
 
 /// Registers the functions of this file.

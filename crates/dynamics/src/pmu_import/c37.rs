@@ -36,15 +36,26 @@ fn split_seconds(s: &str) -> Option<(i64, f64)> {
     let (w, f) = s.split_once('.').unwrap_or((s, ""));
     if f.is_empty() || f.chars().all(|c| c.is_ascii_digit()) {
         let whole: i64 = w.parse().ok()?;
-        let frac: f64 = if f.is_empty() { 0.0 } else { format!("0.{f}").parse().ok()? };
-        return Some(if whole < 0 || w.starts_with('-') { (whole, -frac) } else { (whole, frac) });
+        let frac: f64 = if f.is_empty() {
+            0.0
+        } else {
+            format!("0.{f}").parse().ok()?
+        };
+        return Some(if whole < 0 || w.starts_with('-') {
+            (whole, -frac)
+        } else {
+            (whole, frac)
+        });
     }
     None
 }
 
 /// Reads a C37.118-style CSV into an event (see the module documentation).
 pub fn import(path: &Path, opts: &ImportOptions) -> Result<(Event, ImportReport), ImportError> {
-    let text = std::fs::read(path).map_err(|source| ImportError::Io { path: path.into(), source })?;
+    let text = std::fs::read(path).map_err(|source| ImportError::Io {
+        path: path.into(),
+        source,
+    })?;
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .flexible(true)
@@ -52,10 +63,20 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<(Event, ImportReport)
         .from_reader(text.as_slice());
     let headers = rdr
         .headers()
-        .map_err(|e| ImportError::data(path, Some("line 1".into()), format!("cannot read the header: {e}")))?
+        .map_err(|e| {
+            ImportError::data(
+                path,
+                Some("line 1".into()),
+                format!("cannot read the header: {e}"),
+            )
+        })?
         .clone();
     if headers.is_empty() || headers.iter().all(|h| h.is_empty()) {
-        return Err(ImportError::data(path, Some("line 1".into()), "empty header"));
+        return Err(ImportError::data(
+            path,
+            Some("line 1".into()),
+            "empty header",
+        ));
     }
     let names: Vec<String> = headers.iter().map(|h| h.to_string()).collect();
     let find = |keys: &[&str]| names.iter().position(|h| keys.contains(&norm(h).as_str()));
@@ -118,12 +139,39 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<(Event, ImportReport)
         let (sec, frac) = match time {
             TimeCols::Stamp(k) => parse_iso(&rec[k])
                 .or_else(|| split_seconds(&rec[k]))
-                .ok_or_else(|| ImportError::data(path, at(k), format!("'{}' is not an ISO 8601 time stamp or epoch seconds", &rec[k])))?,
+                .ok_or_else(|| {
+                    ImportError::data(
+                        path,
+                        at(k),
+                        format!(
+                            "'{}' is not an ISO 8601 time stamp or epoch seconds",
+                            &rec[k]
+                        ),
+                    )
+                })?,
             TimeCols::Relative(k) => split_seconds(&rec[k])
-                .or_else(|| rec[k].parse::<f64>().ok().filter(|x| x.is_finite()).map(|x| (x.floor() as i64, x - x.floor())))
-                .ok_or_else(|| ImportError::data(path, at(k), format!("'{}' is not a number of seconds", &rec[k])))?,
+                .or_else(|| {
+                    rec[k]
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|x| x.is_finite())
+                        .map(|x| (x.floor() as i64, x - x.floor()))
+                })
+                .ok_or_else(|| {
+                    ImportError::data(
+                        path,
+                        at(k),
+                        format!("'{}' is not a number of seconds", &rec[k]),
+                    )
+                })?,
             TimeCols::SocFrac(a, b) => {
-                let soc: i64 = rec[a].parse().map_err(|_| ImportError::data(path, at(a), format!("'{}' is not a whole number of seconds", &rec[a])))?;
+                let soc: i64 = rec[a].parse().map_err(|_| {
+                    ImportError::data(
+                        path,
+                        at(a),
+                        format!("'{}' is not a whole number of seconds", &rec[a]),
+                    )
+                })?;
                 let fr: f64 = rec[b]
                     .parse()
                     .ok()
@@ -143,7 +191,13 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<(Event, ImportReport)
             } else {
                 s.parse::<u32>().ok()
             }
-            .ok_or_else(|| ImportError::data(path, at(k), format!("STAT '{s}' is not a number (decimal or 0x hex)")))?;
+            .ok_or_else(|| {
+                ImportError::data(
+                    path,
+                    at(k),
+                    format!("STAT '{s}' is not a number (decimal or 0x hex)"),
+                )
+            })?;
             bad = match (v >> 14) & 3 {
                 0 => None,
                 1 => Some(format!("STAT {v:#06x}: PMU error")),
@@ -160,17 +214,35 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<(Event, ImportReport)
                 vals[s] = if f.is_empty() || f.eq_ignore_ascii_case("nan") {
                     f64::NAN
                 } else {
-                    f.parse::<f64>().map_err(|_| ImportError::data(path, at(*k), format!("'{f}' is not a number")))?
+                    f.parse::<f64>().map_err(|_| {
+                        ImportError::data(path, at(*k), format!("'{f}' is not a number"))
+                    })?
                 };
             }
         }
-        samples.push(RawSample { sec, frac, vals, at: format!("line {line}"), bad });
+        samples.push(RawSample {
+            sec,
+            frac,
+            vals,
+            at: format!("line {line}"),
+            bad,
+        });
     }
     if unsynced > 0 {
-        warnings.push(format!("{unsynced} sample(s) with STAT bit 13 set: PMU not synchronised to UTC (kept)"));
+        warnings.push(format!(
+            "{unsynced} sample(s) with STAT bit 13 set: PMU not synchronised to UTC (kept)"
+        ));
     }
     if modified > 0 {
         warnings.push(format!("{modified} sample(s) with STAT bit 9 set: data modified by a post-processing device (kept)"));
     }
-    finish(path, "C37.118 CSV".into(), start, &a, samples, opts, warnings)
+    finish(
+        path,
+        "C37.118 CSV".into(),
+        start,
+        &a,
+        samples,
+        opts,
+        warnings,
+    )
 }

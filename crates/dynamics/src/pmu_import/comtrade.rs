@@ -14,7 +14,9 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{assign, days_from_civil, finish, parse_hms, ImportError, ImportOptions, ImportReport, RawSample};
+use super::{
+    assign, days_from_civil, finish, parse_hms, ImportError, ImportOptions, ImportReport, RawSample,
+};
 use crate::event::Event;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -50,34 +52,55 @@ fn parse_cfg(text: &str, path: &Path) -> Result<Cfg, ImportError> {
     let mut k = 0usize;
     let mut next = |what: &str| -> Result<(usize, Vec<String>), ImportError> {
         let line = lines.get(k).ok_or_else(|| {
-            ImportError::data(path, Some(format!("line {}", k + 1)), format!("the file ends where {what} is expected"))
+            ImportError::data(
+                path,
+                Some(format!("line {}", k + 1)),
+                format!("the file ends where {what} is expected"),
+            )
         })?;
         k += 1;
         Ok((k, line.split(',').map(|f| f.trim().to_string()).collect()))
     };
     let err = |l: usize, m: String| ImportError::data(path, Some(format!("line {l}")), m);
     let num = |l: usize, f: &str, what: &str| -> Result<f64, ImportError> {
-        f.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| err(l, format!("{what} '{f}' is not a number")))
+        f.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| err(l, format!("{what} '{f}' is not a number")))
     };
     let (_, first) = next("station_name,rec_dev_id,rev_year")?;
     let rev = match first.get(2).map(|s| s.as_str()) {
         None | Some("") => 1991,
-        Some(y) => y.parse().map_err(|_| err(1, format!("revision year '{y}' is not 1991, 1999 or 2013")))?,
+        Some(y) => y
+            .parse()
+            .map_err(|_| err(1, format!("revision year '{y}' is not 1991, 1999 or 2013")))?,
     };
     if ![1991, 1999, 2013].contains(&rev) {
-        return Err(err(1, format!("revision year {rev} is not 1991, 1999 or 2013")));
+        return Err(err(
+            1,
+            format!("revision year {rev} is not 1991, 1999 or 2013"),
+        ));
     }
     let (l, counts) = next("TT,##A,##D")?;
     let count = |f: Option<&String>, suffix: char| -> Option<usize> {
-        f?.trim().strip_suffix(suffix).or_else(|| f?.trim().strip_suffix(suffix.to_ascii_lowercase()))?.parse().ok()
+        f?.trim()
+            .strip_suffix(suffix)
+            .or_else(|| f?.trim().strip_suffix(suffix.to_ascii_lowercase()))?
+            .parse()
+            .ok()
     };
     let (na, nd) = match (count(counts.get(1), 'A'), count(counts.get(2), 'D')) {
         (Some(a), Some(d)) => (a, d),
         _ => return Err(err(l, format!("'{}' is not TT,##A,##D", counts.join(",")))),
     };
-    let total: usize = counts[0].parse().map_err(|_| err(l, format!("channel total '{}' is not a number", counts[0])))?;
+    let total: usize = counts[0]
+        .parse()
+        .map_err(|_| err(l, format!("channel total '{}' is not a number", counts[0])))?;
     if total != na + nd {
-        return Err(err(l, format!("{total} channels, but {na} analog + {nd} digital")));
+        return Err(err(
+            l,
+            format!("{total} channels, but {na} analog + {nd} digital"),
+        ));
     }
     let mut analog = vec![];
     for _ in 0..na {
@@ -97,14 +120,22 @@ fn parse_cfg(text: &str, path: &Path) -> Result<Cfg, ImportError> {
         } else {
             1.0
         };
-        analog.push(Analog { id: f[1].clone(), unit: f[4].clone(), a, b, to_primary });
+        analog.push(Analog {
+            id: f[1].clone(),
+            unit: f[4].clone(),
+            a,
+            b,
+            to_primary,
+        });
     }
     for _ in 0..nd {
         next("a digital channel line")?;
     }
     next("the line frequency")?;
     let (l, nr) = next("nrates")?;
-    let nrates: usize = nr[0].parse().map_err(|_| err(l, format!("nrates '{}' is not a number", nr[0])))?;
+    let nrates: usize = nr[0]
+        .parse()
+        .map_err(|_| err(l, format!("nrates '{}' is not a number", nr[0])))?;
     let mut rates = vec![];
     for _ in 0..nrates.max(1) {
         let (l, f) = next("samp,endsamp")?;
@@ -112,12 +143,28 @@ fn parse_cfg(text: &str, path: &Path) -> Result<Cfg, ImportError> {
             return Err(err(l, "expected samp,endsamp".into()));
         }
         let samp = num(l, &f[0], "sampling rate")?;
-        let end: u64 = f[1].parse().map_err(|_| err(l, format!("last sample number '{}' is not a whole number", f[1])))?;
+        let end: u64 = f[1].parse().map_err(|_| {
+            err(
+                l,
+                format!("last sample number '{}' is not a whole number", f[1]),
+            )
+        })?;
         rates.push((samp, end));
     }
     let (l, st) = next("the start date and time")?;
     let start = parse_stamp(&st, rev).ok_or_else(|| {
-        err(l, format!("'{}' is not {},hh:mm:ss.ssssss", st.join(","), if rev == 1991 { "mm/dd/yy" } else { "dd/mm/yyyy" }))
+        err(
+            l,
+            format!(
+                "'{}' is not {},hh:mm:ss.ssssss",
+                st.join(","),
+                if rev == 1991 {
+                    "mm/dd/yy"
+                } else {
+                    "dd/mm/yyyy"
+                }
+            ),
+        )
     })?;
     next("the trigger date and time")?;
     let (l, ft) = next("the file type")?;
@@ -126,21 +173,44 @@ fn parse_cfg(text: &str, path: &Path) -> Result<Cfg, ImportError> {
         "BINARY" => Fmt::Binary,
         "BINARY32" => Fmt::Binary32,
         "FLOAT32" => Fmt::Float32,
-        o => return Err(err(l, format!("file type '{o}' is not ASCII, BINARY, BINARY32 or FLOAT32"))),
+        o => {
+            return Err(err(
+                l,
+                format!("file type '{o}' is not ASCII, BINARY, BINARY32 or FLOAT32"),
+            ))
+        }
     };
     let timemult = match lines.get(k) {
-        Some(t) if rev != 1991 && !t.trim().is_empty() => num(k + 1, t.split(',').next().unwrap_or("").trim(), "timemult")?,
+        Some(t) if rev != 1991 && !t.trim().is_empty() => {
+            num(k + 1, t.split(',').next().unwrap_or("").trim(), "timemult")?
+        }
         _ => 1.0,
     };
-    Ok(Cfg { rev, analog, n_digital: nd, rates, start, fmt, timemult })
+    Ok(Cfg {
+        rev,
+        analog,
+        n_digital: nd,
+        rates,
+        start,
+        fmt,
+        timemult,
+    })
 }
 
 fn parse_stamp(f: &[String], rev: u32) -> Option<(i64, f64)> {
-    let d: Vec<i64> = f.first()?.split('/').map(|x| x.trim().parse().ok()).collect::<Option<_>>()?;
+    let d: Vec<i64> = f
+        .first()?
+        .split('/')
+        .map(|x| x.trim().parse().ok())
+        .collect::<Option<_>>()?;
     if d.len() != 3 {
         return None;
     }
-    let (day, month, mut year) = if rev == 1991 { (d[1], d[0], d[2]) } else { (d[0], d[1], d[2]) };
+    let (day, month, mut year) = if rev == 1991 {
+        (d[1], d[0], d[2])
+    } else {
+        (d[0], d[1], d[2])
+    };
     if year < 100 {
         year += if year >= 70 { 1900 } else { 2000 };
     }
@@ -153,7 +223,10 @@ fn parse_stamp(f: &[String], rev: u32) -> Option<(i64, f64)> {
 
 /// Reads a COMTRADE recording (`.cfg` path; the `.dat` beside it) into an event.
 pub fn import(cfg_path: &Path, opts: &ImportOptions) -> Result<(Event, ImportReport), ImportError> {
-    let bytes = std::fs::read(cfg_path).map_err(|source| ImportError::Io { path: cfg_path.into(), source })?;
+    let bytes = std::fs::read(cfg_path).map_err(|source| ImportError::Io {
+        path: cfg_path.into(),
+        source,
+    })?;
     let cfg = parse_cfg(&String::from_utf8_lossy(&bytes), cfg_path)?;
     let dat_path: PathBuf = {
         let lower = cfg_path.with_extension("dat");
@@ -171,26 +244,39 @@ pub fn import(cfg_path: &Path, opts: &ImportOptions) -> Result<(Event, ImportRep
         .map(|(k, a)| (k, a.id.clone(), Some(a.unit.clone())))
         .collect();
     let mut ignored = vec![];
-    let asg = assign(&chans, &opts.map, &mut ignored).map_err(|m| ImportError::data(cfg_path, None, m))?;
+    let asg = assign(&chans, &opts.map, &mut ignored)
+        .map_err(|m| ImportError::data(cfg_path, None, m))?;
     let mut warnings = vec![];
     if !ignored.is_empty() {
         warnings.push(format!("analog channels not used: {}", ignored.join(", ")));
     }
-    let data = std::fs::read(&dat_path).map_err(|source| ImportError::Io { path: dat_path.clone(), source })?;
+    let data = std::fs::read(&dat_path).map_err(|source| ImportError::Io {
+        path: dat_path.clone(),
+        source,
+    })?;
     let rows = match cfg.fmt {
         Fmt::Ascii => read_ascii(&data, &dat_path, &cfg)?,
         _ => read_binary(&data, &dat_path, &cfg)?,
     };
-    let use_rates = cfg.rates.iter().all(|r| r.0 > 0.0) && !(cfg.rates.len() == 1 && cfg.rates[0].0 == 0.0);
+    let use_rates =
+        cfg.rates.iter().all(|r| r.0 > 0.0) && !(cfg.rates.len() == 1 && cfg.rates[0].0 == 0.0);
     let mut samples = vec![];
     for (n, ts, vals, at, missing) in rows {
         let t = if use_rates {
             time_of(n, &cfg.rates).ok_or_else(|| {
-                ImportError::data(&dat_path, Some(at.clone()), format!("sample number {n} is beyond the last in the .cfg's rate table"))
+                ImportError::data(
+                    &dat_path,
+                    Some(at.clone()),
+                    format!("sample number {n} is beyond the last in the .cfg's rate table"),
+                )
             })?
         } else {
             let ts = ts.ok_or_else(|| {
-                ImportError::data(&dat_path, Some(at.clone()), "no time stamp, and the .cfg gives no sampling rate")
+                ImportError::data(
+                    &dat_path,
+                    Some(at.clone()),
+                    "no time stamp, and the .cfg gives no sampling rate",
+                )
             })?;
             ts * cfg.timemult * 1e-6
         };
@@ -205,7 +291,13 @@ pub fn import(cfg_path: &Path, opts: &ImportOptions) -> Result<(Event, ImportRep
                 v[s] = (an.a * vals[*k] + an.b) * an.to_primary;
             }
         }
-        samples.push(RawSample { sec: cfg.start.0, frac: cfg.start.1 + t, vals: v, at, bad });
+        samples.push(RawSample {
+            sec: cfg.start.0,
+            frac: cfg.start.1 + t,
+            vals: v,
+            at,
+            bad,
+        });
     }
     let fmt = match cfg.fmt {
         Fmt::Ascii => "ASCII",
@@ -214,7 +306,15 @@ pub fn import(cfg_path: &Path, opts: &ImportOptions) -> Result<(Event, ImportRep
         Fmt::Float32 => "FLOAT32",
     };
     let start = Some(super::format_iso(cfg.start.0, cfg.start.1));
-    finish(cfg_path, format!("COMTRADE {} {fmt}", cfg.rev), start, &asg, samples, opts, warnings)
+    finish(
+        cfg_path,
+        format!("COMTRADE {} {fmt}", cfg.rev),
+        start,
+        &asg,
+        samples,
+        opts,
+        warnings,
+    )
 }
 
 /// Time of sample number `n` (1-based) from the rate table, s after the first sample.
@@ -247,13 +347,23 @@ fn read_ascii(data: &[u8], path: &Path, cfg: &Cfg) -> Result<Vec<Row>, ImportErr
         let err = |m: String| ImportError::data(path, Some(at.clone()), m);
         let f: Vec<&str> = line.split(',').map(|s| s.trim()).collect();
         if f.len() != 2 + na + cfg.n_digital {
-            return Err(err(format!("{} fields; the .cfg's channels make {} (n, timestamp, {na} analog, {} digital)", f.len(), 2 + na + cfg.n_digital, cfg.n_digital)));
+            return Err(err(format!(
+                "{} fields; the .cfg's channels make {} (n, timestamp, {na} analog, {} digital)",
+                f.len(),
+                2 + na + cfg.n_digital,
+                cfg.n_digital
+            )));
         }
-        let n: u64 = f[0].parse().map_err(|_| err(format!("sample number '{}' is not a whole number", f[0])))?;
+        let n: u64 = f[0]
+            .parse()
+            .map_err(|_| err(format!("sample number '{}' is not a whole number", f[0])))?;
         let ts = if f[1].is_empty() {
             None
         } else {
-            Some(f[1].parse::<f64>().map_err(|_| err(format!("time stamp '{}' is not a number", f[1])))?)
+            Some(
+                f[1].parse::<f64>()
+                    .map_err(|_| err(format!("time stamp '{}' is not a number", f[1])))?,
+            )
         };
         let mut vals = vec![0.0; na];
         let mut missing = vec![false; na];
@@ -263,9 +373,17 @@ fn read_ascii(data: &[u8], path: &Path, cfg: &Cfg) -> Result<Vec<Row>, ImportErr
                 missing[j] = true;
                 vals[j] = f64::NAN;
             } else {
-                vals[j] = s.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| {
-                    err(format!("channel {} ({}): '{s}' is not a number", j + 1, cfg.analog[j].id))
-                })?;
+                vals[j] = s
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| {
+                        err(format!(
+                            "channel {} ({}): '{s}' is not a number",
+                            j + 1,
+                            cfg.analog[j].id
+                        ))
+                    })?;
             }
         }
         rows.push((n, ts, vals, at, missing));
@@ -289,7 +407,11 @@ fn read_binary(data: &[u8], path: &Path, cfg: &Cfg) -> Result<Vec<Row>, ImportEr
     for (k, r) in data.chunks_exact(size).enumerate() {
         let n = u32_at(r, 0) as u64;
         let ts_raw = u32_at(r, 4);
-        let ts = if ts_raw == u32::MAX { None } else { Some(ts_raw as f64) };
+        let ts = if ts_raw == u32::MAX {
+            None
+        } else {
+            Some(ts_raw as f64)
+        };
         let mut vals = vec![0.0; na];
         let mut missing = vec![false; na];
         for j in 0..na {
@@ -311,7 +433,13 @@ fn read_binary(data: &[u8], path: &Path, cfg: &Cfg) -> Result<Vec<Row>, ImportEr
             vals[j] = if miss { f64::NAN } else { v };
             missing[j] = miss;
         }
-        rows.push((n, ts, vals, format!("record {} (byte {})", k + 1, k * size), missing));
+        rows.push((
+            n,
+            ts,
+            vals,
+            format!("record {} (byte {})", k + 1, k * size),
+            missing,
+        ));
     }
     Ok(rows)
 }

@@ -179,12 +179,21 @@ impl fmt::Display for ImportReport {
             self.samples_read,
             self.samples_kept,
             self.source_rate_hz,
-            self.resampled_hz.map(|r| format!(", resampled to {r} samples/s")).unwrap_or_default(),
-            self.start.as_ref().map(|s| format!(", t = 0 at {s}")).unwrap_or_default()
+            self.resampled_hz
+                .map(|r| format!(", resampled to {r} samples/s"))
+                .unwrap_or_default(),
+            self.start
+                .as_ref()
+                .map(|s| format!(", t = 0 at {s}"))
+                .unwrap_or_default()
         )?;
         writeln!(f, "  channels: {}", self.channels.join("; "))?;
         for g in &self.gaps {
-            writeln!(f, "  gap: {:.6}-{:.6} s, {} sample(s) missing (before {})", g.from_s, g.to_s, g.missing, g.at)?;
+            writeln!(
+                f,
+                "  gap: {:.6}-{:.6} s, {} sample(s) missing (before {})",
+                g.from_s, g.to_s, g.missing, g.at
+            )?;
         }
         for d in &self.dropouts {
             writeln!(f, "  dropout: {:.6} s ({}): {}", d.time_s, d.at, d.reason)?;
@@ -270,7 +279,10 @@ pub(crate) fn recognise(name: &str) -> Result<Option<Recognised>, String> {
     }
     let unit = match &unit_text {
         None => None,
-        Some(u) => Some(unit_word(u).ok_or_else(|| format!("unknown unit '{u}' (kV, V, A, kA, pu, deg, rad, Hz)"))?),
+        Some(u) => Some(
+            unit_word(u)
+                .ok_or_else(|| format!("unknown unit '{u}' (kV, V, A, kA, pu, deg, rad, Hz)"))?,
+        ),
     };
     let role_rank = match w.as_slice() {
         [f] if f == "freq" || f == "frequency" || f == "f" => Some((Role::Freq, 0)),
@@ -305,9 +317,17 @@ pub(crate) fn recognise(name: &str) -> Result<Option<Recognised>, String> {
         if !fits {
             return Err(format!("unit {label} does not fit this quantity"));
         }
-        return Ok(Some(Recognised { role, rank, unit: Some(u) }));
+        return Ok(Some(Recognised {
+            role,
+            rank,
+            unit: Some(u),
+        }));
     }
-    Ok(Some(Recognised { role, rank, unit: None }))
+    Ok(Some(Recognised {
+        role,
+        rank,
+        unit: None,
+    }))
 }
 
 /// The name a column or channel is read as: its `map` entry's name, or its own.
@@ -340,7 +360,9 @@ fn slot(role: Role) -> usize {
     }
 }
 
-const SLOT_NAMES: [&str; 9] = ["v_mag", "v_ang", "v_re", "v_im", "i_mag", "i_ang", "i_re", "i_im", "freq"];
+const SLOT_NAMES: [&str; 9] = [
+    "v_mag", "v_ang", "v_re", "v_im", "i_mag", "i_ang", "i_re", "i_im", "freq",
+];
 
 /// Assigns named channels (`(index, name, unit from the source if any)`) to roles. The best
 /// rank wins; two channels of the same rank for one role are an error; the rest are listed in
@@ -351,7 +373,10 @@ pub(crate) fn assign(
     ignored: &mut Vec<String>,
 ) -> Result<Assignment, String> {
     for (n, col) in map {
-        if !names.iter().any(|(_, name, _)| name.trim().eq_ignore_ascii_case(col.trim())) {
+        if !names
+            .iter()
+            .any(|(_, name, _)| name.trim().eq_ignore_ascii_case(col.trim()))
+        {
             return Err(format!("map {n}={col}: no column or channel named '{col}'"));
         }
     }
@@ -387,7 +412,11 @@ pub(crate) fn assign(
                 "{} columns could be {}: {}; rename one with map",
                 chosen.len(),
                 SLOT_NAMES[s],
-                chosen.iter().map(|c| c.3.as_str()).collect::<Vec<_>>().join(", ")
+                chosen
+                    .iter()
+                    .map(|c| c.3.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ));
         }
         for c in cands.iter().filter(|c| c.1 != top) {
@@ -413,7 +442,10 @@ pub(crate) fn assign(
         let polar = a.slots[k].is_some() && a.slots[k + 1].is_some();
         let rect = a.slots[k + 2].is_some() && a.slots[k + 3].is_some();
         if polar == rect {
-            let have: Vec<&str> = (k..k + 4).filter(|&j| a.slots[j].is_some()).map(|j| SLOT_NAMES[j]).collect();
+            let have: Vec<&str> = (k..k + 4)
+                .filter(|&j| a.slots[j].is_some())
+                .map(|j| SLOT_NAMES[j])
+                .collect();
             return Err(format!(
                 "the {what} phasor needs magnitude and angle or real and imaginary parts, exactly one form (found: {})",
                 if have.is_empty() { "none".to_string() } else { have.join(", ") }
@@ -429,7 +461,10 @@ impl Assignment {
         self.slots
             .iter()
             .enumerate()
-            .filter_map(|(s, x)| x.as_ref().map(|(_, _, n)| format!("{} <- {n}", SLOT_NAMES[s])))
+            .filter_map(|(s, x)| {
+                x.as_ref()
+                    .map(|(_, _, n)| format!("{} <- {n}", SLOT_NAMES[s]))
+            })
             .collect()
     }
 }
@@ -463,14 +498,23 @@ pub(crate) fn finish(
         msg: m,
     };
     if !(opts.system_mva.is_finite() && opts.system_mva > 0.0) {
-        return Err(opt("system_mva", format!("must be > 0 MVA (got {})", opts.system_mva)));
+        return Err(opt(
+            "system_mva",
+            format!("must be > 0 MVA (got {})", opts.system_mva),
+        ));
     }
     if !(opts.nominal_hz.is_finite() && opts.nominal_hz > 0.0) {
-        return Err(opt("nominal_hz", format!("must be > 0 Hz (got {})", opts.nominal_hz)));
+        return Err(opt(
+            "nominal_hz",
+            format!("must be > 0 Hz (got {})", opts.nominal_hz),
+        ));
     }
     let pu_base = opts.pu_base_mva.unwrap_or(opts.system_mva);
     if !(pu_base.is_finite() && pu_base > 0.0) {
-        return Err(opt("pu_base_mva", format!("must be > 0 MVA (got {pu_base})")));
+        return Err(opt(
+            "pu_base_mva",
+            format!("must be > 0 MVA (got {pu_base})"),
+        ));
     }
     let unit_of = |s: usize| a.slots[s].as_ref().map(|x| x.1);
     let v_pu = matches!(unit_of(0).or(unit_of(2)), Some(ChanUnit::Pu));
@@ -485,7 +529,11 @@ pub(crate) fn finish(
         None
     } else {
         let v = opts.v_base_kv.ok_or_else(|| {
-            opt("v_base_kv", "missing: the rated line-to-line voltage [kV] is needed for voltages in V or kV".into())
+            opt(
+                "v_base_kv",
+                "missing: the rated line-to-line voltage [kV] is needed for voltages in V or kV"
+                    .into(),
+            )
         })?;
         if !(v.is_finite() && v > 0.0) {
             return Err(opt("v_base_kv", format!("must be > 0 kV (got {v})")));
@@ -498,7 +546,9 @@ pub(crate) fn finish(
         }
     }
     if a.phase_a {
-        warnings.push("phase-A phasors taken as the positive sequence (balanced unit): S = 3 V_a I_a*".into());
+        warnings.push(
+            "phase-A phasors taken as the positive sequence (balanced unit): S = 3 V_a I_a*".into(),
+        );
     }
     let samples_read = samples.len();
     if samples_read == 0 {
@@ -532,7 +582,9 @@ pub(crate) fn finish(
         let f = a.slots[8].as_ref().map(|_| get(s, 8));
         let reason = if let Some(b) = &s.bad {
             Some(b.clone())
-        } else if ![vr, vi, ir, ii].iter().all(|x| x.is_finite()) || f.is_some_and(|x| !x.is_finite()) {
+        } else if ![vr, vi, ir, ii].iter().all(|x| x.is_finite())
+            || f.is_some_and(|x| !x.is_finite())
+        {
             Some("a value is missing or not a number".to_string())
         } else if vr == 0.0 && vi == 0.0 {
             Some("|V| = 0".to_string())
@@ -540,7 +592,11 @@ pub(crate) fn finish(
             None
         };
         if let Some(reason) = reason {
-            dropouts.push(Dropout { time_s: t, at: s.at.clone(), reason });
+            dropouts.push(Dropout {
+                time_s: t,
+                at: s.at.clone(),
+                reason,
+            });
             continue;
         }
         if opts.line_voltage {
@@ -550,13 +606,25 @@ pub(crate) fn finish(
         // S = k V I* (k = 3 for phase-to-neutral kV and kA → MVA; 1 in pu on pu_base).
         let (sr, si) = (vr * ir + vi * ii, vi * ir - vr * ii);
         let (p, q, vmag) = match v_base {
-            Some(vb) => (3.0 * sr / opts.system_mva, 3.0 * si / opts.system_mva, vr.hypot(vi) * 3f64.sqrt() / vb),
-            None => (sr * pu_base / opts.system_mva, si * pu_base / opts.system_mva, vr.hypot(vi)),
+            Some(vb) => (
+                3.0 * sr / opts.system_mva,
+                3.0 * si / opts.system_mva,
+                vr.hypot(vi) * 3f64.sqrt() / vb,
+            ),
+            None => (
+                sr * pu_base / opts.system_mva,
+                si * pu_base / opts.system_mva,
+                vr.hypot(vi),
+            ),
         };
         kept.push((t, vmag, vi.atan2(vr), sign * p, sign * q, f, s.at.clone()));
     }
     if kept.len() < 2 {
-        return Err(ImportError::data(path, None, format!("{} usable sample(s) of {samples_read}", kept.len())));
+        return Err(ImportError::data(
+            path,
+            None,
+            format!("{} usable sample(s) of {samples_read}", kept.len()),
+        ));
     }
     // Time axis: strictly increasing, relative to the first kept sample.
     let t0 = kept[0].0;
@@ -565,20 +633,33 @@ pub(crate) fn finish(
             return Err(ImportError::data(
                 path,
                 Some(w[1].6.clone()),
-                format!("time {:.6} s is not after the previous sample's {:.6} s ({})", w[1].0 - t0, w[0].0 - t0, w[0].6),
+                format!(
+                    "time {:.6} s is not after the previous sample's {:.6} s ({})",
+                    w[1].0 - t0,
+                    w[0].0 - t0,
+                    w[0].6
+                ),
             ));
         }
     }
     // Gaps are time stamps that never came (on every sample read, so that a dropout removed
     // here is not also a gap); the rate is over the intervals without a gap.
     let all: Vec<(f64, &str)> = samples.iter().map(|s| (rel(s), s.at.as_str())).collect();
-    let mut dts: Vec<f64> = all.windows(2).map(|w| w[1].0 - w[0].0).filter(|d| *d > 0.0).collect();
+    let mut dts: Vec<f64> = all
+        .windows(2)
+        .map(|w| w[1].0 - w[0].0)
+        .filter(|d| *d > 0.0)
+        .collect();
     if dts.is_empty() {
         dts = kept.windows(2).map(|w| w[1].0 - w[0].0).collect();
     }
     dts.sort_by(|x, y| x.partial_cmp(y).expect("finite"));
     let dt_median = dts[dts.len() / 2];
-    let regular: Vec<f64> = dts.iter().copied().filter(|d| *d <= 1.5 * dt_median).collect();
+    let regular: Vec<f64> = dts
+        .iter()
+        .copied()
+        .filter(|d| *d <= 1.5 * dt_median)
+        .collect();
     let dt = regular.iter().sum::<f64>() / regular.len() as f64;
     let mut gaps = vec![];
     for w in all.windows(2) {
@@ -600,7 +681,11 @@ pub(crate) fn finish(
     let ang = unwrap_angles(&kept.iter().map(|k| k.2).collect::<Vec<_>>());
     let p: Vec<f64> = kept.iter().map(|k| k.3).collect();
     let q: Vec<f64> = kept.iter().map(|k| k.4).collect();
-    let freq: Option<Vec<f64>> = if a.slots[8].is_some() { Some(kept.iter().map(|k| k.5.expect("checked")).collect()) } else { None };
+    let freq: Option<Vec<f64>> = if a.slots[8].is_some() {
+        Some(kept.iter().map(|k| k.5.expect("checked")).collect())
+    } else {
+        None
+    };
     let mut rec = Record {
         time_s: time,
         v_mag_pu: vmag,
@@ -614,15 +699,23 @@ pub(crate) fn finish(
     if let Some(rate) = opts.rate_hz {
         rec = resample(&rec, rate, dt);
         if !gaps.is_empty() {
-            warnings.push(format!("{} gap(s) filled by interpolation in the resampled record", gaps.len()));
+            warnings.push(format!(
+                "{} gap(s) filled by interpolation in the resampled record",
+                gaps.len()
+            ));
         }
     }
     let name = opts.name.clone().unwrap_or_else(|| {
-        path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "imported".into())
+        path.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "imported".into())
     });
     let samples_kept = kept.len();
     let event = Event::from_record(&name, rec, opts.system_mva, opts.nominal_hz, None, None)
-        .map_err(|source| ImportError::Event { path: path.into(), source })?;
+        .map_err(|source| ImportError::Event {
+            path: path.into(),
+            source,
+        })?;
     let report = ImportReport {
         source: path.into(),
         format,
@@ -701,12 +794,19 @@ fn interp(x: &[f64], y: &[f64], t: f64) -> f64 {
 /// Imports a file by its extension: `.cfg` (or a `.dat` with a `.cfg` beside it) as COMTRADE,
 /// anything else as C37.118-style CSV.
 pub fn import(path: &Path, opts: &ImportOptions) -> Result<(Event, ImportReport), ImportError> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
     match ext.as_str() {
         "cfg" => comtrade::import(path, opts),
         "dat" => {
             let upper = path.with_extension("CFG");
-            let cfg = if upper.is_file() { upper } else { path.with_extension("cfg") };
+            let cfg = if upper.is_file() {
+                upper
+            } else {
+                path.with_extension("cfg")
+            };
             comtrade::import(&cfg, opts)
         }
         _ => c37::import(path, opts),
@@ -715,7 +815,11 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<(Event, ImportReport)
 
 /// Writes an event folder: `event.toml`, `<name>.csv` (the canonical columns) and
 /// `import.json` (the report). Returns the paths written.
-pub fn write_event_folder(event: &Event, report: &ImportReport, dir: &Path) -> Result<Vec<PathBuf>, EventError> {
+pub fn write_event_folder(
+    event: &Event,
+    report: &ImportReport,
+    dir: &Path,
+) -> Result<Vec<PathBuf>, EventError> {
     let io = |p: &Path, source| EventError::Io {
         path: p.into(),
         action: "cannot write".into(),
@@ -726,12 +830,20 @@ pub fn write_event_folder(event: &Event, report: &ImportReport, dir: &Path) -> R
     let csv = dir.join(&csv_name);
     event.write_csv(&csv)?;
     let toml_path = dir.join("event.toml");
-    let mut desc = format!("imported by itaipu-calib from {} ({})", report.source.display(), report.format);
+    let mut desc = format!(
+        "imported by itaipu-calib from {} ({})",
+        report.source.display(),
+        report.format
+    );
     if let Some(s) = &report.start {
         desc.push_str(&format!(", t = 0 at {s}"));
     }
     if !report.gaps.is_empty() || !report.dropouts.is_empty() {
-        desc.push_str(&format!("; {} gap(s), {} dropout(s): see import.json", report.gaps.len(), report.dropouts.len()));
+        desc.push_str(&format!(
+            "; {} gap(s), {} dropout(s): see import.json",
+            report.gaps.len(),
+            report.dropouts.len()
+        ));
     }
     let text = format!(
         "name = {}\ndescription = {}\ncsv = {}\nsystem_mva = {}\nnominal_hz = {}\n\n[init]\nstart_s = {}\nend_s = {}\n",
@@ -778,7 +890,11 @@ pub(crate) fn parse_hms(s: &str) -> Option<(i64, f64)> {
     if !(0..=60).contains(&w) || !frac.chars().all(|c| c.is_ascii_digit()) {
         return None;
     }
-    let f = if frac.is_empty() { 0.0 } else { format!("0.{frac}").parse().ok()? };
+    let f = if frac.is_empty() {
+        0.0
+    } else {
+        format!("0.{frac}").parse().ok()?
+    };
     Some((h * 3600 + m * 60 + w, f))
 }
 
@@ -801,7 +917,10 @@ pub fn parse_iso(s: &str) -> Option<(i64, f64)> {
         let (t, o) = rest.split_at(k);
         let sign = if o.starts_with('-') { -1 } else { 1 };
         let (oh, om) = o[1..].split_once(':').unwrap_or((&o[1..], "0"));
-        (t, sign * (oh.parse::<i64>().ok()? * 3600 + om.parse::<i64>().ok()? * 60))
+        (
+            t,
+            sign * (oh.parse::<i64>().ok()? * 3600 + om.parse::<i64>().ok()? * 60),
+        )
     } else {
         (rest, 0)
     };
@@ -824,8 +943,17 @@ pub fn format_iso(sec: i64, frac: f64) -> String {
     let m = if mp < 10 { mp + 3 } else { mp - 9 };
     let y = yoe + era * 400 + if m <= 2 { 1 } else { 0 };
     let us = (frac * 1e6).round() as i64;
-    let (sod, us) = if us >= 1_000_000 { (sod + 1, us - 1_000_000) } else { (sod, us) };
-    format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{us:06}Z", sod / 3600, sod % 3600 / 60, sod % 60)
+    let (sod, us) = if us >= 1_000_000 {
+        (sod + 1, us - 1_000_000)
+    } else {
+        (sod, us)
+    };
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{us:06}Z",
+        sod / 3600,
+        sod % 3600 / 60,
+        sod % 60
+    )
 }
 
 #[cfg(test)]
@@ -835,7 +963,10 @@ mod tests {
     #[test]
     fn names_are_recognised_with_their_units() {
         let r = recognise("V1.MAG [kV]").unwrap().unwrap();
-        assert_eq!((r.role, r.rank, r.unit), (Role::V(Part::Mag), 0, Some(ChanUnit::Physical(1.0))));
+        assert_eq!(
+            (r.role, r.rank, r.unit),
+            (Role::V(Part::Mag), 0, Some(ChanUnit::Physical(1.0)))
+        );
         let r = recognise("ia_ang_deg").unwrap().unwrap();
         assert_eq!((r.role, r.rank), (Role::I(Part::Ang), 1));
         assert_eq!(recognise("Frequency").unwrap().unwrap().role, Role::Freq);
