@@ -587,14 +587,16 @@ pub fn parse_dyr(
                             .into(),
                     })
                 }
-                _ => return Err(DyrError::Selection {
-                    path: path.into(),
-                    msg: format!(
+                _ => {
+                    return Err(DyrError::Selection {
+                        path: path.into(),
+                        msg: format!(
                         "the file holds {} machines ({}); choose one by bus number and machine id",
                         units.len(),
                         list_units(&units)
                     ),
-                }),
+                    })
+                }
             }
         }
     };

@@ -91,7 +91,8 @@ fn unit_of(models: &[(&str, &str)], ieeest_input: Option<&str>) -> Unit {
 
 #[test]
 fn read_write_read_keeps_every_parameter_of_every_supported_model() {
-    let combos: Vec<(Vec<(&str, &str)>, Option<&str>)> = vec![
+    type Combo<'a> = (Vec<(&'a str, &'a str)>, Option<&'a str>);
+    let combos: Vec<Combo> = vec![
         (
             vec![
                 ("machine", "GENSAE"),
@@ -211,7 +212,8 @@ fn err(text: &str, select: Option<(i64, &str)>, b: &DyrBases) -> DyrError {
 fn malformed_records_are_errors_naming_file_and_line() {
     let good = "1 'GENCLS' 1 4.5 0.0 /\n";
     let b = bases(700.0, Some(0.3));
-    let cases: Vec<(&str, String, Option<(i64, &str)>, &str, &str)> = vec![
+    type Case<'a> = (&'a str, String, Option<(i64, &'a str)>, &'a str, &'a str);
+    let cases: Vec<Case> = vec![
         ("no terminating slash", "1 'GENCLS' 1\n 4.5 0.0\n".into(), None, "syntax", "line 1: record not terminated"),
         ("bus not an integer", format!("{good}x1 'SEXS' 1 0.2 10 100 0.05 0 4 /\n"), None, "syntax", "line 2: bus number 'x1'"),
         ("CON not a number", "1 'GENCLS' 1 4.5\n zero /\n".into(), None, "record", "line 2: GENCLS: CON 2 (D) = 'zero'"),

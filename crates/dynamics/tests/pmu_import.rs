@@ -228,7 +228,6 @@ fn comtrade(dir: &Path, rev: u32, fmt: &str, a: [f64; 4], rows: &[(u32, [f64; 4]
                         }
                     })
                     .collect();
-                writeln!(&mut String::new(), "").unwrap();
                 dat.extend(format!("{n},{ts},{},0\n", f.join(",")).bytes());
             }
             "BINARY" => {

@@ -395,7 +395,7 @@ fn read_binary(data: &[u8], path: &Path, cfg: &Cfg) -> Result<Vec<Row>, ImportEr
     let na = cfg.analog.len();
     let width = if cfg.fmt == Fmt::Binary { 2 } else { 4 };
     let size = 8 + na * width + 2 * cfg.n_digital.div_ceil(16);
-    if data.len() % size != 0 {
+    if !data.len().is_multiple_of(size) {
         return Err(ImportError::data(
             path,
             Some(format!("record {}", data.len() / size + 1)),

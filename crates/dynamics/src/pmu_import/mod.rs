@@ -105,7 +105,10 @@ pub enum ImportError {
     },
     /// The imported record fails the event checks (units, time, windows).
     #[error("{}: the imported record is not a usable event: {source}", path.display())]
-    Event { path: PathBuf, source: EventError },
+    Event {
+        path: PathBuf,
+        source: Box<EventError>,
+    },
 }
 
 impl ImportError {
@@ -338,6 +341,11 @@ pub(crate) fn mapped<'a>(map: &'a [(String, String)], name: &'a str) -> &'a str 
         .unwrap_or(name)
 }
 
+/// A channel that could fill a role: (index, rank, unit, name).
+type Candidate = (usize, u8, Option<ChanUnit>, String);
+/// A usable sample: (t, |V| pu, angle rad, P pu, Q pu, f Hz, location).
+type Kept = (f64, f64, f64, f64, f64, Option<f64>, String);
+
 /// Which source channel feeds each part of the phasors.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Assignment {
@@ -380,7 +388,7 @@ pub(crate) fn assign(
             return Err(format!("map {n}={col}: no column or channel named '{col}'"));
         }
     }
-    let mut best: [Vec<(usize, u8, Option<ChanUnit>, String)>; 9] = Default::default();
+    let mut best: [Vec<Candidate>; 9] = Default::default();
     for (idx, name, src_unit) in names {
         let as_name = mapped(map, name);
         let rec = recognise(as_name).map_err(|m| format!("'{name}': {m}"))?;
@@ -574,7 +582,7 @@ pub(crate) fn finish(
     let sign = if opts.current_into_machine { -1.0 } else { 1.0 };
     let (c30, s30) = ((-30f64).to_radians().cos(), (-30f64).to_radians().sin());
     let mut dropouts = vec![];
-    let mut kept: Vec<(f64, f64, f64, f64, f64, Option<f64>, String)> = vec![];
+    let mut kept: Vec<Kept> = vec![];
     for s in &samples {
         let t = rel(s);
         let (mut vr, mut vi) = phasor(s, 0);
@@ -714,7 +722,7 @@ pub(crate) fn finish(
     let event = Event::from_record(&name, rec, opts.system_mva, opts.nominal_hz, None, None)
         .map_err(|source| ImportError::Event {
             path: path.into(),
-            source,
+            source: Box::new(source),
         })?;
     let report = ImportReport {
         source: path.into(),
