@@ -899,11 +899,6 @@ pub struct DyrText {
 pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
     let mut dyr = String::new();
     let mut warnings = vec![];
-    let _ = writeln!(
-        dyr,
-        "/ {} — written by itaipu-calib; MBASE {} MVA, {} Hz, R_a and X'' in the side file",
-        unit.name, unit.machine_mva, unit.nominal_hz
-    );
     let mut zr = None;
     let mut zx = None;
     for inst in unit.instances() {
@@ -992,7 +987,7 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
     let mut bases = String::new();
     let _ = writeln!(
         bases,
-        "# bases of {} for the .dyr beside (from the power-flow machine record)",
+        "# bases of {} for the .dyr beside (from the power-flow machine record); written by itaipu-calib",
         unit.name
     );
     let _ = writeln!(bases, "name = {}", toml::Value::String(unit.name.clone()));
