@@ -141,11 +141,14 @@ from ._core import (
     check,
     diagnose,
     fit,
+    import_pmu,
     load_event,
     load_unit,
     models,
+    read_dyr,
     simulate,
     synth,
+    write_dyr,
 )
 
 __all__ = [
@@ -164,9 +167,12 @@ __all__ = [
     "check",
     "diagnose",
     "fit",
+    "import_pmu",
     "load_event",
     "load_unit",
     "models",
+    "read_dyr",
     "simulate",
     "synth",
+    "write_dyr",
 ]

@@ -132,6 +132,32 @@ def load_unit(path: _PathLike) -> Unit: ...
 def check(
     event: Union[_PathLike, Event], unit: Optional[Union[_PathLike, Unit]] = None
 ) -> List[Dict[str, Any]]: ...
+def read_dyr(
+    path: _PathLike,
+    *,
+    bus: Optional[int] = None,
+    id: Optional[str] = None,
+    bases: Optional[_PathLike] = None,
+    mbase: Optional[float] = None,
+    nominal_hz: Optional[float] = None,
+    zr: Optional[float] = None,
+    zx: Optional[float] = None,
+) -> Unit: ...
+def write_dyr(unit: Unit, path: _PathLike, *, bus: int = 1, id: str = "1") -> List[str]: ...
+def import_pmu(
+    path: _PathLike,
+    system_mva: float,
+    nominal_hz: float,
+    *,
+    v_base_kv: Optional[float] = None,
+    pu_base_mva: Optional[float] = None,
+    line_voltage: bool = False,
+    current_into_machine: bool = False,
+    rate: Optional[float] = None,
+    map: Optional[Dict[str, str]] = None,
+    name: Optional[str] = None,
+    out: Optional[_PathLike] = None,
+) -> Tuple[Event, Dict[str, Any]]: ...
 def simulate(
     event: Union[_PathLike, Event],
     unit: Union[_PathLike, Unit],

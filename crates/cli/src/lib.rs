@@ -22,7 +22,9 @@ use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::read_unit;
 
 pub mod diagnose_cmd;
+pub mod dyr_cmd;
 pub mod fit_cmd;
+pub mod import_cmd;
 pub mod output;
 pub mod plot;
 pub mod synth_cmd;
@@ -65,6 +67,14 @@ enum Cmd {
     /// voltage step or ambient record played into a true unit, PMU sampling, noise and
     /// quantisation, optionally a hidden effect; writes the event, its CSV and the truth.
     Synth(synth_cmd::SynthArgs),
+    /// Import a PMU recording (C37.118-style CSV, COMTRADE .cfg/.dat) into an event folder:
+    /// P and Q from the voltage and current phasors with named bases, gaps and dropouts
+    /// reported.
+    #[command(after_help = EXIT_CODES)]
+    Import(import_cmd::ImportArgs),
+    /// Read a unit from a PSS/E .dyr into a unit file, or write a unit file as .dyr.
+    #[command(after_help = EXIT_CODES)]
+    Dyr(dyr_cmd::DyrArgs),
     /// List the model library: models, their parameters (name, PSS/E alias, unit, meaning,
     /// typical value and range) and ports, then the primitives of user-defined diagrams.
     Models {
@@ -187,6 +197,8 @@ where
         Cmd::Fit(a) => fit_cmd::cmd_fit(&a),
         Cmd::Diagnose(a) => diagnose_cmd::cmd_diagnose(&a),
         Cmd::Synth(a) => synth_cmd::cmd_synth(&a),
+        Cmd::Import(a) => import_cmd::cmd_import(&a),
+        Cmd::Dyr(a) => dyr_cmd::cmd_dyr(&a),
     };
     match result {
         Ok(()) => 0,
@@ -220,8 +232,19 @@ pub fn load_event(path: &Path) -> Result<Event, CliError> {
     Event::from_toml_file(path).map_err(|e| CliError::new(3, e.to_string()))
 }
 
-/// Reads a unit file (exit code 4 on error).
+/// Reads a unit file (exit code 4 on error). A `.dyr` is read with the bases of
+/// `<stem>.bases.toml` beside it (its warnings printed).
 pub fn load_unit(path: &Path) -> Result<Unit, CliError> {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("dyr"))
+    {
+        let d = dyr_cmd::load_dyr(path, None, None, &dyr_cmd::BasesArgs::default())?;
+        for w in &d.warnings {
+            eprintln!("warning: {w}");
+        }
+        return Ok(d.unit);
+    }
     read_unit(path).map_err(|e| CliError::new(4, e.to_string()))
 }
 

@@ -19,11 +19,13 @@
 
 pub mod block;
 pub mod diagram;
+pub mod dyr;
 pub mod event;
 pub mod integrate;
 pub mod models;
 pub mod params;
 pub mod plausibility;
+pub mod pmu_import;
 pub mod registry;
 pub mod simulate;
 pub mod synthetic;

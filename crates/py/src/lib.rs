@@ -8,6 +8,8 @@
 //!
 //! The pure-Python package (`python/itaipu_calib/__init__.py`) re-exports everything from here.
 
+mod ecosys;
+
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -1760,5 +1762,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(models, m)?)?;
     m.add_function(wrap_pyfunction!(synth, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
+    ecosys::register(m)?;
     Ok(())
 }

@@ -1,0 +1,994 @@
+//! Import of PMU and recorder files into an [`Event`]: C37.118-style CSV exports ([`c37`]) and
+//! COMTRADE 1991/1999/2013 `.cfg` + `.dat`, ASCII, BINARY, BINARY32 and FLOAT32 ([`comtrade`]).
+//!
+//! Both readers find, by column or channel name, a voltage phasor, a current phasor (magnitude
+//! and angle, or real and imaginary parts) and optionally a frequency:
+//!
+//! | role      | names (case-insensitive; `.`, `-`, blanks read as `_`)                       |
+//! |-----------|-------------------------------------------------------------------------------|
+//! | voltage   | `v`, `v1`, `vpos`, `u`, `u1` (positive sequence), else `va`, `ua` (phase A)   |
+//! | current   | `i`, `i1`, `ipos` (positive sequence), else `ia` (phase A)                    |
+//! | part      | a last word `mag`/`magnitude`/`abs`, `ang`/`angle`/`phase`, `re`/`real`, `im`/`imag` |
+//! | frequency | `freq`, `frequency`, `f`                                                      |
+//!
+//! e.g. `v1_mag_kv`, `VA.ang [deg]`, `i_re_a`. The unit is a last word or a bracket (`kv`, `v`,
+//! `pu` for voltages; `a`, `ka`, `pu` for currents; `deg`, `rad` for angles; `hz`); COMTRADE
+//! takes it from the channel's unit field. `map` renames a column or channel to one of these
+//! names (`v_mag_kv=STN.VPM`) for exports that name them otherwise. Phase-A phasors are taken
+//! for a balanced unit (S = 3 V_a I_a*), with a warning.
+//!
+//! **Bases** ([`ImportOptions`]): `system_mva` (the event's P, Q base), `v_base_kv` (rated
+//! line-to-line voltage, for voltages in V or kV), `pu_base_mva` (the MVA base of currents and
+//! voltages given in pu; default `system_mva`). Voltages are phase-to-neutral phasors (C37.118)
+//! unless `line_voltage` (then `V_an = V_ab/√3 ∠−30°`). P + jQ = 3 V I* (physical) or V I* (pu)
+//! in generator convention: the current flows out of the machine into the grid unless
+//! `current_into_machine`.
+//!
+//! **Gaps and dropouts.** A sample interval above 1.5 times the PMU's (median) interval is a
+//! gap, reported with the number of missing samples; a sample flagged bad (C37.118 `STAT` data
+//! error bits, COMTRADE missing-data codes, empty or NaN fields, |V| = 0) is a dropout,
+//! reported and removed. The event keeps the PMU's own time stamps (the playback interpolates
+//! across a gap), or with `rate_hz` is resampled to a uniform grid: linear interpolation of |V|,
+//! the unwrapped angle, P, Q and f, and when the new rate is lower, the mean of the samples
+//! within half an output interval (a boxcar against aliasing).
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use crate::event::{format_g17, unwrap_angles, Event, EventError, Record};
+
+pub mod c37;
+pub mod comtrade;
+
+/// How to turn phasors into the event's per-unit quantities.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportOptions {
+    /// Event name (default: the file stem).
+    pub name: Option<String>,
+    /// MVA base of the event's P and Q.
+    pub system_mva: f64,
+    /// Nominal frequency, Hz.
+    pub nominal_hz: f64,
+    /// Rated line-to-line voltage, kV (needed for voltages in V or kV).
+    pub v_base_kv: Option<f64>,
+    /// MVA base of channels given in pu (default `system_mva`).
+    pub pu_base_mva: Option<f64>,
+    /// Voltage phasors are line-to-line (V_ab) rather than phase-to-neutral.
+    pub line_voltage: bool,
+    /// The current is measured flowing into the machine (P, Q are negated).
+    pub current_into_machine: bool,
+    /// Resample to this rate [samples/s]; `None` keeps the PMU's time stamps.
+    pub rate_hz: Option<f64>,
+    /// `(name, column)`: the column or channel `column` is read as `name`.
+    pub map: Vec<(String, String)>,
+}
+
+impl ImportOptions {
+    /// Options with the given bases, everything else by default.
+    pub fn new(system_mva: f64, nominal_hz: f64) -> Self {
+        ImportOptions {
+            name: None,
+            system_mva,
+            nominal_hz,
+            v_base_kv: None,
+            pu_base_mva: None,
+            line_voltage: false,
+            current_into_machine: false,
+            rate_hz: None,
+            map: vec![],
+        }
+    }
+}
+
+/// A failed import. Messages name the file and the line (CSV, `.cfg`, ASCII `.dat`), the
+/// record (binary `.dat`) or the option.
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    #[error("{}: cannot read: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// Bad data in a file; `at` is e.g. `line 12, column v_mag_kv` or `record 7`.
+    #[error("{}{}: {msg}", path.display(), at.as_ref().map(|a| format!(" {a}")).unwrap_or_default())]
+    Data {
+        path: PathBuf,
+        at: Option<String>,
+        msg: String,
+    },
+    /// A missing or wrong option (a base, a resampling rate, a map entry).
+    #[error("{}: {option}: {msg}", path.display())]
+    Options {
+        path: PathBuf,
+        option: String,
+        msg: String,
+    },
+    /// The imported record fails the event checks (units, time, windows).
+    #[error("{}: the imported record is not a usable event: {source}", path.display())]
+    Event {
+        path: PathBuf,
+        source: Box<EventError>,
+    },
+}
+
+impl ImportError {
+    /// Short identifier of the error kind.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ImportError::Io { .. } => "io",
+            ImportError::Data { .. } => "data",
+            ImportError::Options { .. } => "options",
+            ImportError::Event { .. } => "event",
+        }
+    }
+    pub(crate) fn data(path: &Path, at: Option<String>, msg: impl Into<String>) -> Self {
+        ImportError::Data {
+            path: path.into(),
+            at,
+            msg: msg.into(),
+        }
+    }
+}
+
+/// A run of missing samples.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Gap {
+    /// Time of the last sample before the gap and of the first after, s (event time axis).
+    pub from_s: f64,
+    pub to_s: f64,
+    /// Samples missing at the PMU's rate.
+    pub missing: usize,
+    /// Where the gap ends in the source (`line 120`, `record 119`).
+    pub at: String,
+}
+
+/// A sample flagged bad and removed.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Dropout {
+    pub time_s: f64,
+    pub at: String,
+    pub reason: String,
+}
+
+/// What an import did.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ImportReport {
+    pub source: PathBuf,
+    /// e.g. `C37.118 CSV`, `COMTRADE 1999 BINARY`.
+    pub format: String,
+    /// Absolute time of the event's t = 0 (ISO 8601), when the source has one.
+    pub start: Option<String>,
+    /// Samples read, and kept (after dropouts).
+    pub samples_read: usize,
+    pub samples_kept: usize,
+    /// The PMU's rate (from the median interval), samples/s.
+    pub source_rate_hz: f64,
+    /// The event's rate when resampled.
+    pub resampled_hz: Option<f64>,
+    /// Columns or channels used, as `role <- name [unit]`.
+    pub channels: Vec<String>,
+    pub gaps: Vec<Gap>,
+    pub dropouts: Vec<Dropout>,
+    pub warnings: Vec<String>,
+}
+
+impl fmt::Display for ImportReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "import {} ({}): {} samples read, {} kept, {:.3} samples/s{}{}",
+            self.source.display(),
+            self.format,
+            self.samples_read,
+            self.samples_kept,
+            self.source_rate_hz,
+            self.resampled_hz
+                .map(|r| format!(", resampled to {r} samples/s"))
+                .unwrap_or_default(),
+            self.start
+                .as_ref()
+                .map(|s| format!(", t = 0 at {s}"))
+                .unwrap_or_default()
+        )?;
+        writeln!(f, "  channels: {}", self.channels.join("; "))?;
+        for g in &self.gaps {
+            writeln!(
+                f,
+                "  gap: {:.6}-{:.6} s, {} sample(s) missing (before {})",
+                g.from_s, g.to_s, g.missing, g.at
+            )?;
+        }
+        for d in &self.dropouts {
+            writeln!(f, "  dropout: {:.6} s ({}): {}", d.time_s, d.at, d.reason)?;
+        }
+        for w in &self.warnings {
+            writeln!(f, "  warning: {w}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Which quantity a column or channel holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Role {
+    V(Part),
+    I(Part),
+    Freq,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Part {
+    Mag,
+    Ang,
+    Re,
+    Im,
+}
+
+/// Unit of a column, as a factor to a base: kV (voltages), kA (currents), rad, Hz, or pu.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum ChanUnit {
+    /// Multiply by this to get kV, kA, rad or Hz.
+    Physical(f64),
+    Pu,
+}
+
+/// A recognised channel: role, rank (0 positive sequence, 1 phase A), unit if stated.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Recognised {
+    pub role: Role,
+    pub rank: u8,
+    pub unit: Option<ChanUnit>,
+}
+
+fn unit_word(w: &str) -> Option<(&'static str, ChanUnit)> {
+    Some(match w {
+        "kv" => ("kV", ChanUnit::Physical(1.0)),
+        "v" | "volt" | "volts" => ("V", ChanUnit::Physical(1e-3)),
+        "a" | "amp" | "amps" => ("A", ChanUnit::Physical(1e-3)),
+        "ka" => ("kA", ChanUnit::Physical(1.0)),
+        "pu" | "p.u." => ("pu", ChanUnit::Pu),
+        "deg" | "degree" | "degrees" => ("deg", ChanUnit::Physical(std::f64::consts::PI / 180.0)),
+        "rad" | "radian" | "radians" => ("rad", ChanUnit::Physical(1.0)),
+        "hz" => ("Hz", ChanUnit::Physical(1.0)),
+        _ => return None,
+    })
+}
+
+/// Splits a name into lower-case words; a bracketed or parenthesised tail is the unit.
+fn words(name: &str) -> (Vec<String>, Option<String>) {
+    let mut base = name.trim().to_ascii_lowercase();
+    let mut unit = None;
+    for (o, c) in [('[', ']'), ('(', ')')] {
+        if let (Some(a), true) = (base.find(o), base.ends_with(c)) {
+            unit = Some(base[a + 1..base.len() - 1].trim().to_string());
+            base = base[..a].to_string();
+        }
+    }
+    let w: Vec<String> = base
+        .split(|ch: char| ch == '_' || ch == '.' || ch == '-' || ch.is_whitespace())
+        .filter(|s| !s.is_empty())
+        .map(|s| s.to_string())
+        .collect();
+    (w, unit)
+}
+
+/// Recognises a column or channel name; `Ok(None)` for a name that is none of the roles.
+/// A unit word that does not fit the role is an error message.
+pub(crate) fn recognise(name: &str) -> Result<Option<Recognised>, String> {
+    let (mut w, bracket) = words(name);
+    let mut unit_text = bracket;
+    if unit_text.is_none() && w.len() >= 2 && unit_word(w.last().expect("len")).is_some() {
+        unit_text = w.pop();
+    }
+    let unit = match &unit_text {
+        None => None,
+        Some(u) => Some(
+            unit_word(u)
+                .ok_or_else(|| format!("unknown unit '{u}' (kV, V, A, kA, pu, deg, rad, Hz)"))?,
+        ),
+    };
+    let role_rank = match w.as_slice() {
+        [f] if f == "freq" || f == "frequency" || f == "f" => Some((Role::Freq, 0)),
+        [k, p] => {
+            let part = match p.as_str() {
+                "mag" | "magnitude" | "abs" => Some(Part::Mag),
+                "ang" | "angle" | "phase" => Some(Part::Ang),
+                "re" | "real" => Some(Part::Re),
+                "im" | "imag" => Some(Part::Im),
+                _ => None,
+            };
+            match (k.as_str(), part) {
+                ("v" | "v1" | "vpos" | "u" | "u1", Some(p)) => Some((Role::V(p), 0)),
+                ("va" | "ua", Some(p)) => Some((Role::V(p), 1)),
+                ("i" | "i1" | "ipos", Some(p)) => Some((Role::I(p), 0)),
+                ("ia", Some(p)) => Some((Role::I(p), 1)),
+                _ => None,
+            }
+        }
+        _ => None,
+    };
+    let Some((role, rank)) = role_rank else {
+        return Ok(None);
+    };
+    if let Some((label, u)) = unit {
+        let fits = match role {
+            Role::V(Part::Ang) | Role::I(Part::Ang) => matches!(label, "deg" | "rad"),
+            Role::V(_) => matches!(label, "kV" | "V" | "pu"),
+            Role::I(_) => matches!(label, "kA" | "A" | "pu"),
+            Role::Freq => label == "Hz",
+        };
+        if !fits {
+            return Err(format!("unit {label} does not fit this quantity"));
+        }
+        return Ok(Some(Recognised {
+            role,
+            rank,
+            unit: Some(u),
+        }));
+    }
+    Ok(Some(Recognised {
+        role,
+        rank,
+        unit: None,
+    }))
+}
+
+/// The name a column or channel is read as: its `map` entry's name, or its own.
+pub(crate) fn mapped<'a>(map: &'a [(String, String)], name: &'a str) -> &'a str {
+    map.iter()
+        .find(|(_, col)| col.trim().eq_ignore_ascii_case(name.trim()))
+        .map(|(n, _)| n.as_str())
+        .unwrap_or(name)
+}
+
+/// A channel that could fill a role: (index, rank, unit, name).
+type Candidate = (usize, u8, Option<ChanUnit>, String);
+/// A usable sample: (t, |V| pu, angle rad, P pu, Q pu, f Hz, location).
+type Kept = (f64, f64, f64, f64, f64, Option<f64>, String);
+
+/// Which source channel feeds each part of the phasors.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Assignment {
+    /// (index, unit, name) per slot: V mag/ang/re/im, I mag/ang/re/im, freq.
+    pub slots: [Option<(usize, ChanUnit, String)>; 9],
+    pub phase_a: bool,
+}
+
+fn slot(role: Role) -> usize {
+    let p = |p: Part| match p {
+        Part::Mag => 0,
+        Part::Ang => 1,
+        Part::Re => 2,
+        Part::Im => 3,
+    };
+    match role {
+        Role::V(x) => p(x),
+        Role::I(x) => 4 + p(x),
+        Role::Freq => 8,
+    }
+}
+
+const SLOT_NAMES: [&str; 9] = [
+    "v_mag", "v_ang", "v_re", "v_im", "i_mag", "i_ang", "i_re", "i_im", "freq",
+];
+
+/// Assigns named channels (`(index, name, unit from the source if any)`) to roles. The best
+/// rank wins; two channels of the same rank for one role are an error; the rest are listed in
+/// `ignored`. Errors are messages for the caller to locate.
+pub(crate) fn assign(
+    names: &[(usize, String, Option<String>)],
+    map: &[(String, String)],
+    ignored: &mut Vec<String>,
+) -> Result<Assignment, String> {
+    for (n, col) in map {
+        if !names
+            .iter()
+            .any(|(_, name, _)| name.trim().eq_ignore_ascii_case(col.trim()))
+        {
+            return Err(format!("map {n}={col}: no column or channel named '{col}'"));
+        }
+    }
+    let mut best: [Vec<Candidate>; 9] = Default::default();
+    for (idx, name, src_unit) in names {
+        let as_name = mapped(map, name);
+        let rec = recognise(as_name).map_err(|m| format!("'{name}': {m}"))?;
+        let Some(mut r) = rec else {
+            ignored.push(name.clone());
+            continue;
+        };
+        if r.unit.is_none() {
+            if let Some(u) = src_unit {
+                let u = u.trim().to_ascii_lowercase();
+                if !u.is_empty() {
+                    let full = format!("{}_{}", SLOT_NAMES[slot(r.role)], u);
+                    r.unit = recognise(&full)
+                        .map_err(|m| format!("'{name}' [{u}]: {m}"))?
+                        .and_then(|x| x.unit);
+                }
+            }
+        }
+        best[slot(r.role)].push((*idx, r.rank, r.unit, name.clone()));
+    }
+    let mut a = Assignment::default();
+    for (s, cands) in best.iter().enumerate() {
+        let Some(top) = cands.iter().map(|c| c.1).min() else {
+            continue;
+        };
+        let chosen: Vec<_> = cands.iter().filter(|c| c.1 == top).collect();
+        if chosen.len() > 1 {
+            return Err(format!(
+                "{} columns could be {}: {}; rename one with map",
+                chosen.len(),
+                SLOT_NAMES[s],
+                chosen
+                    .iter()
+                    .map(|c| c.3.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        for c in cands.iter().filter(|c| c.1 != top) {
+            ignored.push(c.3.clone());
+        }
+        let c = chosen[0];
+        let unit = match (c.2, s) {
+            (Some(u), _) => u,
+            (None, 8) => ChanUnit::Physical(1.0), // frequency in Hz
+            (None, _) => {
+                return Err(format!(
+                    "'{}' ({}): no unit; say it in the name ({}_kv, {} [deg], …) or the channel's unit field",
+                    c.3, SLOT_NAMES[s], SLOT_NAMES[s], SLOT_NAMES[s]
+                ))
+            }
+        };
+        if top == 1 && s != 8 {
+            a.phase_a = true;
+        }
+        a.slots[s] = Some((c.0, unit, c.3.clone()));
+    }
+    for (k, what) in [(0usize, "voltage"), (4, "current")] {
+        let polar = a.slots[k].is_some() && a.slots[k + 1].is_some();
+        let rect = a.slots[k + 2].is_some() && a.slots[k + 3].is_some();
+        if polar == rect {
+            let have: Vec<&str> = (k..k + 4)
+                .filter(|&j| a.slots[j].is_some())
+                .map(|j| SLOT_NAMES[j])
+                .collect();
+            return Err(format!(
+                "the {what} phasor needs magnitude and angle or real and imaginary parts, exactly one form (found: {})",
+                if have.is_empty() { "none".to_string() } else { have.join(", ") }
+            ));
+        }
+    }
+    Ok(a)
+}
+
+impl Assignment {
+    /// Human-readable list of the channels used.
+    pub fn describe(&self) -> Vec<String> {
+        self.slots
+            .iter()
+            .enumerate()
+            .filter_map(|(s, x)| {
+                x.as_ref()
+                    .map(|(_, _, n)| format!("{} <- {n}", SLOT_NAMES[s]))
+            })
+            .collect()
+    }
+}
+
+/// One sample in source units (as assigned), or why it is bad.
+pub(crate) struct RawSample {
+    /// Absolute time: whole seconds and fraction (keeps µs over epoch times).
+    pub sec: i64,
+    pub frac: f64,
+    /// Values by slot (NaN = absent in this sample).
+    pub vals: [f64; 9],
+    /// Where it is (`line 12`, `record 11`).
+    pub at: String,
+    /// Set when the source flags the sample bad.
+    pub bad: Option<String>,
+}
+
+/// Turns raw samples into the event and the report (shared by both readers).
+pub(crate) fn finish(
+    path: &Path,
+    format: String,
+    start: Option<String>,
+    a: &Assignment,
+    samples: Vec<RawSample>,
+    opts: &ImportOptions,
+    mut warnings: Vec<String>,
+) -> Result<(Event, ImportReport), ImportError> {
+    let opt = |o: &str, m: String| ImportError::Options {
+        path: path.into(),
+        option: o.into(),
+        msg: m,
+    };
+    if !(opts.system_mva.is_finite() && opts.system_mva > 0.0) {
+        return Err(opt(
+            "system_mva",
+            format!("must be > 0 MVA (got {})", opts.system_mva),
+        ));
+    }
+    if !(opts.nominal_hz.is_finite() && opts.nominal_hz > 0.0) {
+        return Err(opt(
+            "nominal_hz",
+            format!("must be > 0 Hz (got {})", opts.nominal_hz),
+        ));
+    }
+    let pu_base = opts.pu_base_mva.unwrap_or(opts.system_mva);
+    if !(pu_base.is_finite() && pu_base > 0.0) {
+        return Err(opt(
+            "pu_base_mva",
+            format!("must be > 0 MVA (got {pu_base})"),
+        ));
+    }
+    let unit_of = |s: usize| a.slots[s].as_ref().map(|x| x.1);
+    let v_pu = matches!(unit_of(0).or(unit_of(2)), Some(ChanUnit::Pu));
+    let i_pu = matches!(unit_of(4).or(unit_of(6)), Some(ChanUnit::Pu));
+    if v_pu != i_pu {
+        return Err(opt(
+            "units",
+            "voltage and current must both be physical (kV/V and kA/A) or both pu".into(),
+        ));
+    }
+    let v_base = if v_pu {
+        None
+    } else {
+        let v = opts.v_base_kv.ok_or_else(|| {
+            opt(
+                "v_base_kv",
+                "missing: the rated line-to-line voltage [kV] is needed for voltages in V or kV"
+                    .into(),
+            )
+        })?;
+        if !(v.is_finite() && v > 0.0) {
+            return Err(opt("v_base_kv", format!("must be > 0 kV (got {v})")));
+        }
+        Some(v)
+    };
+    if let Some(r) = opts.rate_hz {
+        if !(r.is_finite() && r > 0.0) {
+            return Err(opt("rate_hz", format!("must be > 0 samples/s (got {r})")));
+        }
+    }
+    if a.phase_a {
+        warnings.push(
+            "phase-A phasors taken as the positive sequence (balanced unit): S = 3 V_a I_a*".into(),
+        );
+    }
+    let samples_read = samples.len();
+    if samples_read == 0 {
+        return Err(ImportError::data(path, None, "no samples"));
+    }
+    let (sec0, frac0) = (samples[0].sec, samples[0].frac);
+    let rel = |s: &RawSample| (s.sec - sec0) as f64 + (s.frac - frac0);
+    let get = |s: &RawSample, k: usize| -> f64 {
+        match &a.slots[k] {
+            Some((_, ChanUnit::Physical(f), _)) => s.vals[k] * f,
+            Some((_, ChanUnit::Pu, _)) => s.vals[k],
+            None => f64::NAN,
+        }
+    };
+    let phasor = |s: &RawSample, k: usize| -> (f64, f64) {
+        if a.slots[k].is_some() {
+            let (m, th) = (get(s, k), get(s, k + 1));
+            (m * th.cos(), m * th.sin())
+        } else {
+            (get(s, k + 2), get(s, k + 3))
+        }
+    };
+    let sign = if opts.current_into_machine { -1.0 } else { 1.0 };
+    let (c30, s30) = ((-30f64).to_radians().cos(), (-30f64).to_radians().sin());
+    let mut dropouts = vec![];
+    let mut kept: Vec<Kept> = vec![];
+    for s in &samples {
+        let t = rel(s);
+        let (mut vr, mut vi) = phasor(s, 0);
+        let (ir, ii) = phasor(s, 4);
+        let f = a.slots[8].as_ref().map(|_| get(s, 8));
+        let reason = if let Some(b) = &s.bad {
+            Some(b.clone())
+        } else if ![vr, vi, ir, ii].iter().all(|x| x.is_finite())
+            || f.is_some_and(|x| !x.is_finite())
+        {
+            Some("a value is missing or not a number".to_string())
+        } else if vr == 0.0 && vi == 0.0 {
+            Some("|V| = 0".to_string())
+        } else {
+            None
+        };
+        if let Some(reason) = reason {
+            dropouts.push(Dropout {
+                time_s: t,
+                at: s.at.clone(),
+                reason,
+            });
+            continue;
+        }
+        if opts.line_voltage {
+            let (r, i) = (vr / 3f64.sqrt(), vi / 3f64.sqrt());
+            (vr, vi) = (r * c30 - i * s30, r * s30 + i * c30);
+        }
+        // S = k V I* (k = 3 for phase-to-neutral kV and kA → MVA; 1 in pu on pu_base).
+        let (sr, si) = (vr * ir + vi * ii, vi * ir - vr * ii);
+        let (p, q, vmag) = match v_base {
+            Some(vb) => (
+                3.0 * sr / opts.system_mva,
+                3.0 * si / opts.system_mva,
+                vr.hypot(vi) * 3f64.sqrt() / vb,
+            ),
+            None => (
+                sr * pu_base / opts.system_mva,
+                si * pu_base / opts.system_mva,
+                vr.hypot(vi),
+            ),
+        };
+        kept.push((t, vmag, vi.atan2(vr), sign * p, sign * q, f, s.at.clone()));
+    }
+    if kept.len() < 2 {
+        return Err(ImportError::data(
+            path,
+            None,
+            format!("{} usable sample(s) of {samples_read}", kept.len()),
+        ));
+    }
+    // Time axis: strictly increasing, relative to the first kept sample.
+    let t0 = kept[0].0;
+    for w in kept.windows(2) {
+        if !(w[1].0 > w[0].0) {
+            return Err(ImportError::data(
+                path,
+                Some(w[1].6.clone()),
+                format!(
+                    "time {:.6} s is not after the previous sample's {:.6} s ({})",
+                    w[1].0 - t0,
+                    w[0].0 - t0,
+                    w[0].6
+                ),
+            ));
+        }
+    }
+    // Gaps are time stamps that never came (on every sample read, so that a dropout removed
+    // here is not also a gap); the rate is over the intervals without a gap.
+    let all: Vec<(f64, &str)> = samples.iter().map(|s| (rel(s), s.at.as_str())).collect();
+    let mut dts: Vec<f64> = all
+        .windows(2)
+        .map(|w| w[1].0 - w[0].0)
+        .filter(|d| *d > 0.0)
+        .collect();
+    if dts.is_empty() {
+        dts = kept.windows(2).map(|w| w[1].0 - w[0].0).collect();
+    }
+    dts.sort_by(|x, y| x.partial_cmp(y).expect("finite"));
+    let dt_median = dts[dts.len() / 2];
+    let regular: Vec<f64> = dts
+        .iter()
+        .copied()
+        .filter(|d| *d <= 1.5 * dt_median)
+        .collect();
+    let dt = regular.iter().sum::<f64>() / regular.len() as f64;
+    let mut gaps = vec![];
+    for w in all.windows(2) {
+        let d = w[1].0 - w[0].0;
+        if d > 1.5 * dt_median {
+            gaps.push(Gap {
+                from_s: w[0].0 - t0,
+                to_s: w[1].0 - t0,
+                missing: ((d / dt).round() as usize).saturating_sub(1).max(1),
+                at: w[1].1.to_string(),
+            });
+        }
+    }
+    for d in &mut dropouts {
+        d.time_s -= t0;
+    }
+    let time: Vec<f64> = kept.iter().map(|k| k.0 - t0).collect();
+    let vmag: Vec<f64> = kept.iter().map(|k| k.1).collect();
+    let ang = unwrap_angles(&kept.iter().map(|k| k.2).collect::<Vec<_>>());
+    let p: Vec<f64> = kept.iter().map(|k| k.3).collect();
+    let q: Vec<f64> = kept.iter().map(|k| k.4).collect();
+    let freq: Option<Vec<f64>> = if a.slots[8].is_some() {
+        Some(kept.iter().map(|k| k.5.expect("checked")).collect())
+    } else {
+        None
+    };
+    let mut rec = Record {
+        time_s: time,
+        v_mag_pu: vmag,
+        v_ang_rad: ang,
+        p_pu: p,
+        q_pu: q,
+        freq_hz: freq,
+        efd_pu: None,
+        ifd_pu: None,
+    };
+    if let Some(rate) = opts.rate_hz {
+        rec = resample(&rec, rate, dt);
+        if !gaps.is_empty() {
+            warnings.push(format!(
+                "{} gap(s) filled by interpolation in the resampled record",
+                gaps.len()
+            ));
+        }
+    }
+    let name = opts.name.clone().unwrap_or_else(|| {
+        path.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "imported".into())
+    });
+    let samples_kept = kept.len();
+    let event = Event::from_record(&name, rec, opts.system_mva, opts.nominal_hz, None, None)
+        .map_err(|source| ImportError::Event {
+            path: path.into(),
+            source: Box::new(source),
+        })?;
+    let report = ImportReport {
+        source: path.into(),
+        format,
+        start: start.map(|s| shift_iso(&s, t0)),
+        samples_read,
+        samples_kept,
+        source_rate_hz: 1.0 / dt,
+        resampled_hz: opts.rate_hz,
+        channels: a.describe(),
+        gaps,
+        dropouts,
+        warnings,
+    };
+    Ok((event, report))
+}
+
+/// The start stamp moved on by `dt` seconds when the first samples were dropped (only noted).
+fn shift_iso(s: &str, dt: f64) -> String {
+    if dt == 0.0 {
+        s.to_string()
+    } else {
+        format!("{s} + {dt:.6} s")
+    }
+}
+
+/// Resamples to a uniform grid from the first sample (see the module documentation).
+fn resample(r: &Record, rate: f64, dt_src: f64) -> Record {
+    let h = 1.0 / rate;
+    let n = ((r.end_s() - r.start_s()) / h + 1e-9).floor() as usize + 1;
+    let t: Vec<f64> = (0..n).map(|k| r.start_s() + k as f64 * h).collect();
+    let boxcar = h > 1.5 * dt_src;
+    let col = |y: &[f64]| -> Vec<f64> {
+        t.iter()
+            .map(|&tk| {
+                if boxcar {
+                    let (lo, hi) = (tk - 0.5 * h, tk + 0.5 * h);
+                    let (mut s, mut c) = (0.0, 0);
+                    for (ti, yi) in r.time_s.iter().zip(y) {
+                        if *ti >= lo && *ti < hi {
+                            s += yi;
+                            c += 1;
+                        }
+                    }
+                    if c > 0 {
+                        return s / c as f64;
+                    }
+                }
+                interp(&r.time_s, y, tk)
+            })
+            .collect()
+    };
+    Record {
+        v_mag_pu: col(&r.v_mag_pu),
+        v_ang_rad: col(&r.v_ang_rad),
+        p_pu: col(&r.p_pu),
+        q_pu: col(&r.q_pu),
+        freq_hz: r.freq_hz.as_ref().map(|f| col(f)),
+        efd_pu: None,
+        ifd_pu: None,
+        time_s: t,
+    }
+}
+
+fn interp(x: &[f64], y: &[f64], t: f64) -> f64 {
+    let k = x.partition_point(|v| *v <= t);
+    if k == 0 {
+        return y[0];
+    }
+    if k >= x.len() {
+        return y[x.len() - 1];
+    }
+    let (x0, x1) = (x[k - 1], x[k]);
+    y[k - 1] + (y[k] - y[k - 1]) * (t - x0) / (x1 - x0)
+}
+
+/// Imports a file by its extension: `.cfg` (or a `.dat` with a `.cfg` beside it) as COMTRADE,
+/// anything else as C37.118-style CSV.
+pub fn import(path: &Path, opts: &ImportOptions) -> Result<(Event, ImportReport), ImportError> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "cfg" => comtrade::import(path, opts),
+        "dat" => {
+            let upper = path.with_extension("CFG");
+            let cfg = if upper.is_file() {
+                upper
+            } else {
+                path.with_extension("cfg")
+            };
+            comtrade::import(&cfg, opts)
+        }
+        _ => c37::import(path, opts),
+    }
+}
+
+/// Writes an event folder: `event.toml`, `<name>.csv` (the canonical columns) and
+/// `import.json` (the report). Returns the paths written.
+pub fn write_event_folder(
+    event: &Event,
+    report: &ImportReport,
+    dir: &Path,
+) -> Result<Vec<PathBuf>, EventError> {
+    let io = |p: &Path, source| EventError::Io {
+        path: p.into(),
+        action: "cannot write".into(),
+        source,
+    };
+    std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+    let csv_name = format!("{}.csv", event.name);
+    let csv = dir.join(&csv_name);
+    event.write_csv(&csv)?;
+    let toml_path = dir.join("event.toml");
+    let mut desc = format!(
+        "imported by itaipu-calib from {} ({})",
+        report.source.display(),
+        report.format
+    );
+    if let Some(s) = &report.start {
+        desc.push_str(&format!(", t = 0 at {s}"));
+    }
+    if !report.gaps.is_empty() || !report.dropouts.is_empty() {
+        desc.push_str(&format!(
+            "; {} gap(s), {} dropout(s): see import.json",
+            report.gaps.len(),
+            report.dropouts.len()
+        ));
+    }
+    let text = format!(
+        "name = {}\ndescription = {}\ncsv = {}\nsystem_mva = {}\nnominal_hz = {}\n\n[init]\nstart_s = {}\nend_s = {}\n",
+        toml::Value::String(event.name.clone()),
+        toml::Value::String(desc),
+        toml::Value::String(csv_name),
+        format_g17(event.system_mva),
+        format_g17(event.nominal_hz),
+        format_g17(event.init.start_s),
+        format_g17(event.init.end_s),
+    );
+    std::fs::write(&toml_path, text).map_err(|e| io(&toml_path, e))?;
+    let json_path = dir.join("import.json");
+    let j = serde_json::to_string_pretty(report).expect("a report serialises") + "\n";
+    std::fs::write(&json_path, j).map_err(|e| io(&json_path, e))?;
+    Ok(vec![toml_path, csv, json_path])
+}
+
+/// Days since 1970-01-01 of a civil date (proleptic Gregorian).
+pub(crate) fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = if y >= 0 { y } else { y - 399 } / 400;
+    let yoe = y - era * 400;
+    let mp = (m + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146097 + doe - 719468
+}
+
+/// Parses `hh:mm:ss[.frac]` into (seconds of day, fraction).
+pub(crate) fn parse_hms(s: &str) -> Option<(i64, f64)> {
+    let mut it = s.split(':');
+    let h: i64 = it.next()?.trim().parse().ok()?;
+    let m: i64 = it.next()?.trim().parse().ok()?;
+    let sec = it.next()?.trim();
+    if it.next().is_some() || !(0..24).contains(&h) || !(0..60).contains(&m) {
+        return None;
+    }
+    let (whole, frac) = match sec.split_once('.') {
+        Some((w, f)) => (w, f),
+        None => (sec, ""),
+    };
+    let w: i64 = whole.parse().ok()?;
+    if !(0..=60).contains(&w) || !frac.chars().all(|c| c.is_ascii_digit()) {
+        return None;
+    }
+    let f = if frac.is_empty() {
+        0.0
+    } else {
+        format!("0.{frac}").parse().ok()?
+    };
+    Some((h * 3600 + m * 60 + w, f))
+}
+
+/// Parses an ISO 8601 time stamp `YYYY-MM-DD[T ]hh:mm:ss[.frac][Z|±hh:mm]` (a `/` date
+/// separator is accepted) into (seconds since the Unix epoch, UTC; fraction).
+pub fn parse_iso(s: &str) -> Option<(i64, f64)> {
+    let s = s.trim();
+    let (date, rest) = s.split_once(['T', ' '])?;
+    let mut d = date.split(['-', '/']);
+    let y: i64 = d.next()?.parse().ok()?;
+    let mo: i64 = d.next()?.parse().ok()?;
+    let da: i64 = d.next()?.parse().ok()?;
+    if d.next().is_some() || !(1..=12).contains(&mo) || !(1..=31).contains(&da) {
+        return None;
+    }
+    let rest = rest.trim();
+    let (time, offset) = if let Some(t) = rest.strip_suffix(['Z', 'z']) {
+        (t, 0)
+    } else if let Some(k) = rest.rfind(['+', '-']) {
+        let (t, o) = rest.split_at(k);
+        let sign = if o.starts_with('-') { -1 } else { 1 };
+        let (oh, om) = o[1..].split_once(':').unwrap_or((&o[1..], "0"));
+        (
+            t,
+            sign * (oh.parse::<i64>().ok()? * 3600 + om.parse::<i64>().ok()? * 60),
+        )
+    } else {
+        (rest, 0)
+    };
+    let (sod, frac) = parse_hms(time)?;
+    Some((days_from_civil(y, mo, da) * 86400 + sod - offset, frac))
+}
+
+/// Formats epoch seconds as ISO 8601 UTC with microseconds.
+pub fn format_iso(sec: i64, frac: f64) -> String {
+    let days = sec.div_euclid(86400);
+    let sod = sec.rem_euclid(86400);
+    // civil_from_days
+    let z = days + 719468;
+    let era = if z >= 0 { z } else { z - 146096 } / 146097;
+    let doe = z - era * 146097;
+    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + if m <= 2 { 1 } else { 0 };
+    let us = (frac * 1e6).round() as i64;
+    let (sod, us) = if us >= 1_000_000 {
+        (sod + 1, us - 1_000_000)
+    } else {
+        (sod, us)
+    };
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{us:06}Z",
+        sod / 3600,
+        sod % 3600 / 60,
+        sod % 60
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_recognised_with_their_units() {
+        let r = recognise("V1.MAG [kV]").unwrap().unwrap();
+        assert_eq!(
+            (r.role, r.rank, r.unit),
+            (Role::V(Part::Mag), 0, Some(ChanUnit::Physical(1.0)))
+        );
+        let r = recognise("ia_ang_deg").unwrap().unwrap();
+        assert_eq!((r.role, r.rank), (Role::I(Part::Ang), 1));
+        assert_eq!(recognise("Frequency").unwrap().unwrap().role, Role::Freq);
+        assert!(recognise("vb_mag_kv").unwrap().is_none());
+        assert!(recognise("v_mag_ka").is_err());
+    }
+
+    #[test]
+    fn iso_time_stamps_round_trip_and_match_epoch_seconds() {
+        assert_eq!(parse_iso("1970-01-01T00:00:00Z"), Some((0, 0.0)));
+        let (s, f) = parse_iso("2021-03-04 05:06:07.25+01:00").unwrap();
+        assert_eq!(s, 1614834367 - 3600); // 04:06:07 UTC
+        assert_eq!(f, 0.25);
+        assert_eq!(format_iso(s, f), "2021-03-04T04:06:07.250000Z");
+        assert_eq!(parse_iso("2021-13-04T00:00:00"), None);
+    }
+}

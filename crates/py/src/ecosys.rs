@@ -1,0 +1,161 @@
+//! Thin bindings of the `.dyr` reader/writer and the PMU importer (the same library calls as
+//! `itaipu-calib dyr` and `itaipu-calib import`).
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use pyo3::exceptions::{PyUserWarning, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use itaipu_dynamics::dyr::{self, DyrError, PartialBases};
+use itaipu_dynamics::pmu_import::{self, ImportError, ImportOptions};
+
+use super::{raise, EventError, PyEvent, PyUnit, UnitModelError};
+
+fn dyr_err(py: Python<'_>, e: DyrError) -> PyErr {
+    match e {
+        DyrError::Bases { .. } => raise::<UnitModelError>(py, e.to_string(), Some("bases")),
+        e => raise::<UnitModelError>(py, e.to_string(), Some(e.kind())),
+    }
+}
+
+/// Reads one unit from a PSS/E .dyr (GENSAE, GENSAL, GENROU, GENCLS, SEXS, STAB3, IEEEST,
+/// HYGOV). `bus`/`id` select the unit (optional when the file holds one machine). Bases come
+/// from `bases` (a side file, TOML: mbase, nominal_hz, zr, zx, name), else `<stem>.bases.toml`
+/// beside the .dyr, with `mbase`, `nominal_hz`, `zr`, `zx` on top. Unsupported records are
+/// reported as `UserWarning`s naming the line. Raises UnitModelError (kind 'syntax', 'record',
+/// 'selection', 'bases', 'unit', 'io').
+#[pyfunction]
+#[pyo3(signature = (path, *, bus=None, id=None, bases=None, mbase=None, nominal_hz=None, zr=None, zx=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn read_dyr(
+    py: Python<'_>,
+    path: PathBuf,
+    bus: Option<i64>,
+    id: Option<String>,
+    bases: Option<PathBuf>,
+    mbase: Option<f64>,
+    nominal_hz: Option<f64>,
+    zr: Option<f64>,
+    zx: Option<f64>,
+) -> PyResult<PyUnit> {
+    let over = PartialBases {
+        mbase,
+        nominal_hz,
+        zr,
+        zx,
+        name: None,
+    };
+    let select = match (bus, id.as_deref()) {
+        (Some(b), i) => Some((b, i.unwrap_or("1"))),
+        (None, Some(_)) => return Err(PyValueError::new_err("id needs bus")),
+        (None, None) => None,
+    };
+    let d = py
+        .detach(|| {
+            let b = dyr::resolve_bases(&path, bases.as_deref(), &over)?;
+            dyr::read_dyr(&path, select, &b)
+        })
+        .map_err(|e| dyr_err(py, e))?;
+    for w in &d.warnings {
+        PyErr::warn(
+            py,
+            &py.get_type::<PyUserWarning>(),
+            &std::ffi::CString::new(w.to_string()).unwrap_or_default(),
+            1,
+        )?;
+    }
+    Ok(PyUnit {
+        inner: Arc::new(d.unit),
+        path: Some(path),
+    })
+}
+
+/// Writes `unit` as .dyr records for `bus`, `id` to `path` and its bases to
+/// `<stem>.bases.toml` beside it. Returns what could not be written (blocks without a PSS/E
+/// record, X''q ≠ X''d, …) as a list of messages.
+#[pyfunction]
+#[pyo3(signature = (unit, path, *, bus=1, id="1"))]
+pub fn write_dyr(
+    py: Python<'_>,
+    unit: &PyUnit,
+    path: PathBuf,
+    bus: i64,
+    id: &str,
+) -> PyResult<Vec<String>> {
+    let t = dyr::write_dyr(&unit.inner, bus, id);
+    let side = dyr::side_file(&path);
+    for (p, text) in [(&path, &t.dyr), (&side, &t.bases)] {
+        std::fs::write(p, text).map_err(|e| {
+            pyo3::exceptions::PyOSError::new_err(format!("cannot write {}: {e}", p.display()))
+        })?;
+    }
+    let _ = py;
+    Ok(t.warnings)
+}
+
+/// Imports a PMU recording (C37.118-style CSV, or a COMTRADE .cfg with its .dat) as an Event,
+/// P and Q computed from the voltage and current phasors (generator convention) on
+/// `system_mva`. `v_base_kv`: rated line-to-line kV (for channels in V/kV); `pu_base_mva`: the
+/// base of channels in pu; `rate`: resample to this rate (default: keep the PMU's stamps);
+/// `map`: {name: column} to read a column as a known name. With `out`, writes the event folder
+/// (event.toml, CSV, import.json). Returns `(event, report)`, the report a dict (gaps,
+/// dropouts, warnings, channels, rates). Raises EventError (kind 'data', 'event', 'io') or
+/// ValueError for a bad option.
+#[pyfunction]
+#[pyo3(signature = (path, system_mva, nominal_hz, *, v_base_kv=None, pu_base_mva=None, line_voltage=false, current_into_machine=false, rate=None, map=None, name=None, out=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn import_pmu<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    system_mva: f64,
+    nominal_hz: f64,
+    v_base_kv: Option<f64>,
+    pu_base_mva: Option<f64>,
+    line_voltage: bool,
+    current_into_machine: bool,
+    rate: Option<f64>,
+    map: Option<std::collections::BTreeMap<String, String>>,
+    name: Option<String>,
+    out: Option<PathBuf>,
+) -> PyResult<(PyEvent, Bound<'py, PyAny>)> {
+    let opts = ImportOptions {
+        name,
+        system_mva,
+        nominal_hz,
+        v_base_kv,
+        pu_base_mva,
+        line_voltage,
+        current_into_machine,
+        rate_hz: rate,
+        map: map.unwrap_or_default().into_iter().collect(),
+    };
+    let (event, report) = py
+        .detach(|| pmu_import::import(&path, &opts))
+        .map_err(|e| match e {
+            ImportError::Options { .. } => PyValueError::new_err(e.to_string()),
+            e => raise::<EventError>(py, e.to_string(), Some(e.kind())),
+        })?;
+    if let Some(dir) = out {
+        pmu_import::write_event_folder(&event, &report, &dir)
+            .map_err(|e| raise::<EventError>(py, e.to_string(), Some(e.kind())))?;
+    }
+    let json = serde_json::to_string(&report).expect("a report serialises");
+    let d = py.import("json")?.call_method1("loads", (json,))?;
+    let _: &Bound<'_, PyDict> = d.downcast()?;
+    Ok((
+        PyEvent {
+            inner: Arc::new(event),
+        },
+        d,
+    ))
+}
+
+/// Registers the functions of this file.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(read_dyr, m)?)?;
+    m.add_function(wrap_pyfunction!(write_dyr, m)?)?;
+    m.add_function(wrap_pyfunction!(import_pmu, m)?)?;
+    Ok(())
+}

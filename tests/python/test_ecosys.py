@@ -1,0 +1,57 @@
+"""read_dyr / write_dyr / import_pmu: the same library calls as `itaipu-calib dyr` and
+`itaipu-calib import`."""
+
+import warnings
+from pathlib import Path
+
+import pytest
+
+import itaipu_calib as ic
+
+ROOT = Path(__file__).resolve().parents[2]
+ITAIPU = ROOT / "data" / "itaipu"
+
+
+def test_the_itaipu_dyr_reads_to_the_unit_file_parameters_and_round_trips(tmp_path):
+    u = ic.read_dyr(ITAIPU / "unit.dyr")  # bases from unit.bases.toml beside it
+    ref = ic.load_unit(ITAIPU / "unit.toml").parameters()
+    got = u.parameters()
+    assert {k: v for k, v in ref.items() if not k.startswith("governor.")} == dict(got)
+    lost = ic.write_dyr(u, tmp_path / "u.dyr", bus=7, id="G1")
+    assert lost == []
+    again = ic.read_dyr(tmp_path / "u.dyr", bus=7, id="G1")
+    assert dict(again.parameters()) == dict(got)
+
+
+def test_unsupported_records_warn_and_bad_ones_raise(tmp_path):
+    f = tmp_path / "x.dyr"
+    f.write_text((ITAIPU / "unit.dyr").read_text() + "1 'ESST1A' 1 1 2 3 /\n")
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        ic.read_dyr(f, bases=ITAIPU / "unit.bases.toml")
+    assert any("line 5: model ESST1A" in str(x.message) for x in w)
+    f.write_text("1 'GENCLS' 1 4.5\n")
+    with pytest.raises(ic.UnitModelError) as e:
+        ic.read_dyr(f, mbase=100.0, nominal_hz=60.0, zx=0.3)
+    assert e.value.kind == "syntax" and "x.dyr line 1" in str(e.value)
+    with pytest.raises(ic.UnitModelError) as e:
+        ic.read_dyr(ITAIPU / "unit.dyr", bases=tmp_path / "none.toml")
+    assert e.value.kind == "io"
+
+
+def test_a_comtrade_recording_imports_to_the_bundled_event(tmp_path):
+    ev, rep = ic.import_pmu(ITAIPU / "pmu" / "itaipu.cfg", 1000.0, 60.0, v_base_kv=18.0, out=tmp_path / "ev")
+    ref = ic.load_event(ITAIPU / "event.toml")
+    assert len(ev) == len(ref) == 280
+    assert rep["format"] == "COMTRADE 1999 ASCII" and rep["gaps"] == [] and rep["dropouts"] == []
+    # 16-bit codes: |V| within 1e-4 pu, P within 2e-3 pu of the original.
+    assert abs(ev.v_mag_pu - ref.v_mag_pu).max() < 1e-4
+    assert abs(ev.p_pu - ref.p_pu).max() < 2e-3
+    assert (tmp_path / "ev" / "event.toml").is_file()
+    with pytest.raises(ValueError, match="v_base_kv"):
+        ic.import_pmu(ITAIPU / "pmu" / "itaipu.cfg", 1000.0, 60.0)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("timestamp,v_mag_kv,v_ang_deg,i_mag_a,i_ang_deg\n2015-01-01T00:00:00Z,x,0,1,0\n")
+    with pytest.raises(ic.EventError) as e:
+        ic.import_pmu(bad, 1000.0, 60.0, v_base_kv=18.0)
+    assert "line 2, column v_mag_kv" in str(e.value) and e.value.kind == "data"
