@@ -177,3 +177,16 @@ def test_a_bad_user_cause_file_raises_naming_the_file_and_field(tmp_path):
     assert e.value.kind == "spec"
     with pytest.raises(TypeError):
         ic.diagnose(TRUTH, DATA / "itaipu" / "event.toml", user_causes=3, **QUICK)
+
+
+def test_the_cause_list_is_the_registry_the_diagnosis_uses():
+    """ic.causes() is the catalog `diagnose` and `synth(hide=...)` accept: the same ids, in the
+    order the unknown-cause message lists them, each with its descriptions."""
+    listed = [c["id"] for c in ic.causes()]
+    assert len(listed) == len(set(listed)) >= 8
+    with pytest.raises(ValueError) as e:
+        ic.synth(TRUTH, duration=3.0, hide=[("earthquake", {})])
+    known = re.search(r"known: ([a-z_, ]+)", str(e.value)).group(1)
+    assert [k.strip() for k in known.split(",")] == listed
+    for c in ic.causes():
+        assert c["title"] and c["signature"] and c["extension"] and c["key_params"]

@@ -1693,6 +1693,25 @@ fn diagnose(
     })
 }
 
+/// The diagnosis catalog (the registry `diagnose`, `synth(hide=...)` and the command line's
+/// `--cause` use): a list of dicts with id, title, signature (what the cause looks like in the
+/// residual evidence), extension (the model extension re-fitted for it) and key_params.
+#[pyfunction]
+fn causes<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for c in catalog::CAUSES {
+        let info = c.info();
+        let d = PyDict::new(py);
+        d.set_item("id", info.id)?;
+        d.set_item("title", info.title)?;
+        d.set_item("signature", info.signature)?;
+        d.set_item("extension", info.extension)?;
+        d.set_item("key_params", info.key_params.to_vec())?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
 /// The model library (the same catalogue unit files and the command line use): a list of dicts
 /// with name, role ('machine', 'exciter', 'pss', 'governor' or 'block'), summary, parameters
 /// (dicts: name, alias (PSS/E), unit, doc, typical, range = (low, high)), ports (dicts: name,
@@ -1760,6 +1779,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(models, m)?)?;
+    m.add_function(wrap_pyfunction!(causes, m)?)?;
     m.add_function(wrap_pyfunction!(synth, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
     ecosys::register(m)?;
