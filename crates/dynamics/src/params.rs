@@ -28,18 +28,24 @@ pub trait ParamSet {
     fn get(&self, index: usize) -> f64;
     fn set(&mut self, index: usize, value: f64);
 
-    /// Index of a parameter by canonical name or (case-insensitive) alias.
+    /// Index of a parameter by canonical name or PSS/E alias. An alias matches exactly first;
+    /// case-insensitively only when that is unambiguous (HYGOV's `R`, permanent droop, and
+    /// `r`, temporary droop, differ only in case: `r` is the temporary droop, never `R`).
     fn index_of(&self, name: &str) -> Option<usize> {
         let specs = self.specs();
+        let unique = |hit: &dyn Fn(&ParamSpec) -> bool| {
+            let mut found = specs.iter().enumerate().filter(|(_, s)| hit(s));
+            match (found.next(), found.next()) {
+                (Some((i, _)), None) => Some(i),
+                _ => None,
+            }
+        };
         specs
             .iter()
             .position(|s| s.name == name)
-            .or_else(|| {
-                specs
-                    .iter()
-                    .position(|s| s.alias.eq_ignore_ascii_case(name))
-            })
-            .or_else(|| specs.iter().position(|s| s.name.eq_ignore_ascii_case(name)))
+            .or_else(|| specs.iter().position(|s| s.alias == name))
+            .or_else(|| unique(&|s| s.alias.eq_ignore_ascii_case(name)))
+            .or_else(|| unique(&|s| s.name.eq_ignore_ascii_case(name)))
     }
 
     /// All values in spec order.
