@@ -609,6 +609,31 @@ pub fn cross_correlation(name: &str, r: &[f64], u: &[f64], max_lag: usize) -> Cr
 // Spectrum
 // ---------------------------------------------------------------------------------------------
 
+/// The discrete Fourier transform of `x` at the bins `ks`, `X_k = Σ_m x_m e^{−2πi k m / N}`, as
+/// `(re, im)`: direct sums over a table of the N twiddle factors (the bins asked for are few or
+/// the records short, so no FFT is needed). Every `k` must be below N.
+fn dft(x: &[f64], ks: std::ops::RangeInclusive<usize>) -> Vec<(f64, f64)> {
+    let n = x.len();
+    let (cos, sin): (Vec<f64>, Vec<f64>) = (0..n)
+        .map(|m| (2.0 * PI * m as f64 / n as f64).sin_cos())
+        .map(|(s, c)| (c, s))
+        .unzip();
+    ks.map(|k| {
+        let (mut re, mut im) = (0.0, 0.0);
+        let mut idx = 0usize;
+        for xi in x {
+            re += xi * cos[idx];
+            im -= xi * sin[idx];
+            idx += k;
+            if idx >= n {
+                idx -= n;
+            }
+        }
+        (re, im)
+    })
+    .collect()
+}
+
 /// Single-sided amplitude spectrum of `y` sampled every `dt` seconds.
 ///
 /// The mean is removed, the Hann window `w_n = ½(1 − cos(2πn/(N−1)))` applied, and the plain
@@ -639,24 +664,10 @@ pub fn spectrum(y: &[f64], dt: f64) -> Spectrum {
         .collect();
     let wsum: f64 = w.iter().sum();
     let x: Vec<f64> = y.iter().zip(&w).map(|(v, wi)| (v - mean) * wi).collect();
-    let (cos, sin): (Vec<f64>, Vec<f64>) = (0..n)
-        .map(|m| (2.0 * PI * m as f64 / n as f64).sin_cos())
-        .map(|(s, c)| (c, s))
-        .unzip();
     let half = n / 2;
     let mut freq_hz = Vec::with_capacity(half + 1);
     let mut amplitude = Vec::with_capacity(half + 1);
-    for k in 0..=half {
-        let (mut re, mut im) = (0.0, 0.0);
-        let mut idx = 0usize;
-        for xi in &x {
-            re += xi * cos[idx];
-            im -= xi * sin[idx];
-            idx += k;
-            if idx >= n {
-                idx -= n;
-            }
-        }
+    for (k, (re, im)) in (0..=half).zip(dft(&x, 0..=half)) {
         let edge = k == 0 || 2 * k == n;
         let scale = if edge { 1.0 } else { 2.0 };
         freq_hz.push(k as f64 / (n as f64 * dt));
@@ -750,18 +761,9 @@ pub fn spectral_peak(y: &[f64], dt: f64, f_lo: f64, f_hi: f64) -> Option<Spectra
     // The band and two window-widths either side (for the neighbourhood of a window).
     let e_lo = k_lo.saturating_sub(2 * window).max(1);
     let e_hi = (k_hi + 2 * window).min(n / 2);
-    let ext: Vec<f64> = (e_lo..=e_hi)
-        .map(|k| {
-            let w = 2.0 * PI * k as f64 / n as f64;
-            let (mut re, mut im) = (0.0, 0.0);
-            for (i, xi) in x.iter().enumerate() {
-                // Exact phase from the integer product (no drift).
-                let (s, c) = (w * ((k * i) % n) as f64 / k as f64).sin_cos();
-                re += xi * c;
-                im -= xi * s;
-            }
-            re * re + im * im
-        })
+    let ext: Vec<f64> = dft(&x, e_lo..=e_hi)
+        .into_iter()
+        .map(|(re, im)| re * re + im * im)
         .collect();
     let power = &ext[k_lo - e_lo..=k_hi - e_lo];
     let mut sorted = power.to_vec();

@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
+use itaipu_calib::diagnose::catalog::CauseError;
 use itaipu_calib::diagnose::trial::{base_unit, trial_noise};
 use itaipu_calib::diagnose::user_cause::{read_all, UserCause};
 use itaipu_calib::diagnose::{context, diagnose, DiagnoseOptions};
@@ -154,8 +155,9 @@ fn a_cause_that_does_not_apply_is_reported_as_such() {
     // A unit without a block named 'exciter' to rewire.
     let u = base_unit().without(&["pss", "exciter"]).unwrap();
     let ev = dip_event(&base_unit(), 13);
-    let ext = droop().extend(&u, &context(&u, &ev).unwrap()).unwrap();
-    let why = ext.err().expect("not applicable");
+    let Err(CauseError::NotApplicable(why)) = droop().extend(&u, &context(&u, &ev).unwrap()) else {
+        panic!("not applicable expected");
+    };
     assert!(why.contains("no block named 'exciter'"), "{why}");
 }
 
@@ -270,11 +272,9 @@ fn each_bad_cause_file_is_refused_naming_the_file_and_the_field() {
     let first = droop().hide(&u, &Default::default(), &[]).unwrap();
     u = first;
     let ev = dip_event(&base_unit(), 14);
-    let why = droop()
-        .extend(&u, &context(&u, &ev).unwrap())
-        .unwrap()
-        .err()
-        .unwrap();
+    let Err(CauseError::NotApplicable(why)) = droop().extend(&u, &context(&u, &ev).unwrap()) else {
+        panic!("not applicable expected");
+    };
     assert!(why.contains("already has a block named 'droop'"), "{why}");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -394,9 +394,14 @@ fn wrap_items(items: &[&str], sep: &str, width: usize, first: &str, indent: &str
 
 /// A value with its unit (none for dimensionless parameters).
 fn with_unit(v: f64, unit: &str) -> String {
+    text_with_unit(num(v), unit)
+}
+
+/// `text` followed by `unit` (nothing for a dimensionless `-`).
+fn text_with_unit(text: String, unit: &str) -> String {
     match unit.trim() {
-        "" | "-" => num(v),
-        u => format!("{} {u}", num(v)),
+        "" | "-" => text,
+        u => format!("{text} {u}"),
     }
 }
 
@@ -411,11 +416,9 @@ fn key_params(c: &CandidateReport) -> Vec<String> {
         .filter(|p| p.extension)
         .map(|p| {
             let value = match p.std_error {
-                Some(se) if se.is_finite() => with_unit(p.result, &p.unit).replacen(
-                    &num(p.result),
-                    &format!("{} ± {}", num(p.result), num(se)),
-                    1,
-                ),
+                Some(se) if se.is_finite() => {
+                    text_with_unit(format!("{} ± {}", num(p.result), num(se)), &p.unit)
+                }
                 Some(_) => format!(
                     "{} (not determined by the data)",
                     with_unit(p.result, &p.unit)

@@ -380,14 +380,19 @@ pub fn extend(cause_id: &str, unit: &Unit, ctx: &Context) -> Result<Extension, C
     };
     c.extend(&mut ext, &roles, ctx)?;
     ext.unit.ensure_finished().map_err(CauseError::build)?;
-    // Every re-fit also frees the set-point offsets (nuisance parameters).
+    free_nuisance(&mut ext);
+    Ok(ext)
+}
+
+/// Every re-fit also frees the set-point offsets (nuisance parameters) the extension does not
+/// free already.
+pub(crate) fn free_nuisance(ext: &mut Extension) {
     for n in nuisance(&ext.unit) {
         let known = |v: &Vec<FreeBound>| v.iter().any(|f| f.param == n.param);
         if !known(&ext.extension_free) && !known(&ext.interacting_free) {
             ext.interacting_free.push(n);
         }
     }
-    Ok(ext)
 }
 
 /// Why a cause cannot be hidden.

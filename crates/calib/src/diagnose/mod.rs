@@ -48,7 +48,7 @@ use std::time::Instant;
 
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::Traces;
-use itaipu_dynamics::unit::Unit;
+use itaipu_dynamics::unit::{ParamRef, Unit};
 use serde::Serialize;
 
 use crate::evidence::{self, EvidenceOptions, SignalEvidence};
@@ -350,17 +350,29 @@ fn regime(events: &[Event]) -> (f64, f64) {
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let (mut dip, mut df) = (0.0_f64, 0.0_f64);
     for e in events {
-        let t = &e.record.time_s;
-        let pre = t.iter().take_while(|&&x| x <= e.init.end_s).count().max(1);
+        let (pre, v0) = pre_event_v(e);
         let v = &e.record.v_mag_pu;
-        let v0 = mean(&v[..pre.min(v.len())]);
-        let v_min = v[pre.min(v.len())..].iter().copied().fold(v0, f64::min);
+        let v_min = v[pre..].iter().copied().fold(v0, f64::min);
         dip = dip.max(1.0 - v_min / v0);
         let f = frequency_deviation(e);
         let tail = f.len() - f.len() / 4;
         df = df.max((mean(&f[tail..]) - mean(&f[..pre.min(f.len())])).abs());
     }
     (dip, df)
+}
+
+/// The samples of the event's init window (at least one) and their mean |V|: the pre-event
+/// voltage against which dips and disturbances are measured.
+fn pre_event_v(event: &Event) -> (usize, f64) {
+    let r = &event.record;
+    let pre = r
+        .time_s
+        .iter()
+        .take_while(|&&t| t <= event.init.end_s)
+        .count()
+        .clamp(1, r.v_mag_pu.len());
+    let v = &r.v_mag_pu[..pre];
+    (pre, v.iter().sum::<f64>() / pre as f64)
 }
 
 /// Grid frequency deviation [Hz] from the record (`freq_hz` if present, else the derivative of
@@ -580,23 +592,8 @@ const DISTURBANCE_LEAD_S: f64 = 0.1;
 /// counted from the start of the record, a 0.1 s dip falls in a held-out block as often as not.
 fn disturbance_s(event: &Event) -> Option<f64> {
     let r = &event.record;
-    let init: Vec<f64> = r
-        .time_s
-        .iter()
-        .zip(&r.v_mag_pu)
-        .filter(|(t, _)| **t <= event.init.end_s)
-        .map(|(_, v)| *v)
-        .collect();
-    if init.is_empty() {
-        return None;
-    }
-    let pre = init.iter().sum::<f64>() / init.len() as f64;
-    let after = || {
-        r.time_s
-            .iter()
-            .zip(&r.v_mag_pu)
-            .filter(|(t, _)| **t > event.init.end_s)
-    };
+    let (n_pre, pre) = pre_event_v(event);
+    let after = || r.time_s.iter().zip(&r.v_mag_pu).skip(n_pre);
     let max_dev = after().map(|(_, v)| (v - pre).abs()).fold(0.0, f64::max);
     if !(max_dev > 0.01 * pre.abs()) {
         return None;
@@ -751,15 +748,7 @@ fn refit(
     progress: &dyn Progress,
 ) -> Result<Refit, String> {
     let free = resolve(unit, bounds)?;
-    let tie_refs = ties
-        .iter()
-        .map(|(a, b)| {
-            Ok((
-                unit.param(a).map_err(|e| e.to_string())?,
-                unit.param(b).map_err(|e| e.to_string())?,
-            ))
-        })
-        .collect::<Result<Vec<_>, String>>()?;
+    let tie_refs = tie_refs(unit, ties)?;
     let fit_opts = FitOptions {
         stages: vec![],
         strategy: Strategy::Sequential,
@@ -899,14 +888,23 @@ fn std_errors(
         .collect::<Result<_, _>>()
         .ok()?;
     let mut problem = Problem::new(unit.clone(), free, data, weights);
-    problem.ties = ties
-        .iter()
-        .map(|(a, b)| Some((unit.param(a).ok()?, unit.param(b).ok()?)))
-        .collect::<Option<_>>()?;
+    problem.ties = tie_refs(unit, ties).ok()?;
     problem.prior_weight = PRIOR_WEIGHT;
     let jac = crate::fit::jacobian(&problem, values)?;
     let rss = sum_of_squares(&problem.residuals(values, &accurate_integrator()).ok()?);
-    Some(crate::identify::analyse(&jac, rss, 0.95).std_errors)
+    Some(crate::identify::analyse(&jac, rss, crate::fit::CORRELATION_LIMIT).std_errors)
+}
+
+/// The parameters of `ties` (`(from, to)` paths) in `unit`.
+fn tie_refs(unit: &Unit, ties: &[(String, String)]) -> Result<Vec<(ParamRef, ParamRef)>, String> {
+    ties.iter()
+        .map(|(a, b)| {
+            Ok((
+                unit.param(a).map_err(|e| e.to_string())?,
+                unit.param(b).map_err(|e| e.to_string())?,
+            ))
+        })
+        .collect()
 }
 
 /// RMS of P and Q over every sample of the events (accurate integrator).

@@ -39,7 +39,7 @@ use itaipu_dynamics::registry;
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::{build_block, build_diagram_block, BuiltBlock};
 
-use super::catalog::{self, Context, Extension, FreeBound};
+use super::catalog::{self, CauseError, Context, Extension, FreeBound};
 
 /// A bad cause file: the file, the field and what is wrong.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -305,71 +305,68 @@ impl UserCause {
         })
     }
 
-    /// The extended unit, as [`catalog::extend`] builds one for a catalog cause: `Ok(Err(why))`
-    /// when the cause does not apply to `unit` (a block name taken, an instance to rewire or a
-    /// parameter to free missing), `Err` when the extension cannot be built.
-    pub fn extend(&self, unit: &Unit, _ctx: &Context) -> Result<Result<Extension, String>, String> {
+    /// The extended unit, as [`catalog::extend`] builds one for a catalog cause:
+    /// [`CauseError::NotApplicable`] when the cause does not apply to `unit` (a block name
+    /// taken, an instance to rewire or a parameter to free missing), [`CauseError::Build`] when
+    /// the extension cannot be built.
+    pub fn extend(&self, unit: &Unit, _ctx: &Context) -> Result<Extension, CauseError> {
         let mut u = unit.clone();
-        u.ensure_finished().map_err(|e| e.to_string())?;
+        u.ensure_finished().map_err(CauseError::build)?;
         let base = self.path.parent().unwrap_or(Path::new("."));
         for (name, bt, ctx) in &self.blocks {
             if u.block(name).is_some() {
-                return Ok(Err(format!("the unit already has a block named '{name}'")));
+                return Err(CauseError::not_applicable(format!(
+                    "the unit already has a block named '{name}'"
+                )));
             }
-            let (block, rw) = build(ctx, bt, base, &self.path).map_err(|e| e.to_string())?;
-            u.add(name, block, &rw).map_err(|e| e.to_string())?;
+            let (block, rw) = build(ctx, bt, base, &self.path).map_err(CauseError::build)?;
+            u.add(name, block, &rw).map_err(CauseError::build)?;
         }
         for (inst, ports) in &self.rewire {
             if u.block(inst).is_none() {
-                return Ok(Err(format!(
+                return Err(CauseError::not_applicable(format!(
                     "the unit has no block named '{inst}' to rewire"
                 )));
             }
             u.rewire(inst, ports)
-                .map_err(|e| format!("rewire.{inst}: {e}"))?;
+                .map_err(|e| CauseError::build(format!("rewire.{inst}: {e}")))?;
         }
-        u.ensure_finished()
-            .map_err(|e| format!("{}: the extended unit: {e}", self.path.display()))?;
+        u.ensure_finished().map_err(|e| {
+            CauseError::build(format!("{}: the extended unit: {e}", self.path.display()))
+        })?;
         let bound = |s: &FreeSpec| -> Result<FreeBound, String> {
-            let (_, spec, v) = u
+            let v = u
                 .params()
                 .into_iter()
                 .find(|(p, _, _)| *p == s.param)
+                .map(|(_, _, v)| v)
                 .ok_or_else(|| format!("the unit has no parameter '{}'", s.param))?;
             let (min, max) = match s.bounds {
                 Bounds::Fixed { min, max } => (min, max),
-                Bounds::Factor(f) => {
-                    if !(v > 0.0) {
-                        return Err(format!(
+                // The band around the value within the declared range, as for a catalog cause.
+                Bounds::Factor(f) => catalog::around(&u, &s.param, f)
+                    .map(|b| (b.min, b.max))
+                    .ok_or_else(|| {
+                        format!(
                             "{} = {v} is not > 0, so it cannot be freed by a factor",
                             s.param
-                        ));
-                    }
-                    (
-                        (v / f).max(spec.range.0).min(v),
-                        (v * f).min(spec.range.1).max(v),
-                    )
-                }
+                        )
+                    })?,
             };
             Ok(FreeBound {
-                param: s.param.clone(),
-                min,
-                max,
                 start: s.start.unwrap_or(v).clamp(min, max),
                 scan: s.scan,
-                polish_only: false,
-                prior: None,
+                ..catalog::fb(&s.param, min, max, v)
             })
         };
-        let mut extension_free = vec![];
-        for s in &self.free {
-            match bound(s) {
-                Ok(b) => extension_free.push(b),
-                Err(why) => return Ok(Err(why)),
-            }
-        }
+        let extension_free = self
+            .free
+            .iter()
+            .map(bound)
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(CauseError::NotApplicable)?;
         // An interacting parameter the unit lacks (another exciter model, say) is left out.
-        let mut interacting_free: Vec<FreeBound> = self
+        let interacting_free: Vec<FreeBound> = self
             .interacting
             .iter()
             .filter_map(|s| bound(s).ok())
@@ -377,20 +374,13 @@ impl UserCause {
         for (leader, follower) in &self.ties {
             for p in [leader, follower] {
                 if u.param(p).is_err() {
-                    return Ok(Err(format!("tie: the unit has no parameter '{p}'")));
+                    return Err(CauseError::not_applicable(format!(
+                        "tie: the unit has no parameter '{p}'"
+                    )));
                 }
             }
         }
-        for n in catalog::nuisance(&u) {
-            let known = extension_free
-                .iter()
-                .chain(&interacting_free)
-                .any(|f| f.param == n.param);
-            if !known {
-                interacting_free.push(n);
-            }
-        }
-        Ok(Ok(Extension {
+        let mut ext = Extension {
             cause: itaipu_dynamics::diagram::intern::str(&self.id),
             unit: u,
             extension_free,
@@ -400,16 +390,19 @@ impl UserCause {
             description: self.extension.clone(),
             fixed: vec![],
             search_factor: self.search_factor,
-        }))
+        };
+        catalog::free_nuisance(&mut ext);
+        Ok(ext)
     }
 
     /// The unit with this cause in it at chosen values (`block.param` among the freed and the
     /// added blocks' parameters), the others of the extension at their starts: a synthetic
     /// truth for testing the cause.
     pub fn hide(&self, unit: &Unit, ctx: &Context, values: &[(&str, f64)]) -> Result<Unit, String> {
-        let ext = self
-            .extend(unit, ctx)?
-            .map_err(|why| format!("{} does not apply: {why}", self.id))?;
+        let ext = self.extend(unit, ctx).map_err(|e| match e {
+            CauseError::NotApplicable(why) => format!("{} does not apply: {why}", self.id),
+            e => e.to_string(),
+        })?;
         let known = catalog::hideable_params(unit, &ext);
         let mut u = ext.unit.clone();
         let set = |u: &mut Unit, path: &str, v: f64| -> Result<(), String> {
@@ -627,11 +620,7 @@ pub fn extend(
     users: &[UserCause],
 ) -> Result<Extension, catalog::CauseError> {
     match users.iter().find(|u| u.id == id) {
-        Some(u) => match u.extend(unit, ctx) {
-            Ok(Ok(ext)) => Ok(ext),
-            Ok(Err(why)) => Err(catalog::CauseError::NotApplicable(why)),
-            Err(msg) => Err(catalog::CauseError::Build(msg)),
-        },
+        Some(u) => u.extend(unit, ctx),
         None => catalog::extend(id, unit, ctx),
     }
 }
