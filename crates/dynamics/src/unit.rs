@@ -454,6 +454,36 @@ impl Unit {
         out
     }
 
+    /// A copy with the parameters `values` (`(block.name, value)`, names or PSS/E aliases) set,
+    /// checked as a unit file is: an unknown path is [`UnitError::UnknownParam`]; a non-finite
+    /// value, or one that breaks its block's guards (a time constant ≤ 0, the reactance
+    /// ordering, ...), is [`UnitError::Model`] naming the block and the parameter. `self` is
+    /// left as it was in every case.
+    pub fn with_params<S: AsRef<str>>(&self, values: &[(S, f64)]) -> Result<Unit, UnitError> {
+        let mut unit = self.clone();
+        let mut touched = vec![];
+        for (path, value) in values {
+            let r = self.param(path.as_ref())?;
+            if !value.is_finite() {
+                let inst = &self.instances[r.block];
+                let name = inst.block.params().specs()[r.index].name;
+                return Err(self.model_err(
+                    inst,
+                    ModelError::param(name, format!("must be finite (got {value})")),
+                ));
+            }
+            unit.set(r, *value);
+            if !touched.contains(&r.block) {
+                touched.push(r.block);
+            }
+        }
+        for b in touched {
+            let inst = &unit.instances[b];
+            inst.block.validate().map_err(|e| unit.model_err(inst, e))?;
+        }
+        Ok(unit)
+    }
+
     /// Resolves the wiring if it has not been (signal and state names are then known).
     pub fn ensure_finished(&mut self) -> Result<(), UnitError> {
         if self.finished {
