@@ -291,3 +291,45 @@ fn a_seed_gives_the_same_diagnosis_on_one_and_two_threads() {
     assert_eq!(key(&a), key(&b));
     assert_eq!(a.report.verdict.cause, "measurement_skew");
 }
+
+#[test]
+fn a_cancelled_diagnosis_stops_within_a_second_and_keeps_nothing() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    use std::time::{Duration, Instant};
+    let base = itaipu_calib::diagnose::trial::base_unit();
+    let (_, ev) =
+        itaipu_calib::diagnose::trial::truth_and_event(&scenario("none", 3, None)).unwrap();
+    // The whole catalog with a large budget: minutes uninterrupted.
+    let cancel = Arc::new(AtomicBool::new(false));
+    let opts = DiagnoseOptions {
+        particles: 40,
+        pso_iterations: 400,
+        lbfgs_iterations: 200,
+        cancel: Some(cancel.clone()),
+        ..Default::default()
+    };
+    let flag = cancel.clone();
+    let setter = std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_millis(1500));
+        flag.store(true, Ordering::SeqCst);
+        Instant::now()
+    });
+    let r = diagnose(&base, std::slice::from_ref(&ev), &[], &opts, &Silent);
+    let back = Instant::now();
+    let set_at = setter.join().unwrap();
+    assert!(
+        cancel.load(Ordering::SeqCst),
+        "finished before the flag was set"
+    );
+    let lag = back.duration_since(set_at);
+    assert!(
+        lag < Duration::from_secs(1),
+        "stopped {lag:?} after the flag"
+    );
+    match r {
+        Err(e @ DiagnoseError::Interrupted { .. }) => assert_eq!(e.kind(), "interrupted"),
+        Err(e) => panic!("another error: {e}"),
+        Ok(_) => panic!("a verdict from an interrupted run"),
+    }
+}

@@ -81,6 +81,8 @@ const WIDTH: usize = 100;
 fn error_code(e: &DiagnoseError) -> u8 {
     match e {
         DiagnoseError::Simulation { .. } | DiagnoseError::Setup(_) => 6,
+        // The command line sets no cancel flag (a signal ends the process, exit 130/143).
+        DiagnoseError::Interrupted { .. } => 130,
     }
 }
 

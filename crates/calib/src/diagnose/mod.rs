@@ -44,6 +44,8 @@ pub mod trial;
 pub mod user_cause;
 
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 use itaipu_dynamics::event::Event;
@@ -87,6 +89,18 @@ pub struct DiagnoseOptions {
     pub min_held_drop: f64,
     /// Residual RMS up to this multiple of the noise floor counts as "at the noise floor".
     pub noise_factor: f64,
+    /// When set (by a signal handler, say), every later candidate evaluation of the re-fits
+    /// fails at once and the diagnosis returns [`DiagnoseError::Interrupted`] with the causes
+    /// it finished.
+    pub cancel: Option<Arc<AtomicBool>>,
+}
+
+impl DiagnoseOptions {
+    fn cancelled(&self) -> bool {
+        self.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+    }
 }
 
 impl Default for DiagnoseOptions {
@@ -105,6 +119,7 @@ impl Default for DiagnoseOptions {
             min_fit_drop: 0.02,
             min_held_drop: 0.01,
             noise_factor: 1.5,
+            cancel: None,
         }
     }
 }
@@ -118,6 +133,10 @@ pub enum DiagnoseError {
     /// The unit does not simulate on an event as given.
     #[error("the unit does not simulate on event '{event}': {msg}")]
     Simulation { event: String, msg: String },
+    /// Stopped by [`DiagnoseOptions::cancel`]; `tried` lists the causes tried up to then (the
+    /// last one possibly cut short). Nothing of the run is kept.
+    #[error("interrupted (causes tried: {})", if tried.is_empty() { "none".to_string() } else { tried.join(", ") })]
+    Interrupted { tried: Vec<String> },
 }
 
 impl DiagnoseError {
@@ -125,6 +144,7 @@ impl DiagnoseError {
         match self {
             DiagnoseError::Setup(_) => "setup",
             DiagnoseError::Simulation { .. } => "simulation",
+            DiagnoseError::Interrupted { .. } => "interrupted",
         }
     }
 }
@@ -747,6 +767,9 @@ fn refit(
     label: &str,
     progress: &dyn Progress,
 ) -> Result<Refit, String> {
+    if opts.cancelled() {
+        return Err("interrupted".into());
+    }
     let free = resolve(unit, bounds)?;
     let tie_refs = tie_refs(unit, ties)?;
     let fit_opts = FitOptions {
@@ -783,6 +806,7 @@ fn refit(
         );
         problem.ties = tie_refs.clone();
         problem.prior_weight = PRIOR_WEIGHT;
+        problem.cancel = opts.cancel.clone();
         // Scan (the parameters that ask for it), swarm, scan again from the swarm's best (the
         // interacting parameters it corrected move the valleys the scanned ones lie in), L-BFGS.
         let scans: Vec<(usize, usize)> = global
@@ -824,6 +848,7 @@ fn refit(
         let mut problem = Problem::new(unit.clone(), polish_free, sp.fit.clone(), weights);
         problem.ties = tie_refs.clone();
         problem.prior_weight = PRIOR_WEIGHT;
+        problem.cancel = opts.cancel.clone();
         x = search(
             &problem,
             &fit_opts,
@@ -837,6 +862,9 @@ fn refit(
         failures += problem.failures();
     }
 
+    if opts.cancelled() {
+        return Err("interrupted".into());
+    }
     let acc = accurate_integrator();
     let mut fit_problem = Problem::new(unit.clone(), free.clone(), sp.fit.clone(), weights);
     fit_problem.ties = tie_refs.clone();
@@ -1070,6 +1098,36 @@ pub fn diagnose(
     opts: &DiagnoseOptions,
     progress: &dyn Progress,
 ) -> Result<DiagnoseResult, DiagnoseError> {
+    let result = diagnose_run(unit, events, held_out, opts, progress);
+    // A re-fit cut short reads as a failed candidate: never hand out a verdict built on one.
+    match result {
+        Ok(r) => {
+            interrupted(opts, &r.report.candidates)?;
+            Ok(r)
+        }
+        Err(_) if opts.cancelled() => Err(DiagnoseError::Interrupted { tried: vec![] }),
+        Err(e) => Err(e),
+    }
+}
+
+/// [`DiagnoseError::Interrupted`] when [`DiagnoseOptions::cancel`] is set, naming the causes
+/// tried (`done`).
+fn interrupted(opts: &DiagnoseOptions, done: &[CandidateReport]) -> Result<(), DiagnoseError> {
+    if !opts.cancelled() {
+        return Ok(());
+    }
+    Err(DiagnoseError::Interrupted {
+        tried: done.iter().map(|c| c.cause.clone()).collect(),
+    })
+}
+
+fn diagnose_run(
+    unit: &Unit,
+    events: &[Event],
+    held_out: &[Event],
+    opts: &DiagnoseOptions,
+    progress: &dyn Progress,
+) -> Result<DiagnoseResult, DiagnoseError> {
     let t_start = Instant::now();
     if events.is_empty() {
         return Err(DiagnoseError::Setup("no event to diagnose".into()));
@@ -1209,6 +1267,7 @@ pub fn diagnose(
     let mut reports = vec![];
     let mut refits: BTreeMap<String, RefitRecord> = BTreeMap::new();
     for id in ids {
+        interrupted(opts, &reports)?;
         // A catalog cause (its evidence rules and signature), or a user cause (none).
         let cause = catalog::cause(id);
         let (title, extension) = user_cause::describe(id, &opts.user_causes).expect("checked");
