@@ -212,6 +212,118 @@ pub struct FitReport {
     pub wall_s: f64,
 }
 
+impl FitReport {
+    /// The report as text: per stage its phases, the parameter table (start, bounds, result,
+    /// standard error, at-bound flag), what the data do not determine, then the fitness table
+    /// per event. What `itaipu-calib fit` prints and `FitResult.fit_report()` returns.
+    pub fn to_text(&self) -> String {
+        use std::fmt::Write;
+        let r = self;
+        let mut out = String::new();
+        for s in &r.stages {
+            let _ = writeln!(out);
+            let _ = writeln!(
+                out,
+                "stage {} ({}, objective {:?}): {:.5} -> {:.5}; {} simulations, \
+                 {} failed candidates, {:.1} s",
+                s.stage,
+                s.strategy,
+                s.objective,
+                s.objective_before,
+                s.objective_after,
+                s.simulations,
+                s.failed_candidates,
+                s.wall_s
+            );
+            for ph in &s.phases {
+                let _ = writeln!(
+                    out,
+                    "  {:<28} {:>4} iterations, best {:.5} ({})",
+                    ph.phase, ph.iterations, ph.best_objective, ph.stopped_by
+                );
+            }
+            let _ = writeln!(
+                out,
+                "  {:<22} {:>10} {:>21} {:>10} {:>10}",
+                "parameter", "start", "bounds", "result", "std err"
+            );
+            for p in &s.parameters {
+                let _ = writeln!(
+                    out,
+                    "  {:<22} {:>10.4} {:>10}-{:<10} {:>10.4} {:>10.2e}{}",
+                    p.param,
+                    p.start,
+                    format!("{}", p.min),
+                    format!("{}", p.max),
+                    p.result,
+                    p.std_error,
+                    if p.at_bound { "  at bound" } else { "" }
+                );
+            }
+            for (a, b, rho) in &s.correlated_pairs {
+                let _ = writeln!(
+                    out,
+                    "  not separately identifiable: {a} and {b} (correlation {rho:+.3})"
+                );
+            }
+            for u in &s.unidentified {
+                let _ = writeln!(out, "  not determined by the data: {u}");
+            }
+            if !s.weakly_determined.is_empty() {
+                let _ = writeln!(
+                    out,
+                    "  weakly determined (std err > 1 %): {}",
+                    s.weakly_determined.join(", ")
+                );
+            }
+            let _ = writeln!(
+                out,
+                "  identifiable: {}",
+                if s.identifiable.is_empty() {
+                    "none".to_string()
+                } else {
+                    s.identifiable.join(", ")
+                }
+            );
+        }
+        let _ = writeln!(out);
+        let _ = writeln!(
+            out,
+            "fitness J = sum(dP^2 + dQ^2) per event (system base; * = held out)"
+        );
+        let mut header = vec!["stage".to_string()];
+        header.extend(
+            r.start_fitness
+                .iter()
+                .map(|f| format!("{}{}", f.event, if f.held_out { "*" } else { "" })),
+        );
+        let _ = writeln!(
+            out,
+            "  {}",
+            header
+                .iter()
+                .map(|h| format!("{h:>22}"))
+                .collect::<String>()
+        );
+        let row = |out: &mut String, name: &str, f: &[EventFitness]| {
+            let _ = writeln!(
+                out,
+                "  {:>22}{}",
+                name,
+                f.iter()
+                    .map(|x| format!("{:>22.4}", x.j_pq))
+                    .collect::<String>()
+            );
+        };
+        row(&mut out, "start", &r.start_fitness);
+        for s in &r.stages {
+            row(&mut out, &s.stage, &s.fitness);
+        }
+        let _ = writeln!(out, "total {:.1} s on {} threads", r.wall_s, r.threads);
+        out
+    }
+}
+
 /// A stage's units and traces (not serialised).
 pub struct StageOutput {
     pub stage: String,

@@ -8,8 +8,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 use clap::ValueEnum;
 use indicatif::{ProgressBar, ProgressStyle};
 use itaipu_calib::fit::{
-    fit_with, FitControl, FitError, FitOptions, FitReport, Progress, Resume, StageOutput,
-    StageReport,
+    fit_with, FitControl, FitError, FitOptions, Progress, Resume, StageOutput, StageReport,
 };
 use itaipu_calib::spec::{CalibSpec, Strategy};
 use itaipu_dynamics::plausibility::{Finding, Severity};
@@ -522,7 +521,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     write(&out.join("calibration.toml"), &spec_text)?;
     let _ = std::fs::remove_file(out.join(RESUME_UNIT));
     let target = staging.commit(Some(opts.seed))?;
-    print_report(&result.report);
+    print!("{}", result.report.to_text());
     println!("wrote  {}/report.json, calibrated.toml, datasheet.toml, calibration.toml, <stage>/{{unit.toml, traces.csv, traces_start.csv{}}}, manifest.json", target.display(), if a.no_plot { "" } else { ", plot.svg" });
     Ok(())
 }
@@ -652,85 +651,4 @@ fn write_stage(
     // Last: the stage's unit, so that a stage folder with unit.toml is complete.
     write(&dir.join("unit.toml"), &unit_to_toml(&st.calibrated_unit))?;
     Ok(())
-}
-
-fn print_report(r: &FitReport) {
-    for s in &r.stages {
-        println!();
-        println!(
-            "stage {} ({}, objective {:?}): {:.5} -> {:.5}; {} simulations, {} failed candidates, {:.1} s",
-            s.stage, s.strategy, s.objective, s.objective_before, s.objective_after, s.simulations, s.failed_candidates, s.wall_s
-        );
-        for ph in &s.phases {
-            println!(
-                "  {:<28} {:>4} iterations, best {:.5} ({})",
-                ph.phase, ph.iterations, ph.best_objective, ph.stopped_by
-            );
-        }
-        println!(
-            "  {:<22} {:>10} {:>21} {:>10} {:>10}",
-            "parameter", "start", "bounds", "result", "std err"
-        );
-        for p in &s.parameters {
-            println!(
-                "  {:<22} {:>10.4} {:>10}-{:<10} {:>10.4} {:>10.2e}{}",
-                p.param,
-                p.start,
-                format!("{}", p.min),
-                format!("{}", p.max),
-                p.result,
-                p.std_error,
-                if p.at_bound { "  at bound" } else { "" }
-            );
-        }
-        for (a, b, rho) in &s.correlated_pairs {
-            println!("  not separately identifiable: {a} and {b} (correlation {rho:+.3})");
-        }
-        for u in &s.unidentified {
-            println!("  not determined by the data: {u}");
-        }
-        if !s.weakly_determined.is_empty() {
-            println!(
-                "  weakly determined (std err > 1 %): {}",
-                s.weakly_determined.join(", ")
-            );
-        }
-        println!(
-            "  identifiable: {}",
-            if s.identifiable.is_empty() {
-                "none".to_string()
-            } else {
-                s.identifiable.join(", ")
-            }
-        );
-    }
-    println!();
-    println!("fitness J = sum(dP^2 + dQ^2) per event (system base; * = held out)");
-    let mut header = vec!["stage".to_string()];
-    header.extend(
-        r.start_fitness
-            .iter()
-            .map(|f| format!("{}{}", f.event, if f.held_out { "*" } else { "" })),
-    );
-    println!(
-        "  {}",
-        header
-            .iter()
-            .map(|h| format!("{h:>22}"))
-            .collect::<String>()
-    );
-    let row = |name: &str, f: &[itaipu_calib::fit::EventFitness]| {
-        println!(
-            "  {:>22}{}",
-            name,
-            f.iter()
-                .map(|x| format!("{:>22.4}", x.j_pq))
-                .collect::<String>()
-        );
-    };
-    row("start", &r.start_fitness);
-    for s in &r.stages {
-        row(&s.stage, &s.fitness);
-    }
-    println!("total {:.1} s on {} threads", r.wall_s, r.threads);
 }
