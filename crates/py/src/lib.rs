@@ -8,16 +8,21 @@
 //!
 //! The pure-Python package (`python/itaipu_calib/__init__.py`) re-exports everything from here.
 
+mod cli;
 mod ecosys;
+mod interrupt;
+mod pandas;
+mod params;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
 
 use numpy::PyArray1;
 use pyo3::exceptions::{
-    PyAttributeError, PyException, PyKeyError, PyRuntimeError, PyTypeError, PyValueError,
+    PyAttributeError, PyDeprecationWarning, PyException, PyKeyError, PyKeyboardInterrupt,
+    PyRuntimeError, PyTypeError, PyValueError,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
@@ -32,7 +37,7 @@ use itaipu_dynamics::integrate::{Dopri5Options, Method};
 use itaipu_dynamics::plausibility::{check_event, check_unit, Finding, Severity};
 use itaipu_dynamics::registry::MODELS;
 use itaipu_dynamics::simulate::{SimError, SimOptions, Traces};
-use itaipu_dynamics::unit::Unit;
+use itaipu_dynamics::unit::{Unit, UnitError};
 use itaipu_dynamics::unit_file::{read_unit, unit_to_toml, UnitFileError};
 
 // -------------------------------------------------------------------------------------------
@@ -93,6 +98,9 @@ enum Failure {
     Value(String),
     /// The unit cannot initialise (InitError, kind 'init').
     Init(String),
+    /// A parameter edit the library refused (UnitModelError, kind 'unknown_param' or
+    /// 'bad_param').
+    UnitEdit(UnitError),
 }
 
 impl From<RsEventError> for Failure {
@@ -154,6 +162,11 @@ impl Failure {
             Failure::Diagnose(e @ DiagnoseError::Simulation { .. }) => {
                 raise::<SimulationError>(py, e.to_string(), Some(e.kind()))
             }
+            // Only after a signal, which `interrupt::interruptible` raises first.
+            Failure::Diagnose(e @ DiagnoseError::Interrupted { .. }) => {
+                PyKeyboardInterrupt::new_err(e.to_string())
+            }
+            Failure::UnitEdit(e) => raise::<UnitModelError>(py, e.to_string(), Some(e.kind())),
             Failure::Value(msg) => PyValueError::new_err(msg),
             Failure::Init(msg) => raise::<InitError>(py, msg, Some("init")),
         }
@@ -495,6 +508,25 @@ impl PyUnit {
         unit_to_toml(&self.inner)
     }
 
+    /// A new Unit with the parameters of `values` (`{"block.name": value}`, canonical names or
+    /// PSS/E aliases) set; this one is unchanged. Checked by the library as a unit file is:
+    /// an unknown parameter (kind 'unknown_param') or a value outside the model's domain (a
+    /// time constant <= 0, X'd above Xd, not finite: kind 'bad_param') raises UnitModelError
+    /// naming the parameter. The new unit keeps `path` (its file's [calibration] table still
+    /// applies to `fit`).
+    fn with_params(&self, values: BTreeMap<String, f64>) -> PyResult<PyUnit> {
+        let values: Vec<(String, f64)> = values.into_iter().collect();
+        Python::attach(|py| {
+            self.inner
+                .with_params(&values)
+                .map(|u| PyUnit {
+                    inner: Arc::new(u),
+                    path: self.path.clone(),
+                })
+                .map_err(|e| Failure::UnitEdit(e).into_pyerr(py))
+        })
+    }
+
     fn __repr__(&self) -> String {
         let u = &self.inner;
         format!(
@@ -571,6 +603,12 @@ impl PyTraces {
     /// `{"time_s": array, column: array, ...}` (e.g. for `pandas.DataFrame(traces.to_dict())`).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         traces_dict(py, &self.inner)
+    }
+
+    /// The traces as a pandas DataFrame indexed by `time_s`, one column per trace. Needs pandas
+    /// (ImportError naming it otherwise).
+    fn to_pandas<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        pandas::data_frame(py, traces_dict(py, &self.inner)?.into_any(), Some("time_s"))
     }
 
     fn __getitem__<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
@@ -661,6 +699,9 @@ fn simulate(
     step: f64,
 ) -> PyResult<PyTraces> {
     let opts = sim_options(method, rtol, atol, step)?;
+    if swapped_events_unit(py, event, unit)? {
+        return Err(swap_error("simulate"));
+    }
     let event = source::<PyEvent, _>(event, "event", |e| e.inner.clone())?;
     let unit = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
     let result = py.detach(move || -> Result<Traces, Failure> {
@@ -839,6 +880,47 @@ impl PyFitResult {
         ))
     }
 
+    /// lmfit-like parameter objects `{name: Parameter}` (value, stderr, init_value, min, max,
+    /// at_bound, correl, stage, units): of `stage`, or by default of the whole fit, each
+    /// parameter from the last stage that freed it (the values of `unit`). Raises KeyError for
+    /// a stage that did not run.
+    #[pyo3(signature = (stage = None))]
+    fn params<'py>(&self, py: Python<'py>, stage: Option<&str>) -> PyResult<Bound<'py, PyDict>> {
+        let ps = match stage {
+            None => params::final_params(&self.report.stages),
+            Some(name) => params::of_stage(
+                self.report
+                    .stages
+                    .iter()
+                    .find(|s| s.stage == name)
+                    .ok_or_else(|| self.unknown_stage(name))?,
+            ),
+        };
+        params_dict(py, &ps)
+    }
+
+    /// The fit report as text (what `itaipu-calib fit` prints): per stage the phases, the
+    /// parameter table (start, bounds, result, standard error, at bound), what the data do not
+    /// determine; then J per event and stage. `print(result)` prints the same.
+    fn fit_report(&self) -> String {
+        self.report.to_text()
+    }
+
+    fn __str__(&self) -> String {
+        self.report.to_text()
+    }
+
+    /// The parameters of `params()` as a pandas DataFrame indexed by name (columns stage,
+    /// value, stderr (NaN: not determined), init_value, min, max, at_bound, units). Needs
+    /// pandas.
+    fn to_pandas<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let rows = params::final_params(&self.report.stages)
+            .iter()
+            .map(|p| p.row(py))
+            .collect::<PyResult<Vec<_>>>()?;
+        pandas::data_frame(py, pandas::rows(py, rows)?, Some("name"))
+    }
+
     fn __repr__(&self) -> String {
         let r = &self.report;
         let rows = self.fitness();
@@ -881,6 +963,37 @@ fn event_sources(arg: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Source<Even
             )))
         }
     }
+}
+
+/// Whether `(events, unit)` came in the order `(unit, events)`: a Unit object first, an Event
+/// or a list of events second, or two paths of which the first reads as a unit file and the
+/// second does not (a unit file is small: this reads no recording).
+fn swapped_events_unit(
+    py: Python<'_>,
+    events: &Bound<'_, PyAny>,
+    unit: &Bound<'_, PyAny>,
+) -> PyResult<bool> {
+    if events.downcast::<PyUnit>().is_ok() || unit.downcast::<PyEvent>().is_ok() {
+        return Ok(true);
+    }
+    if unit.downcast::<PyUnit>().is_ok() || events.downcast::<PyEvent>().is_ok() {
+        return Ok(false);
+    }
+    let (Ok(first), Ok(second)) = (events.extract::<PathBuf>(), unit.extract::<PathBuf>()) else {
+        // A list second (events) with a path or Unit first.
+        return Ok(unit.extract::<PathBuf>().is_err()
+            && unit.downcast::<PyUnit>().is_err()
+            && unit.try_iter().is_ok());
+    };
+    Ok(py.detach(|| read_unit(&first).is_ok() && read_unit(&second).is_err()))
+}
+
+/// A TypeError for `func` called with the unit first and the events second.
+fn swap_error(func: &str) -> PyErr {
+    PyTypeError::new_err(format!(
+        "{func}: the first argument is a unit and the second an event; the order is \
+         {func}(events, unit): swap them"
+    ))
 }
 
 /// The stages to run from the `stages` argument, as the command line's `--stage`: "all" (None:
@@ -984,6 +1097,9 @@ fn fit(
     polish: bool,
     held_out: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PyFitResult> {
+    if swapped_events_unit(py, events, unit)? {
+        return Err(swap_error("fit"));
+    }
     let events = event_sources(events, "events")?;
     let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
     let held_out = match held_out {
@@ -1011,11 +1127,12 @@ fn fit(
             )));
         }
     }
-    // The fit runs on a worker thread while this thread, without the GIL between checks,
-    // looks for signals every 20 ms: Ctrl-C (KeyboardInterrupt) stops the fit at its next
-    // candidate evaluation and is raised as soon as the worker has come back.
+    // Ctrl-C (KeyboardInterrupt) stops the fit at its next candidate evaluation; the passes
+    // finished by then are kept on the exception (see `fit`'s documentation).
     let cancel = Arc::new(AtomicBool::new(false));
     let worker_cancel = cancel.clone();
+    let finished: Arc<Mutex<Vec<(calib_fit::StageReport, Unit)>>> = Arc::default();
+    let worker_finished = finished.clone();
     let work = move || -> Result<(calib_fit::FitResult, Vec<catalog::FreeBound>), Failure> {
         let unit = match unit_src {
             Source::Loaded(u) => u,
@@ -1046,8 +1163,18 @@ fn fit(
         if let Some(n) = lbfgs_iterations {
             opts.lbfgs_iterations = n;
         }
+        let on_stage = |rep: &calib_fit::StageReport,
+                        _: &StageOutput,
+                        master: &Unit|
+         -> Result<(), String> {
+            if let Ok(mut f) = worker_finished.lock() {
+                f.push((rep.clone(), master.clone()));
+            }
+            Ok(())
+        };
         let control = calib_fit::FitControl {
             cancel: Some(worker_cancel),
+            on_stage: Some(&on_stage),
             ..Default::default()
         };
         let mut result =
@@ -1062,21 +1189,11 @@ fn fit(
         let set = calib_diagnose::calibrated_set(&spec, &opts.stages, &unit, &result.unit);
         Ok((result, set))
     };
-    let result = std::thread::scope(|scope| -> PyResult<_> {
-        let worker = scope.spawn(work);
-        loop {
-            if worker.is_finished() {
-                return Ok(worker
-                    .join()
-                    .unwrap_or_else(|p| std::panic::resume_unwind(p)));
-            }
-            py.detach(|| std::thread::sleep(std::time::Duration::from_millis(20)));
-            if let Err(e) = py.check_signals() {
-                cancel.store(true, Ordering::SeqCst);
-                let _ = py.detach(|| worker.join());
-                return Err(e);
-            }
+    let result = interrupt::interruptible(py, Some(cancel), work).map_err(|e| {
+        if let Ok(f) = finished.lock() {
+            let _ = keep_finished(py, &e, &f);
         }
+        e
     })?;
     let (result, calibrated_set) = result.map_err(|e| e.into_pyerr(py))?;
     let report_json = serde_json::to_string(&result.report)
@@ -1088,6 +1205,41 @@ fn fit(
         stages: result.stages,
         calibrated_set,
     })
+}
+
+/// Puts what an interrupted fit finished on its KeyboardInterrupt: `finished_stages` (names,
+/// in order), `unit` (the full unit after the last of them, or None), `params` (`{name:
+/// Parameter}` of those stages) and `stage_reports` (their reports as dicts).
+fn keep_finished(
+    py: Python<'_>,
+    e: &PyErr,
+    finished: &[(calib_fit::StageReport, Unit)],
+) -> PyResult<()> {
+    let exc = e.value(py);
+    let names: Vec<&str> = finished.iter().map(|(r, _)| r.stage.as_str()).collect();
+    exc.setattr("finished_stages", names)?;
+    exc.setattr(
+        "unit",
+        finished.last().map(|(_, u)| PyUnit {
+            inner: Arc::new(u.clone()),
+            path: None,
+        }),
+    )?;
+    let reports: Vec<calib_fit::StageReport> = finished.iter().map(|(r, _)| r.clone()).collect();
+    exc.setattr("params", params_dict(py, &params::final_params(&reports))?)?;
+    let json = serde_json::to_value(&reports)
+        .map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
+    exc.setattr("stage_reports", json_to_py(py, &json)?)?;
+    Ok(())
+}
+
+/// `{name: Parameter}` in order.
+fn params_dict<'py>(py: Python<'py>, ps: &[params::PyParameter]) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for p in ps {
+        d.set_item(p.name(), p.clone())?;
+    }
+    Ok(d)
 }
 
 // -------------------------------------------------------------------------------------------
@@ -1174,7 +1326,9 @@ fn synth(
     };
     let unit = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
     let name = name.unwrap_or_else(|| format!("synthetic-{}-{seed}", kind.to_ascii_lowercase()));
-    let result = py.detach(move || -> Result<(Event, Arc<Unit>), Failure> {
+    // Not stoppable inside the library (one or two simulations): Ctrl-C raises at once and
+    // the worker's result is dropped.
+    let result = interrupt::interruptible(py, None, move || -> Result<(Event, Arc<Unit>), Failure> {
         let unit = match unit {
             Source::Loaded(u) => u,
             Source::Path(p) => Arc::new(read_unit(&p)?),
@@ -1211,7 +1365,7 @@ fn synth(
         let event = synthesize(&name, &truth, &profile, mva, &noise, &SimOptions::default())
             .map_err(synth_failure)?;
         Ok((event, truth))
-    });
+    })?;
     let (event, truth) = result.map_err(|f| f.into_pyerr(py))?;
     let event = Bound::new(
         py,
@@ -1480,6 +1634,32 @@ impl PyDiagnosis {
         Ok(d)
     }
 
+    /// The candidates as a pandas DataFrame indexed by cause, in the report's order (columns
+    /// title, applicable, significant, note, and the gains: delta_bic, fit_drop, held_drop, ...;
+    /// NaN where a cause was not applicable). Needs pandas.
+    fn to_pandas<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let empty = vec![];
+        let cands = self.report["candidates"].as_array().unwrap_or(&empty);
+        let rows = cands
+            .iter()
+            .map(|c| {
+                let d = PyDict::new(py);
+                for key in ["cause", "title", "applicable", "significant", "note"] {
+                    d.set_item(key, json_to_py(py, &c[key])?)?;
+                }
+                if let Some(g) = c["gains"].as_object() {
+                    for (k, v) in g {
+                        if v.is_number() || v.is_null() {
+                            d.set_item(k, v.as_f64().unwrap_or(f64::NAN))?;
+                        }
+                    }
+                }
+                Ok(d)
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        pandas::data_frame(py, pandas::rows(py, rows)?, Some("cause"))
+    }
+
     /// The report as JSON text (indented).
     fn to_json(&self) -> PyResult<String> {
         serde_json::to_string_pretty(&self.report)
@@ -1584,16 +1764,16 @@ fn refit_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<calib_diagnose::Re
 /// UnitModelError; ValueError for bad options, TypeError for bad argument types.
 #[pyfunction]
 #[pyo3(
-    signature = (unit, events, held_out = None, *, causes = None, seed = 1, particles = 16, pso_iterations = 20,
+    signature = (events, unit, held_out = None, *, causes = None, seed = 1, particles = 16, pso_iterations = 20,
                  lbfgs_iterations = 15, threads = None, refit = None, fit = None, user_causes = None),
-    text_signature = "(unit, events, held_out=None, *, causes=None, seed=1, particles=16, pso_iterations=20, \
+    text_signature = "(events, unit, held_out=None, *, causes=None, seed=1, particles=16, pso_iterations=20, \
                       lbfgs_iterations=15, threads=None, refit=None, fit=None, user_causes=None)"
 )]
 #[allow(clippy::too_many_arguments)]
 fn diagnose(
     py: Python<'_>,
-    unit: &Bound<'_, PyAny>,
     events: &Bound<'_, PyAny>,
+    unit: &Bound<'_, PyAny>,
     held_out: Option<&Bound<'_, PyAny>>,
     causes: Option<&Bound<'_, PyAny>>,
     seed: u64,
@@ -1605,6 +1785,19 @@ fn diagnose(
     fit: Option<&Bound<'_, PyAny>>,
     user_causes: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PyDiagnosis> {
+    // The order was (unit, events) before issue 14: still accepted, with a warning.
+    let (events, unit) = if swapped_events_unit(py, events, unit)? {
+        PyErr::warn(
+            py,
+            &py.get_type::<PyDeprecationWarning>(),
+            c"diagnose(unit, events) is deprecated: the order is diagnose(events, unit), as in \
+              fit(events, unit) and simulate(event, unit); the two arguments were swapped",
+            1,
+        )?;
+        (unit, events)
+    } else {
+        (events, unit)
+    };
     let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
     // Cause files written by the user (`diagnose --user-cause`): a path or a list of paths.
     let user_paths: Vec<PathBuf> = match user_causes {
@@ -1654,6 +1847,7 @@ fn diagnose(
                 })?,
         ),
     };
+    let cancel = Arc::new(AtomicBool::new(false));
     let mut opts = DiagnoseOptions {
         causes,
         user_causes,
@@ -1661,9 +1855,12 @@ fn diagnose(
         particles,
         pso_iterations,
         lbfgs_iterations,
+        cancel: Some(cancel.clone()),
         ..Default::default()
     };
-    let result = py.detach(move || -> Result<calib_diagnose::DiagnoseResult, Failure> {
+    // Ctrl-C stops the re-fits at their next candidate evaluation: KeyboardInterrupt, nothing
+    // kept (a verdict needs every cause).
+    let result = interrupt::interruptible(py, Some(cancel), move || -> Result<calib_diagnose::DiagnoseResult, Failure> {
         let unit = match unit_src {
             Source::Loaded(u) => u,
             Source::Path(p) => Arc::new(read_unit(&p)?),
@@ -1681,7 +1878,7 @@ fn diagnose(
             Some(pool) => pool.install(run),
             None => run(),
         }?)
-    });
+    })?;
     let result = result.map_err(|e| e.into_pyerr(py))?;
     let report = serde_json::to_value(&result.report)
         .map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))?;
@@ -1752,6 +1949,14 @@ fn models<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
     Ok(out)
 }
 
+/// Robust noise standard deviation of a measured signal (the fit's estimate: from its second
+/// differences, so the event itself barely counts), in the signal's unit. The band the plot
+/// helpers draw around a zero residual.
+#[pyfunction]
+fn noise_sigma(values: Vec<f64>) -> f64 {
+    itaipu_calib::problem::noise_variance(&values).sqrt()
+}
+
 // -------------------------------------------------------------------------------------------
 // Module
 // -------------------------------------------------------------------------------------------
@@ -1782,6 +1987,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(causes, m)?)?;
     m.add_function(wrap_pyfunction!(synth, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(noise_sigma, m)?)?;
+    m.add_function(wrap_pyfunction!(cli::_cli_main, m)?)?;
+    m.add_class::<params::PyParameter>()?;
     ecosys::register(m)?;
     Ok(())
 }
