@@ -50,8 +50,37 @@ exactly as the ``itaipu-calib fit`` command line::
 * ``FitResult.fitness`` sums J over the fitted events; a stage's row is the fitness of that
   stage's unit (``gen`` runs without exciter, stabiliser and governor). Non-finite numbers in
   ``report`` (e.g. the standard error of an undetermined parameter) are ``None``.
+* ``r.params()`` gives lmfit-like :class:`Parameter` objects ``{name: Parameter}`` (``value``,
+  ``stderr`` (None: not determined by the data), ``init_value``, ``min``, ``max``,
+  ``at_bound``, ``correl`` ``{other: rho}``, ``stage``, ``units``), each from the last stage that
+  freed it; ``r.params("gen")`` those of one stage. ``print(r)`` or ``r.fit_report()`` prints
+  the command line's report; ``r.to_pandas()`` is the parameter table.
 * The GIL is released during the fit (a full fit of the bundled problem takes some tens of
-  seconds); Ctrl-C stops it at its next candidate evaluation and raises ``KeyboardInterrupt``.
+  seconds); Ctrl-C stops it at its next candidate evaluation and raises ``KeyboardInterrupt``
+  within a second. The stages finished by then are kept on the exception:
+  ``e.finished_stages``, ``e.unit`` (the unit after the last of them, or None), ``e.params``,
+  ``e.stage_reports``.
+
+Editing a unit
+--------------
+``unit.with_params({"machine.h": 5.0, "exciter.K": 120.0})`` returns a new :class:`Unit`
+(this one is unchanged), checked by the library as a unit file is: an unknown parameter or a
+value outside the model's domain raises :class:`UnitModelError` naming the parameter
+(``kind`` ``"unknown_param"`` or ``"bad_param"``).
+
+Tables and figures
+------------------
+``to_pandas()`` on :class:`Traces` (indexed by ``time_s``), :class:`FitResult` (the parameter
+table) and :class:`Diagnosis` (the candidates and their gains) needs pandas (``pip install
+pandas``; without it an ImportError says so). :mod:`itaipu_calib.plot` draws the standard
+figures with matplotlib: ``plot_pq(traces)`` (measured against simulated P and Q) and
+``plot_residuals(traces)`` (residuals with the noise band, ``noise_sigma`` of the measured
+signal).
+
+Command line
+------------
+Installing the wheel installs the ``itaipu-calib`` command (the same Rust code as the binary
+built by cargo, run in process): ``itaipu-calib fit --help``.
 
 Plausibility
 ------------
@@ -74,7 +103,7 @@ cause whose gain is significant (ΔBIC, fitted and held-out χ²), as ``itaipu-c
 
     ev = ic.synth("data/synthetic/unit_gensae_sexs_stab3_hygov.toml", duration=8.0,
                   hide=[("measurement_skew", {"measurement.pq_delay_s": 0.012})])
-    d = ic.diagnose("data/synthetic/unit_gensae_sexs_stab3_hygov.toml", ev,
+    d = ic.diagnose(ev, "data/synthetic/unit_gensae_sexs_stab3_hygov.toml",
                     causes=["measurement_skew", "terminal_load"])
     d.cause                     # 'measurement_skew' (or 'none', 'unexplained')
     d.verdict                   # cause, title, statement, key_parameters, gains, where
@@ -85,8 +114,13 @@ cause whose gain is significant (ΔBIC, fitted and held-out χ²), as ``itaipu-c
 
 * ``held_out`` events judge the candidates; without them each event is split into alternating
   0.5 s blocks, fitted and held out.
+* The arguments come in the order of :func:`fit` and :func:`simulate`: events first, then the
+  unit. The old order ``diagnose(unit, events)`` still works with a ``DeprecationWarning``.
 * ``seed``, ``particles``, ``pso_iterations``, ``lbfgs_iterations`` set every re-fit;
-  ``threads`` the worker threads (default: all cores). The GIL is released while it runs.
+  ``threads`` the worker threads (default: all cores). The GIL is released while it runs;
+  Ctrl-C stops the re-fits at their next candidate evaluation and raises ``KeyboardInterrupt``
+  within a second (nothing is kept: a verdict needs every cause). :func:`synth` also raises it
+  at once.
 * An unknown cause raises :class:`CalibrationError` (``kind`` ``"setup"``); a unit that does not
   simulate on an event :class:`SimulationError` (``kind`` ``"simulation"``).
 
@@ -133,6 +167,7 @@ from ._core import (
     FitResult,
     InitError,
     ItaipuError,
+    Parameter,
     SimulationError,
     Traces,
     Unit,
@@ -146,6 +181,7 @@ from ._core import (
     load_event,
     load_unit,
     models,
+    noise_sigma,
     read_dyr,
     simulate,
     synth,
@@ -160,6 +196,7 @@ __all__ = [
     "FitResult",
     "InitError",
     "ItaipuError",
+    "Parameter",
     "SimulationError",
     "Traces",
     "Unit",
@@ -173,6 +210,7 @@ __all__ = [
     "load_event",
     "load_unit",
     "models",
+    "noise_sigma",
     "read_dyr",
     "simulate",
     "synth",

@@ -26,7 +26,7 @@ def skewed():
 
 @pytest.fixture(scope="module")
 def diagnosis(skewed):
-    return ic.diagnose(TRUTH, skewed, causes=["measurement_skew", "terminal_load"], **QUICK)
+    return ic.diagnose(skewed, TRUTH, causes=["measurement_skew", "terminal_load"], **QUICK)
 
 
 def test_synth_hide_builds_the_extended_truth(skewed):
@@ -77,22 +77,22 @@ def test_the_report_round_trips_through_json(diagnosis):
 
 def test_diagnose_errors(skewed):
     with pytest.raises(ic.CalibrationError, match="unknown cause 'earthquake'") as e:
-        ic.diagnose(TRUTH, skewed, causes=["earthquake"], **QUICK)
+        ic.diagnose(skewed, TRUTH, causes=["earthquake"], **QUICK)
     assert e.value.kind == "setup"
     with pytest.raises(ValueError, match="causes"):
-        ic.diagnose(TRUTH, skewed, causes=[])
+        ic.diagnose(skewed, TRUTH, causes=[])
     with pytest.raises(ValueError, match="particles"):
-        ic.diagnose(TRUTH, skewed, particles=1)
+        ic.diagnose(skewed, TRUTH, particles=1)
     with pytest.raises(ValueError, match="threads"):
-        ic.diagnose(TRUTH, skewed, threads=0)
+        ic.diagnose(skewed, TRUTH, threads=0)
     with pytest.raises(TypeError):
-        ic.diagnose(TRUTH, 42)
+        ic.diagnose(42, TRUTH)
     with pytest.raises(ic.UnitModelError):
-        ic.diagnose(DATA / "no-such-unit.toml", skewed)
+        ic.diagnose(skewed, DATA / "no-such-unit.toml")
 
 
 def test_diagnose_refit_frees_calibrated_parameters_again(skewed):
-    d = ic.diagnose(TRUTH, skewed, causes=["measurement_skew"], refit={"machine.h": (3.0, 6.0)}, **QUICK)
+    d = ic.diagnose(skewed, TRUTH, causes=["measurement_skew"], refit={"machine.h": (3.0, 6.0)}, **QUICK)
     assert d.cause == "measurement_skew"
     (b,) = d.report["refit"]
     assert (b["param"], b["min"], b["max"], b["polish_only"]) == ("machine.h", 3.0, 6.0, True)
@@ -101,21 +101,21 @@ def test_diagnose_refit_frees_calibrated_parameters_again(skewed):
     h = next(p for p in skew["parameters"] if p["param"] == "machine.h")
     assert 3.0 <= h["result"] <= 6.0 and not h["extension"]
     # A list of paths takes each model's declared range.
-    d = ic.diagnose(TRUTH, skewed, causes=["measurement_skew"], refit=["exciter.k"], **QUICK)
+    d = ic.diagnose(skewed, TRUTH, causes=["measurement_skew"], refit=["exciter.k"], **QUICK)
     (b,) = d.report["refit"]
     assert b["param"] == "exciter.k" and b["min"] < 100.0 < b["max"]
 
 
 def test_diagnose_refit_errors(skewed):
     with pytest.raises(ic.CalibrationError, match="machine.nope") as e:
-        ic.diagnose(TRUTH, skewed, causes=["measurement_skew"], refit=["machine.nope"], **QUICK)
+        ic.diagnose(skewed, TRUTH, causes=["measurement_skew"], refit=["machine.nope"], **QUICK)
     assert e.value.kind == "setup"
     with pytest.raises(ic.CalibrationError, match="machine.h.*upside down"):
-        ic.diagnose(TRUTH, skewed, causes=["measurement_skew"], refit={"machine.h": (6.0, 3.0)}, **QUICK)
+        ic.diagnose(skewed, TRUTH, causes=["measurement_skew"], refit={"machine.h": (6.0, 3.0)}, **QUICK)
     with pytest.raises(TypeError, match="refit"):
-        ic.diagnose(TRUTH, skewed, refit=3)
+        ic.diagnose(skewed, TRUTH, refit=3)
     with pytest.raises(TypeError, match=r"refit\['machine.h'\]"):
-        ic.diagnose(TRUTH, skewed, refit={"machine.h": "wide"})
+        ic.diagnose(skewed, TRUTH, refit={"machine.h": "wide"})
 
 
 def test_synth_hide_errors():
@@ -136,13 +136,13 @@ def test_diagnose_refits_the_whole_calibrated_set_of_a_fit(skewed):
     spec = DATA / "itaipu" / "calibration.toml"
     f = ic.fit(skewed, TRUTH, calib=spec, stages="gen", seed=1, particles=4, pso_iterations=2,
                lbfgs_iterations=1, polish=False)
-    d = ic.diagnose(f.unit, skewed, causes=["measurement_skew"], fit=f, **QUICK)
+    d = ic.diagnose(skewed, f.unit, causes=["measurement_skew"], fit=f, **QUICK)
     freed = {b["param"]: (b["min"], b["max"]) for b in d.report["refit"]}
     stage = {p["param"]: (p["min"], p["max"]) for p in f.report["stages"][0]["parameters"]}
     assert freed == stage and len(freed) == 11
     assert all(b["polish_only"] for b in d.report["refit"])
     with pytest.raises(TypeError, match="FitResult"):
-        ic.diagnose(f.unit, skewed, causes=["measurement_skew"], fit="not a fit", **QUICK)
+        ic.diagnose(skewed, f.unit, causes=["measurement_skew"], fit="not a fit", **QUICK)
 
 
 # --- a cause written by the user ------------------------------------------------------------
@@ -159,7 +159,7 @@ def test_a_user_cause_file_is_tried_and_named(tmp_path):
     truth = tmp_path / "truth.toml"
     truth.write_text(text)
     ev = ic.synth(truth, duration=10.0, seed=5)
-    d = ic.diagnose(TRUTH, ev, causes=["reactive_droop", "terminal_load"], user_causes=DROOP, **QUICK)
+    d = ic.diagnose(ev, TRUTH, causes=["reactive_droop", "terminal_load"], user_causes=DROOP, **QUICK)
     assert d.cause == "reactive_droop"
     x_c = {p: v for p, v, _ in d.verdict["key_parameters"]}["droop.x_c"]
     assert abs(x_c - 0.07) < 0.01
@@ -172,11 +172,11 @@ def test_a_bad_user_cause_file_raises_naming_the_file_and_field(tmp_path):
     text = DROOP.read_text().replace("reactive_droop.diagram.toml", diagram)
     bad.write_text(text.replace('param = "droop.x_c"', 'param = "droop.k"'))
     with pytest.raises(ic.CalibrationError) as e:
-        ic.diagnose(TRUTH, DATA / "itaipu" / "event.toml", user_causes=[bad], **QUICK)
+        ic.diagnose(DATA / "itaipu" / "event.toml", TRUTH, user_causes=[bad], **QUICK)
     assert "bad.toml" in str(e.value) and "free[0].param" in str(e.value)
     assert e.value.kind == "spec"
     with pytest.raises(TypeError):
-        ic.diagnose(TRUTH, DATA / "itaipu" / "event.toml", user_causes=3, **QUICK)
+        ic.diagnose(DATA / "itaipu" / "event.toml", TRUTH, user_causes=3, **QUICK)
 
 
 def test_the_cause_list_is_the_registry_the_diagnosis_uses():
