@@ -514,17 +514,15 @@ impl PyUnit {
     /// time constant <= 0, X'd above Xd, not finite: kind 'bad_param') raises UnitModelError
     /// naming the parameter. The new unit keeps `path` (its file's [calibration] table still
     /// applies to `fit`).
-    fn with_params(&self, values: BTreeMap<String, f64>) -> PyResult<PyUnit> {
+    fn with_params(&self, py: Python<'_>, values: BTreeMap<String, f64>) -> PyResult<PyUnit> {
         let values: Vec<(String, f64)> = values.into_iter().collect();
-        Python::attach(|py| {
-            self.inner
-                .with_params(&values)
-                .map(|u| PyUnit {
-                    inner: Arc::new(u),
-                    path: self.path.clone(),
-                })
-                .map_err(|e| Failure::UnitEdit(e).into_pyerr(py))
-        })
+        self.inner
+            .with_params(&values)
+            .map(|u| PyUnit {
+                inner: Arc::new(u),
+                path: self.path.clone(),
+            })
+            .map_err(|e| Failure::UnitEdit(e).into_pyerr(py))
     }
 
     fn __repr__(&self) -> String {
