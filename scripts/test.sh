@@ -17,4 +17,4 @@ fi
 "$venv/bin/python" -m pip install --quiet --force-reinstall .
 "$venv/bin/python" -m pytest tests/python -q
 # (tests/python/test_pyapi.py also checks the type stub: mypy.stubtest against the installed
-# module, and mypy on these tests.)
+# module.)

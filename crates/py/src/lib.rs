@@ -1161,15 +1161,13 @@ fn fit(
         if let Some(n) = lbfgs_iterations {
             opts.lbfgs_iterations = n;
         }
-        let on_stage = |rep: &calib_fit::StageReport,
-                        _: &StageOutput,
-                        master: &Unit|
-         -> Result<(), String> {
-            if let Ok(mut f) = worker_finished.lock() {
-                f.push((rep.clone(), master.clone()));
-            }
-            Ok(())
-        };
+        let on_stage =
+            |rep: &calib_fit::StageReport, _: &StageOutput, master: &Unit| -> Result<(), String> {
+                if let Ok(mut f) = worker_finished.lock() {
+                    f.push((rep.clone(), master.clone()));
+                }
+                Ok(())
+            };
         let control = calib_fit::FitControl {
             cancel: Some(worker_cancel),
             on_stage: Some(&on_stage),
@@ -1326,44 +1324,45 @@ fn synth(
     let name = name.unwrap_or_else(|| format!("synthetic-{}-{seed}", kind.to_ascii_lowercase()));
     // Not stoppable inside the library (one or two simulations): Ctrl-C raises at once and
     // the worker's result is dropped.
-    let result = interrupt::interruptible(py, None, move || -> Result<(Event, Arc<Unit>), Failure> {
-        let unit = match unit {
-            Source::Loaded(u) => u,
-            Source::Path(p) => Arc::new(read_unit(&p)?),
-        };
-        let profile = VoltageProfile::preset(event_kind, duration, rate, seed);
-        let mva = system_mva.unwrap_or(unit.machine_mva);
-        let synth_failure = |e: SynthError| match e {
-            SynthError::Sim(e) => Failure::Sim(e),
-            e => Failure::Value(e.to_string()),
-        };
-        let truth = if hides.is_empty() {
-            unit
-        } else {
-            // The catalog's context comes from the truth as given on a noise-free run.
-            let probe = synthesize(
-                &name,
-                &unit,
-                &profile,
-                mva,
-                &PmuNoise::none(),
-                &SimOptions::default(),
-            )
-            .map_err(synth_failure)?;
-            Arc::new(hide_all(&unit, &probe, &hides)?)
-        };
-        let noise = PmuNoise {
-            pq_sigma,
-            v_sigma,
-            angle_sigma: v_sigma,
-            pq_quantum: quantum,
-            pq_delay_s: skew_ms * 1e-3,
-            seed,
-        };
-        let event = synthesize(&name, &truth, &profile, mva, &noise, &SimOptions::default())
-            .map_err(synth_failure)?;
-        Ok((event, truth))
-    })?;
+    let result =
+        interrupt::interruptible(py, None, move || -> Result<(Event, Arc<Unit>), Failure> {
+            let unit = match unit {
+                Source::Loaded(u) => u,
+                Source::Path(p) => Arc::new(read_unit(&p)?),
+            };
+            let profile = VoltageProfile::preset(event_kind, duration, rate, seed);
+            let mva = system_mva.unwrap_or(unit.machine_mva);
+            let synth_failure = |e: SynthError| match e {
+                SynthError::Sim(e) => Failure::Sim(e),
+                e => Failure::Value(e.to_string()),
+            };
+            let truth = if hides.is_empty() {
+                unit
+            } else {
+                // The catalog's context comes from the truth as given on a noise-free run.
+                let probe = synthesize(
+                    &name,
+                    &unit,
+                    &profile,
+                    mva,
+                    &PmuNoise::none(),
+                    &SimOptions::default(),
+                )
+                .map_err(synth_failure)?;
+                Arc::new(hide_all(&unit, &probe, &hides)?)
+            };
+            let noise = PmuNoise {
+                pq_sigma,
+                v_sigma,
+                angle_sigma: v_sigma,
+                pq_quantum: quantum,
+                pq_delay_s: skew_ms * 1e-3,
+                seed,
+            };
+            let event = synthesize(&name, &truth, &profile, mva, &noise, &SimOptions::default())
+                .map_err(synth_failure)?;
+            Ok((event, truth))
+        })?;
     let (event, truth) = result.map_err(|f| f.into_pyerr(py))?;
     let event = Bound::new(
         py,
@@ -1858,25 +1857,29 @@ fn diagnose(
     };
     // Ctrl-C stops the re-fits at their next candidate evaluation: KeyboardInterrupt, nothing
     // kept (a verdict needs every cause).
-    let result = interrupt::interruptible(py, Some(cancel), move || -> Result<calib_diagnose::DiagnoseResult, Failure> {
-        let unit = match unit_src {
-            Source::Loaded(u) => u,
-            Source::Path(p) => Arc::new(read_unit(&p)?),
-        };
-        opts.refit = calib_diagnose::refit_bounds(&unit, &refit)?;
-        for b in fit_set {
-            if !opts.refit.iter().any(|r| r.param == b.param) && unit.param(&b.param).is_ok() {
-                opts.refit.push(b);
+    let result = interrupt::interruptible(
+        py,
+        Some(cancel),
+        move || -> Result<calib_diagnose::DiagnoseResult, Failure> {
+            let unit = match unit_src {
+                Source::Loaded(u) => u,
+                Source::Path(p) => Arc::new(read_unit(&p)?),
+            };
+            opts.refit = calib_diagnose::refit_bounds(&unit, &refit)?;
+            for b in fit_set {
+                if !opts.refit.iter().any(|r| r.param == b.param) && unit.param(&b.param).is_ok() {
+                    opts.refit.push(b);
+                }
             }
-        }
-        let events = load_events(events)?;
-        let held_out = load_events(held_out)?;
-        let run = || calib_diagnose::diagnose(&unit, &events, &held_out, &opts, &Silent);
-        Ok(match pool {
-            Some(pool) => pool.install(run),
-            None => run(),
-        }?)
-    })?;
+            let events = load_events(events)?;
+            let held_out = load_events(held_out)?;
+            let run = || calib_diagnose::diagnose(&unit, &events, &held_out, &opts, &Silent);
+            Ok(match pool {
+                Some(pool) => pool.install(run),
+                None => run(),
+            }?)
+        },
+    )?;
     let result = result.map_err(|e| e.into_pyerr(py))?;
     let report = serde_json::to_value(&result.report)
         .map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))?;

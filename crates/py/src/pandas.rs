@@ -25,6 +25,9 @@ pub(crate) fn data_frame<'py>(
 }
 
 /// A list of dicts as rows.
-pub(crate) fn rows<'py>(py: Python<'py>, rows: Vec<Bound<'py, PyDict>>) -> PyResult<Bound<'py, PyAny>> {
+pub(crate) fn rows<'py>(
+    py: Python<'py>,
+    rows: Vec<Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
     Ok(PyList::new(py, rows)?.into_any())
 }
