@@ -1185,11 +1185,10 @@ fn fit(
         let set = calib_diagnose::calibrated_set(&spec, &opts.stages, &unit, &result.unit);
         Ok((result, set))
     };
-    let result = interrupt::interruptible(py, Some(cancel), work).map_err(|e| {
+    let result = interrupt::interruptible(py, Some(cancel), work).inspect_err(|e| {
         if let Ok(f) = finished.lock() {
-            let _ = keep_finished(py, &e, &f);
+            let _ = keep_finished(py, e, &f);
         }
-        e
     })?;
     let (result, calibrated_set) = result.map_err(|e| e.into_pyerr(py))?;
     let report_json = serde_json::to_string(&result.report)
