@@ -3,21 +3,21 @@
 //! report.
 
 use std::collections::BTreeSet;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use itaipu_calib::diagnose::{
     calibrated_set, catalog, diagnose, refit_bounds,
     user_cause::{self, read_all, UserCause},
-    CandidateReport, DiagnoseError, DiagnoseOptions, Diagnosis, EventEvidence, RefitRequest,
+    CandidateReport, DiagnoseError, DiagnoseOptions, Diagnosis, RefitRequest,
 };
-use itaipu_calib::evidence::{SignalEvidence, WindowStats};
+use itaipu_calib::evidence::SignalEvidence;
 use itaipu_calib::spec::CalibSpec;
-use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::fit_cmd::Reporter;
-use crate::{bundled, load_event, load_unit, plot, prepare_out, CliError, SearchArgs, EXIT_CODES};
+use crate::report::diagnose::{draw_plots, plausible, top_window};
+use crate::report::{self, num, pct, InputFile, Provenance};
+use crate::{bundled, load_event, load_unit, prepare_out, CliError, SearchArgs, EXIT_CODES};
 
 #[derive(clap::Args, Debug)]
 #[command(after_help = EXIT_CODES)]
@@ -138,6 +138,14 @@ fn causes(requested: &[String], users: &[UserCause]) -> Result<Vec<String>, CliE
         }
     }
     Ok(out)
+}
+
+/// The user causes' files, for the provenance.
+fn user_cause_inputs(paths: &[PathBuf]) -> Vec<InputFile> {
+    paths
+        .iter()
+        .map(|p| InputFile::new("user cause", p))
+        .collect()
 }
 
 pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
@@ -284,12 +292,36 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     let plots = if a.no_plot {
         vec![]
     } else {
-        draw_plots(&out, &result.report, &result.before, &result.after)?
+        let hz: Vec<(String, f64)> = events
+            .iter()
+            .chain(&held_out)
+            .map(|e| (e.name.clone(), e.nominal_hz))
+            .collect();
+        draw_plots(&out, &hz, &result.report, &result.before, &result.after)?
     };
     written.extend(plots.iter().map(|p| p.file.clone()));
+    let mut inputs = vec![InputFile::new("unit", &unit_path)];
+    if let Some(dir) = &a.fit {
+        inputs.push(InputFile::new(
+            "calibration spec",
+            &dir.join("calibration.toml"),
+        ));
+        inputs.push(InputFile::new(
+            "datasheet unit",
+            &dir.join("datasheet.toml"),
+        ));
+    }
+    inputs.extend(user_cause_inputs(&a.user_cause));
+    for e in &events {
+        inputs.extend(InputFile::event(e, false));
+    }
+    for e in &held_out {
+        inputs.extend(InputFile::event(e, true));
+    }
+    let prov = Provenance::new(inputs, opts.seed);
     write(
         &out.join("report.html"),
-        &html_report(report, &unit_path, &event_paths, &out, &plots),
+        &report::diagnose::html(report, &prov, &plots, !a.no_plot),
     )?;
     written.push("report.html".into());
 
@@ -315,36 +347,6 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
 // ---------------------------------------------------------------------------------------------
 // Terminal
 // ---------------------------------------------------------------------------------------------
-
-/// Numbers for people: 4 decimals, scientific when very small or large.
-fn num(v: f64) -> String {
-    if !v.is_finite() {
-        return format!("{v}");
-    }
-    if v != 0.0 && (v.abs() < 1e-2 || v.abs() >= 1e4) {
-        format!("{v:.3e}")
-    } else {
-        format!("{v:.4}")
-    }
-}
-
-/// A χ² value: one decimal, scientific when large.
-fn chi2(v: f64) -> String {
-    if v.is_finite() && v.abs() < 1e7 {
-        format!("{v:.1}")
-    } else {
-        format!("{v:.4e}")
-    }
-}
-
-/// A percentage with one decimal.
-fn pct(v: f64) -> String {
-    if v.is_finite() {
-        format!("{:.1} %", 100.0 * v)
-    } else {
-        "-".into()
-    }
-}
 
 /// Greedy word wrap to `width` columns; continuation lines start with `indent`.
 fn wrap(text: &str, width: usize, first: &str, indent: &str) -> String {
@@ -441,18 +443,11 @@ fn key_params(c: &CandidateReport) -> Vec<String> {
     v
 }
 
-/// The window holding the largest share of the squared error.
-fn top_window(s: &SignalEvidence) -> Option<&WindowStats> {
-    s.windows
-        .iter()
-        .max_by(|a, b| a.share_of_sse.total_cmp(&b.share_of_sse))
-}
-
 /// The oscillatory mode (above 0.1 Hz) with the largest energy share, as text.
 fn dominant_mode(s: &SignalEvidence) -> String {
     s.modes
         .iter()
-        .filter(|m| m.freq_hz > 0.1)
+        .filter(|m| plausible(m))
         .max_by(|a, b| a.energy_share.total_cmp(&b.energy_share))
         .map(|m| format!("{:.2} Hz, ζ {:.2}", m.freq_hz, m.damping_ratio))
         .unwrap_or_else(|| "none".into())
@@ -576,687 +571,9 @@ fn print_report(r: &Diagnosis) {
     );
 }
 
-// ---------------------------------------------------------------------------------------------
-// Plots
-// ---------------------------------------------------------------------------------------------
-
-/// A drawn plot: file name in the output folder, event and what it shows.
-pub struct PlotFile {
-    pub file: String,
-    pub event: String,
-    pub caption: String,
-}
-
-/// `name` made safe as part of a file name.
-fn file_stem(name: &str) -> String {
-    let s: String = name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if s.is_empty() {
-        "event".into()
-    } else {
-        s
-    }
-}
-
-fn residual(tr: &Traces, sim: &str, meas: &str) -> Vec<f64> {
-    match (tr.get(sim), tr.get(meas)) {
-        (Some(s), Some(m)) => s.iter().zip(m).map(|(a, b)| a - b).collect(),
-        _ => vec![f64::NAN; tr.time_s.len()],
-    }
-}
-
-fn draw_plots(
-    out: &Path,
-    r: &Diagnosis,
-    before: &[(String, Traces)],
-    after: &[(String, Traces)],
-) -> Result<Vec<PlotFile>, CliError> {
-    let mut files = vec![];
-    let mut stems = BTreeSet::new();
-    let named = Some(r.verdict.cause.as_str()).filter(|c| *c != "none" && *c != "unexplained");
-    for (k, (event, tr)) in before.iter().enumerate() {
-        let mut stem = file_stem(event);
-        if !stems.insert(stem.clone()) {
-            stem = format!("{stem}-{}", k + 1);
-            stems.insert(stem.clone());
-        }
-        let ev = r.evidence.iter().find(|e| &e.event == event);
-        let tr_after = after.iter().find(|(e, _)| e == event).map(|(_, t)| t);
-        let t = &tr.time_s;
-        let draw = |file: &str,
-                    title: &str,
-                    x_label: &str,
-                    panels: &[plot::Panel],
-                    decor: &[plot::Decor]| {
-            plot::draw_with(&out.join(file), title, x_label, panels, decor)
-                .map_err(|e| CliError::new(7, e))
-        };
-
-        // Residuals with the implicated window and the noise band.
-        let (rp, rq) = (
-            residual(tr, "p_pu", "p_meas_pu"),
-            residual(tr, "q_pu", "q_meas_pu"),
-        );
-        let after_res = tr_after.map(|ta| {
-            (
-                residual(ta, "p_pu", "p_meas_pu"),
-                residual(ta, "q_pu", "q_meas_pu"),
-            )
-        });
-        let mut panels = vec![];
-        let mut decor = vec![];
-        for (signal, res, sigma, k) in [
-            ("P", &rp, r.noise.sigma_p, 0),
-            ("Q", &rq, r.noise.sigma_q, 1),
-        ] {
-            let mut series = vec![plot::Series {
-                label: "as given".into(),
-                x: t,
-                y: res,
-                color: plot::START,
-                thin: false,
-            }];
-            if let (Some(ta), Some((ap, aq)), Some(cause)) = (tr_after, &after_res, named) {
-                let y = if k == 0 { ap } else { aq };
-                series.push(plot::Series {
-                    label: format!("with {cause}"),
-                    x: &ta.time_s,
-                    y,
-                    color: plot::SIMULATED,
-                    thin: false,
-                });
-            }
-            panels.push(plot::Panel {
-                y_label: format!("{signal} residual (sim − meas) [pu]"),
-                series,
-            });
-            decor.push(plot::Decor {
-                spans: implicated_window(r, ev, signal).into_iter().collect(),
-                y_bands: vec![plot::YBand {
-                    label: format!("±σ{signal} noise {}", num(sigma)),
-                    y0: -sigma,
-                    y1: sigma,
-                    color: plot::NOISE,
-                }],
-                markers: vec![],
-            });
-        }
-        let file = format!("residual-{stem}.svg");
-        draw(
-            &file,
-            &format!("{event}: residuals; verdict {}", r.verdict.cause),
-            "time [s]",
-            &panels,
-            &decor,
-        )?;
-        files.push(PlotFile { file, event: event.clone(), caption: "P and Q residuals (simulated − measured), the implicated window shaded, ±σ noise band".into() });
-
-        // Residual spectra with the peak marked.
-        if let Some(ev) = ev {
-            let mut panels = vec![];
-            let mut decor = vec![];
-            for signal in ["P", "Q"] {
-                let Some(s) = ev.signals.iter().find(|s| s.signal == signal) else {
-                    continue;
-                };
-                let sp = &s.spectrum;
-                let mut series = vec![plot::Series {
-                    label: "as given".into(),
-                    x: &sp.freq_hz,
-                    y: &sp.amplitude,
-                    color: plot::START,
-                    thin: false,
-                }];
-                let sa = r
-                    .evidence_after
-                    .iter()
-                    .find(|e| &e.event == event)
-                    .and_then(|e| e.signals.iter().find(|x| x.signal == signal));
-                if let (Some(sa), Some(cause)) = (sa, named) {
-                    series.push(plot::Series {
-                        label: format!("with {cause}"),
-                        x: &sa.spectrum.freq_hz,
-                        y: &sa.spectrum.amplitude,
-                        color: plot::SIMULATED,
-                        thin: true,
-                    });
-                }
-                panels.push(plot::Panel {
-                    y_label: format!("{signal} residual amplitude [pu]"),
-                    series,
-                });
-                decor.push(plot::Decor {
-                    markers: sp
-                        .peak_hz
-                        .map(|f| plot::Marker {
-                            label: format!(
-                                "peak {f:.2} Hz, {} pu ({:.1}× median)",
-                                num(sp.peak_amplitude),
-                                sp.peak_significance
-                            ),
-                            x: f,
-                            y: sp.peak_amplitude,
-                            color: plot::SIMULATED,
-                        })
-                        .into_iter()
-                        .collect(),
-                    ..Default::default()
-                });
-            }
-            if !panels.is_empty() {
-                let file = format!("spectrum-{stem}.svg");
-                draw(
-                    &file,
-                    &format!("{event}: residual amplitude spectra"),
-                    "frequency [Hz]",
-                    &panels,
-                    &decor,
-                )?;
-                files.push(PlotFile {
-                    file,
-                    event: event.clone(),
-                    caption:
-                        "amplitude spectra of the P and Q residuals (Hann window), the peak marked"
-                            .into(),
-                });
-            }
-        }
-
-        // Measured against simulated, before and after the extension.
-        let col = |tr: &Traces, n: &str| {
-            tr.get(n)
-                .map(|c| c.to_vec())
-                .unwrap_or_else(|| vec![f64::NAN; tr.time_s.len()])
-        };
-        let (pm, qm, pb, qb) = (
-            col(tr, "p_meas_pu"),
-            col(tr, "q_meas_pu"),
-            col(tr, "p_pu"),
-            col(tr, "q_pu"),
-        );
-        let (pa, qa) = match tr_after {
-            Some(ta) => (col(ta, "p_pu"), col(ta, "q_pu")),
-            None => (vec![], vec![]),
-        };
-        let mut panels = vec![];
-        for (signal, m, b, af) in [("P", &pm, &pb, &pa), ("Q", &qm, &qb, &qa)] {
-            let mut series = vec![
-                plot::Series {
-                    label: "measured".into(),
-                    x: t,
-                    y: m,
-                    color: plot::MEASURED,
-                    thin: true,
-                },
-                plot::Series {
-                    label: "unit as given".into(),
-                    x: t,
-                    y: b,
-                    color: plot::START,
-                    thin: false,
-                },
-            ];
-            if let (Some(ta), Some(cause)) = (tr_after, named) {
-                series.push(plot::Series {
-                    label: format!("extended ({cause}), re-fitted"),
-                    x: &ta.time_s,
-                    y: af,
-                    color: plot::SIMULATED,
-                    thin: false,
-                });
-            }
-            panels.push(plot::Panel {
-                y_label: format!("{signal} [pu, system base]"),
-                series,
-            });
-        }
-        let file = format!("before-after-{stem}.svg");
-        let title = match named {
-            Some(c) => format!("{event}: measured, unit as given and extended for {c}"),
-            None => format!("{event}: measured and simulated (no cause named, no extension)"),
-        };
-        draw(&file, &title, "time [s]", &panels, &[])?;
-        files.push(PlotFile {
-            file,
-            event: event.clone(),
-            caption: "measured and simulated P and Q, before and after the extension".into(),
-        });
-    }
-    Ok(files)
-}
-
-/// The window to shade in the `signal` residual panel of an event: the verdict's (the same
-/// labelled window of this event when it has one), otherwise the signal's window with the
-/// largest share of the squared error.
-fn implicated_window(
-    r: &Diagnosis,
-    ev: Option<&EventEvidence>,
-    signal: &str,
-) -> Option<plot::Span> {
-    if let Some((sig, label, a, b)) = &r.verdict.where_ {
-        let own = ev
-            .and_then(|e| e.signals.iter().find(|s| &s.signal == sig))
-            .and_then(|s| s.windows.iter().find(|w| &w.label == label))
-            .map(|w| (w.start_s, w.end_s));
-        let (a, b) = own.unwrap_or((*a, *b));
-        return Some(plot::Span {
-            label: format!("verdict's window: {sig} residual, {label}"),
-            x0: a,
-            x1: b,
-            color: plot::HIGHLIGHT,
-        });
-    }
-    let s = ev?.signals.iter().find(|s| s.signal == signal)?;
-    let w = top_window(s)?;
-    Some(plot::Span {
-        label: format!("most SSE: {} ({:.0} %)", w.label, 100.0 * w.share_of_sse),
-        x0: w.start_s,
-        x1: w.end_s,
-        color: plot::HIGHLIGHT,
-    })
-}
-
-// ---------------------------------------------------------------------------------------------
-// HTML report
-// ---------------------------------------------------------------------------------------------
-
-/// Escapes text for HTML element content and attribute values.
-pub fn escape(s: &str) -> String {
-    let mut o = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => o.push_str("&amp;"),
-            '<' => o.push_str("&lt;"),
-            '>' => o.push_str("&gt;"),
-            '"' => o.push_str("&quot;"),
-            '\'' => o.push_str("&#39;"),
-            _ => o.push(c),
-        }
-    }
-    o
-}
-
-/// An SVG file's text ready to be inlined: without an XML declaration or DOCTYPE, with a
-/// viewBox so that it scales with the page.
-fn inline_svg(text: &str) -> String {
-    let start = text.find("<svg").unwrap_or(0);
-    let mut svg = text[start..].to_string();
-    let tag_end = svg.find('>').unwrap_or(0);
-    if !svg[..tag_end].contains("viewBox") {
-        let attr = |name: &str| -> Option<String> {
-            let tag = &svg[..tag_end];
-            let k = tag.find(&format!(" {name}=\""))? + name.len() + 3;
-            let v = &tag[k..];
-            Some(v[..v.find('"')?].to_string())
-        };
-        if let (Some(w), Some(h)) = (attr("width"), attr("height")) {
-            svg.insert_str(
-                4,
-                &format!(" viewBox=\"0 0 {} {}\"", escape(&w), escape(&h)),
-            );
-        }
-    }
-    svg
-}
-
-const CSS: &str = "body{font-family:system-ui,-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;max-width:1100px;margin:2em auto;\
-padding:0 1em;color:#222;line-height:1.45}h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;\
-margin-top:1.8em}h3{margin-bottom:.3em}table{border-collapse:collapse;margin:.5em 0 1em;font-size:.92em}\
-th,td{border:1px solid #d0d0d0;padding:.25em .55em;text-align:left;vertical-align:top}th{background:#f2f2f2}\
-td.n{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}.verdict{border:2px solid #888;border-radius:6px;\
-padding:.8em 1.1em;margin:1em 0;background:#f7f7f7}.verdict.named{border-color:#2c7a2c;background:#eef8ee}\
-.verdict.unexplained{border-color:#c77700;background:#fff5e6}.verdict h2{border:none;margin:.1em 0 .4em}.muted{color:#666}\
-.sig{font-weight:bold;color:#2c7a2c}ul.tight{margin:.2em 0;padding-left:1.2em}figure{margin:1em 0}\
-figure svg{max-width:100%;height:auto;border:1px solid #e3e3e3}figcaption{color:#555;font-size:.9em}code{font-size:.95em}";
-
-fn html_report(
-    r: &Diagnosis,
-    unit_path: &Path,
-    event_paths: &[PathBuf],
-    out: &Path,
-    plots: &[PlotFile],
-) -> String {
-    let e = escape;
-    let mut h = String::new();
-    let _ = write!(
-        h,
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{}</title>\n<style>{CSS}</style>\n</head>\n<body>\n",
-        e(&format!("Diagnosis of {} on {}", r.unit, r.events.join(", ")))
-    );
-    let _ = writeln!(
-        h,
-        "<h1>Diagnosis of {} on {}</h1>",
-        e(&r.unit),
-        e(&r.events.join(", "))
-    );
-    let _ = writeln!(
-        h,
-        "<p class=\"muted\">itaipu-calib {} diagnose. Unit file <code>{}</code>; event file(s) {}{}. Seed {}, {} threads, {:.1} s.</p>",
-        env!("CARGO_PKG_VERSION"),
-        e(&unit_path.display().to_string()),
-        event_paths.iter().map(|p| format!("<code>{}</code>", e(&p.display().to_string()))).collect::<Vec<_>>().join(", "),
-        if r.held_out.is_empty() { String::new() } else { format!("; held out: {}", e(&r.held_out.join(", "))) },
-        r.seed,
-        r.threads,
-        r.wall_s
-    );
-
-    // Verdict.
-    let v = &r.verdict;
-    let class = match v.cause.as_str() {
-        "none" => "verdict",
-        "unexplained" => "verdict unexplained",
-        _ => "verdict named",
-    };
-    let _ = writeln!(
-        h,
-        "<div class=\"{class}\">\n<h2>Verdict: {} — {}</h2>\n<p>{}</p>",
-        e(&v.cause),
-        e(&v.title),
-        e(&v.statement)
-    );
-    if !v.key_parameters.is_empty() {
-        let _ = writeln!(
-            h,
-            "<p>Key parameters: {}</p>",
-            v.key_parameters
-                .iter()
-                .map(|(p, x, u)| format!("<code>{}</code> = {}", e(p), e(&with_unit(*x, u))))
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-    }
-    if let Some((sig, w, a, b)) = &v.where_ {
-        let _ = writeln!(
-            h,
-            "<p>Where the residual lives: {} in the {} window, {a:.2}–{b:.2} s.</p>",
-            e(sig),
-            e(w)
-        );
-    }
-    if v.cause == "none" || v.cause == "unexplained" {
-        h.push_str("<p class=\"muted\">No cause named: no extended unit was written.</p>\n");
-    } else {
-        h.push_str("<p class=\"muted\">The extended, re-fitted unit is in <code>extended.toml</code>.</p>\n");
-    }
-    h.push_str("</div>\n");
-
-    // Candidates.
-    h.push_str("<h2>Candidates</h2>\n<p>Ranked by ΔBIC = Δχ² − k ln N (fitted samples); a cause is significant when ΔBIC, the fitted and the held-out χ² drops all pass their thresholds.</p>\n");
-    h.push_str("<table>\n<tr><th>#</th><th>cause</th><th>ΔBIC</th><th>fit χ² (base → ext)</th><th>fit drop</th><th>held-out χ² (base → ext)</th><th>held-out drop</th><th>k</th><th>significant</th><th>RMS P, Q (base → ext) [pu]</th></tr>\n");
-    for (i, c) in r.candidates.iter().enumerate() {
-        let _ = write!(
-            h,
-            "<tr><td class=\"n\">{}</td><td><b>{}</b><br><span class=\"muted\">{}</span></td>",
-            i + 1,
-            e(&c.cause),
-            e(&c.title)
-        );
-        match &c.gains {
-            Some(g) => {
-                let _ = writeln!(
-                    h,
-                    "<td class=\"n\">{:.1}</td><td class=\"n\">{} → {}</td><td class=\"n\">{}</td><td class=\"n\">{} → {}</td><td class=\"n\">{}</td><td class=\"n\">{}</td><td>{}</td><td class=\"n\">{}, {} → {}, {}</td></tr>",
-                    g.delta_bic,
-                    chi2(g.chi2_fit_base),
-                    chi2(g.chi2_fit_ext),
-                    e(&pct(g.fit_drop)),
-                    chi2(g.chi2_held_base),
-                    chi2(g.chi2_held_ext),
-                    e(&pct(g.held_drop)),
-                    g.k,
-                    if c.significant { "<span class=\"sig\">yes</span>" } else { "no" },
-                    num(g.rms_p_base),
-                    num(g.rms_q_base),
-                    num(g.rms_p_ext),
-                    num(g.rms_q_ext)
-                );
-            }
-            None => {
-                let _ = writeln!(
-                    h,
-                    "<td colspan=\"8\" class=\"muted\">{}</td></tr>",
-                    e(&c.note)
-                );
-            }
-        }
-    }
-    h.push_str("</table>\n");
-    for c in r.candidates.iter().filter(|c| c.applicable) {
-        let _ = writeln!(
-            h,
-            "<h3>{}</h3>\n<p>Extension: {}.{}</p>",
-            e(&c.cause),
-            e(&c.extension),
-            if c.note.is_empty() {
-                String::new()
-            } else {
-                format!(" {}", e(&c.note))
-            }
-        );
-        if !c.parameters.is_empty() {
-            h.push_str("<table>\n<tr><th>parameter</th><th>role</th><th>unit</th><th>start</th><th>bounds</th><th>result</th><th></th></tr>\n");
-            for p in &c.parameters {
-                let _ = writeln!(
-                    h,
-                    "<tr><td><code>{}</code></td><td>{}</td><td>{}</td><td class=\"n\">{}</td><td class=\"n\">{} – {}</td><td class=\"n\">{}</td><td>{}</td></tr>",
-                    e(&p.param),
-                    if p.extension { "extension" } else { "interacting" },
-                    e(&p.unit),
-                    num(p.start),
-                    num(p.min),
-                    num(p.max),
-                    num(p.result),
-                    if p.at_bound { "at bound" } else { "" }
-                );
-            }
-            h.push_str("</table>\n");
-        }
-        if !c.fixed.is_empty() {
-            let _ = writeln!(
-                h,
-                "<p>Fixed: {}</p>",
-                c.fixed
-                    .iter()
-                    .map(|(p, x)| format!("<code>{}</code> = {x}", e(p)))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
-        }
-        if !c.signature.is_empty() {
-            let _ = writeln!(
-                h,
-                "<p>Evidence pointing to it:</p>\n<ul class=\"tight\">{}</ul>",
-                c.signature
-                    .iter()
-                    .map(|s| format!("<li>{}</li>", e(s)))
-                    .collect::<String>()
-            );
-        }
-        let _ = writeln!(
-            h,
-            "<p class=\"muted\">{} simulations, {} failed candidates, {:.1} s.</p>",
-            c.simulations, c.failed_candidates, c.wall_s
-        );
-    }
-
-    // Noise and split.
-    let n = &r.noise;
-    let _ = writeln!(
-        h,
-        "<h2>Noise model and split</h2>\n<table>\n<tr><th>σ<sub>P</sub> [pu]</th><th>σ<sub>Q</sub> [pu]</th><th>split</th><th>fitted samples</th><th>held-out samples</th></tr>\n<tr><td class=\"n\">{}</td><td class=\"n\">{}</td><td>{}</td><td class=\"n\">{}</td><td class=\"n\">{}</td></tr>\n</table>\n<p class=\"muted\">σ from the pre-event segment of the residuals; χ² = Σ(ΔP/σ<sub>P</sub>)² + Σ(ΔQ/σ<sub>Q</sub>)².</p>",
-        num(n.sigma_p),
-        num(n.sigma_q),
-        e(&n.split),
-        n.n_fit,
-        n.n_held
-    );
-
-    // Evidence.
-    h.push_str(
-        "<h2>Evidence</h2>\n<p>Residuals r = simulated − measured of the unit as given.</p>\n",
-    );
-    for ev in &r.evidence {
-        let _ = writeln!(
-            h,
-            "<h3>{} (event onset {:.2} s)</h3>",
-            e(&ev.event),
-            ev.onset_s
-        );
-        h.push_str("<table>\n<tr><th>signal</th><th>samples</th><th>bias</th><th>RMS</th><th>noise floor</th><th>RMS/noise</th><th>Ljung-Box Q (lags)</th><th>p</th><th>white</th><th>ACF lags outside band</th><th>spectral peak</th></tr>\n");
-        for s in &ev.signals {
-            let w = &s.whiteness;
-            let _ = writeln!(
-                h,
-                "<tr><td><b>{}</b></td><td class=\"n\">{}</td><td class=\"n\">{}</td><td class=\"n\">{}</td><td class=\"n\">{}</td><td class=\"n\">{:.2}</td><td class=\"n\">{:.1} ({})</td><td class=\"n\">{:.3}</td><td>{}</td><td class=\"n\">{}</td><td class=\"n\">{}</td></tr>",
-                e(&s.signal),
-                s.samples,
-                num(s.bias),
-                num(s.rms),
-                num(s.noise_floor_rms),
-                s.rms_over_noise,
-                w.ljung_box_q,
-                w.lags,
-                w.p_value,
-                if w.white { "yes" } else { "no" },
-                w.outside_band,
-                s.spectrum.peak_hz.map(|f| format!("{f:.2} Hz, {} pu", num(s.spectrum.peak_amplitude))).unwrap_or_else(|| "-".into())
-            );
-        }
-        h.push_str("</table>\n");
-        for s in &ev.signals {
-            let _ = writeln!(
-                h,
-                "<p><b>{}</b> residual by window, cross-correlation with the inputs, modes:</p>",
-                e(&s.signal)
-            );
-            h.push_str("<table>\n<tr><th>window</th><th>start [s]</th><th>end [s]</th><th>samples</th><th>bias</th><th>RMS</th><th>share of SSE</th></tr>\n");
-            for w in &s.windows {
-                let _ = writeln!(
-                    h,
-                    "<tr><td>{}</td><td class=\"n\">{:.2}</td><td class=\"n\">{:.2}</td><td class=\"n\">{}</td><td class=\"n\">{}</td><td class=\"n\">{}</td><td class=\"n\">{}</td></tr>",
-                    e(&w.label),
-                    w.start_s,
-                    w.end_s,
-                    w.samples,
-                    num(w.bias),
-                    num(w.rms),
-                    e(&pct(w.share_of_sse))
-                );
-            }
-            h.push_str("</table>\n");
-            if !s.cross.is_empty() {
-                h.push_str("<table>\n<tr><th>input</th><th>best lag [samples]</th><th>correlation</th><th>band</th><th>significant</th></tr>\n");
-                for x in &s.cross {
-                    let _ = writeln!(
-                        h,
-                        "<tr><td>{}</td><td class=\"n\">{}</td><td class=\"n\">{:+.3}</td><td class=\"n\">{:.3}</td><td>{}</td></tr>",
-                        e(&x.input),
-                        x.best_lag_samples,
-                        x.correlation,
-                        x.band,
-                        if x.significant { "yes" } else { "no" }
-                    );
-                }
-                h.push_str("</table>\n");
-            }
-            if s.modes.is_empty() {
-                h.push_str("<p class=\"muted\">No modes fitted.</p>\n");
-            } else {
-                h.push_str("<table>\n<tr><th>frequency [Hz]</th><th>damping ratio</th><th>amplitude</th><th>energy share</th></tr>\n");
-                for m in &s.modes {
-                    let _ = writeln!(
-                        h,
-                        "<tr><td class=\"n\">{:.3}</td><td class=\"n\">{:.3}</td><td class=\"n\">{}</td><td class=\"n\">{}</td></tr>",
-                        m.freq_hz,
-                        m.damping_ratio,
-                        num(m.amplitude),
-                        e(&pct(m.energy_share))
-                    );
-                }
-                h.push_str("</table>\n");
-            }
-        }
-    }
-    if !r.evidence_after.is_empty() {
-        let _ = writeln!(h, "<h3>With the extension ({})</h3>", e(&v.cause));
-        h.push_str("<table>\n<tr><th>event</th><th>signal</th><th>RMS</th><th>RMS/noise</th><th>Ljung-Box p</th><th>window with most SSE</th></tr>\n");
-        for ev in &r.evidence_after {
-            for s in &ev.signals {
-                let w = top_window(s)
-                    .map(|w| format!("{} ({})", w.label, pct(w.share_of_sse)))
-                    .unwrap_or_default();
-                let _ = writeln!(
-                    h,
-                    "<tr><td>{}</td><td>{}</td><td class=\"n\">{}</td><td class=\"n\">{:.2}</td><td class=\"n\">{:.3}</td><td>{}</td></tr>",
-                    e(&ev.event),
-                    e(&s.signal),
-                    num(s.rms),
-                    s.rms_over_noise,
-                    s.whiteness.p_value,
-                    e(&w)
-                );
-            }
-        }
-        h.push_str("</table>\n");
-    }
-
-    // Plots, inlined.
-    if !plots.is_empty() {
-        h.push_str("<h2>Plots</h2>\n");
-        for p in plots {
-            match std::fs::read_to_string(out.join(&p.file)) {
-                Ok(svg) => {
-                    let _ = writeln!(h, "<figure>\n{}\n<figcaption>{}: {} (<code>{}</code>)</figcaption>\n</figure>", inline_svg(&svg), e(&p.event), e(&p.caption), e(&p.file));
-                }
-                Err(err) => {
-                    let _ = writeln!(
-                        h,
-                        "<p class=\"muted\">{} could not be read: {}</p>",
-                        e(&p.file),
-                        e(&err.to_string())
-                    );
-                }
-            }
-        }
-    } else {
-        h.push_str("<p class=\"muted\">Plots not drawn (--no-plot).</p>\n");
-    }
-    h.push_str("</body>\n</html>\n");
-    h
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn escape_covers_markup_and_quotes() {
-        assert_eq!(
-            escape("a<b & \"c\" 'd'>"),
-            "a&lt;b &amp; &quot;c&quot; &#39;d&#39;&gt;"
-        );
-        assert_eq!(escape("Δχ² ζ"), "Δχ² ζ");
-    }
-
-    #[test]
-    fn inline_svg_drops_the_declaration_and_adds_a_viewbox() {
-        let s = inline_svg("<?xml version=\"1.0\"?>\n<svg width=\"1000\" height=\"580\" xmlns=\"http://www.w3.org/2000/svg\"><g/></svg>");
-        assert!(
-            s.starts_with("<svg viewBox=\"0 0 1000 580\" width=\"1000\""),
-            "{s}"
-        );
-        let kept = inline_svg("<svg viewBox=\"0 0 1 1\" width=\"5\" height=\"5\"></svg>");
-        assert_eq!(kept.matches("viewBox").count(), 1);
-    }
 
     #[test]
     fn wrap_keeps_lines_within_the_width() {
@@ -1340,12 +657,5 @@ mod tests {
         for l in w.lines() {
             assert!(l.chars().count() <= 20, "{l}");
         }
-    }
-
-    #[test]
-    fn file_stems_are_safe() {
-        assert_eq!(file_stem("itaipu-60hz-fault"), "itaipu-60hz-fault");
-        assert_eq!(file_stem("a/b c"), "a_b_c");
-        assert_eq!(file_stem(""), "event");
     }
 }

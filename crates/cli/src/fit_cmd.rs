@@ -16,7 +16,8 @@ use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::{
-    bundled, check_out, load_event, load_unit, plot, prepare_out, CliError, SearchArgs, EXIT_CODES,
+    bundled, check_out, load_event, load_unit, prepare_out, report::svg as plot, CliError,
+    SearchArgs, EXIT_CODES,
 };
 
 #[derive(clap::Args, Debug)]

@@ -21,12 +21,14 @@ use itaipu_dynamics::simulate::{simulate, SimError, SimOptions, Traces};
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::read_unit;
 
+use report::svg as plot;
+
 pub mod diagnose_cmd;
 pub mod dyr_cmd;
 pub mod fit_cmd;
 pub mod import_cmd;
 pub mod output;
-pub mod plot;
+pub mod report;
 pub mod synth_cmd;
 
 pub const EXIT_CODES: &str =

@@ -1,0 +1,922 @@
+//! The `diagnose` report (`report.html`) and its plots: provenance, the verdict with an honest
+//! colour, the re-fitted parameters, the candidates against one reference, the evidence
+//! (windows of more than a few samples, modes with plausible damping) and the plots inlined.
+
+use std::collections::BTreeSet;
+use std::path::Path;
+
+use itaipu_calib::diagnose::{CandidateReport, Diagnosis, EventEvidence};
+use itaipu_calib::evidence::{Mode, SignalEvidence, WindowStats};
+use itaipu_dynamics::simulate::Traces;
+
+use super::svg as plot;
+use super::{chi2, escape, file_stem, num, pct, residual, Cell, Page, Provenance, Tone};
+use crate::CliError;
+
+/// A residual window with fewer samples is not presented as evidence (its RMS is one or two
+/// noisy samples, not a location).
+pub const MIN_WINDOW_SAMPLES: usize = 5;
+
+/// Damping ratios a mode of a residual of a recorded, stable event can plausibly have: a
+/// growing oscillation (ζ well below 0) or a non-oscillatory term fitted as a mode (|ζ| near 1)
+/// is an artefact of the fit, not a finding.
+pub const PLAUSIBLE_ZETA: (f64, f64) = (-0.05, 0.95);
+
+/// Whether a fitted mode is shown as a finding.
+pub fn plausible(m: &Mode) -> bool {
+    m.freq_hz > 0.1
+        && m.damping_ratio > PLAUSIBLE_ZETA.0
+        && m.damping_ratio < PLAUSIBLE_ZETA.1
+        && m.freq_hz.is_finite()
+}
+
+/// The window (of at least [`MIN_WINDOW_SAMPLES`] samples) holding the largest share of the
+/// squared error.
+pub fn top_window(s: &SignalEvidence) -> Option<&WindowStats> {
+    s.windows
+        .iter()
+        .filter(|w| w.samples >= MIN_WINDOW_SAMPLES)
+        .max_by(|a, b| a.share_of_sse.total_cmp(&b.share_of_sse))
+}
+
+/// The largest RMS/noise ratio of the unit as given over every event and signal.
+pub fn worst_ratio(r: &Diagnosis) -> f64 {
+    r.evidence
+        .iter()
+        .flat_map(|e| &e.signals)
+        .map(|s| s.rms_over_noise)
+        .fold(f64::NAN, f64::max)
+}
+
+/// The reference every RMS of the report is compared with: the unit as given, pooled over
+/// the events (`signal` P or Q), from the evidence.
+pub fn reference_rms(r: &Diagnosis, signal: &str) -> f64 {
+    let (mut sse, mut n) = (0.0, 0usize);
+    for s in r
+        .evidence
+        .iter()
+        .flat_map(|e| &e.signals)
+        .filter(|s| s.signal == signal)
+    {
+        sse += s.rms * s.rms * s.samples as f64;
+        n += s.samples;
+    }
+    if n == 0 {
+        f64::NAN
+    } else {
+        (sse / n as f64).sqrt()
+    }
+}
+
+/// A drawn plot: file name in the output folder, event, what it shows and its SVG text.
+pub struct PlotFile {
+    pub file: String,
+    pub event: String,
+    pub caption: String,
+    pub svg: String,
+}
+
+fn opt_json(v: Option<f64>, pointer: String) -> Cell {
+    match v {
+        Some(x) if x.is_finite() => Cell::json(x, pointer, num),
+        Some(_) => Cell::text("not determined"),
+        None => Cell::text("-"),
+    }
+}
+
+fn candidate_params(page: &mut Page, i: usize, c: &CandidateReport) {
+    if c.parameters.is_empty() {
+        return;
+    }
+    let rows: Vec<Vec<Cell>> = c
+        .parameters
+        .iter()
+        .enumerate()
+        .map(|(j, p)| {
+            let ptr = |f: &str| format!("/candidates/{i}/parameters/{j}/{f}");
+            let mut flags = vec![];
+            if p.at_bound {
+                flags.push("at bound");
+            }
+            if p.std_error.is_some_and(|s| !s.is_finite()) {
+                flags.push("not identifiable");
+            }
+            vec![
+                Cell::Html(format!("<code>{}</code>", escape(&p.param))),
+                Cell::text(if p.extension { "extension" } else { "re-freed" }),
+                Cell::text(&p.unit),
+                Cell::json(p.start, ptr("start"), num),
+                Cell::json(p.min, ptr("min"), num),
+                Cell::json(p.max, ptr("max"), num),
+                Cell::json(p.result, ptr("result"), num),
+                opt_json(p.std_error, ptr("std_error")),
+                Cell::Html(format!("<span class=\"flag\">{}</span>", flags.join(", "))),
+            ]
+        })
+        .collect();
+    page.table(
+        &format!("params-{}", c.cause),
+        &[
+            "parameter",
+            "role",
+            "unit",
+            "start",
+            "min",
+            "max",
+            "result",
+            "std error",
+            "flags",
+        ],
+        &rows,
+    );
+}
+
+/// The diagnosis as a page.
+pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -> String {
+    let e = escape;
+    let mut page = Page::new(&format!(
+        "Model validation: diagnosis of {} on {}",
+        r.unit,
+        r.events.join(", ")
+    ));
+    page.note(&format!(
+        "itaipu-calib diagnose: what the unit still gets wrong on the recorded events, which cause of the catalog explains it, and the extended unit re-fitted. {} threads, {:.1} s.",
+        r.threads, r.wall_s
+    ));
+    page.provenance(prov);
+
+    // The event(s).
+    page.h2("events", "Events");
+    let mut rows = vec![];
+    for (k, ev) in r.evidence.iter().enumerate() {
+        rows.push(vec![
+            Cell::text(&ev.event),
+            Cell::text(if r.held_out.contains(&ev.event) {
+                "held out"
+            } else {
+                "fitted"
+            }),
+            Cell::json(ev.onset_s, format!("/evidence/{k}/onset_s"), |v| {
+                format!("{v:.2}")
+            }),
+            Cell::Num(
+                ev.signals
+                    .first()
+                    .map(|s| s.samples.to_string())
+                    .unwrap_or_default(),
+            ),
+        ]);
+    }
+    page.table(
+        "event-table",
+        &["event", "role", "onset [s]", "samples"],
+        &rows,
+    );
+
+    // Verdict.
+    let v = &r.verdict;
+    let named = v.cause != "none" && v.cause != "unexplained";
+    let worst = worst_ratio(r);
+    let tone = Tone::judge(worst, named, v.cause == "unexplained");
+    let mut body = format!("<p>{}</p>\n", e(&v.statement));
+    body.push_str(&format!(
+        "<p>Residual of the unit as given: at most <span data-derived=\"worst-ratio\">{worst:.2}</span> × the noise RMS (green needs at most {:.1} and no cause named; above {:.1} it is red).</p>\n",
+        super::AT_NOISE,
+        super::FAR_ABOVE_NOISE
+    ));
+    if !v.key_parameters.is_empty() {
+        body.push_str(&format!(
+            "<p>Key parameters: {}</p>\n",
+            v.key_parameters
+                .iter()
+                .enumerate()
+                .map(|(k, (p, x, u))| format!(
+                    "<code>{}</code> = <span data-json=\"/verdict/key_parameters/{k}/1\" data-value=\"{}\">{}</span> {}",
+                    e(p),
+                    serde_json::to_string(x).unwrap_or_default(),
+                    num(*x),
+                    e(if u == "-" { "" } else { u })
+                ))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    if let Some((sig, w, a, b)) = &v.where_ {
+        let n = r
+            .evidence
+            .iter()
+            .flat_map(|ev| &ev.signals)
+            .filter(|s| &s.signal == sig)
+            .flat_map(|s| &s.windows)
+            .find(|x| &x.label == w)
+            .map(|x| x.samples);
+        match n {
+            Some(n) if n < MIN_WINDOW_SAMPLES => body.push_str(&format!(
+                "<p class=\"muted\">The residual's largest share lies in the {} window of {} ({n} samples): too short to locate it.</p>\n",
+                e(w),
+                e(sig)
+            )),
+            _ => body.push_str(&format!(
+                "<p>Where the residual lives: {} in the {} window, {a:.2}–{b:.2} s.</p>\n",
+                e(sig),
+                e(w)
+            )),
+        }
+    }
+    body.push_str(if named {
+        "<p class=\"muted\">The extended, re-fitted unit is in <code>extended.toml</code>.</p>\n"
+    } else {
+        "<p class=\"muted\">No cause named: no extended unit was written.</p>\n"
+    });
+    page.verdict(tone, &format!("Verdict: {} — {}", v.cause, v.title), &body);
+
+    // Parameters: the named cause's re-fit (with standard errors), the re-freed set.
+    page.h2("parameters", "Parameters");
+    match r.candidates.iter().position(|c| c.cause == v.cause) {
+        Some(i) if named => {
+            page.p(&format!(
+                "The unit extended for {} and re-fitted: start, bounds, result and posterior standard error of every re-fitted parameter.",
+                v.cause
+            ));
+            candidate_params(&mut page, i, &r.candidates[i]);
+        }
+        _ => page.note(
+            "No cause named: the unit as given stands; its parameters are those of the unit file.",
+        ),
+    }
+    if !r.refit.is_empty() {
+        let rows: Vec<Vec<Cell>> = r
+            .refit
+            .iter()
+            .enumerate()
+            .map(|(k, b)| {
+                vec![
+                    Cell::Html(format!("<code>{}</code>", e(&b.param))),
+                    Cell::json(b.min, format!("/refit/{k}/min"), num),
+                    Cell::json(b.max, format!("/refit/{k}/max"), num),
+                ]
+            })
+            .collect();
+        page.p(
+            "Calibrated parameters freed again in every re-fit (baselines and extensions alike):",
+        );
+        page.table("refit", &["parameter", "min", "max"], &rows);
+    }
+
+    // Noise: the one reference.
+    let n = &r.noise;
+    page.h2("noise", "Noise and the reference");
+    let (ref_p, ref_q) = (reference_rms(r, "P"), reference_rms(r, "Q"));
+    page.table(
+        "noise-table",
+        &[
+            "σP [pu]",
+            "σQ [pu]",
+            "split",
+            "fitted samples",
+            "held-out samples",
+            "reference RMS P [pu]",
+            "reference RMS Q [pu]",
+        ],
+        &[vec![
+            Cell::json(n.sigma_p, "/noise/sigma_p", num),
+            Cell::json(n.sigma_q, "/noise/sigma_q", num),
+            Cell::text(&n.split),
+            Cell::Num(n.n_fit.to_string()),
+            Cell::Num(n.n_held.to_string()),
+            Cell::Num(num(ref_p)),
+            Cell::Num(num(ref_q)),
+        ]],
+    );
+    page.note("σ from the pre-event segment of the residuals; χ² = Σ(ΔP/σP)² + Σ(ΔQ/σQ)². The reference throughout this report is the unit as given: its residual RMS (pooled over the events) is the one every RMS below is compared with, and the evidence tables are computed from it.");
+
+    // Candidates.
+    page.h2("candidates", "Candidates");
+    page.p("Ranked by ΔBIC = Δχ²/VIF − k ln(N/VIF); a cause is significant when ΔBIC and the fitted and held-out χ² drops (net of what the same re-fit gains on noise alone) all pass. χ² base → ext compares each cause's extended re-fit with the baseline re-fitted over the same parameters; the RMS columns compare with the one reference above.");
+    let mut rows = vec![];
+    for (i, c) in r.candidates.iter().enumerate() {
+        let ptr = |f: &str| format!("/candidates/{i}/gains/{f}");
+        let mut row = vec![
+            Cell::Num((i + 1).to_string()),
+            Cell::Html(format!(
+                "<b>{}</b><br/><span class=\"muted\">{}</span>",
+                e(&c.cause),
+                e(&c.title)
+            )),
+        ];
+        match &c.gains {
+            Some(g) => row.extend([
+                Cell::json(g.delta_bic, ptr("delta_bic"), |v| format!("{v:.1}")),
+                Cell::json(g.chi2_fit_base, ptr("chi2_fit_base"), chi2),
+                Cell::json(g.chi2_fit_ext, ptr("chi2_fit_ext"), chi2),
+                Cell::json_pct(g.fit_drop, ptr("fit_drop")),
+                Cell::json(g.chi2_held_base, ptr("chi2_held_base"), chi2),
+                Cell::json(g.chi2_held_ext, ptr("chi2_held_ext"), chi2),
+                Cell::json_pct(g.held_drop, ptr("held_drop")),
+                Cell::Num(g.k.to_string()),
+                Cell::Html(if c.significant {
+                    "<span class=\"sig\">yes</span>".into()
+                } else {
+                    "no".into()
+                }),
+                Cell::json(g.rms_p_ext, ptr("rms_p_ext"), num),
+                Cell::json(g.rms_q_ext, ptr("rms_q_ext"), num),
+            ]),
+            None => row.push(Cell::Html(format!(
+                "<span class=\"muted\">{}</span>",
+                e(&c.note)
+            ))),
+        }
+        rows.push(row);
+    }
+    page.table(
+        "candidates-table",
+        &[
+            "#",
+            "cause",
+            "ΔBIC",
+            "fit χ² base",
+            "fit χ² ext",
+            "fit drop [%]",
+            "held-out χ² base",
+            "held-out χ² ext",
+            "held-out drop [%]",
+            "k",
+            "significant",
+            "RMS P ext [pu]",
+            "RMS Q ext [pu]",
+        ],
+        &rows,
+    );
+    page.note(&format!(
+        "Reference (unit as given): RMS P {} pu, RMS Q {} pu.",
+        num(ref_p),
+        num(ref_q)
+    ));
+    for (i, c) in r
+        .candidates
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.applicable)
+    {
+        page.h3(&c.cause);
+        page.p(&format!(
+            "Extension: {}.{}",
+            c.extension,
+            if c.note.is_empty() {
+                String::new()
+            } else {
+                format!(" {}", c.note)
+            }
+        ));
+        if !(named && c.cause == v.cause) {
+            candidate_params(&mut page, i, c);
+        }
+        if !c.fixed.is_empty() {
+            page.p(&format!(
+                "Fixed: {}",
+                c.fixed
+                    .iter()
+                    .map(|(p, x)| format!("{p} = {x}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        if !c.signature.is_empty() {
+            page.raw(&format!(
+                "<p>Evidence pointing to it:</p>\n<ul class=\"tight\">{}</ul>\n",
+                c.signature
+                    .iter()
+                    .map(|s| format!("<li>{}</li>", e(s)))
+                    .collect::<String>()
+            ));
+        }
+        page.note(&format!(
+            "{} simulations, {} failed candidates, {:.1} s.",
+            c.simulations, c.failed_candidates, c.wall_s
+        ));
+    }
+
+    // Evidence.
+    page.h2("evidence", "Evidence");
+    page.p("Residuals r = simulated − measured of the unit as given (the reference).");
+    for (k, ev) in r.evidence.iter().enumerate() {
+        evidence_tables(&mut page, k, ev, "/evidence");
+    }
+    if !r.evidence_after.is_empty() {
+        page.h3(&format!("With the extension ({})", v.cause));
+        let mut rows = vec![];
+        for (k, ev) in r.evidence_after.iter().enumerate() {
+            for (j, s) in ev.signals.iter().enumerate() {
+                let ptr = |f: &str| format!("/evidence_after/{k}/signals/{j}/{f}");
+                let w = top_window(s)
+                    .map(|w| format!("{} ({})", w.label, pct(w.share_of_sse)))
+                    .unwrap_or_else(|| "-".into());
+                rows.push(vec![
+                    Cell::text(&ev.event),
+                    Cell::text(&s.signal),
+                    Cell::json(s.rms, ptr("rms"), num),
+                    Cell::json(s.rms_over_noise, ptr("rms_over_noise"), |v| {
+                        format!("{v:.2}")
+                    }),
+                    Cell::json(s.whiteness.p_value, ptr("whiteness/p_value"), |v| {
+                        format!("{v:.3}")
+                    }),
+                    Cell::text(w),
+                ]);
+            }
+        }
+        page.table(
+            "evidence-after",
+            &[
+                "event",
+                "signal",
+                "RMS [pu]",
+                "RMS/noise",
+                "Ljung-Box p",
+                "window with most SSE",
+            ],
+            &rows,
+        );
+    }
+
+    // Plots.
+    page.h2("plots", "Plots");
+    if drawn {
+        for p in plots {
+            page.figure(&p.svg, &format!("{}: {} ({})", p.event, p.caption, p.file));
+        }
+    } else {
+        page.note("Plots not drawn (--no-plot).");
+    }
+    page.finish()
+}
+
+/// The evidence tables of one event; `base` is the JSON array they come from.
+fn evidence_tables(page: &mut Page, k: usize, ev: &EventEvidence, base: &str) {
+    page.h3(&format!("{} (event onset {:.2} s)", ev.event, ev.onset_s));
+    let rows: Vec<Vec<Cell>> = ev
+        .signals
+        .iter()
+        .enumerate()
+        .map(|(j, s)| {
+            let ptr = |f: &str| format!("{base}/{k}/signals/{j}/{f}");
+            let w = &s.whiteness;
+            vec![
+                Cell::Html(format!("<b>{}</b>", escape(&s.signal))),
+                Cell::Num(s.samples.to_string()),
+                Cell::json(s.bias, ptr("bias"), num),
+                Cell::json(s.rms, ptr("rms"), num),
+                Cell::json(s.noise_floor_rms, ptr("noise_floor_rms"), num),
+                Cell::json(s.rms_over_noise, ptr("rms_over_noise"), |v| {
+                    format!("{v:.2}")
+                }),
+                Cell::json(w.ljung_box_q, ptr("whiteness/ljung_box_q"), |v| {
+                    format!("{v:.1}")
+                }),
+                Cell::json(w.p_value, ptr("whiteness/p_value"), |v| format!("{v:.3}")),
+                Cell::text(if w.white { "yes" } else { "no" }),
+                Cell::Num(w.outside_band.to_string()),
+                match s.spectrum.peak_hz {
+                    Some(f) => {
+                        Cell::Num(format!("{f:.2} Hz, {} pu", num(s.spectrum.peak_amplitude)))
+                    }
+                    None => Cell::text("-"),
+                },
+            ]
+        })
+        .collect();
+    page.table(
+        &format!("evidence-{k}"),
+        &[
+            "signal",
+            "samples",
+            "bias [pu]",
+            "RMS [pu]",
+            "noise floor [pu]",
+            "RMS/noise",
+            "Ljung-Box Q",
+            "p",
+            "white",
+            "ACF lags outside band",
+            "spectral peak",
+        ],
+        &rows,
+    );
+    for (j, s) in ev.signals.iter().enumerate() {
+        let ptr = |f: String| format!("{base}/{k}/signals/{j}/{f}");
+        page.p(&format!(
+            "{} residual by window, cross-correlation with the inputs, modes:",
+            s.signal
+        ));
+        let mut short = vec![];
+        let mut rows = vec![];
+        for (w_i, w) in s.windows.iter().enumerate() {
+            if w.samples < MIN_WINDOW_SAMPLES {
+                short.push(format!("{} ({} samples)", w.label, w.samples));
+                continue;
+            }
+            let p = |f: &str| ptr(format!("windows/{w_i}/{f}"));
+            rows.push(vec![
+                Cell::text(&w.label),
+                Cell::json(w.start_s, p("start_s"), |v| format!("{v:.2}")),
+                Cell::json(w.end_s, p("end_s"), |v| format!("{v:.2}")),
+                Cell::Num(w.samples.to_string()),
+                Cell::json(w.bias, p("bias"), num),
+                Cell::json(w.rms, p("rms"), num),
+                Cell::json_pct(w.share_of_sse, p("share_of_sse")),
+            ]);
+        }
+        page.table(
+            &format!("windows-{k}-{}", s.signal),
+            &[
+                "window",
+                "start [s]",
+                "end [s]",
+                "samples",
+                "bias [pu]",
+                "RMS [pu]",
+                "share of SSE [%]",
+            ],
+            &rows,
+        );
+        if !short.is_empty() {
+            page.note(&format!(
+                "Not shown as evidence (fewer than {MIN_WINDOW_SAMPLES} samples): {}.",
+                short.join(", ")
+            ));
+        }
+        if !s.cross.is_empty() {
+            let rows: Vec<Vec<Cell>> = s
+                .cross
+                .iter()
+                .enumerate()
+                .map(|(x_i, x)| {
+                    vec![
+                        Cell::text(&x.input),
+                        Cell::Num(x.best_lag_samples.to_string()),
+                        Cell::json(
+                            x.correlation,
+                            ptr(format!("cross/{x_i}/correlation")),
+                            |v| format!("{v:+.3}"),
+                        ),
+                        Cell::json(x.band, ptr(format!("cross/{x_i}/band")), |v| {
+                            format!("{v:.3}")
+                        }),
+                        Cell::text(if x.significant { "yes" } else { "no" }),
+                    ]
+                })
+                .collect();
+            page.table(
+                &format!("cross-{k}-{}", s.signal),
+                &[
+                    "input",
+                    "best lag [samples]",
+                    "correlation",
+                    "band",
+                    "significant",
+                ],
+                &rows,
+            );
+        }
+        let shown: Vec<(usize, &Mode)> = s
+            .modes
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| plausible(m))
+            .collect();
+        let hidden = s.modes.len() - shown.len();
+        if shown.is_empty() {
+            page.note("No oscillatory mode with a plausible damping ratio.");
+        } else {
+            let rows: Vec<Vec<Cell>> = shown
+                .iter()
+                .map(|(m_i, m)| {
+                    let p = |f: &str| ptr(format!("modes/{m_i}/{f}"));
+                    vec![
+                        Cell::json(m.freq_hz, p("freq_hz"), |v| format!("{v:.3}")),
+                        Cell::json(m.damping_ratio, p("damping_ratio"), |v| format!("{v:.3}")),
+                        Cell::json(m.amplitude, p("amplitude"), num),
+                        Cell::json_pct(m.energy_share, p("energy_share")),
+                    ]
+                })
+                .collect();
+            page.table(
+                &format!("modes-{k}-{}", s.signal),
+                &[
+                    "frequency [Hz]",
+                    "damping ratio",
+                    "amplitude [pu]",
+                    "energy share [%]",
+                ],
+                &rows,
+            );
+        }
+        if hidden > 0 {
+            page.note(&format!(
+                "{hidden} fitted term(s) not shown as modes: below 0.1 Hz, or a damping ratio outside ({}, {}) (a growing or non-oscillatory term of the fit, not a finding; all are in diagnosis.json).",
+                PLAUSIBLE_ZETA.0, PLAUSIBLE_ZETA.1
+            ));
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Plots
+// ---------------------------------------------------------------------------------------------
+
+/// Draws the diagnosis plots of every event into `out` (residuals with the noise band,
+/// residual spectra, measured against simulated P, Q and every other measured channel) and
+/// returns them with their SVG text. `nominal_hz` gives each event's nominal frequency.
+pub fn draw_plots(
+    out: &Path,
+    nominal_hz: &[(String, f64)],
+    r: &Diagnosis,
+    before: &[(String, Traces)],
+    after: &[(String, Traces)],
+) -> Result<Vec<PlotFile>, CliError> {
+    let mut files = vec![];
+    let mut stems = BTreeSet::new();
+    let named = Some(r.verdict.cause.as_str()).filter(|c| *c != "none" && *c != "unexplained");
+    for (k, (event, tr)) in before.iter().enumerate() {
+        let mut stem = file_stem(event);
+        if !stems.insert(stem.clone()) {
+            stem = format!("{stem}-{}", k + 1);
+            stems.insert(stem.clone());
+        }
+        let ev = r.evidence.iter().find(|e| &e.event == event);
+        let tr_after = after.iter().find(|(e, _)| e == event).map(|(_, t)| t);
+        let t = &tr.time_s;
+        let draw = |file: &str,
+                    title: &str,
+                    x_label: &str,
+                    panels: &[plot::Panel],
+                    decor: &[plot::Decor]| {
+            let svg = plot::render(title, x_label, panels, decor)
+                .map_err(|e| CliError::new(7, format!("plot {file}: {e}")))?;
+            crate::output::write_synced(&out.join(file), svg.as_bytes())?;
+            Ok::<String, CliError>(svg)
+        };
+
+        // Residuals with the implicated window and the noise band.
+        let (rp, rq) = (
+            residual(tr, "p_pu", "p_meas_pu"),
+            residual(tr, "q_pu", "q_meas_pu"),
+        );
+        let after_res = tr_after.map(|ta| {
+            (
+                residual(ta, "p_pu", "p_meas_pu"),
+                residual(ta, "q_pu", "q_meas_pu"),
+            )
+        });
+        let mut panels = vec![];
+        let mut decor = vec![];
+        for (signal, res, sigma, k) in [
+            ("P", &rp, r.noise.sigma_p, 0),
+            ("Q", &rq, r.noise.sigma_q, 1),
+        ] {
+            let mut series = vec![plot::Series {
+                label: "as given".into(),
+                x: t,
+                y: res,
+                color: plot::START,
+                thin: false,
+            }];
+            if let (Some(ta), Some((ap, aq)), Some(cause)) = (tr_after, &after_res, named) {
+                let y = if k == 0 { ap } else { aq };
+                series.push(plot::Series {
+                    label: format!("with {cause}"),
+                    x: &ta.time_s,
+                    y,
+                    color: plot::SIMULATED,
+                    thin: false,
+                });
+            }
+            panels.push(plot::Panel {
+                y_label: format!("{signal} residual (sim − meas) [pu]"),
+                series,
+            });
+            decor.push(plot::Decor {
+                spans: implicated_window(r, ev, signal).into_iter().collect(),
+                y_bands: vec![plot::YBand {
+                    label: format!("±σ{signal} noise {}", num(sigma)),
+                    y0: -sigma,
+                    y1: sigma,
+                    color: plot::NOISE,
+                }],
+                markers: vec![],
+            });
+        }
+        let file = format!("residual-{stem}.svg");
+        let svg = draw(
+            &file,
+            &format!("{event}: residuals; verdict {}", r.verdict.cause),
+            "time [s]",
+            &panels,
+            &decor,
+        )?;
+        files.push(PlotFile {
+            file,
+            event: event.clone(),
+            caption: "P and Q residuals (simulated − measured) of the unit as given, the implicated window shaded, ±σ noise band".into(),
+            svg,
+        });
+
+        // Residual spectra with the peak marked.
+        if let Some(ev) = ev {
+            let mut panels = vec![];
+            let mut decor = vec![];
+            for signal in ["P", "Q"] {
+                let Some(s) = ev.signals.iter().find(|s| s.signal == signal) else {
+                    continue;
+                };
+                let sp = &s.spectrum;
+                let mut series = vec![plot::Series {
+                    label: "as given".into(),
+                    x: &sp.freq_hz,
+                    y: &sp.amplitude,
+                    color: plot::START,
+                    thin: false,
+                }];
+                let sa = r
+                    .evidence_after
+                    .iter()
+                    .find(|e| &e.event == event)
+                    .and_then(|e| e.signals.iter().find(|x| x.signal == signal));
+                if let (Some(sa), Some(cause)) = (sa, named) {
+                    series.push(plot::Series {
+                        label: format!("with {cause}"),
+                        x: &sa.spectrum.freq_hz,
+                        y: &sa.spectrum.amplitude,
+                        color: plot::SIMULATED,
+                        thin: true,
+                    });
+                }
+                panels.push(plot::Panel {
+                    y_label: format!("{signal} residual amplitude [pu]"),
+                    series,
+                });
+                decor.push(plot::Decor {
+                    markers: sp
+                        .peak_hz
+                        .map(|f| plot::Marker {
+                            label: format!(
+                                "peak {f:.2} Hz, {} pu ({:.1}× median)",
+                                num(sp.peak_amplitude),
+                                sp.peak_significance
+                            ),
+                            x: f,
+                            y: sp.peak_amplitude,
+                            color: plot::SIMULATED,
+                        })
+                        .into_iter()
+                        .collect(),
+                    ..Default::default()
+                });
+            }
+            if !panels.is_empty() {
+                let file = format!("spectrum-{stem}.svg");
+                let svg = draw(
+                    &file,
+                    &format!("{event}: residual amplitude spectra"),
+                    "frequency [Hz]",
+                    &panels,
+                    &decor,
+                )?;
+                files.push(PlotFile {
+                    file,
+                    event: event.clone(),
+                    caption:
+                        "amplitude spectra of the P and Q residuals (Hann window), the peak marked"
+                            .into(),
+                    svg,
+                });
+            }
+        }
+
+        // Measured against simulated, before and after the extension.
+        let col = |tr: &Traces, n: &str| {
+            tr.get(n)
+                .map(|c| c.to_vec())
+                .unwrap_or_else(|| vec![f64::NAN; tr.time_s.len()])
+        };
+        let (pm, qm, pb, qb) = (
+            col(tr, "p_meas_pu"),
+            col(tr, "q_meas_pu"),
+            col(tr, "p_pu"),
+            col(tr, "q_pu"),
+        );
+        let (pa, qa) = match tr_after {
+            Some(ta) => (col(ta, "p_pu"), col(ta, "q_pu")),
+            None => (vec![], vec![]),
+        };
+        let mut panels = vec![];
+        for (signal, m, b, af) in [("P", &pm, &pb, &pa), ("Q", &qm, &qb, &qa)] {
+            let mut series = vec![
+                plot::Series {
+                    label: "measured".into(),
+                    x: t,
+                    y: m,
+                    color: plot::MEASURED,
+                    thin: true,
+                },
+                plot::Series {
+                    label: "unit as given".into(),
+                    x: t,
+                    y: b,
+                    color: plot::START,
+                    thin: false,
+                },
+            ];
+            if let (Some(ta), Some(cause)) = (tr_after, named) {
+                series.push(plot::Series {
+                    label: format!("extended ({cause}), re-fitted"),
+                    x: &ta.time_s,
+                    y: af,
+                    color: plot::SIMULATED,
+                    thin: false,
+                });
+            }
+            panels.push(plot::Panel {
+                y_label: format!("{signal} [pu, system base]"),
+                series,
+            });
+        }
+        let file = format!("before-after-{stem}.svg");
+        let title = match named {
+            Some(c) => format!("{event}: measured, unit as given and extended for {c}"),
+            None => format!("{event}: measured and simulated (no cause named, no extension)"),
+        };
+        let hz = nominal_hz
+            .iter()
+            .find(|(e, _)| e == event)
+            .map(|(_, f)| *f)
+            .unwrap_or(60.0);
+        let channels = super::other_channels(tr, hz);
+        for (label, meas, sim) in &channels {
+            let mut series = vec![plot::Series {
+                label: if sim.is_empty() {
+                    "measured (played back)".into()
+                } else {
+                    "measured".into()
+                },
+                x: t,
+                y: meas,
+                color: plot::MEASURED,
+                thin: true,
+            }];
+            if !sim.is_empty() {
+                series.push(plot::Series {
+                    label: "unit as given".into(),
+                    x: t,
+                    y: sim,
+                    color: plot::START,
+                    thin: false,
+                });
+            }
+            panels.push(plot::Panel {
+                y_label: label.clone(),
+                series,
+            });
+        }
+        let svg = draw(&file, &title, "time [s]", &panels, &[])?;
+        files.push(PlotFile {
+            file,
+            event: event.clone(),
+            caption: "measured and simulated P and Q (before and after the extension) and every other measured channel".into(),
+            svg,
+        });
+    }
+    Ok(files)
+}
+
+/// The window to shade in the `signal` residual panel of an event: the verdict's (the same
+/// labelled window of this event when it has one), otherwise the signal's window with the
+/// largest share of the squared error.
+pub fn implicated_window(
+    r: &Diagnosis,
+    ev: Option<&EventEvidence>,
+    signal: &str,
+) -> Option<plot::Span> {
+    if let Some((sig, label, a, b)) = &r.verdict.where_ {
+        let own = ev
+            .and_then(|e| e.signals.iter().find(|s| &s.signal == sig))
+            .and_then(|s| s.windows.iter().find(|w| &w.label == label))
+            .map(|w| (w.start_s, w.end_s));
+        let (a, b) = own.unwrap_or((*a, *b));
+        return Some(plot::Span {
+            label: format!("verdict's window: {sig} residual, {label}"),
+            x0: a,
+            x1: b,
+            color: plot::HIGHLIGHT,
+        });
+    }
+    let s = ev?.signals.iter().find(|s| s.signal == signal)?;
+    let w = top_window(s)?;
+    Some(plot::Span {
+        label: format!("most SSE: {} ({:.0} %)", w.label, 100.0 * w.share_of_sse),
+        x0: w.start_s,
+        x1: w.end_s,
+        color: plot::HIGHLIGHT,
+    })
+}
