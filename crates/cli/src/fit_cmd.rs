@@ -10,11 +10,16 @@ use indicatif::{ProgressBar, ProgressStyle};
 use itaipu_calib::fit::{
     fit_with, FitControl, FitError, FitOptions, Progress, Resume, StageOutput, StageReport,
 };
+use itaipu_calib::problem::noise_variance;
 use itaipu_calib::spec::{CalibSpec, Strategy};
+use itaipu_dynamics::event::Event;
 use itaipu_dynamics::plausibility::{Finding, Severity};
+use itaipu_dynamics::simulate::simulate;
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
+use crate::report::fit::EventTraces;
+use crate::report::{InputFile, Provenance};
 use crate::{
     bundled, check_out, load_event, load_unit, prepare_out, report::svg as plot, CliError,
     SearchArgs, EXIT_CODES,
@@ -502,6 +507,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         if let Some((_, st, _)) = &resumed {
             report["resumed_stages"] = serde_json::json!(st.finished_stages);
         }
+        report["noise"] = noise_levels(&events, &held_out);
     }
     let json =
         serde_json::to_string_pretty(&report).map_err(|e| CliError::new(7, e.to_string()))?;
@@ -520,11 +526,109 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     let spec_text = std::fs::read_to_string(&calib_path)
         .map_err(|e| CliError::new(7, format!("cannot read {}: {e}", calib_path.display())))?;
     write(&out.join("calibration.toml"), &spec_text)?;
+    write(
+        &out.join("report.html"),
+        &fit_report_html(
+            &report,
+            &unit,
+            &result.unit,
+            &events,
+            &held_out,
+            [&unit_path, &calib_path],
+            opts.seed,
+            !a.no_plot,
+        ),
+    )?;
     let _ = std::fs::remove_file(out.join(RESUME_UNIT));
     let target = staging.commit(Some(opts.seed))?;
     print!("{}", result.report.to_text());
-    println!("wrote  {}/report.json, calibrated.toml, datasheet.toml, calibration.toml, <stage>/{{unit.toml, traces.csv, traces_start.csv{}}}, manifest.json", target.display(), if a.no_plot { "" } else { ", plot.svg" });
+    println!("wrote  {}/report.json, report.html, calibrated.toml, datasheet.toml, calibration.toml, <stage>/{{unit.toml, traces.csv, traces_start.csv{}}}, manifest.json", target.display(), if a.no_plot { "" } else { ", plot.svg" });
     Ok(())
+}
+
+/// `report.json`'s `noise`: per event (fitted, then held out) the robust noise standard
+/// deviations of the measured P and Q (second differences, as the prior's weight) over the
+/// event's fit window.
+fn noise_levels(events: &[Event], held_out: &[Event]) -> serde_json::Value {
+    let rows: Vec<serde_json::Value> = events
+        .iter()
+        .map(|e| (e, false))
+        .chain(held_out.iter().map(|e| (e, true)))
+        .map(|(e, h)| {
+            let r = &e.record;
+            let inside = |y: &[f64]| -> Vec<f64> {
+                r.time_s
+                    .iter()
+                    .zip(y)
+                    .filter(|(t, _)| **t >= e.fit.start_s && **t <= e.fit.end_s)
+                    .map(|(_, v)| *v)
+                    .collect()
+            };
+            let (p, q) = (inside(&r.p_pu), inside(&r.q_pu));
+            serde_json::json!({
+                "event": e.name,
+                "held_out": h,
+                "samples": p.len(),
+                "sigma_p": noise_variance(&p).sqrt(),
+                "sigma_q": noise_variance(&q).sqrt(),
+            })
+        })
+        .collect();
+    serde_json::Value::Array(rows)
+}
+
+/// The fit's `report.html`: the unit as given and the calibrated unit simulated once more on
+/// every event for the figures (an event that does not simulate is left out of them, said on
+/// stderr; the fit itself simulated it).
+#[allow(clippy::too_many_arguments)]
+fn fit_report_html(
+    report: &serde_json::Value,
+    start: &Unit,
+    calibrated: &Unit,
+    events: &[Event],
+    held_out: &[Event],
+    files: [&Path; 2],
+    seed: u64,
+    plots: bool,
+) -> String {
+    let mut inputs = vec![
+        InputFile::new("unit", files[0]),
+        InputFile::new("calibration spec", files[1]),
+    ];
+    for e in events {
+        inputs.extend(InputFile::event(e, false));
+    }
+    for e in held_out {
+        inputs.extend(InputFile::event(e, true));
+    }
+    let prov = Provenance::new(inputs, seed);
+    let mut runs = vec![];
+    if plots {
+        for (e, h) in events
+            .iter()
+            .map(|e| (e, false))
+            .chain(held_out.iter().map(|e| (e, true)))
+        {
+            let sim = |u: &Unit| simulate(u, e, &Default::default());
+            match (sim(start), sim(calibrated)) {
+                (Ok(a), Ok(b)) => runs.push((e, h, a, b)),
+                (Err(err), _) | (_, Err(err)) => {
+                    eprintln!("report.html: {} left out of the figures: {err}", e.name)
+                }
+            }
+        }
+    }
+    let traces: Vec<EventTraces> = runs
+        .iter()
+        .map(|(e, h, a, b)| EventTraces {
+            event: &e.name,
+            held_out: *h,
+            nominal_hz: e.nominal_hz,
+            start: a,
+            calibrated: b,
+        })
+        .collect();
+    crate::report::fit::html(report, &prov, &traces, plots)
 }
 
 /// A free parameter without `start` whose value in the unit lies outside its bounds starts

@@ -1,1 +1,444 @@
-//! The `fit` report (`report.html`).
+//! The `fit` report (`report.html`): provenance, the events, the verdict, the parameter table
+//! of every stage (start, bounds, result, standard error, flags), the stage table (objective
+//! and J per event from the start through every stage), and per event the measured against
+//! start and calibrated P, Q and every other measured channel, and the residuals with the
+//! noise band.
+//!
+//! It is built from `report.json` as written (a `serde_json::Value`), so that the page and the
+//! file cannot disagree: every number carries the JSON pointer it was read from.
+
+use serde_json::Value;
+
+use super::svg as plot;
+use super::{escape, num, other_channels, residual, token, Cell, Page, Provenance, Tone};
+use itaipu_dynamics::simulate::Traces;
+
+/// The traces of one event for the plots: the unit as given and the calibrated unit.
+pub struct EventTraces<'a> {
+    pub event: &'a str,
+    pub held_out: bool,
+    pub nominal_hz: f64,
+    pub start: &'a Traces,
+    pub calibrated: &'a Traces,
+}
+
+fn f(v: &Value) -> f64 {
+    v.as_f64().unwrap_or(f64::NAN)
+}
+
+fn s(v: &Value) -> &str {
+    v.as_str().unwrap_or("")
+}
+
+/// A number of the report at `pointer` (`-` when absent, "not determined" when null).
+fn cell(report: &Value, pointer: &str, fmt: fn(f64) -> String) -> Cell {
+    match report.pointer(pointer) {
+        Some(Value::Number(n)) => Cell::json(n.as_f64().unwrap_or(f64::NAN), pointer, fmt),
+        Some(Value::Null) => Cell::text("not determined"),
+        _ => Cell::text("-"),
+    }
+}
+
+/// The noise standard deviations `(σP, σQ)` of an event in `report["noise"]`.
+fn noise_of(report: &Value, event: &str) -> Option<(usize, f64, f64)> {
+    report["noise"]
+        .as_array()?
+        .iter()
+        .enumerate()
+        .find(|(_, n)| s(&n["event"]) == event)
+        .map(|(k, n)| (k, f(&n["sigma_p"]), f(&n["sigma_q"])))
+}
+
+/// The largest RMS/σ of the last stage's P and Q residuals over every event (NaN when a noise
+/// level is unknown or zero).
+pub fn worst_ratio(report: &Value) -> f64 {
+    let Some(last) = report["stages"].as_array().and_then(|a| a.last()) else {
+        return f64::NAN;
+    };
+    let mut worst: f64 = 0.0;
+    for fit in last["fitness"].as_array().into_iter().flatten() {
+        let Some((_, sp, sq)) = noise_of(report, s(&fit["event"])) else {
+            return f64::NAN;
+        };
+        for (rms, sigma) in [(f(&fit["rms_p"]), sp), (f(&fit["rms_q"]), sq)] {
+            if !(sigma > 0.0) || !rms.is_finite() {
+                return f64::NAN;
+            }
+            worst = worst.max(rms / sigma);
+        }
+    }
+    worst
+}
+
+/// Every flag the stages raise: parameters at a bound, not determined, pairs not separately
+/// identifiable.
+pub fn flags(report: &Value) -> Vec<String> {
+    let mut out = vec![];
+    for st in report["stages"].as_array().into_iter().flatten() {
+        let stage = s(&st["stage"]);
+        for p in st["parameters"].as_array().into_iter().flatten() {
+            if p["at_bound"].as_bool() == Some(true) {
+                out.push(format!("{stage}: {} at a bound", s(&p["param"])));
+            }
+        }
+        for u in st["unidentified"].as_array().into_iter().flatten() {
+            out.push(format!("{stage}: {} not determined by the data", s(u)));
+        }
+        for pair in st["correlated_pairs"].as_array().into_iter().flatten() {
+            out.push(format!(
+                "{stage}: {} and {} not separately identifiable (ρ = {:+.3})",
+                s(&pair[0]),
+                s(&pair[1]),
+                f(&pair[2])
+            ));
+        }
+    }
+    out
+}
+
+fn fmt4(v: f64) -> String {
+    format!("{v:.4}")
+}
+
+/// The fit as a page. `plots` false: `--no-plot`, figures left out.
+pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bool) -> String {
+    let e = escape;
+    let events: Vec<&str> = report["events"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .map(s)
+        .collect();
+    let mut page = Page::new(&format!(
+        "Model validation: calibration of {} on {}",
+        s(&report["unit"]),
+        events.join(", ")
+    ));
+    page.note(&format!(
+        "itaipu-calib fit, strategy {}: staged calibration of the unit's parameters on the recorded events. {} threads, {:.1} s.",
+        s(&report["strategy"]),
+        report["threads"],
+        f(&report["wall_s"])
+    ));
+    page.provenance(prov);
+
+    // Events and noise.
+    page.h2("events", "Events");
+    let rows: Vec<Vec<Cell>> = report["noise"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .enumerate()
+        .map(|(k, n)| {
+            vec![
+                Cell::text(s(&n["event"])),
+                Cell::text(if n["held_out"].as_bool() == Some(true) {
+                    "held out"
+                } else {
+                    "fitted"
+                }),
+                Cell::Num(n["samples"].to_string()),
+                cell(report, &format!("/noise/{k}/sigma_p"), num),
+                cell(report, &format!("/noise/{k}/sigma_q"), num),
+            ]
+        })
+        .collect();
+    page.table(
+        "event-table",
+        &["event", "role", "samples", "noise σP [pu]", "noise σQ [pu]"],
+        &rows,
+    );
+    page.note("Noise: the robust standard deviation of the measured P and Q from their second differences (the same estimate that weights the datasheet prior).");
+
+    // Verdict.
+    let worst = worst_ratio(report);
+    let flagged = flags(report);
+    let tone = if worst.is_nan() {
+        Tone::Caution
+    } else {
+        Tone::judge(worst, !flagged.is_empty(), false)
+    };
+    let mut body = String::new();
+    if worst.is_nan() {
+        body.push_str("<p>The noise level of an event could not be measured (zero or missing): the residual cannot be compared with the noise floor.</p>\n");
+    } else {
+        body.push_str(&format!(
+            "<p>Residual of the calibrated unit: at most <span data-derived=\"worst-ratio\">{worst:.2}</span> × the noise σ (RMS of ΔP, ΔQ over the fit window of each event, fitted and held out). Green needs at most {:.1} and no parameter flagged; above {:.1} it is red.</p>\n",
+            super::AT_NOISE,
+            super::FAR_ABOVE_NOISE
+        ));
+    }
+    if flagged.is_empty() {
+        body.push_str("<p>No parameter at a bound, undetermined or confounded with another.</p>\n");
+    } else {
+        body.push_str(&format!(
+            "<p>Flagged:</p>\n<ul class=\"tight\">{}</ul>\n",
+            flagged
+                .iter()
+                .map(|x| format!("<li>{}</li>", e(x)))
+                .collect::<String>()
+        ));
+    }
+    let heading = match tone {
+        Tone::Good => "Verdict: the calibrated unit reproduces the record to the noise floor",
+        Tone::Caution => "Verdict: acceptable with reservations (see below)",
+        Tone::Bad => "Verdict: the calibrated unit does not reproduce the record",
+    };
+    page.verdict(tone, heading, &body);
+
+    // Stage table: objective and J per event.
+    page.h2("stages", "Stages");
+    let stages: Vec<&Value> = report["stages"].as_array().into_iter().flatten().collect();
+    let fit_events: Vec<&Value> = report["start_fitness"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .collect();
+    let mut head: Vec<String> = vec![
+        "stage".into(),
+        "objective".into(),
+        "before".into(),
+        "after".into(),
+        "prior term after".into(),
+        "simulations".into(),
+        "failed".into(),
+        "wall [s]".into(),
+    ];
+    for ev in &fit_events {
+        head.push(format!(
+            "J {}{}",
+            s(&ev["event"]),
+            if ev["held_out"].as_bool() == Some(true) {
+                " (held out)"
+            } else {
+                ""
+            }
+        ));
+    }
+    let mut rows = vec![];
+    let mut start_row = vec![Cell::text("start (unit as given)")];
+    start_row.extend((0..7).map(|_| Cell::text("")));
+    for k in 0..fit_events.len() {
+        start_row.push(cell(report, &format!("/start_fitness/{k}/j_pq"), fmt4));
+    }
+    rows.push(start_row);
+    for (i, st) in stages.iter().enumerate() {
+        let p = |x: &str| format!("/stages/{i}/{x}");
+        let mut row = vec![
+            Cell::text(s(&st["stage"])),
+            Cell::text(st["objective"].to_string().trim_matches('"')),
+            cell(report, &p("objective_before"), num),
+            cell(report, &p("objective_after"), num),
+            cell(report, &p("prior_after"), num),
+            Cell::Num(st["simulations"].to_string()),
+            Cell::Num(st["failed_candidates"].to_string()),
+            cell(report, &p("wall_s"), |v| format!("{v:.1}")),
+        ];
+        for (k, ev) in fit_events.iter().enumerate() {
+            // The stage's fitness row of the same event (same order as start_fitness).
+            let j = st["fitness"]
+                .as_array()
+                .and_then(|a| a.iter().position(|x| x["event"] == ev["event"]))
+                .unwrap_or(k);
+            row.push(cell(report, &p(&format!("fitness/{j}/j_pq")), fmt4));
+        }
+        rows.push(row);
+    }
+    let head_ref: Vec<&str> = head.iter().map(String::as_str).collect();
+    page.table("stage-table", &head_ref, &rows);
+    page.note("J = Σ(ΔP² + ΔQ²) over the event's fit window (system base), the same number in every row and in report.json; a stage's objective is its weighted sum of squares plus the datasheet prior's term.");
+
+    // Parameters per stage.
+    page.h2("parameters", "Parameters");
+    for (i, st) in stages.iter().enumerate() {
+        page.h3(&format!("Stage {}", s(&st["stage"])));
+        let unidentified: Vec<&str> = st["unidentified"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(s)
+            .collect();
+        let weak: Vec<&str> = st["weakly_determined"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(s)
+            .collect();
+        let paired: Vec<&str> = st["correlated_pairs"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .flat_map(|p| [s(&p[0]), s(&p[1])])
+            .collect();
+        let rows: Vec<Vec<Cell>> = st["parameters"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .enumerate()
+            .map(|(j, p)| {
+                let ptr = |x: &str| format!("/stages/{i}/parameters/{j}/{x}");
+                let name = s(&p["param"]);
+                let mut fl = vec![];
+                if p["at_bound"].as_bool() == Some(true) {
+                    fl.push("at bound");
+                }
+                if unidentified.contains(&name) || p["std_error"].is_null() {
+                    fl.push("not identifiable");
+                }
+                if paired.contains(&name) {
+                    fl.push("correlated");
+                }
+                if weak.contains(&name) {
+                    fl.push("weakly determined");
+                }
+                vec![
+                    Cell::Html(format!("<code>{}</code>", e(name))),
+                    Cell::text(s(&p["unit"])),
+                    cell(report, &ptr("start"), num),
+                    cell(report, &ptr("min"), num),
+                    cell(report, &ptr("max"), num),
+                    cell(report, &ptr("result"), num),
+                    cell(report, &ptr("std_error"), num),
+                    Cell::Html(format!("<span class=\"flag\">{}</span>", fl.join(", "))),
+                ]
+            })
+            .collect();
+        page.table(
+            &format!("params-{}", token(s(&st["stage"]))),
+            &[
+                "parameter",
+                "unit",
+                "start",
+                "min",
+                "max",
+                "result",
+                "std error",
+                "flags",
+            ],
+            &rows,
+        );
+        for pair in st["correlated_pairs"].as_array().into_iter().flatten() {
+            page.note(&format!(
+                "Not separately identifiable: {} and {} (correlation {:+.3}).",
+                s(&pair[0]),
+                s(&pair[1]),
+                f(&pair[2])
+            ));
+        }
+    }
+    page.note("Standard errors from the Fisher approximation at the optimum; \"not determined\" where the data do not determine the parameter. Weakly determined: relative standard error above 1 %.");
+
+    // Plots.
+    page.h2("plots", "Measured and simulated");
+    if !plots {
+        page.note("Plots not drawn (--no-plot).");
+        return page.finish();
+    }
+    for tr in traces {
+        match event_figure(report, tr) {
+            Ok(svg) => page.figure(
+                &svg,
+                &format!(
+                    "{}{}: measured, start and calibrated P and Q and every other measured channel; residuals of the calibrated unit with the ±σ noise band",
+                    tr.event,
+                    if tr.held_out { " (held out)" } else { "" }
+                ),
+            ),
+            Err(err) => page.note(&format!("{}: plot failed: {err}", tr.event)),
+        }
+    }
+    page.finish()
+}
+
+/// The figure of one event: P, Q and the other measured channels, then the P and Q residuals
+/// with the noise band.
+fn event_figure(report: &Value, tr: &EventTraces) -> Result<String, String> {
+    let (st, ca) = (tr.start, tr.calibrated);
+    let col = |t: &Traces, n: &str| {
+        t.get(n)
+            .map(|c| c.to_vec())
+            .unwrap_or_else(|| vec![f64::NAN; t.time_s.len()])
+    };
+    let (pm, qm, ps, qs, pc, qc) = (
+        col(ca, "p_meas_pu"),
+        col(ca, "q_meas_pu"),
+        col(st, "p_pu"),
+        col(st, "q_pu"),
+        col(ca, "p_pu"),
+        col(ca, "q_pu"),
+    );
+    let (rp, rq) = (
+        residual(ca, "p_pu", "p_meas_pu"),
+        residual(ca, "q_pu", "q_meas_pu"),
+    );
+    let t = &ca.time_s;
+    let series = |label: &str, y, color, thin| plot::Series {
+        label: label.into(),
+        x: t,
+        y,
+        color,
+        thin,
+    };
+    let mut panels = vec![];
+    for (sig, m, a, b) in [("P", &pm, &ps, &pc), ("Q", &qm, &qs, &qc)] {
+        panels.push(plot::Panel {
+            y_label: format!("{sig} [pu, system base]"),
+            series: vec![
+                series("measured", m.as_slice(), plot::MEASURED, true),
+                series("start", a.as_slice(), plot::START, true),
+                series("calibrated", b.as_slice(), plot::SIMULATED, false),
+            ],
+        });
+    }
+    let start_channels = other_channels(st, tr.nominal_hz);
+    let channels = other_channels(ca, tr.nominal_hz);
+    for ((label, meas, sim), (_, _, sim0)) in channels.iter().zip(&start_channels) {
+        let mut v = vec![series(
+            if sim.is_empty() {
+                "measured (played back)"
+            } else {
+                "measured"
+            },
+            meas.as_slice(),
+            plot::MEASURED,
+            true,
+        )];
+        if !sim.is_empty() {
+            v.push(series("start", sim0.as_slice(), plot::START, true));
+            v.push(series("calibrated", sim.as_slice(), plot::SIMULATED, false));
+        }
+        panels.push(plot::Panel {
+            y_label: label.clone(),
+            series: v,
+        });
+    }
+    let mut decor: Vec<plot::Decor> = panels.iter().map(|_| plot::Decor::default()).collect();
+    let (sp, sq) = noise_of(report, tr.event)
+        .map(|(_, p, q)| (p, q))
+        .unwrap_or((f64::NAN, f64::NAN));
+    for (sig, res, sigma) in [("P", &rp, sp), ("Q", &rq, sq)] {
+        panels.push(plot::Panel {
+            y_label: format!("{sig} residual (sim − meas) [pu]"),
+            series: vec![series("calibrated", res.as_slice(), plot::SIMULATED, false)],
+        });
+        decor.push(plot::Decor {
+            y_bands: if sigma.is_finite() {
+                vec![plot::YBand {
+                    label: format!("±σ{sig} noise {}", num(sigma)),
+                    y0: -sigma,
+                    y1: sigma,
+                    color: plot::NOISE,
+                }]
+            } else {
+                vec![]
+            },
+            ..Default::default()
+        });
+    }
+    plot::render(
+        &format!("{}: measured and simulated", tr.event),
+        "time [s]",
+        &panels,
+        &decor,
+    )
+}
