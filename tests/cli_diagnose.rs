@@ -261,7 +261,7 @@ fn diagnose_draws_plots_and_a_self_contained_html_report() {
     for section in [
         "Verdict: measurement_skew",
         "Candidates",
-        "Noise model and split",
+        "Noise and the reference",
         "Evidence",
         "Ljung-Box",
         "share of SSE",
