@@ -118,6 +118,7 @@ fn force_replaces_the_whole_folder_and_the_manifest_matches() {
             "datasheet.toml",
             "gen",
             "manifest.json",
+            "report.html",
             "report.json"
         ]
     );
