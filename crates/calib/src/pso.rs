@@ -446,32 +446,13 @@ enum Stream {
     R2 = 5,
 }
 
-const GOLDEN_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
-
-/// SplitMix64 output function (a bijection on `u64`).
-#[inline]
-fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// Hashes `(seed, stream, iteration, particle, dimension)` into a 64-bit value by chaining
-/// SplitMix64 steps; each step is injective in its word for a fixed prefix.
-#[inline]
-fn stream_key(seed: u64, stream: Stream, iteration: usize, particle: usize, dim: usize) -> u64 {
-    let mut h = mix64(seed.wrapping_add(GOLDEN_GAMMA));
-    for w in [stream as u64, iteration as u64, particle as u64, dim as u64] {
-        h = mix64(h.wrapping_add(GOLDEN_GAMMA) ^ w);
-    }
-    h
-}
-
 /// Uniform `f64` in `[0, 1)` (53 random bits) for the given stream coordinates.
 #[inline]
 fn uniform(seed: u64, stream: Stream, iteration: usize, particle: usize, dim: usize) -> f64 {
-    let bits = stream_key(seed, stream, iteration, particle, dim) >> 11;
-    bits as f64 * (1.0 / (1u64 << 53) as f64)
+    itaipu_dynamics::rng::uniform_at(
+        seed,
+        &[stream as u64, iteration as u64, particle as u64, dim as u64],
+    )
 }
 
 #[cfg(test)]

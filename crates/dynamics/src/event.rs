@@ -1605,17 +1605,15 @@ mod tests {
         }
     }
 
-    /// Tiny deterministic linear congruential generator (Numerical Recipes constants);
-    /// `uniform()` returns values in [-1, 1).
-    struct Lcg(u64);
+    /// Seeded test data in [-1, 1): the workspace's one random source.
+    struct Lcg(crate::rng::SplitMix64);
 
     impl Lcg {
+        fn new(seed: u64) -> Self {
+            Lcg(crate::rng::SplitMix64::new(seed))
+        }
         fn uniform(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+            self.0.uniform_in(-1.0, 1.0)
         }
     }
 
@@ -1815,7 +1813,7 @@ mod tests {
     fn polar_form_equals_rectangular_form() {
         let n = 300;
         let t: Vec<f64> = (0..n).map(|i| 0.25 + i as f64 / 50.0).collect();
-        let mut lcg = Lcg(7);
+        let mut lcg = Lcg::new(7);
         let mag: Vec<f64> = (0..n).map(|_| 1.0 + 0.05 * lcg.uniform()).collect();
         let ang: Vec<f64> = t.iter().map(|t| 2.5 - TAU * 0.3 * t).collect();
         let p: Vec<f64> = (0..n).map(|_| 0.7 + 0.1 * lcg.uniform()).collect();
@@ -1888,7 +1886,7 @@ mod tests {
     /// Noisy record at 60.012 Hz: returns the CSV text and the true values.
     fn noisy_record(freq_col: Option<f64>) -> String {
         let n = 240; // 4 s at 60/s
-        let mut lcg = Lcg(12345);
+        let mut lcg = Lcg::new(12345);
         let theta0 = 0.3;
         let df = 0.012;
         let mut s = String::from("time_s,v_re_pu,v_im_pu,p_pu,q_pu");
@@ -2119,7 +2117,7 @@ end_s = 4.25
     #[test]
     fn write_csv_round_trips() {
         let n = 100;
-        let mut lcg = Lcg(99);
+        let mut lcg = Lcg::new(99);
         let t: Vec<f64> = (0..n)
             .map(|i| 10.0 + i as f64 * 0.02 + 1e-7 * lcg.uniform())
             .collect();
@@ -2176,7 +2174,7 @@ end_s = 4.25
         assert_eq!(format_g17(0.0001), "0.0001");
         assert_eq!(format_g17(1e-5), "1.0000000000000001e-05");
         assert_eq!(format_g17(0.0), "0");
-        let mut lcg = Lcg(3);
+        let mut lcg = Lcg::new(3);
         for _ in 0..2000 {
             let x = lcg.uniform() * 10f64.powi((lcg.uniform() * 300.0) as i32);
             assert_eq!(format_g17(x).parse::<f64>().unwrap(), x);

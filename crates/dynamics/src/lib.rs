@@ -27,6 +27,7 @@ pub mod params;
 pub mod plausibility;
 pub mod pmu_import;
 pub mod registry;
+pub mod rng;
 pub mod simulate;
 pub mod synthetic;
 pub mod unit;

@@ -229,43 +229,8 @@ impl PmuNoise {
     }
 }
 
-/// Deterministic normal random numbers (SplitMix64 + Box-Muller).
-#[derive(Debug, Clone)]
-pub struct Normal {
-    state: u64,
-    spare: Option<f64>,
-}
-
-impl Normal {
-    pub fn new(seed: u64) -> Self {
-        Self {
-            state: seed ^ 0x9E37_79B9_7F4A_7C15,
-            spare: None,
-        }
-    }
-    fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in (0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    /// Standard normal.
-    pub fn sample(&mut self) -> f64 {
-        if let Some(s) = self.spare.take() {
-            return s;
-        }
-        let (u1, u2) = (self.uniform(), self.uniform());
-        let r = (-2.0 * u1.ln()).sqrt();
-        let th = 2.0 * std::f64::consts::PI * u2;
-        self.spare = Some(r * th.sin());
-        r * th.cos()
-    }
-}
+/// The PMU noise generator (the workspace's one random source, re-exported here).
+pub use crate::rng::Normal;
 
 /// Why a synthetic event could not be made.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
