@@ -13,7 +13,7 @@ if [ ! -x "$venv/bin/python" ]; then
   python3 -m venv "$venv"
 fi
 "$venv/bin/python" -m pip install --quiet --upgrade pip
-"$venv/bin/python" -m pip install --quiet pytest pandas matplotlib mypy
+"$venv/bin/python" -m pip install --quiet pytest pandas matplotlib mypy dask distributed
 "$venv/bin/python" -m pip install --quiet --force-reinstall .
 "$venv/bin/python" -m pytest tests/python -q
 # (tests/python/test_pyapi.py also checks the type stub: mypy.stubtest against the installed

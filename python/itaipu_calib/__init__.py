@@ -45,7 +45,8 @@ exactly as the ``itaipu-calib fit`` command line::
   previous result. With several stages a final joint L-BFGS pass over all their parameters on
   the full unit is reported as stage ``joint`` (``polish=False`` skips it).
 * ``strategy``, ``seed``, ``particles``, ``pso_iterations`` and ``lbfgs_iterations`` override
-  the spec. The same seed gives the same numbers on any number of threads.
+  the spec; ``threads`` sets the worker threads (default: all cores). The same seed gives the
+  same numbers on any number of threads.
 * ``held_out`` events are not fitted; their fitness is reported per stage in ``report``.
 * ``FitResult.fitness`` sums J over the fitted events; a stage's row is the fitness of that
   stage's unit (``gen`` runs without exciter, stabiliser and governor). Non-finite numbers in
@@ -135,6 +136,17 @@ line's ``--hide``: ``[(cause, {param: value}), ...]`` or ``{cause: {param: value
 (parameters not given keep the extension's starting values; an unknown cause or parameter
 raises ``ValueError``, a truth that cannot initialise :class:`InitError`). With
 ``return_truth=True`` it returns ``(event, truth_unit)``.
+
+Fleets
+------
+:mod:`itaipu_calib.fleet` runs many (unit, events) jobs, fit then optionally diagnose, in
+parallel on a Dask cluster (``pip install 'itaipu-calib[fleet]'``) or one after another in
+process, and gathers one row per job (J before and after, the named cause, or the error of a
+job that failed, without stopping the others)::
+
+    from itaipu_calib.fleet import Job, jobs_from_csv, run_fleet
+    result = run_fleet(jobs_from_csv("fleet.csv"), client)   # client: dask.distributed.Client
+    result.to_pandas(), result.failed
 
 Errors
 ------

@@ -143,6 +143,20 @@ def test_fit_is_deterministic(gen_fit):
     assert other.report["seed"] == 2
 
 
+def test_fit_threads_set_the_pool_not_the_numbers(gen_fit):
+    # `threads`: a pool of its own for the call (as diagnose's); the same seed gives the same
+    # numbers on 1 and 3 threads as on the default pool.
+    for n in (1, 3):
+        r = ic.fit(EVENT, UNIT, calib=CALIB, stages="gen", seed=1, threads=n, **QUICK)
+        assert r.report["threads"] == n
+        assert r.fitness == gen_fit.fitness
+        assert r.parameters("gen") == gen_fit.parameters("gen")
+    with pytest.raises(ValueError, match="threads must be at least 1"):
+        ic.fit(EVENT, UNIT, calib=CALIB, stages="gen", threads=0)
+    with pytest.raises(OverflowError):
+        ic.fit(EVENT, UNIT, calib=CALIB, stages="gen", threads=-1)
+
+
 def test_fit_two_stages_then_joint_polish():
     r = ic.fit(EVENT, UNIT, calib=CALIB, stages="gen,avr", **QUICK)
     assert r.stages == ["gen", "avr", "joint"]

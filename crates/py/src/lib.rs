@@ -1068,17 +1068,19 @@ fn load_events(sources: Vec<Source<Event>>) -> Result<Vec<Event>, Failure> {
 /// or some of gen, avr, pss, tg (a list or a comma-separated string), run in that order.
 /// `strategy` ('sequential', 'incremental', 'simultaneous-first'), `seed`, `particles`,
 /// `pso_iterations` and `lbfgs_iterations` override the spec; `polish=False` skips the final
-/// joint refinement ('joint') after several stages. Same seed, same numbers. The GIL is
-/// released while files are read and the fit runs.
+/// joint refinement ('joint') after several stages. `threads` sets the worker threads (default:
+/// all cores); same seed, same numbers, whatever the number of threads. The GIL is released
+/// while files are read and the fit runs.
 ///
 /// Raises CalibrationError (bad spec, or a fit that cannot run), EventError, UnitModelError
 /// (and ValueError for bad options, TypeError for bad argument types).
 #[pyfunction]
 #[pyo3(
     signature = (events, unit, *, calib = None, stages = None, strategy = None, seed = None, particles = None,
-                 pso_iterations = None, lbfgs_iterations = None, polish = true, held_out = None),
+                 pso_iterations = None, lbfgs_iterations = None, polish = true, held_out = None,
+                 threads = None),
     text_signature = "(events, unit, *, calib=None, stages='all', strategy=None, seed=None, particles=None, \
-                      pso_iterations=None, lbfgs_iterations=None, polish=True, held_out=())"
+                      pso_iterations=None, lbfgs_iterations=None, polish=True, held_out=(), threads=None)"
 )]
 #[allow(clippy::too_many_arguments)]
 fn fit(
@@ -1094,6 +1096,7 @@ fn fit(
     lbfgs_iterations: Option<u64>,
     polish: bool,
     held_out: Option<&Bound<'_, PyAny>>,
+    threads: Option<usize>,
 ) -> PyResult<PyFitResult> {
     if swapped_events_unit(py, events, unit)? {
         return Err(swap_error("fit"));
@@ -1125,6 +1128,7 @@ fn fit(
             )));
         }
     }
+    let pool = worker_pool(threads)?;
     // Ctrl-C (KeyboardInterrupt) stops the fit at its next candidate evaluation; the passes
     // finished by then are kept on the exception (see `fit`'s documentation).
     let cancel = Arc::new(AtomicBool::new(false));
@@ -1173,8 +1177,12 @@ fn fit(
             on_stage: Some(&on_stage),
             ..Default::default()
         };
-        let mut result =
-            calib_fit::fit_with(&unit, &spec, &events, &held_out, &opts, &Silent, &control)?;
+        let run =
+            || calib_fit::fit_with(&unit, &spec, &events, &held_out, &opts, &Silent, &control);
+        let mut result = match &pool {
+            Some(pool) => pool.install(run),
+            None => run(),
+        }?;
         // As the command line's calibrated.toml.
         result.unit.description = format!(
             "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
@@ -1200,6 +1208,20 @@ fn fit(
         stages: result.stages,
         calibrated_set,
     })
+}
+
+/// A worker pool of `threads` threads for one call (`fit`, `diagnose`), or None: rayon's global
+/// pool (all cores, or `RAYON_NUM_THREADS`). The results do not depend on the number of threads.
+fn worker_pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
+    match threads {
+        None => Ok(None),
+        Some(0) => Err(PyValueError::new_err("threads must be at least 1")),
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map(Some)
+            .map_err(|e| PyRuntimeError::new_err(format!("cannot start {n} worker threads: {e}"))),
+    }
 }
 
 /// Puts what an interrupted fit finished on its KeyboardInterrupt: `finished_stages` (names,
@@ -1831,18 +1853,7 @@ fn diagnose(
             "particles must be at least 2 (got {particles})"
         )));
     }
-    let pool = match threads {
-        None => None,
-        Some(0) => return Err(PyValueError::new_err("threads must be at least 1")),
-        Some(n) => Some(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .map_err(|e| {
-                    PyRuntimeError::new_err(format!("cannot start {n} worker threads: {e}"))
-                })?,
-        ),
-    };
+    let pool = worker_pool(threads)?;
     let cancel = Arc::new(AtomicBool::new(false));
     let mut opts = DiagnoseOptions {
         causes,

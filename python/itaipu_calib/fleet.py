@@ -1,0 +1,707 @@
+"""Fleets: calibrate and diagnose many (unit, events) jobs, one machine or a Dask cluster.
+
+A utility validating hundreds of units over many events describes each calibration as a
+:class:`Job` (plain data: paths and numbers), runs them all with :func:`run_fleet` and gets one
+row per job back, in the jobs' order, as a :class:`FleetResult` (``.rows``, ``.failed``,
+``.to_pandas()``)::
+
+    from dask.distributed import Client, LocalCluster
+    from itaipu_calib.fleet import jobs_from_csv, run_fleet
+
+    jobs = jobs_from_csv("fleet.csv")          # name, unit, events, held_out, calib, stages, ...
+    with LocalCluster(n_workers=2, threads_per_worker=1) as cluster, Client(cluster) as client:
+        result = run_fleet(jobs, client)       # one task per job
+    result.to_pandas()                         # one row per job
+    result.failed                              # the rows of the jobs that failed
+
+The same code runs on a cluster with ``Client("tcp://scheduler:8786")``: every worker needs
+the wheel installed and must see the job's paths (shared storage). Without a client the jobs
+run one after another in this process, with the same rows.
+
+* Each job runs :func:`itaipu_calib.fit` and, if asked, :func:`itaipu_calib.diagnose` of the
+  calibrated unit (``fit=`` the fit, so the whole calibrated set is re-freed) in the worker.
+* A job that fails (a bad file, a unit that cannot initialise, a worker that died) is a row
+  with ``status == "failed"``, the step it failed in, the error's type, ``kind`` and message on
+  one line; the other jobs go on.
+* Each job's Rust worker pool is sized so that the jobs do not oversubscribe the cores
+  (``threads_per_job``; by default, with a client, the cores of each host shared among the
+  Dask worker threads on it). The numbers do not depend on it: same seed, same J.
+* ``Job.out`` writes the job's results into a folder (``calibrated.toml``, ``report.json``,
+  ``diagnosis.json``, ``extended.toml`` when a cause is named, and ``row.json`` last): each
+  file through a temporary name then a rename, never over an existing file unless
+  ``overwrite=True``. A job's folder is complete if and only if it holds ``row.json``.
+
+Dask (``pip install dask distributed`` or ``'itaipu-calib[fleet]'``) is needed only by the
+client; this module imports without it.
+"""
+
+from __future__ import annotations
+
+import csv
+import importlib
+import json
+import math
+import os
+import socket
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tuple, Union
+
+from . import _core
+
+__all__ = ["COLUMNS", "FleetResult", "Job", "jobs_from_csv", "run_fleet", "run_job"]
+
+_PathLike = Union[str, "os.PathLike[str]"]
+
+_STAGES = ("gen", "avr", "pss", "tg")
+
+#: The columns of a row, in order (see :func:`run_job`).
+COLUMNS: Tuple[str, ...] = (
+    "job",
+    "status",
+    "step",
+    "error_type",
+    "error_kind",
+    "error",
+    "stages",
+    "n_events",
+    "n_held_out",
+    "seed",
+    "j_start",
+    "j_fit",
+    "j_held_out",
+    "cause",
+    "delta_bic",
+    "fit_drop",
+    "held_drop",
+    "key_parameters",
+    "out",
+    "threads",
+    "host",
+    "pid",
+    "wall_s",
+)
+
+# The files a job writes into its folder, in the order they are renamed into place; row.json,
+# last, marks the folder complete.
+_OUT_FILES = ("calibrated.toml", "report.json", "diagnosis.json", "extended.toml", "row.json")
+
+
+def _paths(value: Any, what: str) -> Tuple[str, ...]:
+    if value is None:
+        return ()
+    if isinstance(value, (str, os.PathLike)):
+        return (os.fspath(value),)
+    try:
+        items = list(value)
+    except TypeError:
+        raise TypeError(f"{what} must be a path or a list of paths (got {value!r})") from None
+    out = []
+    for v in items:
+        if not isinstance(v, (str, os.PathLike)):
+            raise TypeError(f"{what} must be a path or a list of paths (got {v!r} in it)")
+        out.append(os.fspath(v))
+    return tuple(out)
+
+
+def _names(value: Any, what: str) -> Tuple[str, ...]:
+    """A comma/semicolon/plus-separated string or a list of names, as a tuple of names."""
+    if isinstance(value, str):
+        parts = value.replace(";", ",").replace("+", ",").split(",")
+    else:
+        try:
+            parts = [str(v) for v in value]
+        except TypeError:
+            raise TypeError(f"{what} must be a string or a list of names (got {value!r})") from None
+    return tuple(p.strip() for p in parts if p.strip())
+
+
+def _check_int(value: Any, what: str, minimum: int) -> None:
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise TypeError(f"{what} must be an integer (got {value!r})")
+    if value < minimum:
+        raise ValueError(f"{what} must be at least {minimum} (got {value})")
+
+
+@dataclass(frozen=True)
+class Job:
+    """One calibration (and optionally diagnosis) of a unit on some events: plain, picklable
+    data (paths and numbers), so that it travels to a Dask worker.
+
+    ``unit``, ``events``, ``held_out``, ``calib`` and ``out`` are paths (``events`` and
+    ``held_out`` a path or a list of paths), stored as strings; they are read in the worker, so
+    on a cluster they must be visible there. ``stages``, ``seed``, ``particles``,
+    ``pso_iterations``, ``lbfgs_iterations`` and ``polish`` are :func:`itaipu_calib.fit`'s
+    (None: the calibration spec's). ``diagnose=True`` diagnoses the calibrated unit after the
+    fit (``causes``: the causes to try, default the whole catalog; ``diagnose_particles``,
+    ``diagnose_pso_iterations``, ``diagnose_lbfgs_iterations``: the re-fits' settings, None:
+    :func:`itaipu_calib.diagnose`'s defaults; the seed is ``seed``, or 1). ``out``: a folder
+    for the job's files; ``overwrite=True`` lets them replace existing ones.
+    """
+
+    name: str
+    unit: str
+    events: Tuple[str, ...]
+    held_out: Tuple[str, ...] = ()
+    calib: Optional[str] = None
+    stages: str = "all"
+    seed: Optional[int] = None
+    particles: Optional[int] = None
+    pso_iterations: Optional[int] = None
+    lbfgs_iterations: Optional[int] = None
+    polish: bool = True
+    diagnose: bool = False
+    causes: Optional[Tuple[str, ...]] = None
+    diagnose_particles: Optional[int] = None
+    diagnose_pso_iterations: Optional[int] = None
+    diagnose_lbfgs_iterations: Optional[int] = None
+    out: Optional[str] = None
+    overwrite: bool = False
+
+    def __post_init__(self) -> None:
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ValueError(f"Job.name must be a non-empty string (got {self.name!r})")
+        if not isinstance(self.unit, (str, os.PathLike)):
+            raise TypeError(f"Job {self.name}: unit must be a path (got {self.unit!r})")
+        put("unit", os.fspath(self.unit))
+        put("events", _paths(self.events, f"Job {self.name}: events"))
+        if not self.events:
+            raise ValueError(f"Job {self.name}: events is empty")
+        put("held_out", _paths(self.held_out, f"Job {self.name}: held_out"))
+        for key in ("calib", "out"):
+            v = getattr(self, key)
+            if v is not None:
+                if not isinstance(v, (str, os.PathLike)):
+                    raise TypeError(f"Job {self.name}: {key} must be a path or None (got {v!r})")
+                put(key, os.fspath(v))
+        stages = _names(self.stages, f"Job {self.name}: stages")
+        bad = [s for s in stages if s != "all" and s not in _STAGES]
+        if bad or not stages:
+            raise ValueError(
+                f"Job {self.name}: stages: unknown stage {bad[0]!r} (gen, avr, pss, tg or all)"
+                if bad
+                else f"Job {self.name}: stages is empty"
+            )
+        put("stages", "all" if "all" in stages else ",".join(s for s in _STAGES if s in stages))
+        _check_int(self.seed, f"Job {self.name}: seed", 0)
+        _check_int(self.particles, f"Job {self.name}: particles", 2)
+        _check_int(self.diagnose_particles, f"Job {self.name}: diagnose_particles", 2)
+        for key in ("pso_iterations", "lbfgs_iterations", "diagnose_pso_iterations",
+                    "diagnose_lbfgs_iterations"):
+            _check_int(getattr(self, key), f"Job {self.name}: {key}", 0)
+        for key in ("polish", "diagnose", "overwrite"):
+            if not isinstance(getattr(self, key), bool):
+                raise TypeError(f"Job {self.name}: {key} must be True or False")
+        if self.causes is not None:
+            put("causes", _names(self.causes, f"Job {self.name}: causes") or None)
+            if not self.diagnose:
+                raise ValueError(f"Job {self.name}: causes given but diagnose is False")
+
+
+def _one_line(e: BaseException) -> str:
+    text = " ".join(str(e).split())
+    return text or type(e).__name__
+
+
+def _empty_row(job: Job) -> Dict[str, Any]:
+    row: Dict[str, Any] = dict.fromkeys(COLUMNS)
+    row["job"] = job.name
+    row["status"] = "failed"
+    return row
+
+
+def _failed_row(job: Job, e: BaseException, step: str) -> Dict[str, Any]:
+    row = _empty_row(job)
+    row.update(step=step, error_type=type(e).__name__, error_kind=getattr(e, "kind", None),
+               error=_one_line(e))
+    return row
+
+
+def _fill_fit(row: Dict[str, Any], fit: _core.FitResult) -> None:
+    rep = fit.report
+    fitness = fit.fitness
+    row["stages"] = ",".join(fit.stages)
+    row["n_events"] = len(rep["events"])
+    row["n_held_out"] = len(rep["held_out"])
+    row["seed"] = rep["seed"]
+    row["threads"] = rep["threads"]
+    row["j_start"] = fitness[0][1]
+    row["j_fit"] = fitness[-1][1]
+    if rep["held_out"] and rep["stages"]:
+        row["j_held_out"] = sum(f["j_pq"] for f in rep["stages"][-1]["fitness"] if f["held_out"])
+
+
+def _fill_diagnosis(row: Dict[str, Any], d: _core.Diagnosis) -> None:
+    v = d.verdict
+    row["cause"] = d.cause
+    gains = v.get("gains") or {}
+    for key in ("delta_bic", "fit_drop", "held_drop"):
+        row[key] = gains.get(key)
+    row["key_parameters"] = {p[0]: p[1] for p in v.get("key_parameters") or []}
+
+
+def _json(value: Any) -> str:
+    def clean(x: Any) -> Any:
+        if isinstance(x, float) and not math.isfinite(x):
+            return None
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        return x
+
+    return json.dumps(clean(value), indent=2, allow_nan=False) + "\n"
+
+
+def _check_out(job: Job) -> Path:
+    """Creates the job's folder, checks that it is writable and, without ``overwrite``, that
+    none of the job's files exists, before any computation."""
+    assert job.out is not None
+    out = Path(job.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if not job.overwrite:
+        for name in _OUT_FILES:
+            if (out / name).exists():
+                raise FileExistsError(
+                    f"{out / name} exists: not overwritten (Job(..., overwrite=True) replaces "
+                    "it, or give the job another out folder)"
+                )
+    probe = out / f".fleet-probe-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    probe.write_text("")
+    probe.unlink()
+    return out
+
+
+def _commit(tmp: Path, final: Path, overwrite: bool) -> None:
+    """Renames ``tmp`` to ``final``; without ``overwrite``, never over an existing file."""
+    if overwrite:
+        os.replace(tmp, final)
+        return
+    try:
+        os.link(tmp, final)  # atomic, and fails if final exists
+    except FileExistsError:
+        raise FileExistsError(f"{final} appeared while the job ran: not overwritten") from None
+    except OSError:  # no hard links on this file system
+        if final.exists():
+            raise FileExistsError(f"{final} appeared while the job ran: not overwritten") from None
+        os.replace(tmp, final)
+        return
+    tmp.unlink()
+
+
+def _write_out(out: Path, files: Dict[str, str], overwrite: bool) -> None:
+    """Writes ``files`` (name -> text) into ``out``: every file first under a temporary name,
+    then renamed into place in order, ``row.json`` last. Files of an earlier run that this run
+    does not write are removed when overwriting."""
+    tag = f"partial-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    tmps: List[Tuple[Path, Path]] = []
+    try:
+        for name, text in files.items():
+            tmp = out / f".{name}.{tag}"
+            with open(tmp, "w", encoding="utf-8", newline="\n") as f:
+                f.write(text)
+                f.flush()
+                os.fsync(f.fileno())
+            tmps.append((tmp, out / name))
+        if overwrite:
+            # The folder is incomplete from here until row.json is back.
+            for name in ("row.json",) + tuple(n for n in _OUT_FILES if n not in files):
+                if (out / name).exists():
+                    (out / name).unlink()
+        for tmp, final in tmps:
+            _commit(tmp, final, overwrite)
+    finally:
+        for tmp, _ in tmps:
+            if tmp.exists():
+                tmp.unlink()
+
+
+def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
+    """Runs one job in this process and returns its row (a dict with the keys of
+    :data:`COLUMNS`). It never raises for a failing job (only for KeyboardInterrupt).
+
+    * ``job``, ``status`` (``"ok"`` or ``"failed"``); when failed, ``step`` (``"output"``: the
+      folder check, ``"fit"``, ``"diagnose"``, ``"write"``; ``"worker"`` from
+      :func:`run_fleet` when the task itself failed), ``error_type`` (e.g.
+      ``"UnitModelError"``), ``error_kind`` (the :class:`~itaipu_calib.ItaipuError`'s
+      ``kind``, or None) and ``error`` (the message on one line);
+    * the fit: ``stages`` (run, comma-separated), ``n_events`` (fitted), ``n_held_out``,
+      ``seed``, ``j_start`` and ``j_fit`` (J = Σ(ΔP² + ΔQ²) over the fitted events, of the
+      starting and of the calibrated unit: ``FitResult.fitness[0]`` and ``[-1]``),
+      ``j_held_out`` (J of the calibrated unit over the held-out events, or None);
+    * the diagnosis (None without): ``cause`` (a cause id, ``none`` or ``unexplained``),
+      ``delta_bic``, ``fit_drop``, ``held_drop`` (the named cause's gains) and
+      ``key_parameters`` ({parameter: value} of the named cause);
+    * ``out`` (the job's folder, when written), ``threads`` (the fit's worker threads),
+      ``host``, ``pid``, ``wall_s``.
+
+    ``threads``: the worker threads of the fit and the diagnosis (None: all cores, or
+    ``RAYON_NUM_THREADS``).
+    """
+    t0 = time.perf_counter()
+    row = _empty_row(job)
+    row["host"] = socket.gethostname()
+    row["pid"] = os.getpid()
+    step = "output"
+    try:
+        out = _check_out(job) if job.out is not None else None
+        step = "fit"
+        fit = _core.fit(
+            list(job.events),
+            job.unit,
+            calib=job.calib,
+            stages=job.stages,
+            seed=job.seed,
+            particles=job.particles,
+            pso_iterations=job.pso_iterations,
+            lbfgs_iterations=job.lbfgs_iterations,
+            polish=job.polish,
+            held_out=list(job.held_out),
+            threads=threads,
+        )
+        _fill_fit(row, fit)
+        diagnosis = None
+        if job.diagnose:
+            step = "diagnose"
+            kw: Dict[str, Any] = {}
+            for key, value in (
+                ("particles", job.diagnose_particles),
+                ("pso_iterations", job.diagnose_pso_iterations),
+                ("lbfgs_iterations", job.diagnose_lbfgs_iterations),
+            ):
+                if value is not None:
+                    kw[key] = value
+            diagnosis = _core.diagnose(
+                list(job.events),
+                fit.unit,
+                list(job.held_out) or None,
+                causes=list(job.causes) if job.causes else None,
+                seed=1 if job.seed is None else job.seed,
+                threads=threads,
+                fit=fit,
+                **kw,
+            )
+            _fill_diagnosis(row, diagnosis)
+        if out is not None:
+            step = "write"
+            row["out"] = str(out)
+            row["status"] = "ok"
+            row["wall_s"] = time.perf_counter() - t0
+            files = {"calibrated.toml": fit.unit.to_toml(), "report.json": _json(fit.report)}
+            if diagnosis is not None:
+                files["diagnosis.json"] = diagnosis.to_json()
+                if diagnosis.extended_unit_toml is not None:
+                    files["extended.toml"] = diagnosis.extended_unit_toml
+            files["row.json"] = _json(row)
+            _write_out(out, files, job.overwrite)
+        row["status"] = "ok"
+    except Exception as e:
+        if row["status"] == "ok":  # failed while writing
+            row["out"] = None
+        row.update(status="failed", step=step, error_type=type(e).__name__,
+                   error_kind=getattr(e, "kind", None), error=_one_line(e))
+    row["wall_s"] = time.perf_counter() - t0
+    return row
+
+
+@dataclass
+class FleetResult:
+    """The rows of a fleet, one per job, in the jobs' order (see :func:`run_job` for a row's
+    keys)."""
+
+    rows: List[Dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def ok(self) -> List[Dict[str, Any]]:
+        """The rows of the jobs that succeeded."""
+        return [r for r in self.rows if r["status"] == "ok"]
+
+    @property
+    def failed(self) -> List[Dict[str, Any]]:
+        """The rows of the jobs that failed."""
+        return [r for r in self.rows if r["status"] != "ok"]
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __iter__(self) -> Iterator[Dict[str, Any]]:
+        return iter(self.rows)
+
+    def __getitem__(self, name: str) -> Dict[str, Any]:
+        """The row of the job called ``name``."""
+        for r in self.rows:
+            if r["job"] == name:
+                return r
+        raise KeyError(name)
+
+    def to_pandas(self) -> Any:
+        """The rows as a pandas DataFrame, one row per job in the jobs' order, the columns of
+        :data:`COLUMNS` (needs pandas)."""
+        try:
+            pd = importlib.import_module("pandas")  # (pandas ships no type information)
+        except ImportError as e:
+            raise ImportError(
+                "FleetResult.to_pandas() needs pandas, which is not installed: pip install pandas "
+                "(or pip install 'itaipu-calib[pandas]')"
+            ) from e
+        return pd.DataFrame(self.rows, columns=list(COLUMNS))
+
+    def __repr__(self) -> str:
+        failed = self.failed
+        text = f"FleetResult({len(self.rows)} jobs: {len(self.rows) - len(failed)} ok, {len(failed)} failed"
+        if failed:
+            shown = ", ".join(
+                f"{r['job']} ({r['error_type']}"
+                + (f" {r['error_kind']}" if r["error_kind"] else "")
+                + f" in {r['step']})"
+                for r in failed[:5]
+            )
+            text += ": " + shown + (", ..." if len(failed) > 5 else "")
+        return text + ")"
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _probe(dask_worker: Any) -> Tuple[str, int, int]:
+    """Run on every worker by ``client.run``: its host, cores and Dask threads."""
+    return socket.gethostname(), _cores(), int(dask_worker.state.nthreads)
+
+
+def _threads_by_host(client: Any) -> Dict[str, int]:
+    """The Rust threads per job on each host: the host's cores shared among the Dask worker
+    threads on it (at least 1)."""
+    cores: Dict[str, int] = {}
+    dask_threads: Dict[str, int] = {}
+    for host, n, nthreads in client.run(_probe).values():
+        cores[host] = n
+        dask_threads[host] = dask_threads.get(host, 0) + nthreads
+    return {h: max(1, cores[h] // max(1, dask_threads[h])) for h in cores}
+
+
+def _run_task(job: Job, threads: Optional[int], by_host: Dict[str, int]) -> Dict[str, Any]:
+    """The task a worker runs: :func:`run_job` with the threads of its host."""
+    if threads is None:
+        threads = by_host.get(socket.gethostname(), 1)
+    return run_job(job, threads=threads)
+
+
+def run_fleet(
+    jobs: Iterable[Job],
+    client: Any = None,
+    *,
+    threads_per_job: Optional[int] = None,
+    on_row: Optional[Callable[[Dict[str, Any]], None]] = None,
+) -> FleetResult:
+    """Runs every job and returns their rows, in the jobs' order.
+
+    With ``client`` (a ``dask.distributed.Client``) each job is one task; rows are gathered as
+    they complete, and a task that fails outside :func:`run_job` (a worker that died, a job
+    that cannot be unpickled, a cancelled task) becomes a failed row with ``step ==
+    "worker"``: it never stops the others. Without a client the jobs run one after another in
+    this process (the same rows).
+
+    ``threads_per_job``: the Rust worker threads of each job. Default: with a client, each
+    host's cores divided among the Dask worker threads on it (so that 2 workers of 1 thread on
+    2 cores run 1 thread each); without, all cores. The numbers do not depend on it.
+    ``on_row(row)`` is called as each job's row arrives (in completion order), e.g. to show
+    progress. KeyboardInterrupt cancels the jobs not yet finished.
+    """
+    jobs = list(jobs)
+    for j in jobs:
+        if not isinstance(j, Job):
+            raise TypeError(f"run_fleet takes Job objects (got {type(j).__name__})")
+    seen: Dict[str, int] = {}
+    for i, j in enumerate(jobs):
+        if j.name in seen:
+            raise ValueError(f"two jobs are called {j.name!r} (jobs {seen[j.name]} and {i})")
+        seen[j.name] = i
+    _check_int(threads_per_job, "threads_per_job", 1)
+
+    if client is None:
+        rows = []
+        for job in jobs:
+            row = run_job(job, threads=threads_per_job)
+            if on_row is not None:
+                on_row(row)
+            rows.append(row)
+        return FleetResult(rows)
+
+    from distributed import as_completed  # a client means distributed is installed
+
+    by_host = _threads_by_host(client) if threads_per_job is None else {}
+    token = uuid.uuid4().hex[:12]
+    futures = [
+        client.submit(_run_task, job, threads_per_job, by_host,
+                      key=f"itaipu-fleet-{token}-{i}-{job.name}", pure=False)
+        for i, job in enumerate(jobs)
+    ]
+    index = {f.key: i for i, f in enumerate(futures)}
+    slots: List[Optional[Dict[str, Any]]] = [None] * len(jobs)
+    try:
+        for fut in as_completed(futures):
+            i = index[fut.key]
+            try:
+                row = fut.result()
+                if not isinstance(row, dict):
+                    raise TypeError(f"the task returned {type(row).__name__}, not a row")
+            except (KeyboardInterrupt, SystemExit):
+                raise
+            except BaseException as e:  # CancelledError is not an Exception
+                row = _failed_row(jobs[i], e, "worker")
+            slots[i] = row
+            fut.release()
+            if on_row is not None:
+                on_row(row)
+    finally:
+        pending = [f for f in futures if not f.done()]
+        if pending:
+            client.cancel(pending)
+    return FleetResult([r for r in slots if r is not None])
+
+
+# -------------------------------------------------------------------------------------------
+# Job tables
+# -------------------------------------------------------------------------------------------
+
+_REQUIRED = ("name", "unit", "events")
+_OPTIONAL = ("held_out", "calib", "stages", "seed", "diagnose", "particles", "pso_iterations",
+             "lbfgs_iterations", "out")
+_NO = ("", "no", "false", "0", "n")
+_YES = ("yes", "true", "1", "y", "all")
+
+
+def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
+    """Reads a job table, a CSV file a utility keeps next to its data, into :class:`Job`\\ s.
+
+    Columns (a header line first; the order is free): ``name``, ``unit``, ``events`` (paths
+    separated by ``;``) are required; ``held_out`` (paths separated by ``;``), ``calib``,
+    ``stages`` (e.g. ``gen+avr`` or ``all``; default all), ``seed``, ``diagnose`` (empty or
+    ``no``: no diagnosis; ``yes``: the whole catalog; or cause ids separated by ``;``),
+    ``particles``, ``pso_iterations``, ``lbfgs_iterations`` and ``out`` (a folder for the job's
+    files) are optional; an empty cell is the default. Paths are relative to the table's
+    folder. Blank lines and lines starting with ``#`` are skipped. ``overwrite`` is given to
+    every job.
+
+    A bad table raises ``ValueError`` naming the file, the line and the column (an unknown
+    column, a missing one, a bad number, an unknown stage or cause, two jobs with one name).
+    Files are not opened here: a missing unit file fails that job only, when it runs.
+    """
+    path = Path(path)
+    base = path.resolve().parent
+
+    def fail(line: int, col: Optional[str], what: str) -> ValueError:
+        where = f"{path}, line {line}" + (f", column {col}" if col else "")
+        return ValueError(f"{where}: {what}")
+
+    def resolve(p: str) -> str:
+        q = Path(p).expanduser()
+        return str(q if q.is_absolute() else base / q)
+
+    known_causes: Optional[List[str]] = None
+    jobs: List[Job] = []
+    names: Dict[str, int] = {}
+    header: Optional[List[str]] = None
+    with open(path, newline="", encoding="utf-8-sig") as f:
+        reader = csv.reader(f)
+        last = 0
+        for cells in reader:
+            line, last = last + 1, reader.line_num
+            cells = [c.strip() for c in cells]
+            if not any(cells) or cells[0].startswith("#"):
+                continue
+            if header is None:
+                header = [c.lower() for c in cells]
+                for c in header:
+                    if c not in _REQUIRED + _OPTIONAL:
+                        raise fail(line, c or "(empty)", "unknown column (columns: "
+                                   + ", ".join(_REQUIRED + _OPTIONAL) + ")")
+                    if header.count(c) > 1:
+                        raise fail(line, c, "the column appears twice")
+                for c in _REQUIRED:
+                    if c not in header:
+                        raise fail(line, c, "missing column (required: name, unit, events)")
+                continue
+            if len(cells) != len(header):
+                raise fail(line, None, f"{len(cells)} cells, the header has {len(header)}")
+            row = dict(zip(header, cells))
+
+            def integer(col: str, minimum: int) -> Optional[int]:
+                text = row.get(col, "")
+                if not text:
+                    return None
+                try:
+                    n = int(text)
+                except ValueError:
+                    raise fail(line, col, f"not an integer: {text!r}") from None
+                if n < minimum:
+                    raise fail(line, col, f"must be at least {minimum} (got {n})")
+                return n
+
+            def listed(col: str) -> List[str]:
+                return [p.strip() for p in row.get(col, "").split(";") if p.strip()]
+
+            name = row["name"]
+            if not name:
+                raise fail(line, "name", "empty")
+            if name in names:
+                raise fail(line, "name", f"{name!r} is already the name of line {names[name]}")
+            names[name] = line
+            if not row["unit"]:
+                raise fail(line, "unit", "empty")
+            events = listed("events")
+            if not events:
+                raise fail(line, "events", "no event (paths separated by ';')")
+            stages = _names(row.get("stages", ""), "stages") or ("all",)
+            bad = [s for s in stages if s != "all" and s not in _STAGES]
+            if bad:
+                raise fail(line, "stages", f"unknown stage {bad[0]!r} (gen, avr, pss, tg or all)")
+            diag_text = row.get("diagnose", "")
+            causes: Optional[List[str]] = None
+            if diag_text.lower() in _NO:
+                diagnose = False
+            elif diag_text.lower() in _YES:
+                diagnose = True
+            else:
+                diagnose = True
+                causes = [c.strip() for c in diag_text.replace(",", ";").split(";") if c.strip()]
+                if known_causes is None:
+                    known_causes = [c["id"] for c in _core.causes()]
+                for c in causes:
+                    if c not in known_causes:
+                        raise fail(line, "diagnose", f"unknown cause {c!r} (yes, no, or causes "
+                                   "separated by ';': " + ", ".join(known_causes) + ")")
+            spec: Dict[str, Any] = dict(
+                name=name,
+                unit=resolve(row["unit"]),
+                events=tuple(resolve(e) for e in events),
+                held_out=tuple(resolve(e) for e in listed("held_out")),
+                calib=resolve(row["calib"]) if row.get("calib") else None,
+                stages=",".join(stages),
+                seed=integer("seed", 0),
+                particles=integer("particles", 2),
+                pso_iterations=integer("pso_iterations", 0),
+                lbfgs_iterations=integer("lbfgs_iterations", 0),
+                diagnose=diagnose,
+                causes=tuple(causes) if causes else None,
+                out=resolve(row["out"]) if row.get("out") else None,
+                overwrite=overwrite,
+            )
+            try:
+                jobs.append(Job(**spec))
+            except (TypeError, ValueError) as e:  # pragma: no cover - every cell checked above
+                raise fail(line, None, str(e)) from None
+    if header is None:
+        raise ValueError(f"{path}: no header line (columns name, unit, events, ...)")
+    return jobs
