@@ -3,7 +3,8 @@
 //! outputs, over the integrators' states, the torn states and the references.
 
 use super::prim::{slot, Kind, Node, Sig};
-use super::{DiagramDef, Scratch, Unknown};
+use super::sim::Scratch;
+use super::{DiagramDef, Unknown};
 use crate::block::ModelError;
 
 /// Evaluates the diagram in steady state with the unknowns `z`: sets every state in `x`, the

@@ -114,6 +114,38 @@ pub enum Arity {
     AtLeast(usize),
 }
 
+impl Arity {
+    /// Whether a block of this arity may take `n` inputs.
+    pub fn accepts(self, n: usize) -> bool {
+        match self {
+            Arity::None => n == 0,
+            Arity::One => n == 1,
+            Arity::OneOrTime => n <= 1,
+            Arity::Exactly(k) => n == k,
+            Arity::AtLeast(k) => n >= k,
+        }
+    }
+
+    /// The inputs taken, in words for messages (`"one input"`) and as the `in` field is
+    /// written, for the library listing (`in = "u"`).
+    pub fn describe(self) -> (String, String) {
+        let (words, field) = match self {
+            Arity::None => ("no input".to_string(), "none".to_string()),
+            Arity::One => ("one input".to_string(), "in = \"u\"".to_string()),
+            Arity::OneOrTime => (
+                "one input or none (the time)".to_string(),
+                "in = \"u\" or none (time)".to_string(),
+            ),
+            Arity::Exactly(n) => (format!("exactly {n} inputs"), format!("in = [{n} signals]")),
+            Arity::AtLeast(n) => (
+                format!("at least {n} input(s)"),
+                format!("in = [{n} or more signals]"),
+            ),
+        };
+        (words, field)
+    }
+}
+
 /// Primitive kind.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {

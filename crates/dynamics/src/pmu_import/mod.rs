@@ -31,6 +31,10 @@
 //! across a gap), or with `rate_hz` is resampled to a uniform grid: linear interpolation of |V|,
 //! the unwrapped angle, P, Q and f, and when the new rate is lower, the mean of the samples
 //! within half an output interval (a boxcar against aliasing).
+//!
+//! Layout: this file holds the options, the report, the conversion of assigned samples into the
+//! event ([`import`], [`write_event_folder`]) and the resampling; `names.rs` recognises and
+//! assigns the columns and channels by name; `time.rs` parses and formats time stamps.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -39,6 +43,14 @@ use crate::event::{format_g17, unwrap_angles, Event, EventError, Record};
 
 pub mod c37;
 pub mod comtrade;
+mod names;
+mod time;
+
+pub(crate) use names::assign;
+use names::{Assignment, ChanUnit};
+use time::shift_iso;
+pub(crate) use time::{days_from_civil, parse_hms};
+pub use time::{format_iso, parse_iso};
 
 /// How to turn phasors into the event's per-unit quantities.
 #[derive(Debug, Clone, PartialEq)]
@@ -208,274 +220,8 @@ impl fmt::Display for ImportReport {
     }
 }
 
-/// Which quantity a column or channel holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Role {
-    V(Part),
-    I(Part),
-    Freq,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Part {
-    Mag,
-    Ang,
-    Re,
-    Im,
-}
-
-/// Unit of a column, as a factor to a base: kV (voltages), kA (currents), rad, Hz, or pu.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) enum ChanUnit {
-    /// Multiply by this to get kV, kA, rad or Hz.
-    Physical(f64),
-    Pu,
-}
-
-/// A recognised channel: role, rank (0 positive sequence, 1 phase A), unit if stated.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Recognised {
-    pub role: Role,
-    pub rank: u8,
-    pub unit: Option<ChanUnit>,
-}
-
-fn unit_word(w: &str) -> Option<(&'static str, ChanUnit)> {
-    Some(match w {
-        "kv" => ("kV", ChanUnit::Physical(1.0)),
-        "v" | "volt" | "volts" => ("V", ChanUnit::Physical(1e-3)),
-        "a" | "amp" | "amps" => ("A", ChanUnit::Physical(1e-3)),
-        "ka" => ("kA", ChanUnit::Physical(1.0)),
-        "pu" | "p.u." => ("pu", ChanUnit::Pu),
-        "deg" | "degree" | "degrees" => ("deg", ChanUnit::Physical(std::f64::consts::PI / 180.0)),
-        "rad" | "radian" | "radians" => ("rad", ChanUnit::Physical(1.0)),
-        "hz" => ("Hz", ChanUnit::Physical(1.0)),
-        _ => return None,
-    })
-}
-
-/// Splits a name into lower-case words; a bracketed or parenthesised tail is the unit.
-fn words(name: &str) -> (Vec<String>, Option<String>) {
-    let mut base = name.trim().to_ascii_lowercase();
-    let mut unit = None;
-    for (o, c) in [('[', ']'), ('(', ')')] {
-        if let (Some(a), true) = (base.find(o), base.ends_with(c)) {
-            unit = Some(base[a + 1..base.len() - 1].trim().to_string());
-            base = base[..a].to_string();
-        }
-    }
-    let w: Vec<String> = base
-        .split(|ch: char| ch == '_' || ch == '.' || ch == '-' || ch.is_whitespace())
-        .filter(|s| !s.is_empty())
-        .map(|s| s.to_string())
-        .collect();
-    (w, unit)
-}
-
-/// Recognises a column or channel name; `Ok(None)` for a name that is none of the roles.
-/// A unit word that does not fit the role is an error message.
-pub(crate) fn recognise(name: &str) -> Result<Option<Recognised>, String> {
-    let (mut w, bracket) = words(name);
-    let mut unit_text = bracket;
-    if unit_text.is_none() && w.len() >= 2 && unit_word(w.last().expect("len")).is_some() {
-        unit_text = w.pop();
-    }
-    let unit = match &unit_text {
-        None => None,
-        Some(u) => Some(
-            unit_word(u)
-                .ok_or_else(|| format!("unknown unit '{u}' (kV, V, A, kA, pu, deg, rad, Hz)"))?,
-        ),
-    };
-    let role_rank = match w.as_slice() {
-        [f] if f == "freq" || f == "frequency" || f == "f" => Some((Role::Freq, 0)),
-        [k, p] => {
-            let part = match p.as_str() {
-                "mag" | "magnitude" | "abs" => Some(Part::Mag),
-                "ang" | "angle" | "phase" => Some(Part::Ang),
-                "re" | "real" => Some(Part::Re),
-                "im" | "imag" => Some(Part::Im),
-                _ => None,
-            };
-            match (k.as_str(), part) {
-                ("v" | "v1" | "vpos" | "u" | "u1", Some(p)) => Some((Role::V(p), 0)),
-                ("va" | "ua", Some(p)) => Some((Role::V(p), 1)),
-                ("i" | "i1" | "ipos", Some(p)) => Some((Role::I(p), 0)),
-                ("ia", Some(p)) => Some((Role::I(p), 1)),
-                _ => None,
-            }
-        }
-        _ => None,
-    };
-    let Some((role, rank)) = role_rank else {
-        return Ok(None);
-    };
-    if let Some((label, u)) = unit {
-        let fits = match role {
-            Role::V(Part::Ang) | Role::I(Part::Ang) => matches!(label, "deg" | "rad"),
-            Role::V(_) => matches!(label, "kV" | "V" | "pu"),
-            Role::I(_) => matches!(label, "kA" | "A" | "pu"),
-            Role::Freq => label == "Hz",
-        };
-        if !fits {
-            return Err(format!("unit {label} does not fit this quantity"));
-        }
-        return Ok(Some(Recognised {
-            role,
-            rank,
-            unit: Some(u),
-        }));
-    }
-    Ok(Some(Recognised {
-        role,
-        rank,
-        unit: None,
-    }))
-}
-
-/// The name a column or channel is read as: its `map` entry's name, or its own.
-pub(crate) fn mapped<'a>(map: &'a [(String, String)], name: &'a str) -> &'a str {
-    map.iter()
-        .find(|(_, col)| col.trim().eq_ignore_ascii_case(name.trim()))
-        .map(|(n, _)| n.as_str())
-        .unwrap_or(name)
-}
-
-/// A channel that could fill a role: (index, rank, unit, name).
-type Candidate = (usize, u8, Option<ChanUnit>, String);
 /// A usable sample: (t, |V| pu, angle rad, P pu, Q pu, f Hz, location).
 type Kept = (f64, f64, f64, f64, f64, Option<f64>, String);
-
-/// Which source channel feeds each part of the phasors.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct Assignment {
-    /// (index, unit, name) per slot: V mag/ang/re/im, I mag/ang/re/im, freq.
-    pub slots: [Option<(usize, ChanUnit, String)>; 9],
-    pub phase_a: bool,
-}
-
-fn slot(role: Role) -> usize {
-    let p = |p: Part| match p {
-        Part::Mag => 0,
-        Part::Ang => 1,
-        Part::Re => 2,
-        Part::Im => 3,
-    };
-    match role {
-        Role::V(x) => p(x),
-        Role::I(x) => 4 + p(x),
-        Role::Freq => 8,
-    }
-}
-
-const SLOT_NAMES: [&str; 9] = [
-    "v_mag", "v_ang", "v_re", "v_im", "i_mag", "i_ang", "i_re", "i_im", "freq",
-];
-
-/// Assigns named channels (`(index, name, unit from the source if any)`) to roles. The best
-/// rank wins; two channels of the same rank for one role are an error; the rest are listed in
-/// `ignored`. Errors are messages for the caller to locate.
-pub(crate) fn assign(
-    names: &[(usize, String, Option<String>)],
-    map: &[(String, String)],
-    ignored: &mut Vec<String>,
-) -> Result<Assignment, String> {
-    for (n, col) in map {
-        if !names
-            .iter()
-            .any(|(_, name, _)| name.trim().eq_ignore_ascii_case(col.trim()))
-        {
-            return Err(format!("map {n}={col}: no column or channel named '{col}'"));
-        }
-    }
-    let mut best: [Vec<Candidate>; 9] = Default::default();
-    for (idx, name, src_unit) in names {
-        let as_name = mapped(map, name);
-        let rec = recognise(as_name).map_err(|m| format!("'{name}': {m}"))?;
-        let Some(mut r) = rec else {
-            ignored.push(name.clone());
-            continue;
-        };
-        if r.unit.is_none() {
-            if let Some(u) = src_unit {
-                let u = u.trim().to_ascii_lowercase();
-                if !u.is_empty() {
-                    let full = format!("{}_{}", SLOT_NAMES[slot(r.role)], u);
-                    r.unit = recognise(&full)
-                        .map_err(|m| format!("'{name}' [{u}]: {m}"))?
-                        .and_then(|x| x.unit);
-                }
-            }
-        }
-        best[slot(r.role)].push((*idx, r.rank, r.unit, name.clone()));
-    }
-    let mut a = Assignment::default();
-    for (s, cands) in best.iter().enumerate() {
-        let Some(top) = cands.iter().map(|c| c.1).min() else {
-            continue;
-        };
-        let chosen: Vec<_> = cands.iter().filter(|c| c.1 == top).collect();
-        if chosen.len() > 1 {
-            return Err(format!(
-                "{} columns could be {}: {}; rename one with map",
-                chosen.len(),
-                SLOT_NAMES[s],
-                chosen
-                    .iter()
-                    .map(|c| c.3.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ));
-        }
-        for c in cands.iter().filter(|c| c.1 != top) {
-            ignored.push(c.3.clone());
-        }
-        let c = chosen[0];
-        let unit = match (c.2, s) {
-            (Some(u), _) => u,
-            (None, 8) => ChanUnit::Physical(1.0), // frequency in Hz
-            (None, _) => {
-                return Err(format!(
-                    "'{}' ({}): no unit; say it in the name ({}_kv, {} [deg], …) or the channel's unit field",
-                    c.3, SLOT_NAMES[s], SLOT_NAMES[s], SLOT_NAMES[s]
-                ))
-            }
-        };
-        if top == 1 && s != 8 {
-            a.phase_a = true;
-        }
-        a.slots[s] = Some((c.0, unit, c.3.clone()));
-    }
-    for (k, what) in [(0usize, "voltage"), (4, "current")] {
-        let polar = a.slots[k].is_some() && a.slots[k + 1].is_some();
-        let rect = a.slots[k + 2].is_some() && a.slots[k + 3].is_some();
-        if polar == rect {
-            let have: Vec<&str> = (k..k + 4)
-                .filter(|&j| a.slots[j].is_some())
-                .map(|j| SLOT_NAMES[j])
-                .collect();
-            return Err(format!(
-                "the {what} phasor needs magnitude and angle or real and imaginary parts, exactly one form (found: {})",
-                if have.is_empty() { "none".to_string() } else { have.join(", ") }
-            ));
-        }
-    }
-    Ok(a)
-}
-
-impl Assignment {
-    /// Human-readable list of the channels used.
-    pub fn describe(&self) -> Vec<String> {
-        self.slots
-            .iter()
-            .enumerate()
-            .filter_map(|(s, x)| {
-                x.as_ref()
-                    .map(|(_, _, n)| format!("{} <- {n}", SLOT_NAMES[s]))
-            })
-            .collect()
-    }
-}
 
 /// One sample in source units (as assigned), or why it is bad.
 pub(crate) struct RawSample {
@@ -740,15 +486,6 @@ pub(crate) fn finish(
     Ok((event, report))
 }
 
-/// The start stamp moved on by `dt` seconds when the first samples were dropped (only noted).
-fn shift_iso(s: &str, dt: f64) -> String {
-    if dt == 0.0 {
-        s.to_string()
-    } else {
-        format!("{s} + {dt:.6} s")
-    }
-}
-
 /// Resamples to a uniform grid from the first sample (see the module documentation).
 fn resample(r: &Record, rate: f64, dt_src: f64) -> Record {
     let h = 1.0 / rate;
@@ -868,127 +605,4 @@ pub fn write_event_folder(
     let j = serde_json::to_string_pretty(report).expect("a report serialises") + "\n";
     std::fs::write(&json_path, j).map_err(|e| io(&json_path, e))?;
     Ok(vec![toml_path, csv, json_path])
-}
-
-/// Days since 1970-01-01 of a civil date (proleptic Gregorian).
-pub(crate) fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
-    let y = if m <= 2 { y - 1 } else { y };
-    let era = if y >= 0 { y } else { y - 399 } / 400;
-    let yoe = y - era * 400;
-    let mp = (m + 9) % 12;
-    let doy = (153 * mp + 2) / 5 + d - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146097 + doe - 719468
-}
-
-/// Parses `hh:mm:ss[.frac]` into (seconds of day, fraction).
-pub(crate) fn parse_hms(s: &str) -> Option<(i64, f64)> {
-    let mut it = s.split(':');
-    let h: i64 = it.next()?.trim().parse().ok()?;
-    let m: i64 = it.next()?.trim().parse().ok()?;
-    let sec = it.next()?.trim();
-    if it.next().is_some() || !(0..24).contains(&h) || !(0..60).contains(&m) {
-        return None;
-    }
-    let (whole, frac) = match sec.split_once('.') {
-        Some((w, f)) => (w, f),
-        None => (sec, ""),
-    };
-    let w: i64 = whole.parse().ok()?;
-    if !(0..=60).contains(&w) || !frac.chars().all(|c| c.is_ascii_digit()) {
-        return None;
-    }
-    let f = if frac.is_empty() {
-        0.0
-    } else {
-        format!("0.{frac}").parse().ok()?
-    };
-    Some((h * 3600 + m * 60 + w, f))
-}
-
-/// Parses an ISO 8601 time stamp `YYYY-MM-DD[T ]hh:mm:ss[.frac][Z|±hh:mm]` (a `/` date
-/// separator is accepted) into (seconds since the Unix epoch, UTC; fraction).
-pub fn parse_iso(s: &str) -> Option<(i64, f64)> {
-    let s = s.trim();
-    let (date, rest) = s.split_once(['T', ' '])?;
-    let mut d = date.split(['-', '/']);
-    let y: i64 = d.next()?.parse().ok()?;
-    let mo: i64 = d.next()?.parse().ok()?;
-    let da: i64 = d.next()?.parse().ok()?;
-    if d.next().is_some() || !(1..=12).contains(&mo) || !(1..=31).contains(&da) {
-        return None;
-    }
-    let rest = rest.trim();
-    let (time, offset) = if let Some(t) = rest.strip_suffix(['Z', 'z']) {
-        (t, 0)
-    } else if let Some(k) = rest.rfind(['+', '-']) {
-        let (t, o) = rest.split_at(k);
-        let sign = if o.starts_with('-') { -1 } else { 1 };
-        let (oh, om) = o[1..].split_once(':').unwrap_or((&o[1..], "0"));
-        (
-            t,
-            sign * (oh.parse::<i64>().ok()? * 3600 + om.parse::<i64>().ok()? * 60),
-        )
-    } else {
-        (rest, 0)
-    };
-    let (sod, frac) = parse_hms(time)?;
-    Some((days_from_civil(y, mo, da) * 86400 + sod - offset, frac))
-}
-
-/// Formats epoch seconds as ISO 8601 UTC with microseconds.
-pub fn format_iso(sec: i64, frac: f64) -> String {
-    let days = sec.div_euclid(86400);
-    let sod = sec.rem_euclid(86400);
-    // civil_from_days
-    let z = days + 719468;
-    let era = if z >= 0 { z } else { z - 146096 } / 146097;
-    let doe = z - era * 146097;
-    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + if m <= 2 { 1 } else { 0 };
-    let us = (frac * 1e6).round() as i64;
-    let (sod, us) = if us >= 1_000_000 {
-        (sod + 1, us - 1_000_000)
-    } else {
-        (sod, us)
-    };
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{us:06}Z",
-        sod / 3600,
-        sod % 3600 / 60,
-        sod % 60
-    )
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn names_are_recognised_with_their_units() {
-        let r = recognise("V1.MAG [kV]").unwrap().unwrap();
-        assert_eq!(
-            (r.role, r.rank, r.unit),
-            (Role::V(Part::Mag), 0, Some(ChanUnit::Physical(1.0)))
-        );
-        let r = recognise("ia_ang_deg").unwrap().unwrap();
-        assert_eq!((r.role, r.rank), (Role::I(Part::Ang), 1));
-        assert_eq!(recognise("Frequency").unwrap().unwrap().role, Role::Freq);
-        assert!(recognise("vb_mag_kv").unwrap().is_none());
-        assert!(recognise("v_mag_ka").is_err());
-    }
-
-    #[test]
-    fn iso_time_stamps_round_trip_and_match_epoch_seconds() {
-        assert_eq!(parse_iso("1970-01-01T00:00:00Z"), Some((0, 0.0)));
-        let (s, f) = parse_iso("2021-03-04 05:06:07.25+01:00").unwrap();
-        assert_eq!(s, 1614834367 - 3600); // 04:06:07 UTC
-        assert_eq!(f, 0.25);
-        assert_eq!(format_iso(s, f), "2021-03-04T04:06:07.250000Z");
-        assert_eq!(parse_iso("2021-13-04T00:00:00"), None);
-    }
 }

@@ -1,0 +1,464 @@
+//! Measured events: a PMU recording of a generating unit's terminal quantities, read from disk.
+//!
+//! An *event* is a small TOML file that points to a CSV recording and says how to use it:
+//!
+//! ```toml
+//! name = "itaipu-60hz-fault"
+//! description = "free text"            # optional, default ""
+//! csv = "itaipu_pmu_60sps.csv"         # path relative to the TOML file's folder (or absolute)
+//! system_mva = 1000.0                  # MVA base of p_pu and q_pu in the CSV
+//! nominal_hz = 60.0                    # nominal frequency of the PMU reference frame
+//! [playback]   # optional: trim the record used for playback; default = whole record
+//! start_s = 0.0
+//! end_s = 4.65
+//! [init]       # optional: pre-event window for the operating point; default see below
+//! start_s = 0.0
+//! end_s = 0.95
+//! [fit]        # optional: fit window; default = playback window
+//! start_s = 0.0
+//! end_s = 4.65
+//! ```
+//!
+//! `name`, `csv`, `system_mva` and `nominal_hz` are required; `system_mva` and `nominal_hz` must
+//! be finite and > 0 (any positive nominal frequency is accepted, no warning for values other
+//! than 50/60 Hz). Integers are accepted where floats are expected. Every key of a window table
+//! is optional on its own: a missing `start_s`/`end_s` takes the default for that bound.
+//! Unknown keys anywhere are errors naming the key (and its line).
+//!
+//! # Windows
+//!
+//! A [`Window`] is the closed time interval `[start_s, end_s]` in the time axis of the CSV
+//! (seconds). A sample belongs to a window if its time lies inside, with a tolerance of
+//! [`TIME_TOL_S`] (1 µs) on both ends so that `end_s = 4.65` matches a sample stamped
+//! `4.6499999999`.
+//!
+//! * `playback` must lie inside the record and hold at least [`MIN_SAMPLES`] samples.
+//!   Default: the whole record.
+//! * `init` must lie inside the playback window and hold at least [`MIN_SAMPLES`] samples.
+//!   Default: starts at the playback start and lasts [`DEFAULT_INIT_S`] (0.5 s); if those
+//!   0.5 s hold fewer than [`DEFAULT_INIT_MIN_SAMPLES`] (10) samples (slow recordings) it is
+//!   extended to the first 10 samples. It never extends past the playback window. If only
+//!   `init.start_s` is given, the same rule is applied from that start.
+//! * `fit` must lie inside the playback window and hold at least [`MIN_SAMPLES`] samples.
+//!   Default: the playback window.
+//!
+//! A window with `end_s <= start_s` is an error naming `<window>.end_s`.
+//!
+//! # CSV format
+//!
+//! A header line followed by one sample per line. Columns (order free, surrounding whitespace in
+//! headers and fields is trimmed):
+//!
+//! | column      | required | meaning                                                            |
+//! |-------------|----------|--------------------------------------------------------------------|
+//! | `time_s`    | yes      | time, s, strictly increasing                                       |
+//! | `v_re_pu`   | (a)      | real part of the terminal-voltage phasor, pu of rated voltage      |
+//! | `v_im_pu`   | (a)      | imaginary part of the phasor, pu                                   |
+//! | `v_pu`      | (b)      | magnitude of the phasor, pu (≥ 0)                                  |
+//! | `angle_deg` | (b)      | angle of the phasor, degrees (wrapped or not)                      |
+//! | `p_pu`      | yes      | active power, pu on `system_mva`, generator convention (out > 0)   |
+//! | `q_pu`      | yes      | reactive power, pu on `system_mva`, generator convention (out > 0) |
+//! | `freq_hz`   | no       | measured frequency, Hz (absolute, not a deviation)                 |
+//! | `efd_pu`    | no       | field voltage, pu                                                  |
+//! | `ifd_pu`    | no       | field current, pu                                                  |
+//!
+//! Exactly one voltage form must be present: (a) `v_re_pu` + `v_im_pu` or (b) `v_pu` +
+//! `angle_deg`. Any other column, a duplicated column or a missing required column is an error.
+//! Every field must be a finite number. Line numbers in messages are 1-based with the header on
+//! line 1.
+//!
+//! # Unit sanity checks
+//!
+//! To catch data given in the wrong units, a record is rejected if the median |V| lies outside
+//! `[0.5, 1.5]` pu (kV or volts instead of per unit), if any |P| or |Q| reaches 20 pu (MW/Mvar
+//! instead of per unit on `system_mva`), or if a `freq_hz` value lies more than 10 % away from
+//! `nominal_hz` (frequency given as a deviation or in per unit). An angle column in radians
+//! instead of degrees cannot be detected reliably and is not checked. The checks look at the
+//! whole file, before the playback window trims it.
+//!
+//! # Angle convention
+//!
+//! The phasor is referred to a rotating frame at the *nominal* frequency, as PMU phasors are, so
+//! its angle drifts at `2π (f − f_nominal)` rad/s when the grid frequency `f` is off nominal (the
+//! Itaipu record drifts by about −320° in 3.5 s). The angle is therefore *unwrapped*: jumps of
+//! more than π between consecutive samples are taken as 2π wraps and removed, which gives a
+//! continuous angle as long as the frequency error stays below half the sample rate. After
+//! unwrapping, the whole angle series is shifted by a multiple of 2π so that the first sample
+//! of the [`Record`] lies in `[-π, π]`.
+//!
+//! # Errors
+//!
+//! All failures are reported as [`EventError`], whose message always names the file (the path
+//! as given by the caller), and the line, column or TOML field where that applies. Events built
+//! in memory ([`Event::from_record`]) are named `<in-memory event 'NAME'>` and locate bad data by
+//! 0-based sample index. [`EventError::kind`] gives a short stable identifier for matching.
+//!
+//! # Layout
+//!
+//! * this file: the [`Event`], [`Record`] and [`OperatingPoint`] types, the format constants and
+//!   building an event from memory ([`Event::from_record`]);
+//! * `error.rs`: [`EventError`] and [`Location`];
+//! * `spec.rs`: the event TOML file and its parsing ([`Event::from_toml_file`]);
+//! * `csv.rs`: reading ([`read_csv`]) and writing ([`Event::write_csv`]) the measurement CSV, and
+//!   the validation shared by CSV and in-memory records;
+//! * `window.rs`: [`Window`] and the resolution of the playback, init and fit windows.
+
+use std::ops::Range;
+use std::path::PathBuf;
+
+mod csv;
+mod error;
+mod spec;
+mod window;
+
+pub use self::csv::{format_g17, read_csv};
+pub use error::{EventError, Location};
+pub use window::Window;
+
+use self::csv::{check_record_shape, validate_record, ColumnLabels};
+use spec::{check_bases, WindowSpec};
+use window::assemble;
+
+/// Tolerance, in seconds, when deciding whether a sample time lies inside a window or a window
+/// bound lies inside the record.
+pub const TIME_TOL_S: f64 = 1e-6;
+
+/// Minimum number of samples in the record, the playback window, the init window and the fit
+/// window.
+pub const MIN_SAMPLES: usize = 3;
+
+/// Default length of the init window, s.
+pub const DEFAULT_INIT_S: f64 = 0.5;
+
+/// The default init window is extended to hold at least this many samples.
+pub const DEFAULT_INIT_MIN_SAMPLES: usize = 10;
+
+/// Accepted range of the median |V|, pu.
+pub const V_MEDIAN_RANGE_PU: (f64, f64) = (0.5, 1.5);
+
+/// |P| and |Q| must stay below this value, pu on the system base.
+pub const PQ_LIMIT_PU: f64 = 20.0;
+
+/// `freq_hz` values must lie within this fraction of `nominal_hz` around it.
+pub const FREQ_TOLERANCE: f64 = 0.10;
+
+/// Columns accepted in an event CSV, in canonical order.
+pub const ACCEPTED_COLUMNS: [&str; 10] = [
+    "time_s",
+    "v_re_pu",
+    "v_im_pu",
+    "v_pu",
+    "angle_deg",
+    "p_pu",
+    "q_pu",
+    "freq_hz",
+    "efd_pu",
+    "ifd_pu",
+];
+
+const TAU: f64 = std::f64::consts::TAU;
+
+// ---------------------------------------------------------------------------------------------
+// Data types
+// ---------------------------------------------------------------------------------------------
+
+/// Measured samples, one entry per sample in every vector (all of equal length).
+///
+/// In an [`Event`] this holds the samples inside the playback window only.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Record {
+    /// Time, s, strictly increasing.
+    pub time_s: Vec<f64>,
+    /// Terminal-voltage magnitude |V|, pu of rated terminal voltage.
+    pub v_mag_pu: Vec<f64>,
+    /// Terminal-voltage angle, rad, in the nominal-frequency PMU frame, unwrapped (continuous);
+    /// the first sample lies in `[-π, π]`.
+    pub v_ang_rad: Vec<f64>,
+    /// Active power, pu on the system base, generator convention (delivered > 0).
+    pub p_pu: Vec<f64>,
+    /// Reactive power, pu on the system base, generator convention (delivered > 0).
+    pub q_pu: Vec<f64>,
+    /// Measured frequency, Hz, if recorded.
+    pub freq_hz: Option<Vec<f64>>,
+    /// Field voltage, pu, if recorded.
+    pub efd_pu: Option<Vec<f64>>,
+    /// Field current, pu, if recorded.
+    pub ifd_pu: Option<Vec<f64>>,
+}
+
+impl Record {
+    /// Builds a record from rectangular phasor components (`v_re_pu`, `v_im_pu`, pu) and P, Q
+    /// (pu, system base). Magnitude and angle are computed; the angle is unwrapped. Optional
+    /// channels are left empty. No validation is done here ([`Event::from_record`] validates).
+    pub fn from_rectangular(
+        time_s: Vec<f64>,
+        v_re_pu: &[f64],
+        v_im_pu: &[f64],
+        p_pu: Vec<f64>,
+        q_pu: Vec<f64>,
+    ) -> Record {
+        let v_mag_pu = v_re_pu
+            .iter()
+            .zip(v_im_pu)
+            .map(|(r, i)| r.hypot(*i))
+            .collect();
+        let raw: Vec<f64> = v_re_pu
+            .iter()
+            .zip(v_im_pu)
+            .map(|(r, i)| i.atan2(*r))
+            .collect();
+        Record {
+            time_s,
+            v_mag_pu,
+            v_ang_rad: unwrap_angles(&raw),
+            p_pu,
+            q_pu,
+            freq_hz: None,
+            efd_pu: None,
+            ifd_pu: None,
+        }
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.time_s.len()
+    }
+
+    /// Whether the record has no samples.
+    pub fn is_empty(&self) -> bool {
+        self.time_s.is_empty()
+    }
+
+    /// Time of the first sample, s (NaN if empty).
+    pub fn start_s(&self) -> f64 {
+        self.time_s.first().copied().unwrap_or(f64::NAN)
+    }
+
+    /// Time of the last sample, s (NaN if empty).
+    pub fn end_s(&self) -> f64 {
+        self.time_s.last().copied().unwrap_or(f64::NAN)
+    }
+
+    /// The window from the first to the last sample.
+    pub fn span(&self) -> Window {
+        Window::new(self.start_s(), self.end_s())
+    }
+
+    /// Real part of the voltage phasor, pu: `|V| cos(angle)`.
+    pub fn v_re_pu(&self) -> Vec<f64> {
+        self.v_mag_pu
+            .iter()
+            .zip(&self.v_ang_rad)
+            .map(|(m, a)| m * a.cos())
+            .collect()
+    }
+
+    /// Imaginary part of the voltage phasor, pu: `|V| sin(angle)`.
+    pub fn v_im_pu(&self) -> Vec<f64> {
+        self.v_mag_pu
+            .iter()
+            .zip(&self.v_ang_rad)
+            .map(|(m, a)| m * a.sin())
+            .collect()
+    }
+
+    /// Indices of the samples inside `w` (with tolerance [`TIME_TOL_S`]). Time must be sorted.
+    pub fn window_range(&self, w: &Window) -> Range<usize> {
+        let lo = self.time_s.partition_point(|&t| t < w.start_s - TIME_TOL_S);
+        let hi = self.time_s.partition_point(|&t| t <= w.end_s + TIME_TOL_S);
+        lo..hi.max(lo)
+    }
+
+    /// A copy of the samples in `range` (all channels).
+    pub fn slice(&self, range: Range<usize>) -> Record {
+        let s = |v: &Vec<f64>| v[range.clone()].to_vec();
+        Record {
+            time_s: s(&self.time_s),
+            v_mag_pu: s(&self.v_mag_pu),
+            v_ang_rad: s(&self.v_ang_rad),
+            p_pu: s(&self.p_pu),
+            q_pu: s(&self.q_pu),
+            freq_hz: self.freq_hz.as_ref().map(s),
+            efd_pu: self.efd_pu.as_ref().map(s),
+            ifd_pu: self.ifd_pu.as_ref().map(s),
+        }
+    }
+
+    /// Shifts the whole angle series by a multiple of 2π so that the first sample lies in
+    /// `[-π, π]`.
+    fn normalize_angle_start(&mut self) {
+        if let Some(&a0) = self.v_ang_rad.first() {
+            let k = (a0 / TAU).round();
+            if k != 0.0 {
+                let shift = k * TAU;
+                for a in &mut self.v_ang_rad {
+                    *a -= shift;
+                }
+            }
+        }
+    }
+}
+
+/// Removes 2π jumps from a sequence of angles (rad): every step between consecutive samples is
+/// brought into `[-π, π]` by adding a multiple of 2π to all later samples. The first sample is
+/// kept as is. A sequence that is already continuous is returned unchanged (bit for bit).
+pub fn unwrap_angles(raw: &[f64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(raw.len());
+    let mut k = 0.0_f64; // number of turns added so far
+    for (i, &a) in raw.iter().enumerate() {
+        if i > 0 {
+            let d = a - raw[i - 1];
+            k -= (d / TAU).round();
+        }
+        out.push(if k == 0.0 { a } else { a + k * TAU });
+    }
+    out
+}
+
+/// Operating point estimated from the init window, on the SYSTEM base.
+///
+/// It is the state the simulation should start from. Each quantity is an average over the whole
+/// init (pre-event) window rather than the value of a single sample, so that PMU noise and
+/// quantisation (P and Q of the Itaipu record move in steps of 1.4 MW) average out.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OperatingPoint {
+    /// Mean |V| over the init window, pu.
+    pub v_mag_pu: f64,
+    /// Voltage angle at `t0_s`, rad (nominal-frequency frame): the least-squares straight line
+    /// fitted to the unwrapped angle over the init window, evaluated at `t0_s`.
+    pub v_ang_rad: f64,
+    /// Mean P over the init window, pu system base, generator convention.
+    pub p_pu: f64,
+    /// Mean Q over the init window, pu system base, generator convention.
+    pub q_pu: f64,
+    /// Grid frequency, Hz: the mean of the `freq_hz` channel over the init window if the record
+    /// has one, otherwise `nominal_hz + slope / 2π` with the slope (rad/s) of the fitted line.
+    pub freq_hz: f64,
+    /// Time of the first playback sample, s: where the simulation starts.
+    pub t0_s: f64,
+    /// Number of samples the estimate is based on.
+    pub n_samples: usize,
+}
+
+/// A measured event: the playback record plus its bases and windows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Event {
+    /// Short identifier.
+    pub name: String,
+    /// Free text (empty if not given).
+    pub description: String,
+    /// The TOML file the event was read from (`None` for in-memory events).
+    pub toml_path: Option<PathBuf>,
+    /// The CSV file (resolved against the TOML file's folder; empty for in-memory events).
+    pub csv_path: PathBuf,
+    /// MVA base of `p_pu` and `q_pu`.
+    pub system_mva: f64,
+    /// Nominal frequency of the grid and of the PMU reference frame, Hz.
+    pub nominal_hz: f64,
+    /// Playback window; `record` holds exactly the samples inside it.
+    pub playback: Window,
+    /// Pre-event window used by [`Event::operating_point`].
+    pub init: Window,
+    /// Window over which a fit should compare simulation and measurement.
+    pub fit: Window,
+    /// Samples inside the playback window.
+    pub record: Record,
+}
+
+impl Event {
+    /// Builds an event from in-memory arrays (used by the Python API and for synthetic events)
+    /// and validates it the same way as a file: equal vector lengths, finite values,
+    /// non-negative |V|, strictly increasing time, at least [`MIN_SAMPLES`] samples, unit sanity
+    /// checks, bases, windows. The whole record is the playback window. `init` and `fit` default
+    /// as described in the module documentation. The angle is unwrapped (a no-op for an already
+    /// continuous angle) and shifted by a multiple of 2π so that it starts in `[-π, π]`.
+    ///
+    /// Errors name the source `<in-memory event 'NAME'>` and locate samples by 0-based index.
+    /// The returned event has `toml_path = None` and an empty `csv_path`.
+    pub fn from_record(
+        name: &str,
+        record: Record,
+        system_mva: f64,
+        nominal_hz: f64,
+        init: Option<Window>,
+        fit: Option<Window>,
+    ) -> Result<Event, EventError> {
+        let src = PathBuf::from(format!("<in-memory event '{name}'>"));
+        check_bases(&src, system_mva, nominal_hz)?;
+        let mut record = record;
+        check_record_shape(&src, &record)?;
+        record.v_ang_rad = unwrap_angles(&record.v_ang_rad);
+        let labels = ColumnLabels::in_memory();
+        validate_record(&src, &record, nominal_hz, &labels, &|i| Location::Sample(i))?;
+        assemble(
+            &src,
+            name.to_string(),
+            String::new(),
+            None,
+            PathBuf::new(),
+            system_mva,
+            nominal_hz,
+            record,
+            WindowSpec::default(),
+            init.map(WindowSpec::from).unwrap_or_default(),
+            fit.map(WindowSpec::from).unwrap_or_default(),
+        )
+    }
+
+    /// Indices (into `record`) of the samples in the init window.
+    pub fn init_range(&self) -> Range<usize> {
+        self.record.window_range(&self.init)
+    }
+
+    /// Indices (into `record`) of the samples in the fit window.
+    pub fn fit_range(&self) -> Range<usize> {
+        self.record.window_range(&self.fit)
+    }
+
+    /// Estimates the pre-event operating point from the init window (see [`OperatingPoint`]).
+    ///
+    /// |V|, P and Q are window means. The angle and the frequency come from a least-squares
+    /// straight line `angle(t) = a + b t` fitted to the unwrapped angle over the window: the
+    /// frequency is `nominal_hz + b / 2π` (replaced by the window mean of `freq_hz` if that
+    /// channel exists), and the angle is the line evaluated at `t0_s`, the first playback
+    /// sample. Fitting a line over the whole pre-event window averages out PMU noise instead of
+    /// trusting a single noisy sample, and accounts for the angle drift of an off-nominal
+    /// frequency between `t0_s` and the window.
+    pub fn operating_point(&self) -> OperatingPoint {
+        let r = self.init_range();
+        let rec = &self.record;
+        let n = r.len();
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let t = &rec.time_s[r.clone()];
+        let a = &rec.v_ang_rad[r.clone()];
+        let t0_s = rec.time_s[0];
+        let (slope, angle_at_t0) = if n >= 2 {
+            let tm = mean(t);
+            let am = mean(a);
+            let mut sxy = 0.0;
+            let mut sxx = 0.0;
+            for (ti, ai) in t.iter().zip(a) {
+                sxy += (ti - tm) * (ai - am);
+                sxx += (ti - tm) * (ti - tm);
+            }
+            let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+            (slope, am + slope * (t0_s - tm))
+        } else {
+            // Not reachable for validated events (the init window holds >= MIN_SAMPLES).
+            (0.0, a.first().copied().unwrap_or(0.0))
+        };
+        let freq_hz = match &rec.freq_hz {
+            Some(f) => mean(&f[r.clone()]),
+            None => self.nominal_hz + slope / TAU,
+        };
+        OperatingPoint {
+            v_mag_pu: mean(&rec.v_mag_pu[r.clone()]),
+            v_ang_rad: angle_at_t0,
+            p_pu: mean(&rec.p_pu[r.clone()]),
+            q_pu: mean(&rec.q_pu[r.clone()]),
+            freq_hz,
+            t0_s,
+            n_samples: n,
+        }
+    }
+}

@@ -1,0 +1,196 @@
+//! The event TOML file: its accepted keys, the serde spec it is read into, the key checks that
+//! name the offending key and its line, and [`Event::from_toml_file`].
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use super::csv::read_csv;
+use super::window::{assemble, Window};
+use super::{Event, EventError};
+
+const TOP_KEYS: [&str; 8] = [
+    "name",
+    "description",
+    "csv",
+    "system_mva",
+    "nominal_hz",
+    "playback",
+    "init",
+    "fit",
+];
+const REQUIRED_KEYS: [&str; 4] = ["name", "csv", "system_mva", "nominal_hz"];
+const WINDOW_TABLES: [&str; 3] = ["playback", "init", "fit"];
+const WINDOW_KEYS: [&str; 2] = ["start_s", "end_s"];
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EventSpec {
+    name: String,
+    #[serde(default)]
+    description: String,
+    csv: PathBuf,
+    system_mva: f64,
+    nominal_hz: f64,
+    #[serde(default)]
+    playback: Option<WindowSpec>,
+    #[serde(default)]
+    init: Option<WindowSpec>,
+    #[serde(default)]
+    fit: Option<WindowSpec>,
+}
+
+/// A window as written by the user; missing bounds take defaults.
+#[derive(Debug, Default, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct WindowSpec {
+    #[serde(default)]
+    pub(super) start_s: Option<f64>,
+    #[serde(default)]
+    pub(super) end_s: Option<f64>,
+}
+
+impl From<Window> for WindowSpec {
+    fn from(w: Window) -> Self {
+        WindowSpec {
+            start_s: Some(w.start_s),
+            end_s: Some(w.end_s),
+        }
+    }
+}
+
+fn line_of(text: &str, byte_offset: usize) -> usize {
+    let end = byte_offset.min(text.len());
+    text.as_bytes()[..end]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
+}
+
+/// Checks the key structure of an event TOML (syntax, unknown keys, missing keys), so that the
+/// messages can name the key and its line.
+fn check_toml_keys(text: &str, path: &Path) -> Result<(), EventError> {
+    use toml::de::{DeTable, DeValue};
+    let doc = DeTable::parse(text).map_err(|e| EventError::TomlSyntax {
+        path: path.to_path_buf(),
+        message: e.to_string().trim_end().to_string(),
+    })?;
+    let table = doc.get_ref();
+
+    // (byte offset, dotted key, accepted keys)
+    let mut unknown: Vec<(usize, String, String)> = Vec::new();
+    for (k, v) in table.iter() {
+        let key: &str = k.get_ref();
+        if !TOP_KEYS.contains(&key) {
+            unknown.push((k.span().start, key.to_string(), TOP_KEYS.join(", ")));
+            continue;
+        }
+        if WINDOW_TABLES.contains(&key) {
+            if let DeValue::Table(sub) = v.get_ref() {
+                for (k2, _) in sub.iter() {
+                    let key2: &str = k2.get_ref();
+                    if !WINDOW_KEYS.contains(&key2) {
+                        unknown.push((
+                            k2.span().start,
+                            format!("{key}.{key2}"),
+                            WINDOW_KEYS.join(", "),
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    if let Some((offset, field, accepted)) = unknown.into_iter().min_by_key(|u| u.0) {
+        return Err(EventError::UnknownField {
+            path: path.to_path_buf(),
+            field,
+            line: Some(line_of(text, offset)),
+            accepted,
+        });
+    }
+    for req in REQUIRED_KEYS {
+        if !table.iter().any(|(k, _)| {
+            let key: &str = k.get_ref();
+            key == req
+        }) {
+            return Err(EventError::MissingField {
+                path: path.to_path_buf(),
+                field: req.to_string(),
+            });
+        }
+    }
+    Ok(())
+}
+
+pub(super) fn check_bases(src: &Path, system_mva: f64, nominal_hz: f64) -> Result<(), EventError> {
+    if !(system_mva.is_finite() && system_mva > 0.0) {
+        return Err(EventError::InvalidValue {
+            path: src.to_path_buf(),
+            field: "system_mva".into(),
+            value: system_mva,
+            message: "the system MVA base must be a finite number > 0".into(),
+        });
+    }
+    check_nominal_hz(src, nominal_hz)
+}
+
+pub(super) fn check_nominal_hz(src: &Path, nominal_hz: f64) -> Result<(), EventError> {
+    if !(nominal_hz.is_finite() && nominal_hz > 0.0) {
+        return Err(EventError::InvalidValue {
+            path: src.to_path_buf(),
+            field: "nominal_hz".into(),
+            value: nominal_hz,
+            message: "the nominal frequency must be a finite number > 0 (Hz)".into(),
+        });
+    }
+    Ok(())
+}
+
+impl Event {
+    /// Reads an event TOML file and the CSV it points to, and validates everything (see the
+    /// `event` module documentation for the format and the checks).
+    pub fn from_toml_file(path: &Path) -> Result<Event, EventError> {
+        let text = fs::read_to_string(path).map_err(|source| EventError::Io {
+            path: path.to_path_buf(),
+            action: "cannot read the event file".into(),
+            source,
+        })?;
+        check_toml_keys(&text, path)?;
+        let spec: EventSpec = toml::from_str(&text).map_err(|e| EventError::TomlValue {
+            path: path.to_path_buf(),
+            message: e.to_string().trim_end().to_string(),
+        })?;
+        check_bases(path, spec.system_mva, spec.nominal_hz)?;
+
+        let folder = path.parent().unwrap_or_else(|| Path::new(""));
+        let csv_path = folder.join(&spec.csv);
+        let full = read_csv(&csv_path, spec.nominal_hz).map_err(|e| match e {
+            EventError::Io {
+                path: p,
+                action,
+                source,
+            } => EventError::Io {
+                path: p,
+                action: format!("{action} named in {}", path.display()),
+                source,
+            },
+            other => other,
+        })?;
+
+        assemble(
+            path,
+            spec.name,
+            spec.description,
+            Some(path.to_path_buf()),
+            csv_path,
+            spec.system_mva,
+            spec.nominal_hz,
+            full,
+            spec.playback.unwrap_or_default(),
+            spec.init.unwrap_or_default(),
+            spec.fit.unwrap_or_default(),
+        )
+    }
+}

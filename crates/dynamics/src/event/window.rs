@@ -1,0 +1,214 @@
+//! [`Window`], a closed time interval on the record's time axis, and the resolution of the
+//! playback, init and fit windows of an event: defaults, checks against the record, sample
+//! counts, and assembling the validated [`Event`].
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use super::spec::WindowSpec;
+use super::{
+    Event, EventError, Record, DEFAULT_INIT_MIN_SAMPLES, DEFAULT_INIT_S, MIN_SAMPLES, TIME_TOL_S,
+};
+
+/// A closed time interval `[start_s, end_s]`, seconds on the record's time axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Window {
+    pub start_s: f64,
+    pub end_s: f64,
+}
+
+impl Window {
+    /// A window from `start_s` to `end_s` (not validated).
+    pub fn new(start_s: f64, end_s: f64) -> Window {
+        Window { start_s, end_s }
+    }
+
+    /// Length of the window, s.
+    pub fn duration_s(&self) -> f64 {
+        self.end_s - self.start_s
+    }
+
+    /// Whether time `t` lies in the window, with tolerance [`TIME_TOL_S`].
+    pub fn contains(&self, t: f64) -> bool {
+        t >= self.start_s - TIME_TOL_S && t <= self.end_s + TIME_TOL_S
+    }
+}
+
+impl fmt::Display for Window {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "[{}, {}] s", self.start_s, self.end_s)
+    }
+}
+
+/// Resolves window specs against the record, validates them and builds the event.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn assemble(
+    src: &Path,
+    name: String,
+    description: String,
+    toml_path: Option<PathBuf>,
+    csv_path: PathBuf,
+    system_mva: f64,
+    nominal_hz: f64,
+    full: Record,
+    playback: WindowSpec,
+    init: WindowSpec,
+    fit: WindowSpec,
+) -> Result<Event, EventError> {
+    let record_span = full.span();
+    let record_desc = if csv_path.as_os_str().is_empty() {
+        format!("the record {record_span}")
+    } else {
+        format!("the record {record_span} in {}", csv_path.display())
+    };
+
+    // Playback.
+    let pb = resolve(playback, record_span.start_s, record_span.end_s);
+    check_window(src, "playback", &pb, &record_span, &record_desc)?;
+    let pb_range = full.window_range(&pb.window);
+    check_count(src, "playback", &pb.window, pb_range.len())?;
+    let mut record = full.slice(pb_range);
+    record.normalize_angle_start();
+    let pb_win = pb.window;
+    let pb_desc = format!("the playback window {pb_win}");
+
+    // Init.
+    let init_start = init.start_s.unwrap_or(pb_win.start_s);
+    let init_default_end = default_init_end(&record, init_start, pb_win.end_s);
+    let iw = resolve(init, pb_win.start_s, init_default_end);
+    check_window(src, "init", &iw, &pb_win, &pb_desc)?;
+    check_count(
+        src,
+        "init",
+        &iw.window,
+        record.window_range(&iw.window).len(),
+    )?;
+
+    // Fit.
+    let fw = resolve(fit, pb_win.start_s, pb_win.end_s);
+    check_window(src, "fit", &fw, &pb_win, &pb_desc)?;
+    check_count(
+        src,
+        "fit",
+        &fw.window,
+        record.window_range(&fw.window).len(),
+    )?;
+
+    Ok(Event {
+        name,
+        description,
+        toml_path,
+        csv_path,
+        system_mva,
+        nominal_hz,
+        playback: pb_win,
+        init: iw.window,
+        fit: fw.window,
+        record,
+    })
+}
+
+/// The default end of the init window starting at `start`: `start + DEFAULT_INIT_S`, extended
+/// to hold `DEFAULT_INIT_MIN_SAMPLES` samples if needed, never past `limit`.
+fn default_init_end(rec: &Record, start: f64, limit: f64) -> f64 {
+    let mut end = start + DEFAULT_INIT_S;
+    let first = rec.time_s.partition_point(|&t| t < start - TIME_TOL_S);
+    let in_default = rec.window_range(&Window::new(start, end)).len();
+    if in_default < DEFAULT_INIT_MIN_SAMPLES {
+        let idx = (first + DEFAULT_INIT_MIN_SAMPLES - 1).min(rec.len().saturating_sub(1));
+        if let Some(&t) = rec.time_s.get(idx) {
+            end = end.max(t);
+        }
+    }
+    if start.is_finite() && end > limit && limit > start {
+        end = limit;
+    }
+    end
+}
+
+struct Resolved {
+    window: Window,
+    start_default: bool,
+    end_default: bool,
+}
+
+fn resolve(spec: WindowSpec, default_start: f64, default_end: f64) -> Resolved {
+    Resolved {
+        window: Window::new(
+            spec.start_s.unwrap_or(default_start),
+            spec.end_s.unwrap_or(default_end),
+        ),
+        start_default: spec.start_s.is_none(),
+        end_default: spec.end_s.is_none(),
+    }
+}
+
+fn check_window(
+    src: &Path,
+    name: &str,
+    r: &Resolved,
+    bounds: &Window,
+    bounds_desc: &str,
+) -> Result<(), EventError> {
+    let w = &r.window;
+    let tag = |default: bool| if default { " (default)" } else { "" };
+    let err = |field: &str, message: String| EventError::BadWindow {
+        path: src.to_path_buf(),
+        field: format!("{name}.{field}"),
+        message,
+    };
+    if !w.start_s.is_finite() {
+        return Err(err(
+            "start_s",
+            format!("{} is not a finite number", w.start_s),
+        ));
+    }
+    if !w.end_s.is_finite() {
+        return Err(err("end_s", format!("{} is not a finite number", w.end_s)));
+    }
+    if w.end_s <= w.start_s {
+        return Err(err(
+            "end_s",
+            format!(
+                "{}{} s is not after {name}.start_s = {}{} s (window upside down or empty)",
+                w.end_s,
+                tag(r.end_default),
+                w.start_s,
+                tag(r.start_default)
+            ),
+        ));
+    }
+    if w.start_s < bounds.start_s - TIME_TOL_S {
+        return Err(err(
+            "start_s",
+            format!(
+                "{}{} s lies before the start of {bounds_desc}",
+                w.start_s,
+                tag(r.start_default)
+            ),
+        ));
+    }
+    if w.end_s > bounds.end_s + TIME_TOL_S {
+        return Err(err(
+            "end_s",
+            format!(
+                "{}{} s lies after the end of {bounds_desc}",
+                w.end_s,
+                tag(r.end_default)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn check_count(src: &Path, name: &str, w: &Window, count: usize) -> Result<(), EventError> {
+    if count < MIN_SAMPLES {
+        return Err(EventError::TooFewSamples {
+            path: src.to_path_buf(),
+            what: format!("the {name} window {w}"),
+            count,
+            min: MIN_SAMPLES,
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,125 @@
+//! Event TOML files: defaults, integer values, relative CSV paths, the full example, and the
+//! TOML errors (unknown and missing keys, syntax, types).
+
+#![allow(clippy::needless_range_loop)] // parallel per-sample arrays read best with an index
+
+mod event_support;
+
+use event_support::*;
+use itaipu_dynamics::event::*;
+
+// ---- TOML ---------------------------------------------------------------------------------
+
+#[test]
+fn toml_defaults_integers_and_relative_csv_path() {
+    let dir = TempDir::new("defaults");
+    dir.write("sub/data.csv", &simple_csv(120)); // 2 s at 60/s
+    let toml = dir.write(
+        "ev.toml",
+        "name = \"x\"\ncsv = \"sub/data.csv\"\nsystem_mva = 100\nnominal_hz = 60\n",
+    );
+    let ev = Event::from_toml_file(&toml).unwrap();
+    assert_eq!(ev.name, "x");
+    assert_eq!(ev.description, "");
+    assert_eq!(ev.system_mva, 100.0);
+    assert_eq!(ev.nominal_hz, 60.0);
+    assert_eq!(ev.toml_path.as_deref(), Some(toml.as_path()));
+    assert_eq!(ev.csv_path, dir.0.join("sub/data.csv"));
+    let last = 119.0 / 60.0;
+    assert_eq!(ev.playback, Window::new(0.0, last));
+    assert_eq!(ev.fit, ev.playback);
+    assert_eq!(ev.init, Window::new(0.0, 0.5));
+    assert_eq!(ev.init_range(), 0..31);
+    assert_eq!(ev.record.len(), 120);
+}
+
+#[test]
+fn full_example_toml_parses() {
+    let dir = TempDir::new("example");
+    let (t, mag, ang, p, q) = itaipu_like();
+    dir.write("itaipu_pmu_60sps.csv", &rect_csv(&t, &mag, &ang, &p, &q));
+    let text = r#"
+name = "itaipu-60hz-fault"
+description = "free text"
+csv = "itaipu_pmu_60sps.csv"     # path relative to the TOML file's folder
+system_mva = 1000.0               # base of p_pu, q_pu in the CSV
+nominal_hz = 60.0
+[playback]            # optional
+start_s = 0.0
+end_s = 4.25
+[init]
+start_s = 0.0
+end_s = 0.95
+[fit]
+start_s = 1.0
+end_s = 4.25
+"#;
+    let ev = Event::from_toml_file(&dir.write("ev.toml", text)).unwrap();
+    assert_eq!(ev.name, "itaipu-60hz-fault");
+    assert_eq!(ev.description, "free text");
+    assert_eq!(ev.playback, Window::new(0.0, 4.25));
+    assert_eq!(ev.fit, Window::new(1.0, 4.25));
+    assert_eq!(ev.record.len(), 256);
+}
+
+// ---- TOML errors --------------------------------------------------------------------------
+
+#[test]
+fn error_unknown_toml_key() {
+    let dir = TempDir::new("unkkey");
+    dir.write("d.csv", &simple_csv(60));
+    let toml = dir.write("e.toml", &toml_text("d.csv", "nominal_freq = 60.0\n"));
+    let e = Event::from_toml_file(&toml).unwrap_err();
+    assert_err(
+        &e,
+        "unknown_field",
+        &[&ps(&toml), "line 6", "`nominal_freq`", "nominal_hz"],
+    );
+
+    let toml = dir.write(
+        "w.toml",
+        &toml_text("d.csv", "[init]\nstart_s = 0.0\nstop_s = 0.5\n"),
+    );
+    let e = Event::from_toml_file(&toml).unwrap_err();
+    assert_err(
+        &e,
+        "unknown_field",
+        &[&ps(&toml), "line 8", "`init.stop_s`", "start_s, end_s"],
+    );
+
+    // An unknown table is an unknown key too.
+    let toml = dir.write("t.toml", &toml_text("d.csv", "[initial]\nstart_s = 0.0\n"));
+    let e = Event::from_toml_file(&toml).unwrap_err();
+    assert_err(&e, "unknown_field", &[&ps(&toml), "`initial`"]);
+}
+
+#[test]
+fn error_missing_toml_key_syntax_and_types() {
+    let dir = TempDir::new("tomlerr");
+    dir.write("d.csv", &simple_csv(60));
+    let toml = dir.write(
+        "m.toml",
+        "name = \"x\"\ncsv = \"d.csv\"\nnominal_hz = 60.0\n",
+    );
+    let e = Event::from_toml_file(&toml).unwrap_err();
+    assert_err(&e, "missing_field", &[&ps(&toml), "`system_mva`"]);
+
+    let toml = dir.write("s.toml", "name = \"x\"\ncsv = \"d.csv\nsystem_mva = 1\n");
+    let e = Event::from_toml_file(&toml).unwrap_err();
+    assert_err(&e, "toml_syntax", &[&ps(&toml), "line 2"]);
+
+    let toml = dir.write(
+        "ty.toml",
+        "name = \"x\"\ncsv = \"d.csv\"\nsystem_mva = \"1000\"\nnominal_hz = 60.0\n",
+    );
+    let e = Event::from_toml_file(&toml).unwrap_err();
+    assert_err(&e, "toml_value", &[&ps(&toml), "line 3", "system_mva"]);
+
+    let toml = dir.write("z.toml", &toml_text("d.csv", "").replace("1000.0", "-5.0"));
+    let e = Event::from_toml_file(&toml).unwrap_err();
+    assert_err(&e, "invalid_value", &[&ps(&toml), "system_mva = -5"]);
+
+    let toml = dir.write("nf.toml", &toml_text("d.csv", "").replace("60.0", "nan"));
+    let e = Event::from_toml_file(&toml).unwrap_err();
+    assert_err(&e, "invalid_value", &[&ps(&toml), "nominal_hz = NaN"]);
+}
