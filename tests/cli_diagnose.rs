@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use itaipu_calib_e2e::{cli, data, TempDir};
+use itaipu_calib_e2e::{cli, cli_on, data, TempDir};
 
 const UNIT: &str = "synthetic/unit_gensae_sexs_stab3_hygov.toml";
 const BUDGET: [&str; 6] = [
@@ -41,19 +41,9 @@ fn synth(tmp: &TempDir, skew_ms: &str) -> PathBuf {
 }
 
 fn diagnose(event: &Path, out: &Path, extra: &[&str]) -> u8 {
-    let unit = data(UNIT);
-    let mut args = vec![
-        "diagnose",
-        "--event",
-        event.to_str().unwrap(),
-        "--unit",
-        unit.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend_from_slice(&BUDGET);
+    let mut args = BUDGET.to_vec();
     args.extend_from_slice(extra);
-    cli(&args)
+    cli_on("diagnose", event, data(UNIT), out, &args)
 }
 
 fn files_in(dir: &Path) -> Vec<String> {
@@ -306,37 +296,20 @@ fn diagnose_refuses_bad_input_before_running() {
     let (event, unit) = (event.to_str().unwrap(), unit.to_str().unwrap());
     // Usage errors: an unknown cause (also next to a known one), no threads.
     assert_eq!(
-        cli(&["diagnose", "--event", event, "--unit", unit, "--cause", "gremlins", "--out", o]),
+        cli_on("diagnose", event, unit, o, &["--cause", "gremlins"]),
         2
     );
     assert_eq!(
-        cli(&[
+        cli_on(
             "diagnose",
-            "--event",
             event,
-            "--unit",
             unit,
-            "--cause",
-            "saturation,gremlins",
-            "--out",
-            o
-        ]),
+            o,
+            &["--cause", "saturation,gremlins"]
+        ),
         2
     );
-    assert_eq!(
-        cli(&[
-            "diagnose",
-            "--event",
-            event,
-            "--unit",
-            unit,
-            "--threads",
-            "0",
-            "--out",
-            o
-        ]),
-        2
-    );
+    assert_eq!(cli_on("diagnose", event, unit, o, &["--threads", "0"]), 2);
     // A --refit parameter the unit does not have, bounds upside down, a malformed range.
     for refit in [
         "machine.nope",
@@ -345,52 +318,26 @@ fn diagnose_refuses_bad_input_before_running() {
         "exciter.k=1:x",
     ] {
         assert_eq!(
-            cli(&["diagnose", "--event", event, "--unit", unit, "--refit", refit, "--out", o]),
+            cli_on("diagnose", event, unit, o, &["--refit", refit]),
             2,
             "--refit {refit}"
         );
     }
     // Bad event data, bad unit.
     let missing = tmp.path().join("missing.toml");
+    assert_eq!(cli_on("diagnose", &missing, unit, o, &[]), 3);
     assert_eq!(
-        cli(&[
+        cli_on(
             "diagnose",
-            "--event",
-            missing.to_str().unwrap(),
-            "--unit",
-            unit,
-            "--out",
-            o
-        ]),
-        3
-    );
-    assert_eq!(
-        cli(&[
-            "diagnose",
-            "--event",
             event,
-            "--held-out",
-            missing.to_str().unwrap(),
-            "--unit",
             unit,
-            "--out",
-            o
-        ]),
+            o,
+            &["--held-out", missing.to_str().unwrap()]
+        ),
         3
     );
     let bad_unit = tmp.write("bad_unit.toml", "name = \"x\"\nmachine_mva = 100.0\n");
-    assert_eq!(
-        cli(&[
-            "diagnose",
-            "--event",
-            event,
-            "--unit",
-            bad_unit.to_str().unwrap(),
-            "--out",
-            o
-        ]),
-        4
-    );
+    assert_eq!(cli_on("diagnose", event, &bad_unit, o, &[]), 4);
     // A unit that cannot initialise on the event (E_fd0 above the exciter ceiling): exit 5, as
     // simulate and fit, found by the playback before the diagnosis.
     let text = std::fs::read_to_string(data(UNIT)).unwrap();
@@ -398,35 +345,20 @@ fn diagnose_refuses_bad_input_before_running() {
     let stuck = tmp.write("stuck.toml", &text.replace("e_max = 4.5", "e_max = 0.5"));
     let synth_event = synth(&tmp, "0");
     assert_eq!(
-        cli(&[
+        cli_on(
             "diagnose",
-            "--event",
-            synth_event.to_str().unwrap(),
-            "--unit",
-            stuck.to_str().unwrap(),
-            "--cause",
-            "saturation",
-            "--out",
-            o
-        ]),
+            &synth_event,
+            &stuck,
+            o,
+            &["--cause", "saturation"]
+        ),
         5
     );
     assert!(!out.exists(), "no output folder for a refused run");
     // An existing, non-empty --out folder is left alone without --force.
     let keep = tmp.write("full/mine.txt", "mine");
     let full = keep.parent().unwrap();
-    assert_eq!(
-        cli(&[
-            "diagnose",
-            "--event",
-            event,
-            "--unit",
-            unit,
-            "--out",
-            full.to_str().unwrap()
-        ]),
-        7
-    );
+    assert_eq!(cli_on("diagnose", event, unit, full, &[]), 7);
     assert_eq!(files_in(full), ["mine.txt"]);
     assert_eq!(std::fs::read_to_string(&keep).unwrap(), "mine");
 }

@@ -54,3 +54,19 @@ pub fn cli(args: &[&str]) -> u8 {
     all.extend_from_slice(args);
     itaipu_calib_cli::run(all)
 }
+
+/// Runs `cmd --event EVENT --unit UNIT --out OUT` followed by `extra`: the usual shape of a call
+/// (clap takes the options in any order).
+pub fn cli_on(
+    cmd: &str,
+    event: impl AsRef<Path>,
+    unit: impl AsRef<Path>,
+    out: impl AsRef<Path>,
+    extra: &[&str],
+) -> u8 {
+    let s = |p: &Path| p.to_str().expect("a UTF-8 path").to_string();
+    let (e, u, o) = (s(event.as_ref()), s(unit.as_ref()), s(out.as_ref()));
+    let mut args = vec![cmd, "--event", &e, "--unit", &u, "--out", &o];
+    args.extend_from_slice(extra);
+    cli(&args)
+}
