@@ -5,17 +5,9 @@
 
 use std::path::{Path, PathBuf};
 
-use itaipu_calib_e2e::{cli, cli_on, data, TempDir};
+use itaipu_calib_e2e::{cli_on, data, file_names, synth_skewed_dip, TempDir, DIAGNOSE_BUDGET};
 
 const UNIT: &str = "synthetic/unit_gensae_sexs_stab3_hygov.toml";
-const BUDGET: [&str; 6] = [
-    "--particles",
-    "8",
-    "--pso-iterations",
-    "6",
-    "--lbfgs-iterations",
-    "5",
-];
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
@@ -25,34 +17,14 @@ fn json(path: &Path) -> serde_json::Value {
 /// channels delayed by `skew_ms`; returns the event file.
 fn synth(tmp: &TempDir, skew_ms: &str) -> PathBuf {
     let out = tmp.path().join(format!("synth-{skew_ms}"));
-    assert_eq!(
-        cli(&[
-            "synth",
-            "--duration",
-            "10",
-            "--skew-ms",
-            skew_ms,
-            "--out",
-            out.to_str().unwrap()
-        ]),
-        0
-    );
+    assert_eq!(synth_skewed_dip(&out, skew_ms), 0);
     out.join("event.toml")
 }
 
 fn diagnose(event: &Path, out: &Path, extra: &[&str]) -> u8 {
-    let mut args = BUDGET.to_vec();
+    let mut args = DIAGNOSE_BUDGET.to_vec();
     args.extend_from_slice(extra);
     cli_on("diagnose", event, data(UNIT), out, &args)
-}
-
-fn files_in(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
 }
 
 /// A 12 ms skew of the P and Q channels is named, its delay recovered (12.0 ms observed with
@@ -84,7 +56,7 @@ fn diagnose_names_a_hidden_pmu_skew_and_writes_the_extended_unit() {
     assert!(!mine.exists(), "--force replaces the folder whole");
     itaipu_calib_cli::output::verify(&out).unwrap();
     assert_eq!(
-        files_in(&out),
+        file_names(&out),
         [
             "diagnosis.json",
             "extended.toml",
@@ -282,7 +254,7 @@ fn diagnose_writes_no_extended_unit_when_no_cause_is_named() {
     assert!(d["evidence_after"].as_array().unwrap().is_empty());
     assert!(!out.join("extended.toml").exists());
     assert_eq!(
-        files_in(&out),
+        file_names(&out),
         ["diagnosis.json", "manifest.json", "report.html"]
     );
 }
@@ -359,6 +331,6 @@ fn diagnose_refuses_bad_input_before_running() {
     let keep = tmp.write("full/mine.txt", "mine");
     let full = keep.parent().unwrap();
     assert_eq!(cli_on("diagnose", event, unit, full, &[]), 7);
-    assert_eq!(files_in(full), ["mine.txt"]);
+    assert_eq!(file_names(full), ["mine.txt"]);
     assert_eq!(std::fs::read_to_string(&keep).unwrap(), "mine");
 }

@@ -8,7 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
-use itaipu_calib_e2e::{cli, cli_on, data, TempDir};
+use itaipu_calib_e2e::{cli, cli_on, data, synth_skewed_dip, TempDir};
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
@@ -280,18 +280,7 @@ fn fit_report_matches_report_json_and_stands_alone() {
 fn diagnose_report_matches_diagnosis_json_and_stands_alone() {
     let tmp = TempDir::new("report-diag");
     let synth = tmp.path().join("synth");
-    assert_eq!(
-        cli(&[
-            "synth",
-            "--duration",
-            "10",
-            "--skew-ms",
-            "12",
-            "--out",
-            synth.to_str().unwrap()
-        ]),
-        0
-    );
+    assert_eq!(synth_skewed_dip(&synth, "12"), 0);
     let out = tmp.path().join("diag");
     let unit = data("synthetic/unit_gensae_sexs_stab3_hygov.toml");
     assert_eq!(

@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use itaipu_calib_e2e::{cli, cli_on, data, TempDir};
+use itaipu_calib_e2e::{cli, cli_on, data, TempDir, DIAGNOSE_BUDGET};
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
@@ -54,16 +54,11 @@ fn a_user_cause_is_tried_named_and_its_extended_unit_written() {
         cause.to_str().unwrap(),
         "--cause",
         "reactive_droop,terminal_load",
-        "--particles",
-        "8",
-        "--pso-iterations",
-        "6",
-        "--lbfgs-iterations",
-        "5",
         "--no-plot",
         "--out",
         out.to_str().unwrap(),
     ];
+    let args = [&args[..], &DIAGNOSE_BUDGET].concat();
     assert_eq!(cli(&args), 0);
     let d = json(&out.join("diagnosis.json"));
     assert_eq!(

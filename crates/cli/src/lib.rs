@@ -1,5 +1,12 @@
 //! The `itaipu-calib` command line. `main.rs` only calls [`run`]; tests call it in-process.
 //!
+//! This file holds the clap definition and the dispatch only: one module per command
+//! (`simulate_cmd`, `fit_cmd`, `diagnose_cmd`, `synth_cmd`, `import_cmd`, `dyr_cmd`,
+//! `models_cmd`, `diagram_cmd`), reading inputs in [`inputs`], output folders in [`output`],
+//! reports in [`report`], and every library error mapped to its exit code once, in [`error`].
+//! Options are checked by the library's request layer (`itaipu_calib::request`), shared with
+//! the Python module.
+//!
 //! Exit codes (also in `--help`): 0 success, 2 usage error, 3 bad event data (event TOML or
 //! CSV), 4 bad unit model, 5 the model cannot initialise at the measured operating point,
 //! 6 the simulation failed, 7 output could not be written (or would overwrite), 130/143 a fit
