@@ -5,17 +5,9 @@
 
 use std::path::{Path, PathBuf};
 
-use itaipu_calib_e2e::{cli, data, TempDir};
+use itaipu_calib_e2e::{cli_on, data, file_names, synth_skewed_dip, TempDir, DIAGNOSE_BUDGET};
 
 const UNIT: &str = "synthetic/unit_gensae_sexs_stab3_hygov.toml";
-const BUDGET: [&str; 6] = [
-    "--particles",
-    "8",
-    "--pso-iterations",
-    "6",
-    "--lbfgs-iterations",
-    "5",
-];
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
@@ -25,44 +17,14 @@ fn json(path: &Path) -> serde_json::Value {
 /// channels delayed by `skew_ms`; returns the event file.
 fn synth(tmp: &TempDir, skew_ms: &str) -> PathBuf {
     let out = tmp.path().join(format!("synth-{skew_ms}"));
-    assert_eq!(
-        cli(&[
-            "synth",
-            "--duration",
-            "10",
-            "--skew-ms",
-            skew_ms,
-            "--out",
-            out.to_str().unwrap()
-        ]),
-        0
-    );
+    assert_eq!(synth_skewed_dip(&out, skew_ms), 0);
     out.join("event.toml")
 }
 
 fn diagnose(event: &Path, out: &Path, extra: &[&str]) -> u8 {
-    let unit = data(UNIT);
-    let mut args = vec![
-        "diagnose",
-        "--event",
-        event.to_str().unwrap(),
-        "--unit",
-        unit.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend_from_slice(&BUDGET);
+    let mut args = DIAGNOSE_BUDGET.to_vec();
     args.extend_from_slice(extra);
-    cli(&args)
-}
-
-fn files_in(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
+    cli_on("diagnose", event, data(UNIT), out, &args)
 }
 
 /// A 12 ms skew of the P and Q channels is named, its delay recovered (12.0 ms observed with
@@ -94,7 +56,7 @@ fn diagnose_names_a_hidden_pmu_skew_and_writes_the_extended_unit() {
     assert!(!mine.exists(), "--force replaces the folder whole");
     itaipu_calib_cli::output::verify(&out).unwrap();
     assert_eq!(
-        files_in(&out),
+        file_names(&out),
         [
             "diagnosis.json",
             "extended.toml",
@@ -292,7 +254,7 @@ fn diagnose_writes_no_extended_unit_when_no_cause_is_named() {
     assert!(d["evidence_after"].as_array().unwrap().is_empty());
     assert!(!out.join("extended.toml").exists());
     assert_eq!(
-        files_in(&out),
+        file_names(&out),
         ["diagnosis.json", "manifest.json", "report.html"]
     );
 }
@@ -306,37 +268,20 @@ fn diagnose_refuses_bad_input_before_running() {
     let (event, unit) = (event.to_str().unwrap(), unit.to_str().unwrap());
     // Usage errors: an unknown cause (also next to a known one), no threads.
     assert_eq!(
-        cli(&["diagnose", "--event", event, "--unit", unit, "--cause", "gremlins", "--out", o]),
+        cli_on("diagnose", event, unit, o, &["--cause", "gremlins"]),
         2
     );
     assert_eq!(
-        cli(&[
+        cli_on(
             "diagnose",
-            "--event",
             event,
-            "--unit",
             unit,
-            "--cause",
-            "saturation,gremlins",
-            "--out",
-            o
-        ]),
+            o,
+            &["--cause", "saturation,gremlins"]
+        ),
         2
     );
-    assert_eq!(
-        cli(&[
-            "diagnose",
-            "--event",
-            event,
-            "--unit",
-            unit,
-            "--threads",
-            "0",
-            "--out",
-            o
-        ]),
-        2
-    );
+    assert_eq!(cli_on("diagnose", event, unit, o, &["--threads", "0"]), 2);
     // A --refit parameter the unit does not have, bounds upside down, a malformed range.
     for refit in [
         "machine.nope",
@@ -345,52 +290,26 @@ fn diagnose_refuses_bad_input_before_running() {
         "exciter.k=1:x",
     ] {
         assert_eq!(
-            cli(&["diagnose", "--event", event, "--unit", unit, "--refit", refit, "--out", o]),
+            cli_on("diagnose", event, unit, o, &["--refit", refit]),
             2,
             "--refit {refit}"
         );
     }
     // Bad event data, bad unit.
     let missing = tmp.path().join("missing.toml");
+    assert_eq!(cli_on("diagnose", &missing, unit, o, &[]), 3);
     assert_eq!(
-        cli(&[
+        cli_on(
             "diagnose",
-            "--event",
-            missing.to_str().unwrap(),
-            "--unit",
-            unit,
-            "--out",
-            o
-        ]),
-        3
-    );
-    assert_eq!(
-        cli(&[
-            "diagnose",
-            "--event",
             event,
-            "--held-out",
-            missing.to_str().unwrap(),
-            "--unit",
             unit,
-            "--out",
-            o
-        ]),
+            o,
+            &["--held-out", missing.to_str().unwrap()]
+        ),
         3
     );
     let bad_unit = tmp.write("bad_unit.toml", "name = \"x\"\nmachine_mva = 100.0\n");
-    assert_eq!(
-        cli(&[
-            "diagnose",
-            "--event",
-            event,
-            "--unit",
-            bad_unit.to_str().unwrap(),
-            "--out",
-            o
-        ]),
-        4
-    );
+    assert_eq!(cli_on("diagnose", event, &bad_unit, o, &[]), 4);
     // A unit that cannot initialise on the event (E_fd0 above the exciter ceiling): exit 5, as
     // simulate and fit, found by the playback before the diagnosis.
     let text = std::fs::read_to_string(data(UNIT)).unwrap();
@@ -398,35 +317,20 @@ fn diagnose_refuses_bad_input_before_running() {
     let stuck = tmp.write("stuck.toml", &text.replace("e_max = 4.5", "e_max = 0.5"));
     let synth_event = synth(&tmp, "0");
     assert_eq!(
-        cli(&[
+        cli_on(
             "diagnose",
-            "--event",
-            synth_event.to_str().unwrap(),
-            "--unit",
-            stuck.to_str().unwrap(),
-            "--cause",
-            "saturation",
-            "--out",
-            o
-        ]),
+            &synth_event,
+            &stuck,
+            o,
+            &["--cause", "saturation"]
+        ),
         5
     );
     assert!(!out.exists(), "no output folder for a refused run");
     // An existing, non-empty --out folder is left alone without --force.
     let keep = tmp.write("full/mine.txt", "mine");
     let full = keep.parent().unwrap();
-    assert_eq!(
-        cli(&[
-            "diagnose",
-            "--event",
-            event,
-            "--unit",
-            unit,
-            "--out",
-            full.to_str().unwrap()
-        ]),
-        7
-    );
-    assert_eq!(files_in(full), ["mine.txt"]);
+    assert_eq!(cli_on("diagnose", event, unit, full, &[]), 7);
+    assert_eq!(file_names(full), ["mine.txt"]);
     assert_eq!(std::fs::read_to_string(&keep).unwrap(), "mine");
 }

@@ -1,6 +1,6 @@
 //! End-to-end: nothing implausible accepted in silence, no panic (issue 13).
 
-use itaipu_calib_e2e::{cli, data, TempDir};
+use itaipu_calib_e2e::{cli, data, file_names, TempDir};
 
 fn spec_with(replace: &str, by: &str) -> String {
     let text = std::fs::read_to_string(data("itaipu/calibration.toml")).unwrap();
@@ -69,15 +69,6 @@ fn zero_stage_weights_are_a_spec_error_before_any_computation() {
     assert!(itaipu_calib::spec::CalibSpec::from_file(&spec).is_ok());
 }
 
-fn names(dir: &std::path::Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
-}
-
 /// `--force` replaces the whole folder: stage folders and files of an earlier run do not stay
 /// beside the new report; the manifest lists exactly what is there.
 #[test]
@@ -108,10 +99,14 @@ fn force_replaces_the_whole_folder_and_the_manifest_matches() {
         v
     };
     assert_eq!(cli(&args(false)), 7, "refused without --force");
-    assert_eq!(names(&out), ["pss", "report.json", "tg"], "left as it was");
+    assert_eq!(
+        file_names(&out),
+        ["pss", "report.json", "tg"],
+        "left as it was"
+    );
     assert_eq!(cli(&args(true)), 0);
     assert_eq!(
-        names(&out),
+        file_names(&out),
         [
             "calibrated.toml",
             "calibration.toml",
@@ -133,7 +128,7 @@ fn force_replaces_the_whole_folder_and_the_manifest_matches() {
     std::fs::write(out.join("gen/unit.toml"), "edited").unwrap();
     assert!(itaipu_calib_cli::output::verify(&out).is_err());
     // Nothing temporary left beside the target.
-    assert_eq!(names(tmp.path()), ["fit"]);
+    assert_eq!(file_names(tmp.path()), ["fit"]);
     // simulate too.
     let sim = tmp.path().join("sim");
     tmp.write("sim/traces.csv", "stale");
@@ -148,7 +143,7 @@ fn force_replaces_the_whole_folder_and_the_manifest_matches() {
         ]),
         0
     );
-    assert_eq!(names(&sim), ["manifest.json", "traces.csv"]);
+    assert_eq!(file_names(&sim), ["manifest.json", "traces.csv"]);
     itaipu_calib_cli::output::verify(&sim).unwrap();
 }
 
@@ -178,7 +173,7 @@ fn unwritable_output_fails_before_computing_and_failures_leave_nothing() {
         out.to_str().unwrap(),
     ]);
     assert_ne!(code, 0);
-    assert_eq!(names(tmp.path()), ["a-file", "bad_unit.toml"]);
+    assert_eq!(file_names(tmp.path()), ["a-file", "bad_unit.toml"]);
 }
 
 /// `--particles 0` (and 1) used to become 2 in silence: a usage error now, for fit and

@@ -8,7 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
-use itaipu_calib_e2e::{cli, data, TempDir};
+use itaipu_calib_e2e::{cli, cli_on, data, synth_skewed_dip, TempDir};
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
@@ -280,38 +280,26 @@ fn fit_report_matches_report_json_and_stands_alone() {
 fn diagnose_report_matches_diagnosis_json_and_stands_alone() {
     let tmp = TempDir::new("report-diag");
     let synth = tmp.path().join("synth");
-    assert_eq!(
-        cli(&[
-            "synth",
-            "--duration",
-            "10",
-            "--skew-ms",
-            "12",
-            "--out",
-            synth.to_str().unwrap()
-        ]),
-        0
-    );
+    assert_eq!(synth_skewed_dip(&synth, "12"), 0);
     let out = tmp.path().join("diag");
     let unit = data("synthetic/unit_gensae_sexs_stab3_hygov.toml");
     assert_eq!(
-        cli(&[
+        cli_on(
             "diagnose",
-            "--event",
-            synth.join("event.toml").to_str().unwrap(),
-            "--unit",
-            unit.to_str().unwrap(),
-            "--cause",
-            "measurement_skew",
-            "--particles",
-            "8",
-            "--pso-iterations",
-            "6",
-            "--lbfgs-iterations",
-            "5",
-            "--out",
-            out.to_str().unwrap()
-        ]),
+            synth.join("event.toml"),
+            &unit,
+            &out,
+            &[
+                "--cause",
+                "measurement_skew",
+                "--particles",
+                "8",
+                "--pso-iterations",
+                "6",
+                "--lbfgs-iterations",
+                "5"
+            ]
+        ),
         0
     );
     let d = json(&out.join("diagnosis.json"));

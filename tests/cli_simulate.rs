@@ -1,6 +1,6 @@
 //! End-to-end: `itaipu-calib simulate` on the bundled record, and its handling of bad input.
 
-use itaipu_calib_e2e::{cli, data, TempDir};
+use itaipu_calib_e2e::{cli, cli_on, data, TempDir};
 
 fn read_csv(path: &std::path::Path) -> (Vec<String>, Vec<Vec<f64>>) {
     let text = std::fs::read_to_string(path).unwrap();
@@ -194,62 +194,24 @@ fn bad_inputs_give_their_exit_codes() {
         "u1.toml",
         &unit_text().replace("h = 4.5", "h = 4.5\ninertia = 3.0"),
     );
-    assert_eq!(
-        cli(&[
-            "simulate",
-            "--event",
-            event,
-            "--unit",
-            u.to_str().unwrap(),
-            "--out",
-            out
-        ]),
-        4
-    );
+    assert_eq!(cli_on("simulate", event, &u, out, &[]), 4);
     let u = tmp.write(
         "u2.toml",
         &unit_text().replace("model = \"SEXS\"", "model = \"SEXS9\""),
     );
-    assert_eq!(
-        cli(&[
-            "simulate",
-            "--event",
-            event,
-            "--unit",
-            u.to_str().unwrap(),
-            "--out",
-            out
-        ]),
-        4
-    );
+    assert_eq!(cli_on("simulate", event, &u, out, &[]), 4);
     let u = tmp.write(
         "u3.toml",
         &unit_text().replace("x_d_pp = 0.22", "x_d_pp = 0.15"),
     );
     assert_eq!(
-        cli(&[
-            "simulate",
-            "--event",
-            event,
-            "--unit",
-            u.to_str().unwrap(),
-            "--out",
-            out
-        ]),
+        cli_on("simulate", event, &u, out, &[]),
         4,
         "X''d = Xl must be refused"
     );
     let u = tmp.write("u4.toml", &unit_text().replace("te = 0.05", "te = 0.0"));
     assert_eq!(
-        cli(&[
-            "simulate",
-            "--event",
-            event,
-            "--unit",
-            u.to_str().unwrap(),
-            "--out",
-            out
-        ]),
+        cli_on("simulate", event, &u, out, &[]),
         4,
         "zero time constant"
     );
@@ -259,18 +221,7 @@ fn bad_inputs_give_their_exit_codes() {
         "u5.toml",
         &unit_text().replace("e_max = 4.5", "e_max = 1.0"),
     );
-    assert_eq!(
-        cli(&[
-            "simulate",
-            "--event",
-            event,
-            "--unit",
-            u.to_str().unwrap(),
-            "--out",
-            out
-        ]),
-        5
-    );
+    assert_eq!(cli_on("simulate", event, &u, out, &[]), 5);
     assert!(
         !std::path::Path::new(out).exists(),
         "no output folder for a failed run"

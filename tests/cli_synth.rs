@@ -1,7 +1,7 @@
 //! End-to-end: `itaipu-calib synth` makes an event that `simulate` reads back, reproducibly, and
 //! whose truth reproduces the measurement to the noise level.
 
-use itaipu_calib_e2e::{cli, TempDir};
+use itaipu_calib_e2e::{cli, cli_on, TempDir};
 
 fn rms_residuals(traces: &std::path::Path) -> (f64, f64) {
     let text = std::fs::read_to_string(traces).unwrap();
@@ -50,16 +50,13 @@ fn synth_events_play_back_to_the_noise_level_and_are_reproducible() {
             "{kind}: same seed, same bytes"
         );
         let sim = tmp.path().join(format!("{kind}-sim"));
-        let code = cli(&[
+        let code = cli_on(
             "simulate",
-            "--event",
-            a.join("event.toml").to_str().unwrap(),
-            "--unit",
-            a.join("truth.toml").to_str().unwrap(),
-            "--out",
-            sim.to_str().unwrap(),
-            "--no-plot",
-        ]);
+            a.join("event.toml"),
+            a.join("truth.toml"),
+            &sim,
+            &["--no-plot"],
+        );
         assert_eq!(code, 0, "{kind}");
         // White noise of 0.002 pu plus 0.0014 pu quantisation: RMS about 0.002. An ambient
         // record has no steady pre-event segment, so the operating point averaged over the
@@ -104,19 +101,7 @@ fn a_hidden_skew_is_recorded_and_shows_in_the_residual() {
     let sim = tmp.path().join("sim");
     let event = out.join("event.toml");
     let unit = out.join("truth.toml");
-    assert_eq!(
-        cli(&[
-            "simulate",
-            "--event",
-            event.to_str().unwrap(),
-            "--unit",
-            unit.to_str().unwrap(),
-            "--out",
-            sim.to_str().unwrap(),
-            "--no-plot"
-        ]),
-        0
-    );
+    assert_eq!(cli_on("simulate", &event, &unit, &sim, &["--no-plot"]), 0);
     let (rp, _) = rms_residuals(&sim.join("traces.csv"));
     assert!(
         rp > 1e-3,
@@ -179,19 +164,7 @@ fn a_hidden_torsional_mode_is_in_the_truth() {
     // The truth plays back to the noise level: truth.toml is the unit that made the event.
     let sim = tmp.path().join("sim");
     let (event, unit) = (out.join("event.toml"), out.join("truth.toml"));
-    assert_eq!(
-        cli(&[
-            "simulate",
-            "--event",
-            event.to_str().unwrap(),
-            "--unit",
-            unit.to_str().unwrap(),
-            "--out",
-            sim.to_str().unwrap(),
-            "--no-plot"
-        ]),
-        0
-    );
+    assert_eq!(cli_on("simulate", &event, &unit, &sim, &["--no-plot"]), 0);
     let (rp, rq) = rms_residuals(&sim.join("traces.csv"));
     assert!(rp < 0.0026 && rq < 0.0026, "RMS P {rp}, Q {rq}");
 }

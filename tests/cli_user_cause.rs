@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use itaipu_calib_e2e::{cli, data, TempDir};
+use itaipu_calib_e2e::{cli, cli_on, data, TempDir, DIAGNOSE_BUDGET};
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
@@ -54,16 +54,11 @@ fn a_user_cause_is_tried_named_and_its_extended_unit_written() {
         cause.to_str().unwrap(),
         "--cause",
         "reactive_droop,terminal_load",
-        "--particles",
-        "8",
-        "--pso-iterations",
-        "6",
-        "--lbfgs-iterations",
-        "5",
         "--no-plot",
         "--out",
         out.to_str().unwrap(),
     ];
+    let args = [&args[..], &DIAGNOSE_BUDGET].concat();
     assert_eq!(cli(&args), 0);
     let d = json(&out.join("diagnosis.json"));
     assert_eq!(
@@ -84,16 +79,13 @@ fn a_user_cause_is_tried_named_and_its_extended_unit_written() {
     assert!(ext.contains("droop") && ext.contains("v_comp"), "{ext}");
     let sim = tmp.path().join("sim");
     assert_eq!(
-        cli(&[
+        cli_on(
             "simulate",
-            "--event",
-            event.to_str().unwrap(),
-            "--unit",
-            out.join("extended.toml").to_str().unwrap(),
-            "--no-plot",
-            "--out",
-            sim.to_str().unwrap()
-        ]),
+            &event,
+            out.join("extended.toml"),
+            &sim,
+            &["--no-plot"]
+        ),
         0
     );
 }
@@ -111,19 +103,9 @@ fn bad_user_causes_exit_before_running() {
         );
     let out = tmp.path().join("o");
     let run = |cause_file: &Path, extra: &[&str]| {
-        let mut a = vec![
-            "diagnose",
-            "--event",
-            event.to_str().unwrap(),
-            "--unit",
-            unit.to_str().unwrap(),
-            "--user-cause",
-            cause_file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ];
+        let mut a = vec!["--user-cause", cause_file.to_str().unwrap()];
         a.extend_from_slice(extra);
-        cli(&a)
+        cli_on("diagnose", &event, &unit, &out, &a)
     };
     // A bad file (a free parameter its block lacks) or a missing one: exit 4.
     let bad = tmp.write(

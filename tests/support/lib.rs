@@ -54,3 +54,54 @@ pub fn cli(args: &[&str]) -> u8 {
     all.extend_from_slice(args);
     itaipu_calib_cli::run(all)
 }
+
+/// Runs `cmd --event EVENT --unit UNIT --out OUT` followed by `extra`: the usual shape of a call
+/// (clap takes the options in any order).
+pub fn cli_on(
+    cmd: &str,
+    event: impl AsRef<Path>,
+    unit: impl AsRef<Path>,
+    out: impl AsRef<Path>,
+    extra: &[&str],
+) -> u8 {
+    let s = |p: &Path| p.to_str().expect("a UTF-8 path").to_string();
+    let (e, u, o) = (s(event.as_ref()), s(unit.as_ref()), s(out.as_ref()));
+    let mut args = vec![cmd, "--event", &e, "--unit", &u, "--out", &o];
+    args.extend_from_slice(extra);
+    cli(&args)
+}
+
+/// The names of the entries of `dir`, sorted.
+pub fn file_names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// Swarm and L-BFGS settings of a quick diagnosis (a second or so per cause).
+pub const DIAGNOSE_BUDGET: [&str; 6] = [
+    "--particles",
+    "8",
+    "--pso-iterations",
+    "6",
+    "--lbfgs-iterations",
+    "5",
+];
+
+/// `synth --duration 10 --skew-ms SKEW_MS --out OUT`: a 10 s synthetic fault dip from the
+/// generic unit with the power channels delayed; returns the exit code.
+pub fn synth_skewed_dip(out: &Path, skew_ms: &str) -> u8 {
+    let o = out.to_str().expect("a UTF-8 path");
+    cli(&[
+        "synth",
+        "--duration",
+        "10",
+        "--skew-ms",
+        skew_ms,
+        "--out",
+        o,
+    ])
+}

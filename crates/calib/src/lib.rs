@@ -14,6 +14,7 @@
 //!   cross-correlation with the inputs, spectrum, matrix-pencil modes).
 //! * [`practice`]: the practice set of independent events, its one spec and its answer keys.
 //! * [`fit`]: stages, strategies and reports.
+//! * [`request`]: the validated options of both front ends (command line, Python).
 //! * [`diagnose`]: residual evidence, the catalog of causes with their model extensions,
 //!   re-fits and gains, and the verdict.
 
@@ -29,6 +30,7 @@ pub mod local;
 pub mod practice;
 pub mod problem;
 pub mod pso;
+pub mod request;
 pub mod spec;
 
 pub use fit::{fit, FitOptions, FitReport, FitResult, Progress, Silent};

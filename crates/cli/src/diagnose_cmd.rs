@@ -8,14 +8,16 @@ use std::path::{Path, PathBuf};
 use itaipu_calib::diagnose::{
     calibrated_set, catalog, diagnose, refit_bounds,
     user_cause::{self, read_all, UserCause},
-    CandidateReport, DiagnoseError, DiagnoseOptions, Diagnosis, RefitRequest,
+    CandidateReport, DiagnoseOptions, Diagnosis, RefitRequest,
 };
 use itaipu_calib::evidence::SignalEvidence;
+use itaipu_calib::request::parse_refit;
 use itaipu_calib::spec::CalibSpec;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::fit_cmd::Reporter;
-use crate::report::diagnose::{draw_plots, plausible, top_window};
+use crate::report::diagnose::{plausible, top_window};
+use crate::report::diagnose_plots::draw_plots;
 use crate::report::{self, num, pct, InputFile, Provenance};
 use crate::{bundled, load_event, load_unit, prepare_out, CliError, SearchArgs, EXIT_CODES};
 
@@ -75,47 +77,13 @@ pub struct DiagnoseArgs {
 /// Terminal width the tables are laid out for.
 const WIDTH: usize = 100;
 
-/// Exit code of an engine error, as `fit` maps its errors: a unit that cannot initialise or
-/// simulate on an event as given, and any other failure of the run, is 6. (Unknown causes, the
-/// engine's only usage error, are refused with 2 before it runs.)
-fn error_code(e: &DiagnoseError) -> u8 {
-    match e {
-        DiagnoseError::Simulation { .. } | DiagnoseError::Setup(_) => 6,
-        // The command line sets no cancel flag (a signal ends the process, exit 130/143).
-        DiagnoseError::Interrupted { .. } => 130,
-    }
-}
-
-/// The `--refit` requests as `(path, bounds)`: `PARAM` or `PARAM=MIN:MAX`. Malformed numbers
-/// are a usage error (exit 2) naming the request; whether the parameter exists is checked
-/// against the unit by [`refit_bounds`].
+/// The `--refit` requests ([`parse_refit`]: `PARAM` or `PARAM=MIN:MAX`, a usage error naming the
+/// request otherwise).
 fn refit_requests(requested: &[String]) -> Result<Vec<RefitRequest>, CliError> {
-    requested
+    Ok(requested
         .iter()
-        .map(|r| {
-            let r = r.trim();
-            let bad = |why: &str| {
-                CliError::new(2, format!("--refit {r}: {why} (PARAM or PARAM=MIN:MAX)"))
-            };
-            match r.split_once('=') {
-                None if !r.is_empty() => Ok((r.to_string(), None)),
-                None => Err(bad("empty")),
-                Some((p, range)) => {
-                    let (lo, hi) = range
-                        .split_once(':')
-                        .ok_or_else(|| bad("no ':' between MIN and MAX"))?;
-                    let num = |v: &str| {
-                        v.trim()
-                            .parse::<f64>()
-                            .ok()
-                            .filter(|x| x.is_finite())
-                            .ok_or_else(|| bad(&format!("'{}' is not a finite number", v.trim())))
-                    };
-                    Ok((p.trim().to_string(), Some((num(lo)?, num(hi)?))))
-                }
-            }
-        })
-        .collect()
+        .map(|r| parse_refit(r))
+        .collect::<Result<_, _>>()?)
 }
 
 /// The `--cause` ids, checked against the catalog, without duplicates, in the order given.
@@ -156,12 +124,7 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         user_causes,
         ..Default::default()
     };
-    a.search.apply(
-        &mut opts.seed,
-        &mut opts.particles,
-        &mut opts.pso_iterations,
-        &mut opts.lbfgs_iterations,
-    )?;
+    a.search.request().apply_diagnose(&mut opts)?;
     let pool = a.search.pool()?;
     let threads = pool.current_num_threads();
     let unit_path = match (&a.unit, &a.fit) {
@@ -179,7 +142,7 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         .map_err(|e| CliError::new(2, format!("--refit: {e} (unit {})", unit_path.display())))?;
     if let Some(dir) = &a.fit {
         let spec_path = dir.join("calibration.toml");
-        let spec = CalibSpec::from_file(&spec_path).map_err(|e| CliError::new(4, e.to_string()))?;
+        let spec = CalibSpec::from_file(&spec_path)?;
         let datasheet = load_unit(&dir.join("datasheet.toml"))?;
         let stages: Vec<String> = spec.stages.iter().map(|s| s.name.clone()).collect();
         for b in calibrated_set(&spec, &stages, &datasheet, &unit) {
@@ -257,7 +220,7 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     let reporter = Reporter::new();
     let result = pool.install(|| diagnose(&unit, &events, &held_out, &opts, &reporter));
     reporter.finish();
-    let result = result.map_err(|e| CliError::new(error_code(&e), format!("diagnose: {e}")))?;
+    let result = result?;
     let report = &result.report;
 
     let out = staging.path().to_path_buf();

@@ -5,12 +5,13 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
-use clap::ValueEnum;
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use indicatif::{ProgressBar, ProgressStyle};
 use itaipu_calib::fit::{
     fit_with, FitControl, FitError, FitOptions, Progress, Resume, StageOutput, StageReport,
 };
 use itaipu_calib::problem::noise_variance;
+use itaipu_calib::request::{FitRequest, Stage};
 use itaipu_calib::spec::{CalibSpec, Strategy};
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::plausibility::{Finding, Severity};
@@ -31,11 +32,11 @@ pub struct FitArgs {
     /// Stage(s) to run: gen (machine, E_fd and P_m held), avr, pss, tg, or all (every stage the
     /// spec lists). Several stages (`--stage gen,avr,pss`) run in the fixed order gen, avr, pss,
     /// tg, each starting from the previous result.
-    #[arg(long, value_enum, value_delimiter = ',', num_args = 1.., default_values_t = [StageArg::All])]
-    stage: Vec<StageArg>,
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_value = "all", value_parser = stage_parser())]
+    stage: Vec<Stage>,
     /// How stages are combined (default: the spec's, else sequential).
-    #[arg(long, value_enum)]
-    strategy: Option<StrategyArg>,
+    #[arg(long, value_parser = strategy_parser())]
+    strategy: Option<Strategy>,
     /// Event file(s) to fit together (summed objective). Default: the bundled Itaipu record.
     #[arg(long, value_name = "FILE", num_args = 1..)]
     event: Vec<PathBuf>,
@@ -72,20 +73,15 @@ pub struct FitArgs {
     no_polish: bool,
 }
 
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-enum StageArg {
-    Gen,
-    Avr,
-    Pss,
-    Tg,
-    All,
+/// `--stage`: the library's stage names ([`Stage::NAMES`]), parsed by [`Stage`]'s `FromStr`.
+fn stage_parser() -> impl TypedValueParser<Value = Stage> {
+    PossibleValuesParser::new(Stage::NAMES).map(|s| s.parse::<Stage>().expect("a stage name"))
 }
 
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-enum StrategyArg {
-    Sequential,
-    Incremental,
-    SimultaneousFirst,
+/// `--strategy`: parsed by [`Strategy`]'s `FromStr`.
+fn strategy_parser() -> impl TypedValueParser<Value = Strategy> {
+    PossibleValuesParser::new(["sequential", "incremental", "simultaneous-first"])
+        .map(|s| s.parse::<Strategy>().expect("a strategy name"))
 }
 
 /// Progress on a terminal: one bar per phase. Otherwise: plain lines every 10 iterations.
@@ -144,14 +140,6 @@ impl Progress for Reporter {
             Some(b) => b.println(text),
             None => eprintln!("{text}"),
         }
-    }
-}
-
-fn strategy(s: StrategyArg) -> Strategy {
-    match s {
-        StrategyArg::Sequential => Strategy::Sequential,
-        StrategyArg::Incremental => Strategy::Incremental,
-        StrategyArg::SimultaneousFirst => Strategy::SimultaneousFirst,
     }
 }
 
@@ -247,7 +235,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         (None, false) => unit_path.clone(),
     };
     let unit = load_unit(&unit_path)?;
-    let spec = CalibSpec::from_file(&calib_path).map_err(|e| CliError::new(4, e.to_string()))?;
+    let spec = CalibSpec::from_file(&calib_path)?;
     let events = event_paths
         .iter()
         .map(|p| load_event(p))
@@ -259,30 +247,13 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         .collect::<Result<Vec<_>, _>>()?;
 
     let mut opts = FitOptions::from_spec(&spec);
-    if let Some(s) = a.strategy {
-        opts.strategy = strategy(s);
+    FitRequest {
+        stages: a.stage.clone(),
+        strategy: a.strategy,
+        search: a.search.request(),
+        no_polish: a.no_polish,
     }
-    if !a.stage.contains(&StageArg::All) {
-        let wanted: Vec<String> = a
-            .stage
-            .iter()
-            .map(|s| format!("{s:?}").to_lowercase())
-            .collect();
-        opts.stages = itaipu_calib::spec::STAGES
-            .iter()
-            .filter(|s| wanted.iter().any(|w| w == *s))
-            .map(|s| s.to_string())
-            .collect();
-    }
-    if a.no_polish {
-        opts.polish = false;
-    }
-    a.search.apply(
-        &mut opts.seed,
-        &mut opts.particles,
-        &mut opts.pso_iterations,
-        &mut opts.lbfgs_iterations,
-    )?;
+    .apply(&mut opts)?;
     let pool = a.search.pool()?;
     let mut warnings = crate::plausibility(
         &events.iter().chain(&held_out).collect::<Vec<_>>(),

@@ -310,3 +310,116 @@ pub fn copy_dir(from: &Path, to: &Path) -> std::io::Result<()> {
     }
     Ok(())
 }
+
+/// Refuses an explicit `--out` that is not a folder, a non-empty folder without `force`, and
+/// with `force` a non-empty folder that is not an output of this tool (exit 7). Called before a
+/// long run, so that it fails before the work, not after.
+pub fn check_out(out: Option<&Path>, force: bool) -> Result<(), CliError> {
+    let Some(d) = out else {
+        return Ok(());
+    };
+    if d.exists() && !d.is_dir() {
+        return Err(CliError::new(
+            7,
+            format!("{} exists and is not a folder", d.display()),
+        ));
+    }
+    let nonempty = d.is_dir()
+        && std::fs::read_dir(d)
+            .map(|mut r| r.next().is_some())
+            .unwrap_or(false);
+    if nonempty && !force {
+        return Err(CliError::new(
+            7,
+            format!(
+                "{} exists and is not empty; refusing to overwrite (use --force, or another --out)",
+                d.display()
+            ),
+        ));
+    }
+    if nonempty && !looks_like_output(d) {
+        return Err(CliError::new(
+            7,
+            format!(
+                "{} is not an output folder of itaipu-calib (none of {}); --force replaces a folder whole, so it only replaces one of ours: give another --out, or empty the folder first",
+                d.display(),
+                OUTPUT_MARKERS.join(", ")
+            ),
+        ));
+    }
+    if nonempty {
+        let foreign = foreign_files(d);
+        if !foreign.is_empty() {
+            let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
+            return Err(CliError::new(
+                7,
+                format!(
+                    "{} holds {} file(s) that its manifest.json does not list ({}{}): --force replaces the folder whole and would delete them; move them out first, or give another --out",
+                    d.display(),
+                    foreign.len(),
+                    shown.join(", "),
+                    if foreign.len() > 5 { ", ..." } else { "" }
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Files of a complete output folder that its manifest does not list (put there after the
+/// run); empty when there is no readable manifest.
+fn foreign_files(dir: &Path) -> Vec<String> {
+    let Ok(text) = std::fs::read_to_string(dir.join(MANIFEST)) else {
+        return vec![];
+    };
+    let Ok(m) = serde_json::from_str::<Manifest>(&text) else {
+        return vec![];
+    };
+    let Ok(now) = list_files(dir) else {
+        return vec![];
+    };
+    now.into_iter()
+        .map(|f| f.path)
+        .filter(|p| p != MANIFEST && !m.files.iter().any(|f| &f.path == p))
+        .collect()
+}
+
+/// Files at the top of a folder that mark it as an output of this tool (the manifest, the
+/// partial marker, and the main result of each command, as written before manifests existed).
+pub const OUTPUT_MARKERS: &[&str] = &[
+    MANIFEST,
+    PARTIAL,
+    "report.json",
+    "traces.csv",
+    "diagnosis.json",
+    "truth.json",
+];
+
+/// Whether `--force` may replace `dir` whole: it holds one of [`OUTPUT_MARKERS`]. A folder of
+/// the user's own (say the one holding the event files) is never deleted by a mistyped `--out`.
+pub fn looks_like_output(dir: &Path) -> bool {
+    OUTPUT_MARKERS.iter().any(|m| dir.join(m).is_file())
+}
+
+/// Chooses the output folder and starts writing it ([`Staging`]: a temporary folder
+/// beside it, renamed into place when complete). With an explicit `--out`, an existing
+/// non-empty folder is refused unless `force` ([`check_out`]), and then replaced whole; by
+/// default `out/<name>` or the first free `out/<name>-N`. Call it before the computation: it
+/// is the writability check.
+pub fn prepare_out(out: Option<&Path>, name: &str, force: bool) -> Result<Staging, CliError> {
+    check_out(out, force)?;
+    let dir = match out {
+        Some(d) => d.to_path_buf(),
+        None => {
+            let base = PathBuf::from("out").join(name);
+            let mut d = base.clone();
+            let mut k = 2;
+            while d.exists() {
+                d = PathBuf::from(format!("{}-{k}", base.display()));
+                k += 1;
+            }
+            d
+        }
+    };
+    Staging::begin(&dir)
+}

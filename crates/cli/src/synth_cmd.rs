@@ -1,16 +1,12 @@
 //! `itaipu-calib synth`: realistic synthetic events from the engine, with a separate truth file.
 
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::ValueEnum;
-use itaipu_calib::diagnose::{self, catalog};
-use itaipu_dynamics::event::Event;
-use itaipu_dynamics::simulate::{SimError, SimOptions};
-use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, SynthError, VoltageProfile};
-use itaipu_dynamics::unit::Unit;
+use itaipu_calib::request::{HideSpec, SynthRequest};
 use itaipu_dynamics::unit_file::unit_to_toml;
 
+use crate::error::synth_error;
 use crate::{bundled, load_unit, prepare_out, CliError, EXIT_CODES};
 
 #[derive(clap::Args, Debug)]
@@ -86,57 +82,29 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
         None => bundled("synthetic/unit_gensae_sexs_stab3_hygov.toml")?,
     };
     let truth = load_unit(&unit_path)?;
-    if !(a.duration > 1.5 && a.duration.is_finite()) {
-        return Err(CliError::new(
-            2,
-            format!("--duration must exceed 1.5 s (got {})", a.duration),
-        ));
-    }
-    if !(a.rate >= 10.0 && a.rate <= 1000.0) {
-        return Err(CliError::new(
-            2,
-            format!("--rate must lie in 10-1000 samples/s (got {})", a.rate),
-        ));
-    }
-    for (name, v) in [
-        ("--pq-sigma", a.pq_sigma),
-        ("--v-sigma", a.v_sigma),
-        ("--quantum", a.quantum),
-        ("--skew-ms", a.skew_ms),
-    ] {
-        if !(v >= 0.0 && v.is_finite()) {
-            return Err(CliError::new(2, format!("{name} must be >= 0 (got {v})")));
-        }
-    }
-    let kind = match a.kind {
-        KindArg::Dip => EventKind::FaultDip,
-        KindArg::Frequency => EventKind::FrequencyExcursion,
-        KindArg::Step => EventKind::VoltageStep,
-        KindArg::Ambient => EventKind::Ambient,
-    };
-    let kind_name = format!("{:?}", a.kind).to_lowercase();
-    let name = a
-        .name
-        .clone()
-        .unwrap_or_else(|| format!("synthetic-{kind_name}-{}", a.seed));
-    let profile = VoltageProfile::preset(kind, a.duration, a.rate, a.seed);
-    let noise = PmuNoise {
+    let kind = a.kind.to_possible_value().expect("no skipped values");
+    let mut request = SynthRequest {
+        kind: kind.get_name().parse()?,
+        duration: a.duration,
+        rate: a.rate,
+        system_mva: a.system_mva,
         pq_sigma: a.pq_sigma,
         v_sigma: a.v_sigma,
-        angle_sigma: a.v_sigma,
-        pq_quantum: a.quantum,
-        pq_delay_s: a.skew_ms * 1e-3,
+        quantum: a.quantum,
+        skew_ms: a.skew_ms,
         seed: a.seed,
+        name: a.name.clone(),
+        hides: vec![],
     };
-    let system_mva = a.system_mva.unwrap_or(truth.machine_mva);
-    if !(system_mva > 0.0) {
-        return Err(CliError::new(2, "--system-mva must be > 0"));
-    }
-    let hides = a
+    request.validate()?;
+    request.hides = a
         .hide
         .iter()
-        .map(|h| parse_hide(h))
+        .map(|h| HideSpec::parse(h))
         .collect::<Result<Vec<_>, _>>()?;
+    let kind_name = request.kind.name();
+    let name = request.event_name();
+    let system_mva = a.system_mva.unwrap_or(truth.machine_mva);
     let mut hidden = if a.skew_ms > 0.0 {
         vec![serde_json::json!({
             "cause": "measurement_skew",
@@ -147,43 +115,24 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
     } else {
         vec![]
     };
-    let truth = if hides.is_empty() {
-        truth
-    } else {
-        // The catalog's context (operating-point field voltage and current, PMU rate) comes from
-        // the truth as given on a noise-free run of the same profile.
-        let probe = synthesize(
-            &name,
-            &truth,
-            &profile,
-            system_mva,
-            &PmuNoise::none(),
-            &SimOptions::default(),
-        )
-        .map_err(|e| synth_error(&unit_path, e))?;
-        let (extended, entries) = hide_all(&truth, &probe, &hides, &unit_path)?;
-        hidden.extend(entries);
-        extended
-    };
-    let event = synthesize(
-        &name,
-        &truth,
-        &profile,
-        system_mva,
-        &noise,
-        &SimOptions::default(),
-    )
-    .map_err(|e| {
-        let e = synth_error(&unit_path, e);
-        if hides.is_empty() {
-            e
-        } else {
-            CliError::new(
-                e.code,
-                format!("{} (with the hidden cause(s) {})", e.msg, a.hide.join(" ")),
-            )
-        }
-    })?;
+    let made = request
+        .run(&truth, "itaipu-calib synth")
+        .map_err(|e| synth_error(&unit_path, e, &a.hide))?;
+    hidden.extend(made.hidden.iter().map(|h| {
+        let params: serde_json::Map<String, serde_json::Value> = h
+            .parameters
+            .iter()
+            .map(|(p, v)| (p.clone(), serde_json::json!(v)))
+            .collect();
+        serde_json::json!({
+            "cause": h.cause,
+            "source": format!("--hide {}", h.written),
+            "title": h.title,
+            "extension": h.extension,
+            "parameters": params,
+        })
+    }));
+    let (event, truth) = (made.event, made.truth);
     let staging = prepare_out(a.out.as_deref(), &format!("synth-{name}"), a.force)?;
     let out = staging.path().to_path_buf();
     let csv_name = format!("{name}.csv");
@@ -250,129 +199,4 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
         target.display()
     );
     Ok(())
-}
-
-/// A `--hide` option: the spec as written, the cause, and the values in the order given.
-type Hide = (String, String, Vec<(String, f64)>);
-
-/// Parses `CAUSE[:PARAM=VALUE,PARAM=VALUE...]`; every error is a usage error (exit 2) naming
-/// the bad piece.
-fn parse_hide(spec: &str) -> Result<Hide, CliError> {
-    let usage = |msg: String| CliError::new(2, format!("--hide {spec}: {msg}"));
-    let (cause, rest) = match spec.split_once(':') {
-        Some((c, r)) => (c.trim(), Some(r)),
-        None => (spec.trim(), None),
-    };
-    if cause.is_empty() {
-        return Err(usage(format!(
-            "no cause before ':' (known: {})",
-            catalog::ids()
-        )));
-    }
-    if catalog::find(cause).is_none() {
-        return Err(usage(format!(
-            "unknown cause '{cause}' (known: {})",
-            catalog::ids()
-        )));
-    }
-    let mut values: Vec<(String, f64)> = vec![];
-    if let Some(rest) = rest {
-        if rest.trim().is_empty() {
-            return Err(usage(
-                "nothing after ':' (expected PARAM=VALUE[,PARAM=VALUE...])".into(),
-            ));
-        }
-        for item in rest.split(',') {
-            let (k, v) = item
-                .split_once('=')
-                .ok_or_else(|| usage(format!("'{}' is not PARAM=VALUE", item.trim())))?;
-            let (k, v) = (k.trim(), v.trim());
-            if k.is_empty() {
-                return Err(usage(format!("'{}' has no parameter name", item.trim())));
-            }
-            let x: f64 = v
-                .parse()
-                .map_err(|_| usage(format!("{k}: '{v}' is not a number")))?;
-            if !x.is_finite() {
-                return Err(usage(format!("{k}: '{v}' is not a finite number")));
-            }
-            if values.iter().any(|(p, _)| p == k) {
-                return Err(usage(format!("{k} is given twice")));
-            }
-            values.push((k.to_string(), x));
-        }
-    }
-    Ok((spec.to_string(), cause.to_string(), values))
-}
-
-/// The exit code of a failure to synthesise: 5 when the unit cannot initialise, 6 when the
-/// integration fails.
-fn synth_error(unit_path: &Path, e: SynthError) -> CliError {
-    let code = match &e {
-        SynthError::Sim(SimError::Solve(_)) => 6,
-        _ => 5,
-    };
-    CliError::new(code, format!("{}: {e}", unit_path.display()))
-}
-
-/// Hides each cause in turn in `truth` ([`catalog::hide`], the catalog's context taken from the
-/// truth as given on `probe`); returns the extended unit and one `hidden_effects` entry per cause
-/// (its parameters with their values in the extended unit).
-fn hide_all(
-    truth: &Unit,
-    probe: &Event,
-    hides: &[Hide],
-    unit_path: &Path,
-) -> Result<(Unit, Vec<serde_json::Value>), CliError> {
-    let ctx = diagnose::context(truth, probe).map_err(|e| {
-        CliError::new(
-            5,
-            format!(
-                "{}: the true unit does not simulate on the synthetic profile: {e}",
-                unit_path.display()
-            ),
-        )
-    })?;
-    let mut unit = truth.clone();
-    let mut entries = vec![];
-    for (spec, cause, values) in hides {
-        let map: BTreeMap<String, f64> = values.iter().cloned().collect();
-        let (extended, ext) = catalog::hide(cause, &unit, &ctx, &map).map_err(|e| match e {
-            catalog::HideError::Build(msg) => {
-                CliError::new(4, format!("{}: --hide {spec}: {msg}", unit_path.display()))
-            }
-            other => CliError::new(2, format!("--hide {spec}: {other}")),
-        })?;
-        unit = extended;
-        let mut shown: Vec<&str> = ext
-            .extension_free
-            .iter()
-            .map(|f| f.param.as_str())
-            .collect();
-        shown.extend(ext.ties.iter().map(|(_, to)| to.as_str()));
-        shown.extend(values.iter().map(|(p, _)| p.as_str()));
-        let mut params = serde_json::Map::new();
-        for p in shown {
-            if let Ok(r) = unit.param(p) {
-                params
-                    .entry(p.to_string())
-                    .or_insert(serde_json::json!(unit.get(r)));
-            }
-        }
-        let info = catalog::find(cause).expect("checked by parse_hide");
-        entries.push(serde_json::json!({
-            "cause": cause,
-            "source": format!("--hide {spec}"),
-            "title": info.title,
-            "extension": ext.description,
-            "parameters": params,
-        }));
-    }
-    let causes: Vec<&str> = hides.iter().map(|(_, c, _)| c.as_str()).collect();
-    unit.description = format!(
-        "{} (hidden by itaipu-calib synth: {})",
-        unit.description,
-        causes.join(", ")
-    );
-    Ok((unit, entries))
 }

@@ -11,7 +11,9 @@ use pyo3::types::PyDict;
 use itaipu_dynamics::dyr::{self, DyrError, PartialBases};
 use itaipu_dynamics::pmu_import::{self, ImportError, ImportOptions};
 
-use super::{raise, EventError, PyEvent, PyUnit, UnitModelError};
+use crate::errors::{raise, EventError, UnitModelError};
+use crate::event::PyEvent;
+use crate::unit::PyUnit;
 
 fn dyr_err(py: Python<'_>, e: DyrError) -> PyErr {
     match e {

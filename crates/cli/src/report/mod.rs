@@ -16,6 +16,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 pub mod diagnose;
+pub mod diagnose_plots;
 pub mod fit;
 pub mod svg;
 

@@ -83,6 +83,24 @@ impl std::fmt::Display for Method {
     }
 }
 
+/// An integrator name that is neither `dopri5` nor `rk4`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("must be 'dopri5' or 'rk4' (got '{0}')")]
+pub struct UnknownMethod(pub String);
+
+impl std::str::FromStr for Method {
+    type Err = UnknownMethod;
+    /// `dopri5` (the settings of [`crate::simulate::SimOptions::default`]) or `rk4` (1 ms
+    /// steps), in any case.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "dopri5" => Ok(crate::simulate::SimOptions::default().method),
+            "rk4" => Ok(Method::Rk4 { h: 0.001 }),
+            _ => Err(UnknownMethod(s.to_string())),
+        }
+    }
+}
+
 /// Settings for [`Method::Dopri5`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dopri5Options {

@@ -1,0 +1,58 @@
+//! `itaipu-calib models`: the model library, its parameters and ports, and the diagram
+//! primitives.
+
+use itaipu_dynamics::registry;
+
+use crate::CliError;
+
+/// Lists every model, or the one named (`diagram`: the diagram primitives).
+pub fn cmd_models(name: Option<&str>) -> Result<(), CliError> {
+    if name.is_some_and(|n| n.eq_ignore_ascii_case("diagram")) {
+        print!("{}", itaipu_dynamics::diagram::describe_primitives());
+        return Ok(());
+    }
+    let models: Vec<_> = match name {
+        Some(n) => vec![registry::find(n).ok_or_else(|| {
+            CliError::new(
+                2,
+                format!(
+                    "unknown model '{n}' (known: {}, diagram)",
+                    registry::names()
+                ),
+            )
+        })?],
+        None => registry::MODELS.iter().collect(),
+    };
+    for m in models {
+        let b = m.create();
+        println!("{} [{}]: {}", m.name, m.role.section(), m.summary);
+        println!("  states: {}", b.state_names().join(", "));
+        let ports: Vec<String> = b
+            .ports()
+            .iter()
+            .map(|p| {
+                format!(
+                    "{}{}",
+                    p.name,
+                    if p.dir == itaipu_dynamics::block::Dir::In {
+                        "(in)"
+                    } else {
+                        "(out)"
+                    }
+                )
+            })
+            .collect();
+        println!("  ports:  {}", ports.join(", "));
+        for s in b.params().specs() {
+            println!(
+                "  {:<14} {:<8} {:>6}  typical {:<8} range {:>7}-{:<7} {}",
+                s.name, s.alias, s.unit, s.typical, s.range.0, s.range.1, s.doc
+            );
+        }
+        println!();
+    }
+    if name.is_none() {
+        print!("{}", itaipu_dynamics::diagram::describe_primitives());
+    }
+    Ok(())
+}

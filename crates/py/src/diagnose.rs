@@ -1,0 +1,439 @@
+//! `diagnose`, its `Diagnosis`, and the catalog of causes.
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use pyo3::exceptions::{PyDeprecationWarning, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use itaipu_calib::diagnose::{self as calib_diagnose, catalog, DiagnoseOptions};
+use itaipu_calib::fit::Silent;
+use itaipu_dynamics::simulate::Traces;
+use itaipu_dynamics::unit::Unit;
+use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
+
+use crate::args::{
+    event_sources, load_events, source, str_or_list, swapped_events_unit, worker_pool, Source,
+};
+use crate::errors::{raise, request_error, CalibrationError, Failure};
+use crate::fit::PyFitResult;
+use crate::traces::traces_dict;
+use crate::unit::PyUnit;
+use crate::{interrupt, pandas};
+use itaipu_calib::request::Search;
+
+/// A serde_json value as the equivalent Python object (null -> None, numbers -> int or float,
+/// arrays -> lists, objects -> dicts in the JSON's key order).
+pub(crate) fn json_to_py<'py>(
+    py: Python<'py>,
+    v: &serde_json::Value,
+) -> PyResult<Bound<'py, PyAny>> {
+    use pyo3::IntoPyObjectExt;
+    use serde_json::Value;
+    Ok(match v {
+        Value::Null => py.None().into_bound(py),
+        Value::Bool(b) => b.into_bound_py_any(py)?,
+        Value::Number(n) => {
+            if let Some(i) = n.as_i64() {
+                i.into_bound_py_any(py)?
+            } else if let Some(u) = n.as_u64() {
+                u.into_bound_py_any(py)?
+            } else {
+                n.as_f64().unwrap_or(f64::NAN).into_bound_py_any(py)?
+            }
+        }
+        Value::String(s) => s.into_bound_py_any(py)?,
+        Value::Array(a) => {
+            let l = PyList::empty(py);
+            for x in a {
+                l.append(json_to_py(py, x)?)?;
+            }
+            l.into_any()
+        }
+        Value::Object(o) => {
+            let d = PyDict::new(py);
+            for (k, x) in o {
+                d.set_item(k, json_to_py(py, x)?)?;
+            }
+            d.into_any()
+        }
+    })
+}
+
+/// Result of `diagnose`: the verdict, every candidate cause tried with its gain, the residual
+/// evidence, the extended and re-fitted unit of the named cause, and traces before and after.
+///
+/// `report` is the whole diagnosis report as a dict (non-finite numbers are None; a new dict on
+/// each access); `to_json()` gives it as JSON text. `verdict` is the report's verdict (cause,
+/// title, statement, key_parameters as `[path, value, unit]` lists, gains, where: `[signal,
+/// window, start_s, end_s]` or None); `cause` its cause id, `none` or `unexplained`.
+#[pyclass(name = "Diagnosis", module = "itaipu_calib", frozen)]
+pub(crate) struct PyDiagnosis {
+    pub(crate) report: serde_json::Value,
+    pub(crate) extended_unit: Option<Arc<Unit>>,
+    pub(crate) before: Vec<(String, Traces)>,
+    pub(crate) after: Vec<(String, Traces)>,
+}
+
+impl PyDiagnosis {
+    fn field<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+        json_to_py(py, self.report.get(key).unwrap_or(&serde_json::Value::Null))
+    }
+}
+
+#[pymethods]
+impl PyDiagnosis {
+    /// The verdict as a dict: cause, title, statement, key_parameters, gains, where.
+    #[getter]
+    fn verdict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mut v = self
+            .report
+            .get("verdict")
+            .cloned()
+            .unwrap_or(serde_json::Value::Null);
+        // The Rust field is `where_` (a keyword): the dict says `where`.
+        if let Some(o) = v.as_object_mut() {
+            if let Some(w) = o.remove("where_") {
+                o.entry("where").or_insert(w);
+            }
+        }
+        json_to_py(py, &v)
+    }
+
+    /// The named cause id, or `none` / `unexplained`.
+    #[getter]
+    fn cause(&self) -> String {
+        self.report["verdict"]["cause"]
+            .as_str()
+            .unwrap_or_default()
+            .to_string()
+    }
+
+    /// Every cause tried, by decreasing ΔBIC (not applicable ones last): dicts with cause,
+    /// title, applicable, note, extension, parameters, fixed, gains, significant, signature, ...
+    #[getter]
+    fn candidates<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "candidates")
+    }
+
+    /// Residual evidence per event on the unit as given (dicts: event, onset_s, signals).
+    #[getter]
+    fn evidence<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "evidence")
+    }
+
+    /// The whole report as a dict (what the command line writes as JSON).
+    #[getter]
+    fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_to_py(py, &self.report)
+    }
+
+    /// The extended, re-fitted unit of the named cause as unit-file TOML, or None.
+    #[getter]
+    fn extended_unit_toml(&self) -> Option<String> {
+        self.extended_unit.as_deref().map(unit_to_toml)
+    }
+
+    /// The extended, re-fitted unit of the named cause, or None.
+    #[getter]
+    fn extended_unit(&self) -> Option<PyUnit> {
+        self.extended_unit.as_ref().map(|u| PyUnit {
+            inner: u.clone(),
+            path: None,
+        })
+    }
+
+    /// Per event name: the traces of the unit as given (`{"time_s": array, column: array}`).
+    #[getter]
+    fn traces_before<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        traces_by_event(py, &self.before)
+    }
+
+    /// Per event name: the traces of the extended unit (empty when no cause is named).
+    #[getter]
+    fn traces_after<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        traces_by_event(py, &self.after)
+    }
+
+    /// The candidates as a pandas DataFrame indexed by cause, in the report's order (columns
+    /// title, applicable, significant, note, and the gains: delta_bic, fit_drop, held_drop, ...;
+    /// NaN where a cause was not applicable). Needs pandas.
+    fn to_pandas<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let empty = vec![];
+        let cands = self.report["candidates"].as_array().unwrap_or(&empty);
+        let rows = cands
+            .iter()
+            .map(|c| {
+                let d = PyDict::new(py);
+                for key in ["cause", "title", "applicable", "significant", "note"] {
+                    d.set_item(key, json_to_py(py, &c[key])?)?;
+                }
+                if let Some(g) = c["gains"].as_object() {
+                    for (k, v) in g {
+                        if v.is_number() || v.is_null() {
+                            d.set_item(k, v.as_f64().unwrap_or(f64::NAN))?;
+                        }
+                    }
+                }
+                Ok(d)
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        pandas::data_frame(py, pandas::rows(py, rows)?, Some("cause"))
+    }
+
+    /// The report as JSON text (indented).
+    fn to_json(&self) -> PyResult<String> {
+        serde_json::to_string_pretty(&self.report)
+            .map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))
+    }
+
+    fn __repr__(&self) -> String {
+        let r = &self.report;
+        format!(
+            "<Diagnosis of '{}' on {}: {} ({} candidates, {:.1} s)>",
+            r["unit"].as_str().unwrap_or_default(),
+            r["events"]
+                .as_array()
+                .map(|a| a
+                    .iter()
+                    .filter_map(|e| e.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "))
+                .unwrap_or_default(),
+            r["verdict"]["cause"].as_str().unwrap_or_default(),
+            r["candidates"].as_array().map_or(0, |a| a.len()),
+            r["wall_s"].as_f64().unwrap_or(f64::NAN)
+        )
+    }
+}
+
+/// The `causes` argument: None (the whole catalog), a cause id, a comma-separated string or a
+/// list of ids.
+pub(crate) fn cause_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
+    let Some(arg) = arg else { return Ok(vec![]) };
+    let given = str_or_list(
+        arg,
+        "causes must be None, a cause id, or a list of cause ids",
+    )?;
+    let names: Vec<String> = given
+        .iter()
+        .flat_map(|s| s.split(','))
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect();
+    if names.is_empty() {
+        return Err(PyValueError::new_err(format!(
+            "causes must name at least one cause, or be None for all ({})",
+            catalog::ids()
+        )));
+    }
+    Ok(names)
+}
+
+/// The `refit` argument of `diagnose`: None, a parameter path or a list of them (each within
+/// its model's declared range), or a dict `{path: (min, max) or None}`.
+pub(crate) fn refit_list(
+    arg: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Vec<calib_diagnose::RefitRequest>> {
+    let Some(arg) = arg.filter(|a| !a.is_none()) else {
+        return Ok(vec![]);
+    };
+    let shape = "refit must be None, a parameter path, a list of paths, or a dict {path: (min, max) or None}";
+    if let Ok(s) = arg.extract::<String>() {
+        return Ok(vec![(s, None)]);
+    }
+    if let Ok(d) = arg.cast::<PyDict>() {
+        let mut out = vec![];
+        for (k, v) in d.iter() {
+            let path: String = k.extract().map_err(|_| PyTypeError::new_err(shape))?;
+            let range = if v.is_none() {
+                None
+            } else {
+                Some(v.extract::<(f64, f64)>().map_err(|_| {
+                    PyTypeError::new_err(format!("refit['{path}'] must be (min, max) or None"))
+                })?)
+            };
+            out.push((path, range));
+        }
+        return Ok(out);
+    }
+    let names: Vec<String> = arg.extract().map_err(|_| PyTypeError::new_err(shape))?;
+    Ok(names.into_iter().map(|n| (n, None)).collect())
+}
+
+/// Diagnoses what `unit` (normally already calibrated) still gets wrong on `events`: residual
+/// evidence, then each cause of the catalog (or of `causes`) as a model extension re-fitted by
+/// particle swarm and L-BFGS and judged by its gain (ΔBIC, fitted and held-out χ²), then a
+/// verdict, as the command line's `diagnose`.
+///
+/// `unit` is a path or a Unit; `events` and `held_out` paths to event files or Event objects,
+/// or lists of them. Without `held_out`, each event is split into alternating blocks, fitted
+/// and held out. `causes` (ids, see the catalog: torsional_mode, exciter_limit, saturation,
+/// governor, measurement_skew, terminal_load, pss_state, oel) limits the causes tried. `seed`,
+/// `particles`, `pso_iterations` and `lbfgs_iterations` set each re-fit; `threads` the worker
+/// threads (default: all cores). `refit` names calibrated parameters to free again in every
+/// re-fit (a list of paths, or a dict of path to (min, max)), e.g. the stage parameters a
+/// calibration may have bent for the missing cause. `fit` (a FitResult, normally the one whose
+/// `.unit` is diagnosed) re-frees its whole calibrated set, within the spec's bounds and with the
+/// calibration's datasheet prior, as `itaipu-calib diagnose --fit`. `user_causes` (a path or a
+/// list of paths) adds causes written by the user, as `itaipu-calib diagnose --user-cause`. The
+/// GIL is released while it runs. Returns a Diagnosis.
+///
+/// Raises CalibrationError (kind 'setup': e.g. an unknown cause), SimulationError (kind
+/// 'simulation': the unit does not simulate on an event as given), EventError,
+/// UnitModelError; ValueError for bad options, TypeError for bad argument types.
+#[pyfunction]
+#[pyo3(
+    signature = (events, unit, held_out = None, *, causes = None, seed = 1, particles = 16, pso_iterations = 20,
+                 lbfgs_iterations = 15, threads = None, refit = None, fit = None, user_causes = None),
+    text_signature = "(events, unit, held_out=None, *, causes=None, seed=1, particles=16, pso_iterations=20, \
+                      lbfgs_iterations=15, threads=None, refit=None, fit=None, user_causes=None)"
+)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn diagnose(
+    py: Python<'_>,
+    events: &Bound<'_, PyAny>,
+    unit: &Bound<'_, PyAny>,
+    held_out: Option<&Bound<'_, PyAny>>,
+    causes: Option<&Bound<'_, PyAny>>,
+    seed: u64,
+    particles: usize,
+    pso_iterations: usize,
+    lbfgs_iterations: u64,
+    threads: Option<usize>,
+    refit: Option<&Bound<'_, PyAny>>,
+    fit: Option<&Bound<'_, PyAny>>,
+    user_causes: Option<&Bound<'_, PyAny>>,
+) -> PyResult<PyDiagnosis> {
+    // The order was (unit, events) before issue 14: still accepted, with a warning.
+    let (events, unit) = if swapped_events_unit(py, events, unit)? {
+        PyErr::warn(
+            py,
+            &py.get_type::<PyDeprecationWarning>(),
+            c"diagnose(unit, events) is deprecated: the order is diagnose(events, unit), as in \
+              fit(events, unit) and simulate(event, unit); the two arguments were swapped",
+            1,
+        )?;
+        (unit, events)
+    } else {
+        (events, unit)
+    };
+    let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
+    // Cause files written by the user (`diagnose --user-cause`): a path or a list of paths.
+    let user_paths: Vec<PathBuf> = match user_causes {
+        None => vec![],
+        Some(a) if a.is_none() => vec![],
+        Some(a) => match a.extract::<PathBuf>() {
+            Ok(p) => vec![p],
+            Err(_) => a.extract::<Vec<PathBuf>>().map_err(|_| {
+                PyTypeError::new_err("user_causes must be None, a path or a list of paths")
+            })?,
+        },
+    };
+    let user_causes = calib_diagnose::user_cause::read_all(&user_paths)
+        .map_err(|e| raise::<CalibrationError>(py, e.to_string(), Some("spec")))?;
+    let refit = refit_list(refit)?;
+    // A FitResult: its whole calibrated set is re-freed with the calibration's prior (as
+    // `itaipu-calib diagnose --fit`).
+    let fit_set: Vec<catalog::FreeBound> = match fit {
+        Some(f) if !f.is_none() => f
+            .downcast::<PyFitResult>()
+            .map_err(|_| PyTypeError::new_err("fit must be a FitResult (from itaipu_calib.fit)"))?
+            .get()
+            .calibrated_set
+            .clone(),
+        _ => vec![],
+    };
+    let events = event_sources(events, "events")?;
+    let held_out = match held_out {
+        Some(h) if !h.is_none() => event_sources(h, "held_out")?,
+        _ => vec![],
+    };
+    let causes = cause_list(causes)?;
+    Search {
+        particles: Some(particles),
+        threads,
+        ..Default::default()
+    }
+    .validate()
+    .map_err(request_error)?;
+    let pool = worker_pool(threads)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    let mut opts = DiagnoseOptions {
+        causes,
+        user_causes,
+        seed,
+        particles,
+        pso_iterations,
+        lbfgs_iterations,
+        cancel: Some(cancel.clone()),
+        ..Default::default()
+    };
+    // Ctrl-C stops the re-fits at their next candidate evaluation: KeyboardInterrupt, nothing
+    // kept (a verdict needs every cause).
+    let result = interrupt::interruptible(
+        py,
+        Some(cancel),
+        move || -> Result<calib_diagnose::DiagnoseResult, Failure> {
+            let unit = match unit_src {
+                Source::Loaded(u) => u,
+                Source::Path(p) => Arc::new(read_unit(&p)?),
+            };
+            opts.refit = calib_diagnose::refit_bounds(&unit, &refit)?;
+            for b in fit_set {
+                if !opts.refit.iter().any(|r| r.param == b.param) && unit.param(&b.param).is_ok() {
+                    opts.refit.push(b);
+                }
+            }
+            let events = load_events(events)?;
+            let held_out = load_events(held_out)?;
+            let run = || calib_diagnose::diagnose(&unit, &events, &held_out, &opts, &Silent);
+            Ok(match pool {
+                Some(pool) => pool.install(run),
+                None => run(),
+            }?)
+        },
+    )?;
+    let result = result.map_err(|e| e.into_pyerr(py))?;
+    let report = serde_json::to_value(&result.report)
+        .map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))?;
+    Ok(PyDiagnosis {
+        report,
+        extended_unit: result.extended_unit.map(Arc::new),
+        before: result.before,
+        after: result.after,
+    })
+}
+
+/// The diagnosis catalog (the registry `diagnose`, `synth(hide=...)` and the command line's
+/// `--cause` use): a list of dicts with id, title, signature (what the cause looks like in the
+/// residual evidence), extension (the model extension re-fitted for it) and key_params.
+#[pyfunction]
+pub(crate) fn causes<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for c in catalog::CAUSES {
+        let info = c.info();
+        let d = PyDict::new(py);
+        d.set_item("id", info.id)?;
+        d.set_item("title", info.title)?;
+        d.set_item("signature", info.signature)?;
+        d.set_item("extension", info.extension)?;
+        d.set_item("key_params", info.key_params.to_vec())?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
+/// `{event name: {"time_s": array, column: array}}`.
+fn traces_by_event<'py>(
+    py: Python<'py>,
+    traces: &[(String, Traces)],
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (e, t) in traces {
+        d.set_item(e, traces_dict(py, t)?)?;
+    }
+    Ok(d)
+}

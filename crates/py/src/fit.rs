@@ -1,0 +1,398 @@
+//! `fit` and its `FitResult`.
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
+
+use pyo3::exceptions::{PyKeyError, PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use itaipu_calib::diagnose::{self as calib_diagnose, catalog};
+use itaipu_calib::fit::{self as calib_fit, FitOptions, FitReport, Silent, StageOutput};
+use itaipu_calib::spec::{CalibSpec, Strategy};
+use itaipu_dynamics::unit::Unit;
+use itaipu_dynamics::unit_file::read_unit;
+
+use crate::args::{
+    event_sources, load_events, source, str_or_list, swap_error, swapped_events_unit, worker_pool,
+    Source,
+};
+use crate::diagnose::json_to_py;
+use crate::errors::{request_error, Failure};
+use crate::traces::PyTraces;
+use crate::unit::PyUnit;
+use crate::{interrupt, pandas, params};
+use itaipu_calib::request::{FitRequest, Search, Stage};
+
+/// Result of `fit`: the report, the calibrated unit, and per stage its parameters and traces.
+///
+/// `report` is the fit report as a dict (the `report.json` of the command line: a new dict on
+/// each access; non-finite numbers such as an undetermined standard error are None). `unit` is
+/// the calibrated full unit. `stages` lists the stages run, in order (`gen`, `avr`, `pss`, `tg`,
+/// and `joint` for the final joint polish, `simultaneous` first with that strategy).
+/// `parameters(stage)` gives a stage's calibrated free parameters, `fitness` the fitness table of
+/// the command line, `traces(stage)` the start and calibrated traces of a stage.
+#[pyclass(name = "FitResult", module = "itaipu_calib", frozen)]
+pub(crate) struct PyFitResult {
+    pub(crate) report: FitReport,
+    pub(crate) report_json: String,
+    pub(crate) unit: Arc<Unit>,
+    pub(crate) stages: Vec<StageOutput>,
+    /// The calibrated set with the calibration's prior, for `diagnose(..., fit=...)`.
+    pub(crate) calibrated_set: Vec<catalog::FreeBound>,
+}
+
+impl PyFitResult {
+    fn unknown_stage(&self, stage: &str) -> PyErr {
+        let names: Vec<&str> = self.stages.iter().map(|s| s.stage.as_str()).collect();
+        PyKeyError::new_err(format!(
+            "no stage '{stage}' in this fit (stages: {})",
+            names.join(", ")
+        ))
+    }
+
+    /// J = Σ(ΔP² + ΔQ²) summed over the fitted (not held-out) events.
+    fn j_fitted(rows: &[calib_fit::EventFitness]) -> f64 {
+        rows.iter().filter(|f| !f.held_out).map(|f| f.j_pq).sum()
+    }
+}
+
+#[pymethods]
+impl PyFitResult {
+    /// The fit report as a dict (unit, events, held_out, strategy, seed, threads,
+    /// start_fitness, stages: list of stage reports with parameters, objective_before/after,
+    /// fitness, phases, identifiability, ...; wall_s).
+    #[getter]
+    fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        py.import("json")?
+            .call_method1("loads", (&self.report_json,))
+    }
+
+    /// The calibrated full unit (every block, with every stage's results).
+    #[getter]
+    fn unit(&self) -> PyUnit {
+        PyUnit {
+            inner: self.unit.clone(),
+            path: None,
+        }
+    }
+
+    /// Names of the stages run, in order.
+    #[getter]
+    fn stages(&self) -> Vec<String> {
+        self.stages.iter().map(|s| s.stage.clone()).collect()
+    }
+
+    /// Calibrated values of the free parameters of `stage`: `{"block.name": value}` in the
+    /// spec's order. Raises KeyError for a stage that did not run.
+    fn parameters<'py>(&self, py: Python<'py>, stage: &str) -> PyResult<Bound<'py, PyDict>> {
+        let rep = self
+            .report
+            .stages
+            .iter()
+            .find(|s| s.stage == stage)
+            .ok_or_else(|| self.unknown_stage(stage))?;
+        let d = PyDict::new(py);
+        for p in &rep.parameters {
+            d.set_item(&p.param, p.result)?;
+        }
+        Ok(d)
+    }
+
+    /// The fitness table of the command line: `[("start", J), (stage, J), ...]` with
+    /// J = Σ(ΔP² + ΔQ²) over the fit window on the system base (RaPId's J), summed over the
+    /// fitted events (per-event and held-out values are in `report`).
+    #[getter]
+    fn fitness(&self) -> Vec<(String, f64)> {
+        let mut rows = vec![(
+            "start".to_string(),
+            Self::j_fitted(&self.report.start_fitness),
+        )];
+        rows.extend(
+            self.report
+                .stages
+                .iter()
+                .map(|s| (s.stage.clone(), Self::j_fitted(&s.fitness))),
+        );
+        rows
+    }
+
+    /// `(start, calibrated)`: Traces of the stage's unit before and after the stage, on the
+    /// first fitted event or on the event named `event`. Raises KeyError for an unknown stage or
+    /// event.
+    #[pyo3(signature = (stage, event = None))]
+    fn traces(&self, stage: &str, event: Option<&str>) -> PyResult<(PyTraces, PyTraces)> {
+        let st = self
+            .stages
+            .iter()
+            .find(|s| s.stage == stage)
+            .ok_or_else(|| self.unknown_stage(stage))?;
+        let found = match event {
+            None => st.traces.first(),
+            Some(name) => st.traces.iter().find(|(e, _, _)| e == name),
+        };
+        let (_, start, end) = found.ok_or_else(|| {
+            let names: Vec<&str> = st.traces.iter().map(|(e, _, _)| e.as_str()).collect();
+            PyKeyError::new_err(format!(
+                "no event '{}' in this fit (events: {})",
+                event.unwrap_or(""),
+                names.join(", ")
+            ))
+        })?;
+        Ok((
+            PyTraces {
+                inner: start.clone(),
+            },
+            PyTraces { inner: end.clone() },
+        ))
+    }
+
+    /// lmfit-like parameter objects `{name: Parameter}` (value, stderr, init_value, min, max,
+    /// at_bound, correl, stage, units): of `stage`, or by default of the whole fit, each
+    /// parameter from the last stage that freed it (the values of `unit`). Raises KeyError for
+    /// a stage that did not run.
+    #[pyo3(signature = (stage = None))]
+    fn params<'py>(&self, py: Python<'py>, stage: Option<&str>) -> PyResult<Bound<'py, PyDict>> {
+        let ps = match stage {
+            None => params::final_params(&self.report.stages),
+            Some(name) => params::of_stage(
+                self.report
+                    .stages
+                    .iter()
+                    .find(|s| s.stage == name)
+                    .ok_or_else(|| self.unknown_stage(name))?,
+            ),
+        };
+        params_dict(py, &ps)
+    }
+
+    /// The fit report as text (what `itaipu-calib fit` prints): per stage the phases, the
+    /// parameter table (start, bounds, result, standard error, at bound), what the data do not
+    /// determine; then J per event and stage. `print(result)` prints the same.
+    fn fit_report(&self) -> String {
+        self.report.to_text()
+    }
+
+    fn __str__(&self) -> String {
+        self.report.to_text()
+    }
+
+    /// The parameters of `params()` as a pandas DataFrame indexed by name (columns stage,
+    /// value, stderr (NaN: not determined), init_value, min, max, at_bound, units). Needs
+    /// pandas.
+    fn to_pandas<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let rows = params::final_params(&self.report.stages)
+            .iter()
+            .map(|p| p.row(py))
+            .collect::<PyResult<Vec<_>>>()?;
+        pandas::data_frame(py, pandas::rows(py, rows)?, Some("name"))
+    }
+
+    fn __repr__(&self) -> String {
+        let r = &self.report;
+        let rows = self.fitness();
+        let (j0, j1) = (
+            rows.first().map_or(f64::NAN, |r| r.1),
+            rows.last().map_or(f64::NAN, |r| r.1),
+        );
+        format!(
+            "<FitResult '{}' on {}: stages {}, J {:.5} -> {:.5}, {:.1} s>",
+            r.unit,
+            r.events.join(", "),
+            self.stages().join(" -> "),
+            j0,
+            j1,
+            r.wall_s
+        )
+    }
+}
+
+/// Calibrates `unit` against `events`, stage by stage (particle swarm, then L-BFGS), as the
+/// command line's `fit`.
+///
+/// `events` (and `held_out`) are paths to event files or Event objects, or lists of them; the
+/// objective sums over `events`, `held_out` events are only scored. `unit` is a path or a Unit.
+/// `calib` is a file with a `[calibration]` table; by default the unit file's own (a Unit that
+/// was not read from a file then needs `calib`). `stages` is "all" (every stage the spec lists)
+/// or some of gen, avr, pss, tg (a list or a comma-separated string), run in that order.
+/// `strategy` ('sequential', 'incremental', 'simultaneous-first'), `seed`, `particles`,
+/// `pso_iterations` and `lbfgs_iterations` override the spec; `polish=False` skips the final
+/// joint refinement ('joint') after several stages. `threads` sets the worker threads (default:
+/// all cores); same seed, same numbers, whatever the number of threads. The GIL is released
+/// while files are read and the fit runs.
+///
+/// Raises CalibrationError (bad spec, or a fit that cannot run), EventError, UnitModelError
+/// (and ValueError for bad options, TypeError for bad argument types).
+#[pyfunction]
+#[pyo3(
+    signature = (events, unit, *, calib = None, stages = None, strategy = None, seed = None, particles = None,
+                 pso_iterations = None, lbfgs_iterations = None, polish = true, held_out = None,
+                 threads = None),
+    text_signature = "(events, unit, *, calib=None, stages='all', strategy=None, seed=None, particles=None, \
+                      pso_iterations=None, lbfgs_iterations=None, polish=True, held_out=(), threads=None)"
+)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn fit(
+    py: Python<'_>,
+    events: &Bound<'_, PyAny>,
+    unit: &Bound<'_, PyAny>,
+    calib: Option<PathBuf>,
+    stages: Option<&Bound<'_, PyAny>>,
+    strategy: Option<&str>,
+    seed: Option<u64>,
+    particles: Option<usize>,
+    pso_iterations: Option<usize>,
+    lbfgs_iterations: Option<u64>,
+    polish: bool,
+    held_out: Option<&Bound<'_, PyAny>>,
+    threads: Option<usize>,
+) -> PyResult<PyFitResult> {
+    if swapped_events_unit(py, events, unit)? {
+        return Err(swap_error("fit"));
+    }
+    let events = event_sources(events, "events")?;
+    let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
+    let held_out = match held_out {
+        Some(h) => event_sources(h, "held_out")?,
+        None => vec![],
+    };
+    let calib = match calib {
+        Some(p) => p,
+        None => match &unit_src {
+            Source::Path(p) => p.clone(),
+            Source::Loaded(_) => unit.downcast::<PyUnit>()?.get().path.clone().ok_or_else(|| {
+                PyValueError::new_err(
+                    "calib is required: unit is a Unit that was not read from a file (e.g. FitResult.unit), \
+                     so it has no [calibration] table; pass calib=<file with a [calibration] table>",
+                )
+            })?,
+        },
+    };
+    let request = FitRequest {
+        stages: stage_list(stages)?,
+        strategy: strategy
+            .map(str::parse::<Strategy>)
+            .transpose()
+            .map_err(request_error)?,
+        search: Search {
+            seed,
+            particles,
+            pso_iterations,
+            lbfgs_iterations,
+            threads,
+        },
+        no_polish: !polish,
+    };
+    request.search.validate().map_err(request_error)?;
+    let pool = worker_pool(threads)?;
+    // Ctrl-C (KeyboardInterrupt) stops the fit at its next candidate evaluation; the passes
+    // finished by then are kept on the exception (see `fit`'s documentation).
+    let cancel = Arc::new(AtomicBool::new(false));
+    let worker_cancel = cancel.clone();
+    let finished: Arc<Mutex<Vec<(calib_fit::StageReport, Unit)>>> = Arc::default();
+    let worker_finished = finished.clone();
+    let work = move || -> Result<(calib_fit::FitResult, Vec<catalog::FreeBound>), Failure> {
+        let unit = match unit_src {
+            Source::Loaded(u) => u,
+            Source::Path(p) => Arc::new(read_unit(&p)?),
+        };
+        let spec = CalibSpec::from_file(&calib)?;
+        let events = load_events(events)?;
+        let held_out = load_events(held_out)?;
+        let mut opts = FitOptions::from_spec(&spec);
+        request.apply(&mut opts)?;
+        let on_stage =
+            |rep: &calib_fit::StageReport, _: &StageOutput, master: &Unit| -> Result<(), String> {
+                if let Ok(mut f) = worker_finished.lock() {
+                    f.push((rep.clone(), master.clone()));
+                }
+                Ok(())
+            };
+        let control = calib_fit::FitControl {
+            cancel: Some(worker_cancel),
+            on_stage: Some(&on_stage),
+            ..Default::default()
+        };
+        let run =
+            || calib_fit::fit_with(&unit, &spec, &events, &held_out, &opts, &Silent, &control);
+        let mut result = match &pool {
+            Some(pool) => pool.install(run),
+            None => run(),
+        }?;
+        // As the command line's calibrated.toml.
+        result.unit.description = format!(
+            "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
+            unit.description,
+            opts.stages.join("+"),
+            opts.seed
+        );
+        let set = calib_diagnose::calibrated_set(&spec, &opts.stages, &unit, &result.unit);
+        Ok((result, set))
+    };
+    let result = interrupt::interruptible(py, Some(cancel), work).inspect_err(|e| {
+        if let Ok(f) = finished.lock() {
+            let _ = keep_finished(py, e, &f);
+        }
+    })?;
+    let (result, calibrated_set) = result.map_err(|e| e.into_pyerr(py))?;
+    let report_json = serde_json::to_string(&result.report)
+        .map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
+    Ok(PyFitResult {
+        report: result.report,
+        report_json,
+        unit: Arc::new(result.unit),
+        stages: result.stages,
+        calibrated_set,
+    })
+}
+
+/// Puts what an interrupted fit finished on its KeyboardInterrupt: `finished_stages` (names,
+/// in order), `unit` (the full unit after the last of them, or None), `params` (`{name:
+/// Parameter}` of those stages) and `stage_reports` (their reports as dicts).
+pub(crate) fn keep_finished(
+    py: Python<'_>,
+    e: &PyErr,
+    finished: &[(calib_fit::StageReport, Unit)],
+) -> PyResult<()> {
+    let exc = e.value(py);
+    let names: Vec<&str> = finished.iter().map(|(r, _)| r.stage.as_str()).collect();
+    exc.setattr("finished_stages", names)?;
+    exc.setattr(
+        "unit",
+        finished.last().map(|(_, u)| PyUnit {
+            inner: Arc::new(u.clone()),
+            path: None,
+        }),
+    )?;
+    let reports: Vec<calib_fit::StageReport> = finished.iter().map(|(r, _)| r.clone()).collect();
+    exc.setattr("params", params_dict(py, &params::final_params(&reports))?)?;
+    let json = serde_json::to_value(&reports)
+        .map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
+    exc.setattr("stage_reports", json_to_py(py, &json)?)?;
+    Ok(())
+}
+
+/// `{name: Parameter}` in order.
+pub(crate) fn params_dict<'py>(
+    py: Python<'py>,
+    ps: &[params::PyParameter],
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for p in ps {
+        d.set_item(p.name(), p.clone())?;
+    }
+    Ok(d)
+}
+
+/// The stages from the `stages` argument, as the command line's `--stage`: "all" (or None:
+/// every stage the spec lists) or names among gen, avr, pss, tg (a list, or one string with
+/// commas), checked by [`Stage::parse_list`].
+fn stage_list(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<Stage>> {
+    let Some(arg) = arg else { return Ok(vec![]) };
+    let given = str_or_list(
+        arg,
+        "stages must be 'all', a stage name, a comma-separated string or a list of stage names",
+    )?;
+    Stage::parse_list(&given).map_err(request_error)
+}

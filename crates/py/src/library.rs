@@ -1,0 +1,55 @@
+//! The model library and small helpers: `models`, `noise_sigma`.
+
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use itaipu_dynamics::block::Dir;
+use itaipu_dynamics::registry::MODELS;
+
+/// The model library (the same catalogue unit files and the command line use): a list of dicts
+/// with name, role ('machine', 'exciter', 'pss', 'governor' or 'block'), summary, parameters
+/// (dicts: name, alias (PSS/E), unit, doc, typical, range = (low, high)), ports (dicts: name,
+/// direction 'in'/'out', doc) and states.
+#[pyfunction]
+pub(crate) fn models<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for m in MODELS {
+        let block = m.create();
+        let params = PyList::empty(py);
+        for s in block.params().specs() {
+            let p = PyDict::new(py);
+            p.set_item("name", s.name)?;
+            p.set_item("alias", s.alias)?;
+            p.set_item("unit", s.unit)?;
+            p.set_item("doc", s.doc)?;
+            p.set_item("typical", s.typical)?;
+            p.set_item("range", s.range)?;
+            params.append(p)?;
+        }
+        let ports = PyList::empty(py);
+        for port in block.ports() {
+            let p = PyDict::new(py);
+            p.set_item("name", port.name)?;
+            p.set_item("direction", if port.dir == Dir::In { "in" } else { "out" })?;
+            p.set_item("doc", port.doc)?;
+            ports.append(p)?;
+        }
+        let d = PyDict::new(py);
+        d.set_item("name", m.name)?;
+        d.set_item("role", m.role.section())?;
+        d.set_item("summary", m.summary)?;
+        d.set_item("parameters", params)?;
+        d.set_item("ports", ports)?;
+        d.set_item("states", block.state_names().to_vec())?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
+/// Robust noise standard deviation of a measured signal (the fit's estimate: from its second
+/// differences, so the event itself barely counts), in the signal's unit. The band the plot
+/// helpers draw around a zero residual.
+#[pyfunction]
+pub(crate) fn noise_sigma(values: Vec<f64>) -> f64 {
+    itaipu_calib::problem::noise_variance(&values).sqrt()
+}

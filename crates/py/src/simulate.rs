@@ -1,0 +1,71 @@
+//! `simulate`.
+
+use std::sync::Arc;
+
+use pyo3::prelude::*;
+
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::simulate::{SimOptions, Traces};
+use itaipu_dynamics::unit_file::read_unit;
+
+use crate::args::{source, swap_error, swapped_events_unit, Source};
+use crate::errors::{request_error, Failure};
+use crate::event::PyEvent;
+use crate::traces::PyTraces;
+use crate::unit::PyUnit;
+use itaipu_calib::request::SimulateRequest;
+
+/// Plays the measured terminal voltage of `event` into `unit` and records every signal.
+///
+/// `event` and `unit` are paths to the TOML files (str or os.PathLike) or objects from
+/// `load_event` / `load_unit`. `method` is "dopri5" (adaptive Dormand-Prince 5(4), tolerances
+/// `rtol`, `atol`) or "rk4" (fixed step of at most `step` seconds). The GIL is released while
+/// files are read and the model is integrated.
+///
+/// Raises EventError, UnitModelError, InitError, SimulationError (and ValueError for bad
+/// options, TypeError for bad argument types).
+#[pyfunction]
+#[pyo3(signature = (event, unit, *, method = "dopri5", rtol = 1e-6, atol = 1e-7, step = 0.001))]
+pub(crate) fn simulate(
+    py: Python<'_>,
+    event: &Bound<'_, PyAny>,
+    unit: &Bound<'_, PyAny>,
+    method: &str,
+    rtol: f64,
+    atol: f64,
+    step: f64,
+) -> PyResult<PyTraces> {
+    let opts = sim_options(method, rtol, atol, step)?;
+    if swapped_events_unit(py, event, unit)? {
+        return Err(swap_error("simulate"));
+    }
+    let event = source::<PyEvent, _>(event, "event", |e| e.inner.clone())?;
+    let unit = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
+    let result = py.detach(move || -> Result<Traces, Failure> {
+        let event = match event {
+            Source::Loaded(e) => e,
+            Source::Path(p) => Arc::new(Event::from_toml_file(&p)?),
+        };
+        let unit = match unit {
+            Source::Loaded(u) => u,
+            Source::Path(p) => Arc::new(read_unit(&p)?),
+        };
+        Ok(itaipu_dynamics::simulate(&unit, &event, &opts)?)
+    });
+    result
+        .map(|t| PyTraces { inner: t })
+        .map_err(|e| e.into_pyerr(py))
+}
+
+/// Integrator options, checked by the library ([`SimulateRequest::options`]) as for the
+/// command line.
+pub(crate) fn sim_options(method: &str, rtol: f64, atol: f64, step: f64) -> PyResult<SimOptions> {
+    SimulateRequest {
+        method: method.to_string(),
+        rtol,
+        atol,
+        step,
+    }
+    .options()
+    .map_err(request_error)
+}
