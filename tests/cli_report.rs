@@ -4,7 +4,8 @@
 //! shown rounded from it; the page references nothing outside itself; the verdict's colour
 //! follows the rule (green only at the noise floor with nothing named). When a headless
 //! Chromium is installed (`chromium-headless-shell` or `chromium`), the page is also loaded in
-//! it and the DOM it builds is checked; without one that part says so and is skipped.
+//! it and the DOM it builds is checked; without one that part says so and is skipped, unless
+//! `ITAIPU_REQUIRE_BROWSER` is set (CI installs the browser and sets it).
 
 use std::path::{Path, PathBuf};
 
@@ -141,6 +142,12 @@ fn browser() -> Option<PathBuf> {
 /// Loads the page in a headless browser and returns the DOM it built (None without one).
 fn rendered_dom(html: &Path) -> Option<String> {
     let Some(b) = browser() else {
+        // CI installs the browser (.ci/run) and sets ITAIPU_REQUIRE_BROWSER: there the check
+        // cannot be skipped.
+        assert!(
+            std::env::var_os("ITAIPU_REQUIRE_BROWSER").is_none(),
+            "ITAIPU_REQUIRE_BROWSER is set but no chromium-headless-shell / chromium is on PATH"
+        );
         eprintln!("no headless browser (chromium-headless-shell / chromium) on PATH: rendering check skipped");
         return None;
     };
