@@ -14,6 +14,7 @@
 //!   cross-correlation with the inputs, spectrum, matrix-pencil modes).
 //! * [`practice`]: the practice set of independent events, its one spec and its answer keys.
 //! * [`fit`]: stages, strategies and reports.
+//! * [`error`]: [`Error`], the one error type every error of the crate converts into.
 //! * [`diagnose`]: residual evidence, the catalog of causes with their model extensions,
 //!   re-fits and gains, and the verdict.
 
@@ -21,6 +22,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod diagnose;
+pub mod error;
 pub mod evidence;
 pub mod filter;
 pub mod fit;
@@ -31,5 +33,6 @@ pub mod problem;
 pub mod pso;
 pub mod spec;
 
+pub use error::Error;
 pub use fit::{fit, FitOptions, FitReport, FitResult, Progress, Silent};
 pub use spec::{CalibSpec, Strategy};

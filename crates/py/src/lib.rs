@@ -1161,13 +1161,15 @@ fn fit(
         if let Some(n) = lbfgs_iterations {
             opts.lbfgs_iterations = n;
         }
-        let on_stage =
-            |rep: &calib_fit::StageReport, _: &StageOutput, master: &Unit| -> Result<(), String> {
-                if let Ok(mut f) = worker_finished.lock() {
-                    f.push((rep.clone(), master.clone()));
-                }
-                Ok(())
-            };
+        let on_stage = |rep: &calib_fit::StageReport,
+                        _: &StageOutput,
+                        master: &Unit|
+         -> Result<(), FitError> {
+            if let Ok(mut f) = worker_finished.lock() {
+                f.push((rep.clone(), master.clone()));
+            }
+            Ok(())
+        };
         let control = calib_fit::FitControl {
             cancel: Some(worker_cancel),
             on_stage: Some(&on_stage),

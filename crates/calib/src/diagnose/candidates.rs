@@ -45,8 +45,6 @@ pub(super) fn distortion(refit: &[FreeBound], base: &Unit, ext: &Unit) -> Vec<Di
         .collect()
 }
 
-/// The verdict.
-
 /// What the scoring of every candidate shares: the reference unit and its context and evidence,
 /// the events, the fitted/held-out split and its surrogate, the noise weights, the options, and
 /// the baselines re-fitted so far (by [`bounds_key`], re-used across candidates).
@@ -93,13 +91,13 @@ impl Candidates<'_> {
             fixed: vec![],
             gains: None,
             significant: false,
-            signature: cause.map_or_else(Vec::new, |c| c.signature(&evidence_before, &ctx)),
+            signature: cause.map_or_else(Vec::new, |c| c.signature(evidence_before, ctx)),
             simulations: 0,
             failed_candidates: 0,
             wall_s: 0.0,
             distortion: vec![],
         };
-        let ext: Extension = match user_cause::extend(id, unit, &ctx, &opts.user_causes) {
+        let ext: Extension = match user_cause::extend(id, unit, ctx, &opts.user_causes) {
             Err(catalog::CauseError::NotApplicable(why)) => {
                 rep.note = format!("not applicable: {why}");
                 return (rep, None);
@@ -163,7 +161,7 @@ impl Candidates<'_> {
                 unit,
                 &base_bounds,
                 &[],
-                &sp,
+                sp,
                 weights,
                 opts,
                 &format!("{id} baseline"),
@@ -191,7 +189,7 @@ impl Candidates<'_> {
         let base_opts = opts;
         let opts = &ext_opts;
         let mut r = match refit(
-            &ext.unit, &bounds, &ext.ties, &sp, weights, opts, id, progress,
+            &ext.unit, &bounds, &ext.ties, sp, weights, opts, id, progress,
         ) {
             Ok(r) => r,
             Err(msg) => {
@@ -222,7 +220,7 @@ impl Candidates<'_> {
                 &ext.unit,
                 &from_base,
                 &ext.ties,
-                &sp,
+                sp,
                 weights,
                 opts,
                 &format!("{id} from the baseline"),
@@ -278,7 +276,7 @@ impl Candidates<'_> {
                 unit,
                 &from_ext,
                 &[],
-                &sp,
+                sp,
                 weights,
                 &polish,
                 &format!("{id} baseline again"),
@@ -304,7 +302,7 @@ impl Candidates<'_> {
                     unit,
                     &base_bounds,
                     &[],
-                    &sp_null,
+                    sp_null,
                     weights,
                     base_opts,
                     &format!("{id} null baseline"),
@@ -315,7 +313,7 @@ impl Candidates<'_> {
             }
             // The standard search budget: on the surrogate the reference is exact and the
             // start is its optimum, so the longer search a bent calibration needs buys nothing.
-            match (baselines.get(&nkey), refit(&ext.unit, &bounds, &ext.ties, &sp_null, weights, base_opts, &format!("{id} null"), progress)) {
+            match (baselines.get(&nkey), refit(&ext.unit, &bounds, &ext.ties, sp_null, weights, base_opts, &format!("{id} null"), progress)) {
                 (Some(b0), Ok(r0)) => {
                     null_fit = (b0.chi2_fit - r0.chi2_fit).max(0.0);
                     null_held = (b0.chi2_held - r0.chi2_held).max(0.0);
@@ -354,14 +352,14 @@ impl Candidates<'_> {
             .zip(&r.values)
             .map(|(f, v)| (f.path.clone(), *v))
             .collect();
-        if let Some(why) = cause.and_then(|c| c.below_resolution(&fitted, &ctx)) {
+        if let Some(why) = cause.and_then(|c| c.below_resolution(&fitted, ctx)) {
             if rep.significant {
                 rep.significant = false;
                 rep.note = format!("not named: {why}");
             }
         }
         if !rep.significant {
-            if let Some(why) = cause.and_then(|c| c.named_by_evidence(&ctx)) {
+            if let Some(why) = cause.and_then(|c| c.named_by_evidence(ctx)) {
                 rep.significant = true;
                 rep.note = format!("named by the evidence: {why}");
             }

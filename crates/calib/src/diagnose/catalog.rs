@@ -107,6 +107,15 @@ pub enum CauseError {
 }
 
 impl CauseError {
+    /// Short stable identifier of the variant (`"unknown"`, `"not_applicable"`, `"build"`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            CauseError::Unknown(_) => "unknown",
+            CauseError::NotApplicable(_) => "not_applicable",
+            CauseError::Build(_) => "build",
+        }
+    }
+
     pub fn not_applicable(why: impl Into<String>) -> Self {
         Self::NotApplicable(why.into())
     }
@@ -411,6 +420,17 @@ pub enum HideError {
     /// The extension could not be built on this unit.
     #[error("{0}")]
     Build(String),
+}
+
+impl HideError {
+    /// Short stable identifier of the variant (`"request"`, `"not_applicable"`, `"build"`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            HideError::Request(_) => "request",
+            HideError::NotApplicable { .. } => "not_applicable",
+            HideError::Build(_) => "build",
+        }
+    }
 }
 
 /// The parameters a hide of `ext` (built on `unit`) may set: those the extension frees and

@@ -275,6 +275,7 @@ pub struct Distortion {
     pub z_extended: f64,
 }
 
+/// The verdict.
 #[derive(Debug, Clone, Serialize)]
 pub struct Verdict {
     /// A cause id, `none`, or `unexplained`.

@@ -25,8 +25,15 @@ pub(super) fn mode_hint(ev: &[EventEvidence], rate_hz: f64) -> Option<f64> {
 
 /// The catalog context of `unit` on `event` (operating-point field voltage and current, PMU
 /// rate), without evidence hints. Used to hide a cause in a synthetic truth.
-pub fn context(unit: &Unit, event: &Event) -> Result<Context, String> {
-    let (_, tr) = fitness(unit, event, false)?;
+///
+/// # Errors
+///
+/// [`DiagnoseError::Simulation`] when the unit does not simulate on the event.
+pub fn context(unit: &Unit, event: &Event) -> Result<Context, DiagnoseError> {
+    let (_, tr) = fitness(unit, event, false).map_err(|msg| DiagnoseError::Simulation {
+        event: event.name.clone(),
+        msg,
+    })?;
     Ok(context_from(&tr, event))
 }
 
@@ -71,7 +78,7 @@ pub(super) fn reference(
         unit,
         &nuisance,
         &[],
-        &sp,
+        sp,
         weights,
         opts,
         "nuisance offsets",
@@ -133,7 +140,7 @@ pub(super) fn catalog_context(
     evidence_before: &[EventEvidence],
 ) -> Context {
     let mut ctx = context_from(&before[0].1, &events[0]);
-    ctx.mode_hint_hz = mode_hint(&evidence_before, ctx.rate_hz);
+    ctx.mode_hint_hz = mode_hint(evidence_before, ctx.rate_hz);
     ctx.shaft_resonance = evidence_before
         .iter()
         .filter_map(|e| e.p_peak.clone())

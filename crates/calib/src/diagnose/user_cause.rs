@@ -39,7 +39,7 @@ use itaipu_dynamics::registry;
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::{build_block, build_diagram_block, BuiltBlock};
 
-use super::catalog::{self, CauseError, Context, Extension, FreeBound};
+use super::catalog::{self, CauseError, Context, Extension, FreeBound, HideError};
 
 /// A bad cause file: the file, the field and what is wrong.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -398,15 +398,25 @@ impl UserCause {
     /// The unit with this cause in it at chosen values (`block.param` among the freed and the
     /// added blocks' parameters), the others of the extension at their starts: a synthetic
     /// truth for testing the cause.
-    pub fn hide(&self, unit: &Unit, ctx: &Context, values: &[(&str, f64)]) -> Result<Unit, String> {
+    pub fn hide(
+        &self,
+        unit: &Unit,
+        ctx: &Context,
+        values: &[(&str, f64)],
+    ) -> Result<Unit, HideError> {
         let ext = self.extend(unit, ctx).map_err(|e| match e {
-            CauseError::NotApplicable(why) => format!("{} does not apply: {why}", self.id),
-            e => e.to_string(),
+            CauseError::NotApplicable(why) => HideError::NotApplicable {
+                cause: self.id.clone(),
+                unit: unit.name.clone(),
+                why,
+            },
+            CauseError::Build(msg) => HideError::Build(msg),
+            e => HideError::Request(e.to_string()),
         })?;
         let known = catalog::hideable_params(unit, &ext);
         let mut u = ext.unit.clone();
-        let set = |u: &mut Unit, path: &str, v: f64| -> Result<(), String> {
-            let r = u.param(path).map_err(|e| e.to_string())?;
+        let set = |u: &mut Unit, path: &str, v: f64| -> Result<(), HideError> {
+            let r = u.param(path).map_err(|e| HideError::Build(e.to_string()))?;
             u.set(r, v);
             Ok(())
         };
@@ -415,16 +425,19 @@ impl UserCause {
         }
         for (p, v) in values {
             if !known.iter().any(|k| k == p) {
-                return Err(format!(
+                return Err(HideError::Request(format!(
                     "{}: unknown parameter '{p}' (its parameters: {})",
                     self.id,
                     known.join(", ")
-                ));
+                )));
             }
             set(&mut u, p, *v)?;
         }
         for (leader, follower) in &ext.ties {
-            let v = u.get(u.param(leader).map_err(|e| e.to_string())?);
+            let v = u.get(
+                u.param(leader)
+                    .map_err(|e| HideError::Build(e.to_string()))?,
+            );
             set(&mut u, follower, v)?;
         }
         Ok(u)

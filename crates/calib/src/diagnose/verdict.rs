@@ -262,7 +262,7 @@ pub(super) fn decide(
                 where_: None,
             }
         }
-        None => undecided(&evidence_before, &reports, opts, sigma_p, sigma_q),
+        None => undecided(evidence_before, reports, opts, sigma_p, sigma_q),
     };
 
     Decision {

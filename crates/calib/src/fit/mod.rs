@@ -142,8 +142,10 @@ pub struct FitResult {
 }
 
 /// What a pass hands out as it finishes: its report, its units and traces, and the full unit
-/// (every stage's results so far) that the next pass starts from.
-pub type OnStage<'a> = dyn Fn(&StageReport, &StageOutput, &Unit) -> Result<(), String> + Sync + 'a;
+/// (every stage's results so far) that the next pass starts from. A hook that fails (an output
+/// it could not write, say) returns [`FitError::Output`], which stops the fit.
+pub type OnStage<'a> =
+    dyn Fn(&StageReport, &StageOutput, &Unit) -> Result<(), FitError> + Sync + 'a;
 
 /// Passes finished by an earlier, interrupted run, to go on from.
 #[derive(Clone)]

@@ -267,7 +267,7 @@ impl Passes<'_> {
         master: &Unit,
     ) -> Result<(), FitError> {
         if let Some(f) = self.control.on_stage {
-            f(&rep, &out, master).map_err(FitError::Output)?;
+            f(&rep, &out, master)?;
         }
         self.finished.push(rep.stage.clone());
         self.reports.push(rep);
