@@ -121,42 +121,39 @@ impl PsoOptions {
         if self.particles == 0 {
             return Err(PsoError::NoParticles);
         }
-        if !self.inertia.is_finite() {
-            return Err(PsoError::Invalid {
-                field: "inertia",
-                rule: "finite",
-                value: self.inertia,
-            });
+        let finite_non_negative = |v: f64| v.is_finite() && v >= 0.0;
+        // (field, what it must be, value, whether it is), in the order they are checked.
+        let checks = [
+            ("inertia", "finite", self.inertia, self.inertia.is_finite()),
+            (
+                "cognitive",
+                "finite and >= 0",
+                self.cognitive,
+                finite_non_negative(self.cognitive),
+            ),
+            (
+                "social",
+                "finite and >= 0",
+                self.social,
+                finite_non_negative(self.social),
+            ),
+            (
+                "max_velocity",
+                "> 0 (or +inf)",
+                self.max_velocity,
+                !(self.max_velocity.is_nan() || self.max_velocity <= 0.0),
+            ),
+            (
+                "tol",
+                "finite and >= 0",
+                self.tol,
+                finite_non_negative(self.tol),
+            ),
+        ];
+        match checks.iter().find(|c| !c.3) {
+            Some(&(field, rule, value, _)) => Err(PsoError::Invalid { field, rule, value }),
+            None => Ok(()),
         }
-        if !(self.cognitive.is_finite() && self.cognitive >= 0.0) {
-            return Err(PsoError::Invalid {
-                field: "cognitive",
-                rule: "finite and >= 0",
-                value: self.cognitive,
-            });
-        }
-        if !(self.social.is_finite() && self.social >= 0.0) {
-            return Err(PsoError::Invalid {
-                field: "social",
-                rule: "finite and >= 0",
-                value: self.social,
-            });
-        }
-        if self.max_velocity.is_nan() || self.max_velocity <= 0.0 {
-            return Err(PsoError::Invalid {
-                field: "max_velocity",
-                rule: "> 0 (or +inf)",
-                value: self.max_velocity,
-            });
-        }
-        if !(self.tol.is_finite() && self.tol >= 0.0) {
-            return Err(PsoError::Invalid {
-                field: "tol",
-                rule: "finite and >= 0",
-                value: self.tol,
-            });
-        }
-        Ok(())
     }
 }
 

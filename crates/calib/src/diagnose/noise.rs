@@ -15,21 +15,26 @@ use super::*;
 /// pre-event is too short). Taken on the residual rather than the measurement, it also holds the
 /// noise of the played-back voltage propagated through the model, white or not.
 pub(super) fn pre_event_noise(event: &Event, y: &[f64]) -> f64 {
-    let (onset, _) = windows(event);
-    let pre: Vec<f64> = event
-        .record
-        .time_s
-        .iter()
-        .zip(y)
-        .filter(|(t, _)| **t < onset)
-        .map(|(_, v)| *v)
-        .collect();
+    let pre = pre_event(event, y);
     let s = if pre.len() >= 10 {
         std_dev(&pre)
     } else {
         evidence::noise_floor(y)
     };
     s.max(1e-6)
+}
+
+/// The samples of `y` (a series at the event's sample times) before the event's onset.
+fn pre_event(event: &Event, y: &[f64]) -> Vec<f64> {
+    let (onset, _) = windows(event);
+    event
+        .record
+        .time_s
+        .iter()
+        .zip(y)
+        .filter(|(t, _)| **t < onset)
+        .map(|(_, v)| *v)
+        .collect()
 }
 
 /// Standard deviation about the mean.
@@ -44,15 +49,8 @@ pub(super) fn std_dev(y: &[f64]) -> f64 {
 /// pre-event P, Q, |V| and angle), the input channels getting theirs too.
 pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Event, String> {
     let r = &event.record;
-    let (onset, _) = windows(event);
     let pre = |y: &[f64]| {
-        let v: Vec<f64> = r
-            .time_s
-            .iter()
-            .zip(y)
-            .filter(|(t, _)| **t < onset)
-            .map(|(_, v)| *v)
-            .collect();
+        let v = pre_event(event, y);
         if v.len() >= 10 {
             evidence::noise_floor(&v)
         } else {

@@ -404,43 +404,18 @@ impl UserCause {
         ctx: &Context,
         values: &[(&str, f64)],
     ) -> Result<Unit, HideError> {
-        let ext = self.extend(unit, ctx).map_err(|e| match e {
-            CauseError::NotApplicable(why) => HideError::NotApplicable {
-                cause: self.id.clone(),
-                unit: unit.name.clone(),
-                why,
-            },
-            CauseError::Build(msg) => HideError::Build(msg),
-            e => HideError::Request(e.to_string()),
-        })?;
+        let ext = self
+            .extend(unit, ctx)
+            .map_err(|e| HideError::from_cause(&self.id, unit, e))?;
         let known = catalog::hideable_params(unit, &ext);
-        let mut u = ext.unit.clone();
-        let set = |u: &mut Unit, path: &str, v: f64| -> Result<(), HideError> {
-            let r = u.param(path).map_err(|e| HideError::Build(e.to_string()))?;
-            u.set(r, v);
-            Ok(())
-        };
-        for f in &ext.extension_free {
-            set(&mut u, &f.param, f.start)?;
+        if let Some((p, _)) = values.iter().find(|(p, _)| !known.iter().any(|k| k == p)) {
+            return Err(HideError::Request(format!(
+                "{}: unknown parameter '{p}' (its parameters: {})",
+                self.id,
+                known.join(", ")
+            )));
         }
-        for (p, v) in values {
-            if !known.iter().any(|k| k == p) {
-                return Err(HideError::Request(format!(
-                    "{}: unknown parameter '{p}' (its parameters: {})",
-                    self.id,
-                    known.join(", ")
-                )));
-            }
-            set(&mut u, p, *v)?;
-        }
-        for (leader, follower) in &ext.ties {
-            let v = u.get(
-                u.param(leader)
-                    .map_err(|e| HideError::Build(e.to_string()))?,
-            );
-            set(&mut u, follower, v)?;
-        }
-        Ok(u)
+        catalog::hidden_unit(&ext, values.iter().copied())
     }
 }
 
