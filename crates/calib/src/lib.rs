@@ -15,6 +15,7 @@
 //! * [`practice`]: the practice set of independent events, its one spec and its answer keys.
 //! * [`fit`]: stages, strategies and reports.
 //! * [`request`]: the validated options of both front ends (command line, Python).
+//! * [`error`]: [`Error`], the one error type every error of the crate converts into.
 //! * [`diagnose`]: residual evidence, the catalog of causes with their model extensions,
 //!   re-fits and gains, and the verdict.
 
@@ -22,6 +23,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod diagnose;
+pub mod error;
 pub mod evidence;
 pub mod filter;
 pub mod fit;
@@ -33,5 +35,6 @@ pub mod pso;
 pub mod request;
 pub mod spec;
 
+pub use error::Error;
 pub use fit::{fit, FitOptions, FitReport, FitResult, Progress, Silent};
 pub use spec::{CalibSpec, Strategy};

@@ -89,10 +89,41 @@ pub struct PracticeCase {
     pub unit: Unit,
 }
 
-fn read_json(path: &Path) -> Result<Value, String> {
+/// Why a practice case, its answer key or the engine check could not be read or run. Messages
+/// name the file and, where there is one, the key.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PracticeError {
+    /// A file or folder could not be read.
+    #[error("{0}")]
+    Io(String),
+    /// A file's content: JSON syntax, a missing or unknown key, a unit that does not build.
+    #[error("{0}")]
+    Format(String),
+    /// The case's record (`data.csv`) or the event built from it.
+    #[error("{0}")]
+    Record(String),
+    /// The engine check ([`truth_j`]): its spec, fit or playback.
+    #[error("{0}")]
+    Engine(String),
+}
+
+impl PracticeError {
+    /// Short stable identifier of the variant (`"io"`, `"format"`, `"record"`, `"engine"`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            PracticeError::Io(_) => "io",
+            PracticeError::Format(_) => "format",
+            PracticeError::Record(_) => "record",
+            PracticeError::Engine(_) => "engine",
+        }
+    }
+}
+
+fn read_json(path: &Path) -> Result<Value, PracticeError> {
     let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+        .map_err(|e| PracticeError::Io(format!("{}: cannot read: {e}", path.display())))?;
+    serde_json::from_str(&text)
+        .map_err(|e| PracticeError::Format(format!("{}: {e}", path.display())))
 }
 
 fn our_name(section: &str, psse: &str) -> Option<&'static str> {
@@ -109,10 +140,15 @@ fn our_name(section: &str, psse: &str) -> Option<&'static str> {
 
 /// The unit TOML of a `nominal.json` (every parameter mapped by name; an unknown name is an
 /// error naming the file and the key, not dropped).
-pub fn unit_toml_from_nominal(nominal: &Value, path: &Path, name: &str) -> Result<String, String> {
+pub fn unit_toml_from_nominal(
+    nominal: &Value,
+    path: &Path,
+    name: &str,
+) -> Result<String, PracticeError> {
     let num = |v: &Value, field: &str| {
-        v.as_f64()
-            .ok_or_else(|| format!("{}: {field}: not a number", path.display()))
+        v.as_f64().ok_or_else(|| {
+            PracticeError::Format(format!("{}: {field}: not a number", path.display()))
+        })
     };
     let bases = &nominal["bases"];
     let mut out = format!(
@@ -124,10 +160,9 @@ pub fn unit_toml_from_nominal(nominal: &Value, path: &Path, name: &str) -> Resul
         let Some(table) = nominal[section].as_object() else {
             continue;
         };
-        let model = table
-            .get("model")
-            .and_then(|m| m.as_str())
-            .ok_or_else(|| format!("{}: {section}.model missing", path.display()))?;
+        let model = table.get("model").and_then(|m| m.as_str()).ok_or_else(|| {
+            PracticeError::Format(format!("{}: {section}.model missing", path.display()))
+        })?;
         // A PSS out of service is no PSS block (as the catalog's `pss_state` models it).
         if table.get("in_service").and_then(|v| v.as_bool()) == Some(false) {
             continue;
@@ -138,10 +173,10 @@ pub fn unit_toml_from_nominal(nominal: &Value, path: &Path, name: &str) -> Resul
                 continue;
             }
             let ours = our_name(section, k).ok_or_else(|| {
-                format!(
+                PracticeError::Format(format!(
                     "{}: {section}.{k}: no such parameter of {model}",
                     path.display()
-                )
+                ))
             })?;
             out.push_str(&format!(
                 "{ours} = {}\n",
@@ -154,7 +189,7 @@ pub fn unit_toml_from_nominal(nominal: &Value, path: &Path, name: &str) -> Resul
 
 impl PracticeCase {
     /// Reads case `dir` (`data.csv`, `nominal.json`); never the answer key.
-    pub fn load(dir: &Path) -> Result<PracticeCase, String> {
+    pub fn load(dir: &Path) -> Result<PracticeCase, PracticeError> {
         let name = dir
             .file_name()
             .map(|n| n.to_string_lossy().to_string())
@@ -162,12 +197,17 @@ impl PracticeCase {
         let nominal_path = dir.join("nominal.json");
         let nominal = read_json(&nominal_path)?;
         let text = unit_toml_from_nominal(&nominal, &nominal_path, &name)?;
-        let unit = parse_unit(&text, &nominal_path).map_err(|e| e.to_string())?;
-        let system_mva = nominal["bases"]["system_mva"]
-            .as_f64()
-            .ok_or_else(|| format!("{}: bases.system_mva missing", nominal_path.display()))?;
+        let unit =
+            parse_unit(&text, &nominal_path).map_err(|e| PracticeError::Format(e.to_string()))?;
+        let system_mva = nominal["bases"]["system_mva"].as_f64().ok_or_else(|| {
+            PracticeError::Format(format!(
+                "{}: bases.system_mva missing",
+                nominal_path.display()
+            ))
+        })?;
         let csv = dir.join("data.csv");
-        let record = read_csv(&csv, unit.nominal_hz).map_err(|e| e.to_string())?;
+        let record =
+            read_csv(&csv, unit.nominal_hz).map_err(|e| PracticeError::Record(e.to_string()))?;
         let t0 = record.start_s();
         let event = Event::from_record(
             &name,
@@ -177,7 +217,7 @@ impl PracticeCase {
             Some(Window::new(t0, t0 + INIT_S)),
             None,
         )
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| PracticeError::Record(e.to_string()))?;
         Ok(PracticeCase {
             name,
             dir: dir.to_path_buf(),
@@ -262,7 +302,7 @@ pub struct KeyParam {
 
 impl AnswerKey {
     /// Reads `answers/<case>.json` beside `cases/`.
-    pub fn read(practice_root: &Path, case: &str) -> Result<AnswerKey, String> {
+    pub fn read(practice_root: &Path, case: &str) -> Result<AnswerKey, PracticeError> {
         let path = practice_root.join("answers").join(format!("{case}.json"));
         let a = read_json(&path)?;
         let effect = a["hidden_effect"]["type"]
@@ -349,19 +389,19 @@ impl AnswerKey {
 /// The true unit of a case without its hidden effect (`true_unit` of the answer key), for the
 /// engine check: the key's floor J is the playback of the record through it with the set-point
 /// offsets fitted. Reads the answer key: never used by a calibration or a diagnosis.
-pub fn true_unit(practice_root: &Path, case: &str) -> Result<Unit, String> {
+pub fn true_unit(practice_root: &Path, case: &str) -> Result<Unit, PracticeError> {
     let path = practice_root.join("answers").join(format!("{case}.json"));
     let a = read_json(&path)?;
     let mut t = a["true_unit"].clone();
     t["bases"] = serde_json::json!({"machine_mva": 737.0, "f_nominal_hz": a["true_unit"]["fn_hz"]});
     let text = unit_toml_from_nominal(&t, &path, case)?;
-    parse_unit(&text, &path).map_err(|e| e.to_string())
+    parse_unit(&text, &path).map_err(|e| PracticeError::Format(e.to_string()))
 }
 
 /// The engine check: J of the case's true unit (from the key, [`true_unit`]) on its event with
 /// only the two set-point offsets fitted (no prior, local method only), which the key's floor
 /// J is (for a case whose effect is not part of the true unit's parameters). Reads the key.
-pub fn truth_j(practice_root: &Path, case: &PracticeCase) -> Result<f64, String> {
+pub fn truth_j(practice_root: &Path, case: &PracticeCase) -> Result<f64, PracticeError> {
     let truth = true_unit(practice_root, &case.name)?;
     let mut text =
         String::from("[calibration]\nprior = 0\n[[calibration.stage]]\nname = \"tg\"\nfree = [\n");
@@ -372,20 +412,23 @@ pub fn truth_j(practice_root: &Path, case: &PracticeCase) -> Result<f64, String>
         ));
     }
     text.push_str("]\n");
-    let spec = CalibSpec::parse(&text, Path::new("<offsets>")).map_err(|e| e.to_string())?;
+    let spec = CalibSpec::parse(&text, Path::new("<offsets>"))
+        .map_err(|e| PracticeError::Engine(e.to_string()))?;
     let mut opts = crate::fit::FitOptions::from_spec(&spec);
     opts.pso_iterations = 0;
     let events = std::slice::from_ref(&case.event);
     let r = crate::fit::fit(&truth, &spec, events, &[], &opts, &crate::fit::Silent)
-        .map_err(|e| e.to_string())?;
-    crate::fit::fitness(&r.unit, &case.event, false).map(|(f, _)| f.j_pq)
+        .map_err(|e| PracticeError::Engine(e.to_string()))?;
+    crate::fit::fitness(&r.unit, &case.event, false)
+        .map(|(f, _)| f.j_pq)
+        .map_err(PracticeError::Engine)
 }
 
 /// The case folders of a practice root (`<root>/cases/*`), sorted.
-pub fn case_dirs(root: &Path) -> Result<Vec<PathBuf>, String> {
+pub fn case_dirs(root: &Path) -> Result<Vec<PathBuf>, PracticeError> {
     let cases = root.join("cases");
     let mut v: Vec<PathBuf> = std::fs::read_dir(&cases)
-        .map_err(|e| format!("{}: {e}", cases.display()))?
+        .map_err(|e| PracticeError::Io(format!("{}: {e}", cases.display())))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.join("nominal.json").exists())
         .collect();

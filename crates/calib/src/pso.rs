@@ -117,41 +117,67 @@ impl PsoOptions {
     /// A description of the first invalid field: `particles == 0`; a non-finite `inertia`;
     /// a negative or non-finite `cognitive` or `social`; `max_velocity` not `> 0` (NaN
     /// included; `+∞` is allowed); a negative or non-finite `tol`.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), PsoError> {
         if self.particles == 0 {
-            return Err("PsoOptions::particles must be at least 1".into());
+            return Err(PsoError::NoParticles);
         }
-        if !self.inertia.is_finite() {
-            return Err(format!(
-                "PsoOptions::inertia must be finite, got {}",
-                self.inertia
-            ));
+        let finite_non_negative = |v: f64| v.is_finite() && v >= 0.0;
+        // (field, what it must be, value, whether it is), in the order they are checked.
+        let checks = [
+            ("inertia", "finite", self.inertia, self.inertia.is_finite()),
+            (
+                "cognitive",
+                "finite and >= 0",
+                self.cognitive,
+                finite_non_negative(self.cognitive),
+            ),
+            (
+                "social",
+                "finite and >= 0",
+                self.social,
+                finite_non_negative(self.social),
+            ),
+            (
+                "max_velocity",
+                "> 0 (or +inf)",
+                self.max_velocity,
+                !(self.max_velocity.is_nan() || self.max_velocity <= 0.0),
+            ),
+            (
+                "tol",
+                "finite and >= 0",
+                self.tol,
+                finite_non_negative(self.tol),
+            ),
+        ];
+        match checks.iter().find(|c| !c.3) {
+            Some(&(field, rule, value, _)) => Err(PsoError::Invalid { field, rule, value }),
+            None => Ok(()),
         }
-        if !(self.cognitive.is_finite() && self.cognitive >= 0.0) {
-            return Err(format!(
-                "PsoOptions::cognitive must be finite and >= 0, got {}",
-                self.cognitive
-            ));
+    }
+}
+
+/// Why [`PsoOptions`] are invalid ([`PsoOptions::validate`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PsoError {
+    #[error("PsoOptions::particles must be at least 1")]
+    NoParticles,
+    /// A field out of its range: `rule` says what it must be.
+    #[error("PsoOptions::{field} must be {rule}, got {value}")]
+    Invalid {
+        field: &'static str,
+        rule: &'static str,
+        value: f64,
+    },
+}
+
+impl PsoError {
+    /// Short stable identifier of the variant (`"no_particles"`, `"invalid"`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            PsoError::NoParticles => "no_particles",
+            PsoError::Invalid { .. } => "invalid",
         }
-        if !(self.social.is_finite() && self.social >= 0.0) {
-            return Err(format!(
-                "PsoOptions::social must be finite and >= 0, got {}",
-                self.social
-            ));
-        }
-        if self.max_velocity.is_nan() || self.max_velocity <= 0.0 {
-            return Err(format!(
-                "PsoOptions::max_velocity must be > 0 (or +inf), got {}",
-                self.max_velocity
-            ));
-        }
-        if !(self.tol.is_finite() && self.tol >= 0.0) {
-            return Err(format!(
-                "PsoOptions::tol must be finite and >= 0, got {}",
-                self.tol
-            ));
-        }
-        Ok(())
     }
 }
 

@@ -15,7 +15,7 @@ use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, SynthError, VoltageProfile};
 use itaipu_dynamics::unit::Unit;
 
-use crate::diagnose::{self, catalog, DiagnoseOptions, RefitRequest};
+use crate::diagnose::{self, catalog, DiagnoseError, DiagnoseOptions, RefitRequest};
 use crate::fit::FitOptions;
 use crate::spec::{Strategy, STAGES};
 
@@ -719,7 +719,10 @@ impl SynthRequest {
         probe: &Event,
         by: &str,
     ) -> Result<(Unit, Vec<HiddenCause>), SynthFailure> {
-        let ctx = diagnose::context(truth, probe).map_err(SynthFailure::Context)?;
+        let ctx = diagnose::context(truth, probe).map_err(|e| match e {
+            DiagnoseError::Simulation { msg, .. } => SynthFailure::Context(msg),
+            other => SynthFailure::Context(other.to_string()),
+        })?;
         let mut unit = truth.clone();
         let mut hidden = vec![];
         for h in &self.hides {

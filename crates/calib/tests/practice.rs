@@ -85,7 +85,7 @@ fn a_nominal_file_with_an_unknown_parameter_is_refused_by_name() {
         .err()
         .expect("an unknown key must be refused");
     assert!(
-        e.contains("exciter.TEX") && e.contains("nominal.json"),
+        e.to_string().contains("exciter.TEX") && e.to_string().contains("nominal.json"),
         "{e}"
     );
     std::fs::remove_dir_all(&dir).ok();

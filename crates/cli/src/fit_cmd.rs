@@ -395,14 +395,14 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     flag.store(false, Ordering::SeqCst);
     which.store(0, Ordering::SeqCst);
     let no_plot = a.no_plot;
-    let on_stage = |rep: &StageReport, st: &StageOutput, master: &Unit| -> Result<(), String> {
-        write_stage(&out, st, rep, no_plot).map_err(|e| e.msg)?;
+    let on_stage = |rep: &StageReport, st: &StageOutput, master: &Unit| -> Result<(), FitError> {
+        write_stage(&out, st, rep, no_plot).map_err(|e| FitError::Output(e.msg))?;
         crate::output::write_synced(&out.join(RESUME_UNIT), unit_to_toml(master).as_bytes())
-            .map_err(|e| e.msg)?;
+            .map_err(|e| FitError::Output(e.msg))?;
         let mut f = finished.lock().expect("finished");
         f.labels.push(rep.stage.clone());
         f.reports
-            .push(serde_json::to_value(rep).map_err(|e| e.to_string())?);
+            .push(serde_json::to_value(rep).map_err(|e| FitError::Output(e.to_string()))?);
         Ok(())
     };
     let control = FitControl {

@@ -302,13 +302,15 @@ pub(crate) fn fit(
         let held_out = load_events(held_out)?;
         let mut opts = FitOptions::from_spec(&spec);
         request.apply(&mut opts)?;
-        let on_stage =
-            |rep: &calib_fit::StageReport, _: &StageOutput, master: &Unit| -> Result<(), String> {
-                if let Ok(mut f) = worker_finished.lock() {
-                    f.push((rep.clone(), master.clone()));
-                }
-                Ok(())
-            };
+        let on_stage = |rep: &calib_fit::StageReport,
+                        _: &StageOutput,
+                        master: &Unit|
+         -> Result<(), calib_fit::FitError> {
+            if let Ok(mut f) = worker_finished.lock() {
+                f.push((rep.clone(), master.clone()));
+            }
+            Ok(())
+        };
         let control = calib_fit::FitControl {
             cancel: Some(worker_cancel),
             on_stage: Some(&on_stage),

@@ -107,6 +107,15 @@ pub enum CauseError {
 }
 
 impl CauseError {
+    /// Short stable identifier of the variant (`"unknown"`, `"not_applicable"`, `"build"`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            CauseError::Unknown(_) => "unknown",
+            CauseError::NotApplicable(_) => "not_applicable",
+            CauseError::Build(_) => "build",
+        }
+    }
+
     pub fn not_applicable(why: impl Into<String>) -> Self {
         Self::NotApplicable(why.into())
     }
@@ -413,6 +422,30 @@ pub enum HideError {
     Build(String),
 }
 
+impl HideError {
+    /// Why `cause`'s extension could not be built on `unit`, as a reason it cannot be hidden.
+    pub(crate) fn from_cause(cause: &str, unit: &Unit, e: CauseError) -> HideError {
+        match e {
+            CauseError::Unknown(_) => HideError::Request(e.to_string()),
+            CauseError::NotApplicable(why) => HideError::NotApplicable {
+                cause: cause.to_string(),
+                unit: unit.name.clone(),
+                why,
+            },
+            CauseError::Build(msg) => HideError::Build(msg),
+        }
+    }
+
+    /// Short stable identifier of the variant (`"request"`, `"not_applicable"`, `"build"`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            HideError::Request(_) => "request",
+            HideError::NotApplicable { .. } => "not_applicable",
+            HideError::Build(_) => "build",
+        }
+    }
+}
+
 /// The parameters a hide of `ext` (built on `unit`) may set: those the extension frees and
 /// those of the blocks it adds, except the ones tied to another parameter.
 pub fn hideable_params(unit: &Unit, ext: &Extension) -> Vec<String> {
@@ -447,15 +480,7 @@ pub fn hide(
     ctx: &Context,
     values: &BTreeMap<String, f64>,
 ) -> Result<(Unit, Extension), HideError> {
-    let ext = extend(cause, unit, ctx).map_err(|e| match e {
-        CauseError::Unknown(_) => HideError::Request(e.to_string()),
-        CauseError::NotApplicable(why) => HideError::NotApplicable {
-            cause: cause.to_string(),
-            unit: unit.name.clone(),
-            why,
-        },
-        CauseError::Build(msg) => HideError::Build(msg),
-    })?;
+    let ext = extend(cause, unit, ctx).map_err(|e| HideError::from_cause(cause, unit, e))?;
     let known = hideable_params(unit, &ext);
     for path in values.keys() {
         if let Some((from, _)) = ext.ties.iter().find(|(_, to)| to == path) {
@@ -470,6 +495,17 @@ pub fn hide(
             )));
         }
     }
+    let u = hidden_unit(&ext, values.iter().map(|(p, v)| (p.as_str(), *v)))?;
+    Ok((u, ext))
+}
+
+/// The extended unit of `ext` with the cause hidden in it: the extension's parameters at their
+/// search start, then `values` (`path`, value) set, then every tied parameter given its
+/// leader's value. The paths are not checked against [`hideable_params`] here.
+pub(crate) fn hidden_unit<'a>(
+    ext: &Extension,
+    values: impl IntoIterator<Item = (&'a str, f64)>,
+) -> Result<Unit, HideError> {
     let mut u = ext.unit.clone();
     let set = |u: &mut Unit, path: &str, v: f64| -> Result<(), HideError> {
         let r = u.param(path).map_err(|e| HideError::Build(e.to_string()))?;
@@ -481,11 +517,11 @@ pub fn hide(
         set(&mut u, &f.param, f.start)?;
     }
     for (path, v) in values {
-        set(&mut u, path, *v)?;
+        set(&mut u, path, v)?;
     }
     for (from, to) in &ext.ties {
         let v = u.get(u.param(from).map_err(|e| HideError::Build(e.to_string()))?);
         set(&mut u, to, v)?;
     }
-    Ok((u, ext))
+    Ok(u)
 }

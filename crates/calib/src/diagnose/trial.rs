@@ -13,9 +13,10 @@ use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
 use itaipu_dynamics::unit::Unit;
 
-use super::{catalog, context, diagnose, DiagnoseOptions, Diagnosis};
-use crate::fit::{fit, quick_options, Silent};
-use crate::spec::CalibSpec;
+use super::catalog::HideError;
+use super::{catalog, context, diagnose, DiagnoseError, DiagnoseOptions, Diagnosis};
+use crate::fit::{fit, quick_options, FitError, Silent};
+use crate::spec::{CalibSpec, SpecError};
 
 /// The calibration run before diagnosing: one stage on the full unit (`tg` removes no block),
 /// over the machine and AVR parameters that the nominal unit gets wrong.
@@ -126,8 +127,44 @@ pub fn trial(
     }
 }
 
+/// Why a trial could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum TrialError {
+    /// The synthetic event (the probe or the trial's) could not be made.
+    #[error("{0}")]
+    Synthesis(String),
+    /// The cause could not be hidden in the truth.
+    #[error(transparent)]
+    Hide(#[from] HideError),
+    /// The nominal unit or its calibration spec.
+    #[error("{0}")]
+    Setup(String),
+    #[error(transparent)]
+    Spec(#[from] SpecError),
+    #[error(transparent)]
+    Fit(#[from] FitError),
+    /// The context of the truth, or the diagnosis.
+    #[error(transparent)]
+    Diagnose(#[from] DiagnoseError),
+}
+
+impl TrialError {
+    /// Short stable identifier of the variant (`"synthesis"`, `"hide"`, `"setup"`, `"spec"`,
+    /// `"fit"`, `"diagnose"`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            TrialError::Synthesis(_) => "synthesis",
+            TrialError::Hide(_) => "hide",
+            TrialError::Setup(_) => "setup",
+            TrialError::Spec(_) => "spec",
+            TrialError::Fit(_) => "fit",
+            TrialError::Diagnose(_) => "diagnose",
+        }
+    }
+}
+
 /// The truth unit of a trial and its event.
-pub fn truth_and_event(t: &Trial) -> Result<(Unit, Event), String> {
+pub fn truth_and_event(t: &Trial) -> Result<(Unit, Event), TrialError> {
     let base = base_unit();
     let profile = VoltageProfile::preset(t.kind, t.duration_s, 60.0, t.seed);
     let sim = SimOptions::default();
@@ -135,10 +172,8 @@ pub fn truth_and_event(t: &Trial) -> Result<(Unit, Event), String> {
         base
     } else {
         let probe = synthesize("probe", &base, &profile, 737.0, &PmuNoise::none(), &sim)
-            .map_err(|e| e.to_string())?;
-        catalog::hide(&t.cause, &base, &context(&base, &probe)?, &t.values)
-            .map_err(|e| e.to_string())?
-            .0
+            .map_err(|e| TrialError::Synthesis(e.to_string()))?;
+        catalog::hide(&t.cause, &base, &context(&base, &probe)?, &t.values)?.0
     };
     let event = synthesize(
         &format!("trial-{}-{}", t.cause, t.seed),
@@ -148,21 +183,22 @@ pub fn truth_and_event(t: &Trial) -> Result<(Unit, Event), String> {
         &t.noise,
         &sim,
     )
-    .map_err(|e| e.to_string())?;
+    .map_err(|e| TrialError::Synthesis(e.to_string()))?;
     Ok((truth, event))
 }
 
 /// Runs a trial: truth and event, calibration of the nominal unit, diagnosis, score.
-pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, String> {
+pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, TrialError> {
     let (truth, event) = truth_and_event(t)?;
     let mut nominal = base_unit();
     for (p, f) in NOMINAL_OFFSETS {
-        let r = nominal.param(p).map_err(|e| e.to_string())?;
+        let r = nominal
+            .param(p)
+            .map_err(|e| TrialError::Setup(e.to_string()))?;
         let v = nominal.get(r);
         nominal.set(r, v * f);
     }
-    let spec = CalibSpec::parse(NOMINAL_SPEC, std::path::Path::new("nominal-spec.toml"))
-        .map_err(|e| e.to_string())?;
+    let spec = CalibSpec::parse(NOMINAL_SPEC, std::path::Path::new("nominal-spec.toml"))?;
     let fitted = fit(
         &nominal,
         &spec,
@@ -170,8 +206,7 @@ pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, String> {
         &[],
         &quick_options(&["tg"], t.seed),
         &Silent,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     let calibrated = fitted.unit;
     let res = diagnose(
         &calibrated,
@@ -179,8 +214,7 @@ pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, String> {
         &[],
         opts,
         &Silent,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     let named = res.report.verdict.cause.clone();
     let key = t.key.as_ref().map(|(p, _)| {
         let tv = truth.param(p).map(|r| truth.get(r)).unwrap_or(f64::NAN);

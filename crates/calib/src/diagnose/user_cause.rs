@@ -39,7 +39,7 @@ use itaipu_dynamics::registry;
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::{build_block, build_diagram_block, BuiltBlock};
 
-use super::catalog::{self, CauseError, Context, Extension, FreeBound};
+use super::catalog::{self, CauseError, Context, Extension, FreeBound, HideError};
 
 /// A bad cause file: the file, the field and what is wrong.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -398,36 +398,24 @@ impl UserCause {
     /// The unit with this cause in it at chosen values (`block.param` among the freed and the
     /// added blocks' parameters), the others of the extension at their starts: a synthetic
     /// truth for testing the cause.
-    pub fn hide(&self, unit: &Unit, ctx: &Context, values: &[(&str, f64)]) -> Result<Unit, String> {
-        let ext = self.extend(unit, ctx).map_err(|e| match e {
-            CauseError::NotApplicable(why) => format!("{} does not apply: {why}", self.id),
-            e => e.to_string(),
-        })?;
+    pub fn hide(
+        &self,
+        unit: &Unit,
+        ctx: &Context,
+        values: &[(&str, f64)],
+    ) -> Result<Unit, HideError> {
+        let ext = self
+            .extend(unit, ctx)
+            .map_err(|e| HideError::from_cause(&self.id, unit, e))?;
         let known = catalog::hideable_params(unit, &ext);
-        let mut u = ext.unit.clone();
-        let set = |u: &mut Unit, path: &str, v: f64| -> Result<(), String> {
-            let r = u.param(path).map_err(|e| e.to_string())?;
-            u.set(r, v);
-            Ok(())
-        };
-        for f in &ext.extension_free {
-            set(&mut u, &f.param, f.start)?;
+        if let Some((p, _)) = values.iter().find(|(p, _)| !known.iter().any(|k| k == p)) {
+            return Err(HideError::Request(format!(
+                "{}: unknown parameter '{p}' (its parameters: {})",
+                self.id,
+                known.join(", ")
+            )));
         }
-        for (p, v) in values {
-            if !known.iter().any(|k| k == p) {
-                return Err(format!(
-                    "{}: unknown parameter '{p}' (its parameters: {})",
-                    self.id,
-                    known.join(", ")
-                ));
-            }
-            set(&mut u, p, *v)?;
-        }
-        for (leader, follower) in &ext.ties {
-            let v = u.get(u.param(leader).map_err(|e| e.to_string())?);
-            set(&mut u, follower, v)?;
-        }
-        Ok(u)
+        catalog::hidden_unit(&ext, values.iter().copied())
     }
 }
 

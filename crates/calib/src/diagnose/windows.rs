@@ -1,0 +1,138 @@
+//! The evidence windows of an event (pre-event, dip, recovery, tail), the residual evidence
+//! read in them, and how hard the events drive the unit (deepest dip, sustained frequency
+//! change).
+
+use crate::evidence::{self, EvidenceOptions};
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::simulate::Traces;
+
+use super::*;
+
+/// Width of the "dip" window after the onset [s].
+pub(super) const DIP_S: f64 = 1.0;
+/// Width of the "recovery" window after the dip [s].
+pub(super) const RECOVERY_S: f64 = 4.0;
+
+/// The evidence windows of an event: pre-event up to the onset (the end of the event's init
+/// window), dip, recovery, tail.
+pub fn windows(event: &Event) -> (f64, Vec<(String, f64, f64)>) {
+    let t = &event.record.time_s;
+    let (t0, t1) = (t[0], *t.last().expect("events have samples"));
+    let onset = event.init.end_s.clamp(t0, t1);
+    let w = vec![
+        ("pre-event".to_string(), t0, onset),
+        ("dip".to_string(), onset, (onset + DIP_S).min(t1)),
+        (
+            "recovery".to_string(),
+            (onset + DIP_S).min(t1),
+            (onset + DIP_S + RECOVERY_S).min(t1),
+        ),
+        (
+            "tail".to_string(),
+            (onset + DIP_S + RECOVERY_S).min(t1),
+            t1 + 1e-9,
+        ),
+    ];
+    (onset, w.into_iter().filter(|(_, a, b)| b > a).collect())
+}
+
+/// How hard the events drive the unit, for [`Context`]: the deepest voltage dip after the
+/// onset as a fraction of the pre-event |V|, and the largest sustained frequency change (mean
+/// of the last quarter of the record against the pre-event mean) [Hz], over all events.
+pub(super) fn regime(events: &[Event]) -> (f64, f64) {
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let (mut dip, mut df) = (0.0_f64, 0.0_f64);
+    for e in events {
+        let (pre, v0) = pre_event_v(e);
+        let v = &e.record.v_mag_pu;
+        let v_min = v[pre..].iter().copied().fold(v0, f64::min);
+        dip = dip.max(1.0 - v_min / v0);
+        let f = frequency_deviation(e);
+        let tail = f.len() - f.len() / 4;
+        df = df.max((mean(&f[tail..]) - mean(&f[..pre.min(f.len())])).abs());
+    }
+    (dip, df)
+}
+
+/// The samples of the event's init window (at least one) and their mean |V|: the pre-event
+/// voltage against which dips and disturbances are measured.
+pub(super) fn pre_event_v(event: &Event) -> (usize, f64) {
+    let r = &event.record;
+    let pre = r
+        .time_s
+        .iter()
+        .take_while(|&&t| t <= event.init.end_s)
+        .count()
+        .clamp(1, r.v_mag_pu.len());
+    let v = &r.v_mag_pu[..pre];
+    (pre, v.iter().sum::<f64>() / pre as f64)
+}
+
+/// Grid frequency deviation [Hz] from the record (`freq_hz` if present, else the derivative of
+/// the unwrapped angle).
+pub(super) fn frequency_deviation(event: &Event) -> Vec<f64> {
+    let r = &event.record;
+    if let Some(f) = &r.freq_hz {
+        return f.iter().map(|v| v - event.nominal_hz).collect();
+    }
+    let (t, a) = (&r.time_s, &r.v_ang_rad);
+    let n = t.len();
+    (0..n)
+        .map(|k| {
+            let (i, j) = (k.saturating_sub(1), (k + 1).min(n - 1));
+            if j > i {
+                (a[j] - a[i]) / (t[j] - t[i]) / (2.0 * std::f64::consts::PI)
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// Residual evidence of `traces` (simulated with the unit) against `event`.
+pub fn event_evidence(event: &Event, traces: &Traces) -> EventEvidence {
+    let (onset, win) = windows(event);
+    let r = &event.record;
+    let opts = EvidenceOptions {
+        windows: win,
+        noise_window: (r.time_s[0], onset),
+        ..Default::default()
+    };
+    let fdev = frequency_deviation(event);
+    let inputs: Vec<(&str, &[f64])> = vec![("|V|", &r.v_mag_pu), ("frequency", &fdev)];
+    let mut signals = vec![];
+    let col = |n: &str| traces.get(n).map(|c| c.to_vec());
+    let mut add = |name: &str, sim: Option<Vec<f64>>, meas: &[f64]| {
+        if let Some(s) = sim {
+            let res: Vec<f64> = s.iter().zip(meas).map(|(a, b)| a - b).collect();
+            signals.push(evidence::analyse(
+                name, &r.time_s, &res, meas, &inputs, &opts,
+            ));
+        }
+    };
+    add("P", col("p_pu"), &r.p_pu);
+    add("Q", col("q_pu"), &r.q_pu);
+    if let Some(efd) = &r.efd_pu {
+        add("Efd", col("efd"), efd);
+    }
+    if let Some(ifd) = &r.ifd_pu {
+        add("Ifd", col("xadifd"), ifd);
+    }
+    let p_peak = traces.get("p_pu").and_then(|sim| {
+        let res: Vec<f64> = sim.iter().zip(&r.p_pu).map(|(a, b)| a - b).collect();
+        let n = r.time_s.len();
+        let dt = (r.time_s[n - 1] - r.time_s[0]) / (n.max(2) - 1) as f64;
+        evidence::spectral_peak(
+            &res,
+            dt,
+            SHAFT_BAND_HZ.0,
+            SHAFT_BAND_HZ.1.min(0.95 * 0.5 / dt),
+        )
+    });
+    EventEvidence {
+        event: event.name.clone(),
+        onset_s: onset,
+        signals,
+        p_peak,
+    }
+}

@@ -1,0 +1,242 @@
+//! Staged calibration: generator, then AVR, PSS, governor, each by PSO then L-BFGS (paper 000
+//! Algorithm 1), with the incremental and simultaneous-first strategies of paper 001.
+//!
+//! Per stage: the unit keeps or loses later stages' blocks ([`crate::spec::StageBlocks`]),
+//! `set` values and `replace` blocks are applied, the swarm searches the stage's box from the
+//! current values, L-BFGS refines the swarm's best, and the best of start / swarm / L-BFGS by
+//! an accurate re-evaluation is kept. The Gauss-Newton (Fisher) approximation at that point
+//! gives standard errors and correlations. Results carry over to the next stage.
+
+mod passes;
+mod report;
+mod search;
+mod stage;
+
+pub use passes::{fit, fit_with};
+pub use report::{EventFitness, FitReport, ParamReport, PhaseReport, StageReport};
+pub(crate) use search::{jacobian, search};
+pub use stage::check_spec;
+use stage::*;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::simulate::{simulate_prepared, Traces};
+use itaipu_dynamics::unit::Unit;
+
+use crate::local;
+use crate::problem::{accurate_integrator, EventData};
+use crate::spec::{CalibSpec, LocalMethod, Strategy};
+
+/// Correlation above which two parameters are reported as not separately identifiable.
+pub const CORRELATION_LIMIT: f64 = 0.95;
+/// Relative standard error above which a parameter is reported as only weakly determined.
+pub const WEAK_LIMIT: f64 = 0.01;
+
+/// Receives progress (implemented by the CLI as a progress bar or plain lines).
+pub trait Progress: Sync {
+    /// A phase starts: `stage`, `phase` ("pso", "lbfgs", …), expected iterations.
+    fn phase(&self, stage: &str, phase: &str, total: u64);
+    /// An iteration of the current phase finished with this best objective.
+    fn iteration(&self, i: u64, best: f64);
+    /// A line of information.
+    fn message(&self, text: &str);
+}
+
+/// A [`Progress`] that says nothing.
+pub struct Silent;
+
+impl Progress for Silent {
+    fn phase(&self, _: &str, _: &str, _: u64) {}
+    fn iteration(&self, _: u64, _: f64) {}
+    fn message(&self, _: &str) {}
+}
+
+/// Options of a fit beyond the spec.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitOptions {
+    /// Stages to run, in order (subset of gen, avr, pss, tg).
+    pub stages: Vec<String>,
+    pub strategy: Strategy,
+    pub seed: u64,
+    pub particles: usize,
+    pub pso_iterations: usize,
+    pub lbfgs_iterations: u64,
+    pub lbfgs_memory: usize,
+    /// Largest RK4 step of the L-BFGS phase [s] ([`local::RK4_STEP_MAX_S`] in a calibration).
+    pub lbfgs_step_max_s: f64,
+    /// After several stages, search every freed parameter together on the full unit (swarm
+    /// from the staged result, then the local method from the swarm's best, the staged result
+    /// and the datasheet values; objective P+Q), reported as the stage `joint`.
+    pub polish: bool,
+    /// The local method after each swarm.
+    pub local: LocalMethod,
+}
+
+impl FitOptions {
+    /// Options from a spec, running every stage it lists.
+    pub fn from_spec(spec: &CalibSpec) -> Self {
+        Self {
+            stages: spec.stages.iter().map(|s| s.name.clone()).collect(),
+            strategy: spec.strategy,
+            seed: spec.seed,
+            particles: spec.pso.particles,
+            pso_iterations: spec.pso.iterations,
+            lbfgs_iterations: spec.lbfgs.iterations,
+            lbfgs_memory: spec.lbfgs.memory,
+            lbfgs_step_max_s: local::RK4_STEP_MAX_S,
+            polish: spec.polish,
+            local: spec.local,
+        }
+    }
+}
+
+/// Why a fit could not run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FitError {
+    /// The spec does not fit the unit (unknown parameter, bad replacement block…).
+    #[error("calibration spec: {0}")]
+    Spec(String),
+    #[error("stage {stage}: {msg}")]
+    Stage { stage: String, msg: String },
+    #[error("{0}")]
+    Setup(String),
+    /// Stopped by [`FitControl::cancel`] at a candidate boundary; `finished` names the passes
+    /// (stages) that completed and were handed to [`FitControl::on_stage`].
+    #[error("interrupted; finished stages: {}", if finished.is_empty() { "none".to_string() } else { finished.join(", ") })]
+    Interrupted { finished: Vec<String> },
+    /// [`FitControl::on_stage`] failed (e.g. a stage's outputs could not be written).
+    #[error("{0}")]
+    Output(String),
+}
+
+impl FitError {
+    /// Short stable identifier of the variant (`"spec"`, `"stage"`, `"setup"`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            FitError::Spec(_) => "spec",
+            FitError::Stage { .. } => "stage",
+            FitError::Setup(_) => "setup",
+            FitError::Interrupted { .. } => "interrupted",
+            FitError::Output(_) => "output",
+        }
+    }
+}
+
+/// A stage's units and traces (not serialised).
+pub struct StageOutput {
+    pub stage: String,
+    pub start_unit: Unit,
+    pub calibrated_unit: Unit,
+    /// Per fit event: traces of the start and the calibrated stage unit.
+    pub traces: Vec<(String, Traces, Traces)>,
+}
+
+/// Everything a fit returns.
+pub struct FitResult {
+    pub report: FitReport,
+    /// The calibrated full unit (every block, with the stages' results).
+    pub unit: Unit,
+    pub stages: Vec<StageOutput>,
+}
+
+/// What a pass hands out as it finishes: its report, its units and traces, and the full unit
+/// (every stage's results so far) that the next pass starts from. A hook that fails (an output
+/// it could not write, say) returns [`FitError::Output`], which stops the fit.
+pub type OnStage<'a> =
+    dyn Fn(&StageReport, &StageOutput, &Unit) -> Result<(), FitError> + Sync + 'a;
+
+/// Passes finished by an earlier, interrupted run, to go on from.
+#[derive(Clone)]
+pub struct Resume {
+    /// Labels of the finished passes, in order (a prefix of the passes this run would make).
+    pub finished: Vec<String>,
+    /// The full unit after the last finished pass (what [`FitControl::on_stage`] was given).
+    pub master: Unit,
+}
+
+/// Control of a running fit beyond its options.
+#[derive(Default)]
+pub struct FitControl<'a> {
+    /// When set (by a signal handler, say), every later candidate evaluation fails at once;
+    /// the pass under way is dropped and the fit returns [`FitError::Interrupted`].
+    pub cancel: Option<Arc<AtomicBool>>,
+    /// Called after every finished pass, before the next starts.
+    pub on_stage: Option<&'a OnStage<'a>>,
+    /// Go on after these finished passes instead of running them again. Every pass depends
+    /// only on the unit it starts from and the options (the swarm's seed is per pass), so the
+    /// numbers are those of an uninterrupted run.
+    pub resume: Option<Resume>,
+}
+
+impl FitControl<'_> {
+    pub(super) fn cancelled(&self) -> bool {
+        self.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+    }
+}
+
+/// The labels of the passes `fit` makes with `opts`, in order (`simultaneous`, the stages,
+/// `joint`).
+pub fn pass_labels(opts: &FitOptions) -> Vec<String> {
+    let mut v = vec![];
+    if opts.strategy == Strategy::SimultaneousFirst {
+        v.push("simultaneous".to_string());
+    }
+    v.extend(opts.stages.iter().cloned());
+    if opts.polish && opts.stages.len() > 1 {
+        v.push("joint".to_string());
+    }
+    v
+}
+
+/// P+Q fitness of `unit` on `event` (accurate integrator); `None` if it fails.
+pub fn fitness(
+    unit: &Unit,
+    event: &Event,
+    held_out: bool,
+) -> Result<(EventFitness, Traces), String> {
+    let data = EventData::new(event, None, None)?;
+    let mut u = unit.clone();
+    let tr = simulate_prepared(&mut u, &data.prepared, event, &accurate_integrator())
+        .map_err(|e| e.to_string())?;
+    let (p, q) = (tr.get("p_pu").unwrap(), tr.get("q_pu").unwrap());
+    let (mut sp, mut sq, mut n) = (0.0, 0.0, 0usize);
+    for k in 0..p.len() {
+        if data.in_window[k] {
+            sp += (p[k] - data.p_meas[k]).powi(2);
+            sq += (q[k] - data.q_meas[k]).powi(2);
+            n += 1;
+        }
+    }
+    let nn = n.max(1) as f64;
+    Ok((
+        EventFitness {
+            event: event.name.clone(),
+            j_pq: sp + sq,
+            rms_p: (sp / nn).sqrt(),
+            rms_q: (sq / nn).sqrt(),
+            samples: n,
+            held_out,
+        },
+        tr,
+    ))
+}
+
+/// Search options used by tests and benchmarks that want a quick, reproducible fit.
+pub fn quick_options(stages: &[&str], seed: u64) -> FitOptions {
+    FitOptions {
+        stages: stages.iter().map(|s| s.to_string()).collect(),
+        strategy: Strategy::Sequential,
+        seed,
+        particles: 24,
+        pso_iterations: 30,
+        lbfgs_iterations: 30,
+        lbfgs_memory: 7,
+        lbfgs_step_max_s: local::RK4_STEP_MAX_S,
+        polish: false,
+        local: LocalMethod::Lm,
+    }
+}

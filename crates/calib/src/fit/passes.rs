@@ -1,0 +1,277 @@
+//! The passes of a fit in order (simultaneous, the stages, joint), with the interrupt, the
+//! hand-out after every pass and the resume from an interrupted run.
+
+use std::time::Instant;
+
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::unit::Unit;
+
+use crate::problem::FreeParam;
+use crate::spec::{CalibSpec, StageSpec, Strategy, STAGES};
+
+use super::*;
+
+/// Calibrates `unit` against `events` following `spec` (stages in `opts.stages`).
+pub fn fit(
+    unit: &Unit,
+    spec: &CalibSpec,
+    events: &[Event],
+    held_out: &[Event],
+    opts: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<FitResult, FitError> {
+    fit_with(
+        unit,
+        spec,
+        events,
+        held_out,
+        opts,
+        progress,
+        &FitControl::default(),
+    )
+}
+
+/// [`fit`] with an interrupt flag, a hook called after every finished pass, and a resume from
+/// the passes of an interrupted run ([`FitControl`]). On resume the returned report and
+/// outputs hold only the passes run now.
+pub fn fit_with(
+    unit: &Unit,
+    spec: &CalibSpec,
+    events: &[Event],
+    held_out: &[Event],
+    opts: &FitOptions,
+    progress: &dyn Progress,
+    control: &FitControl<'_>,
+) -> Result<FitResult, FitError> {
+    let t0 = Instant::now();
+    if events.is_empty() {
+        return Err(FitError::Setup("no event to fit".into()));
+    }
+    for s in &opts.stages {
+        if !STAGES.contains(&s.as_str()) {
+            return Err(FitError::Setup(format!(
+                "unknown stage '{s}' (gen, avr, pss, tg)"
+            )));
+        }
+        if spec.stage(s).is_none() {
+            return Err(FitError::Setup(format!(
+                "stage '{s}' is not in the calibration spec"
+            )));
+        }
+    }
+    check_spec(unit, spec, &opts.stages)?;
+    let labels = pass_labels(opts);
+    let skip = match &control.resume {
+        None => 0,
+        Some(r) => {
+            if r.finished.len() > labels.len() || r.finished[..] != labels[..r.finished.len()] {
+                return Err(FitError::Setup(format!(
+                    "cannot resume: the finished stages ({}) are not the first passes of this fit ({}); give the same stages, strategy and options as the interrupted run",
+                    r.finished.join(", "),
+                    labels.join(", ")
+                )));
+            }
+            r.finished.len()
+        }
+    };
+    let mut master = unit.clone();
+    let mut start_fitness = vec![];
+    for e in events {
+        start_fitness.push(
+            fitness(&master, e, false)
+                .map_err(|m| FitError::Setup(format!("the starting unit: {m}")))?
+                .0,
+        );
+    }
+    for e in held_out {
+        if let Ok((f, _)) = fitness(&master, e, true) {
+            start_fitness.push(f);
+        }
+    }
+    if let Some(r) = &control.resume {
+        if skip > 0 {
+            master = r.master.clone();
+        }
+    }
+    let mut passes = Passes {
+        events,
+        held_out,
+        opts,
+        progress,
+        control,
+        skip,
+        pass: 0,
+        finished: labels[..skip].to_vec(),
+        reports: vec![],
+        outputs: vec![],
+    };
+
+    if opts.strategy == Strategy::SimultaneousFirst && passes.next()? {
+        // All listed stages' parameters at once on the full unit, objective P+Q.
+        let mut full = master.clone();
+        for s in &opts.stages {
+            apply_stage_edits(&mut full, spec.stage(s).expect("checked"))?;
+        }
+        let all = combined_stage("all", spec, &opts.stages);
+        let free = free_params(&full, &all, unit, spec.prior)?;
+        let (rep, out, best) = passes.run("all", "simultaneous", full.clone(), &free, &all, &[])?;
+        // The full unit (with every stage's replacements) carries on with the joint result.
+        master = full;
+        for (f, v) in free.iter().zip(&best) {
+            master.set(f.r, *v);
+        }
+        apply_ties(&mut master, &all)?;
+        passes.hand_out(rep, out, &master)?;
+    }
+
+    for s in &opts.stages {
+        if !passes.next()? {
+            continue;
+        }
+        let st = spec.stage(s).expect("checked");
+        apply_stage_edits(&mut master, st)?;
+        let stage_unit = master
+            .without(spec.removed_blocks(s))
+            .map_err(|e| stage_err(s, e.to_string()))?;
+        let free = free_params(&stage_unit, st, unit, spec.prior)?;
+        let (rep, out, best) = passes.run(s, s, stage_unit, &free, st, &[])?;
+        for (f, v) in free.iter().zip(&best) {
+            let r = master
+                .param(&f.path)
+                .map_err(|e| stage_err(s, e.to_string()))?;
+            master.set(r, *v);
+        }
+        apply_ties(&mut master, st)?;
+        passes.hand_out(rep, out, &master)?;
+    }
+
+    if opts.polish && opts.stages.len() > 1 && passes.next()? {
+        // Joint refinement of everything the stages freed, on the full unit.
+        let mut joint = combined_stage("joint", spec, &opts.stages);
+        joint.lowpass_hz = None;
+        let full = master.clone();
+        let free = free_params(&full, &joint, unit, spec.prior)?;
+        // Start from the current values, not the spec's starting values.
+        let free: Vec<FreeParam> = free
+            .into_iter()
+            .map(|f| FreeParam {
+                start: full.get(f.r).clamp(f.lo, f.hi),
+                ..f
+            })
+            .collect();
+        // A second start at the datasheet values (the prior's centre where there is one), in
+        // case the staged result lies in another, worse basin.
+        let datasheet: Vec<f64> = free
+            .iter()
+            .map(|f| f.prior.map_or(f.start, |p| p.center).clamp(f.lo, f.hi))
+            .collect();
+        let (rep, out, best) = passes.run("joint", "joint", full, &free, &joint, &[datasheet])?;
+        for (f, v) in free.iter().zip(&best) {
+            master.set(f.r, *v);
+        }
+        apply_ties(&mut master, &joint)?;
+        passes.hand_out(rep, out, &master)?;
+    }
+    let Passes {
+        reports, outputs, ..
+    } = passes;
+
+    let report = FitReport {
+        unit: unit.name.clone(),
+        events: events.iter().map(|e| e.name.clone()).collect(),
+        held_out: held_out.iter().map(|e| e.name.clone()).collect(),
+        strategy: opts.strategy.to_string(),
+        seed: opts.seed,
+        threads: rayon::current_num_threads(),
+        start_fitness,
+        stages: reports,
+        wall_s: t0.elapsed().as_secs_f64(),
+    };
+    Ok(FitResult {
+        report,
+        unit: master,
+        stages: outputs,
+    })
+}
+
+/// The passes of one fit as they run: what is shared by every pass's call and what the passes
+/// so far have given.
+struct Passes<'a> {
+    events: &'a [Event],
+    held_out: &'a [Event],
+    opts: &'a FitOptions,
+    progress: &'a dyn Progress,
+    control: &'a FitControl<'a>,
+    /// Passes finished by the resumed run (skipped now).
+    skip: usize,
+    /// Index of the next pass.
+    pass: usize,
+    finished: Vec<String>,
+    reports: Vec<StageReport>,
+    outputs: Vec<StageOutput>,
+}
+
+impl Passes<'_> {
+    fn interrupted(&self) -> FitError {
+        FitError::Interrupted {
+            finished: self.finished.clone(),
+        }
+    }
+
+    /// Before each pass: whether to run it (not when resumed past it);
+    /// [`FitError::Interrupted`] when the fit is cancelled.
+    fn next(&mut self) -> Result<bool, FitError> {
+        if self.control.cancelled() {
+            return Err(self.interrupted());
+        }
+        self.pass += 1;
+        Ok(self.pass > self.skip)
+    }
+
+    /// Runs one pass ([`run_stage`]); the pass is dropped when the fit was interrupted during it.
+    fn run(
+        &self,
+        name: &str,
+        label: &str,
+        unit: Unit,
+        free: &[FreeParam],
+        spec: &StageSpec,
+        also_from: &[Vec<f64>],
+    ) -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
+        let res = run_stage(
+            name,
+            label,
+            unit,
+            free.to_vec(),
+            spec,
+            self.events,
+            self.held_out,
+            self.opts,
+            self.progress,
+            true,
+            also_from,
+            self.control.cancel.clone(),
+        );
+        if self.control.cancelled() {
+            return Err(self.interrupted());
+        }
+        res
+    }
+
+    /// After a pass: hands it out ([`FitControl::on_stage`], with the full unit `master` it
+    /// leaves) and keeps its report and outputs.
+    fn hand_out(
+        &mut self,
+        rep: StageReport,
+        out: StageOutput,
+        master: &Unit,
+    ) -> Result<(), FitError> {
+        if let Some(f) = self.control.on_stage {
+            f(&rep, &out, master)?;
+        }
+        self.finished.push(rep.stage.clone());
+        self.reports.push(rep);
+        self.outputs.push(out);
+        Ok(())
+    }
+}

@@ -1,0 +1,145 @@
+//! The search of one pass: the swarm then the local method from its best (and from extra
+//! starts), and the Jacobian used for the identifiability report.
+
+use rayon::prelude::*;
+
+use crate::local;
+use crate::problem::{accurate_integrator, search_integrator, Problem};
+use crate::pso::{self, PsoOptions};
+use crate::spec::LocalMethod;
+
+use super::*;
+
+/// Runs the swarm then L-BFGS on `problem` from its start; returns the best physical values,
+/// the phase reports, and the objective at the best (accurate integrator).
+///
+/// The local phase also runs from each point of `also_from` (physical values): the joint pass
+/// starts from the staged result and from the datasheet values, so that a stage that derailed
+/// (fitted a unit whose other blocks were still wrong) cannot trap the result.
+pub(crate) fn search(
+    problem: &Problem,
+    opts: &FitOptions,
+    stage: &str,
+    progress: &dyn Progress,
+    use_pso: bool,
+    also_from: &[Vec<f64>],
+) -> (Vec<f64>, Vec<PhaseReport>) {
+    let n = problem.dim();
+    let start = problem.start();
+    let mut phases = vec![];
+    let mut candidates = vec![start.clone()];
+    if use_pso && n > 0 && opts.pso_iterations > 0 {
+        progress.phase(stage, "pso", opts.pso_iterations as u64);
+        let sim = search_integrator();
+        let pso_opts = PsoOptions {
+            particles: opts.particles,
+            iterations: opts.pso_iterations,
+            seed: opts.seed,
+            stall_iterations: 30,
+            ..Default::default()
+        };
+        let u0 = problem.to_unit(&start);
+        let res = pso::minimize(
+            |u: &[f64]| problem.cost(&problem.from_unit(u), &sim),
+            n,
+            Some(&u0),
+            &pso_opts,
+            |i, best| progress.iteration(i as u64, best),
+        );
+        phases.push(PhaseReport {
+            phase: "pso".into(),
+            iterations: res.iterations as u64,
+            best_objective: res.best_cost,
+            stopped_by: format!("{:?}", res.stopped_by),
+        });
+        candidates.push(problem.from_unit(&res.best));
+    }
+    let from = candidates.last().cloned().unwrap_or_default();
+    let lm = opts.local == LocalMethod::Lm;
+    let starts: Vec<Vec<f64>> = std::iter::once(from)
+        .chain(also_from.iter().cloned())
+        .collect();
+    for (i, from) in starts.iter().enumerate() {
+        if n == 0 || opts.lbfgs_iterations == 0 {
+            break;
+        }
+        let name = if lm { "levenberg-marquardt" } else { "lbfgs" };
+        progress.phase(stage, name, opts.lbfgs_iterations);
+        let res = if lm {
+            local::levenberg_marquardt(problem, from, opts.lbfgs_iterations)
+        } else {
+            local::refine(
+                problem,
+                from,
+                opts.lbfgs_iterations,
+                opts.lbfgs_memory,
+                opts.lbfgs_step_max_s,
+            )
+        };
+        progress.iteration(res.iterations, res.best_cost);
+        let from_txt = if i == 0 {
+            String::new()
+        } else {
+            format!(" from start {}", i + 1)
+        };
+        phases.push(PhaseReport {
+            phase: if lm {
+                format!("{name}{from_txt} (Dormand-Prince, rtol 1e-8)")
+            } else {
+                format!("{name}{from_txt} (RK4 h = {:.3} ms)", res.step_s * 1e3)
+            },
+            iterations: res.iterations,
+            best_objective: res.best_cost,
+            stopped_by: res.stopped_by.clone(),
+        });
+        if i > 0 {
+            // The first start (the swarm's best or the stage start) is a candidate already.
+            candidates.push(from.clone());
+        }
+        candidates.push(res.best);
+    }
+    // Keep the best candidate by an accurate evaluation (the phases used different integrators).
+    let acc = accurate_integrator();
+    let (_, k) = problem.best_of(&candidates, &acc);
+    (candidates[k].clone(), phases)
+}
+
+/// Jacobian of the residuals in physical units (accurate integrator): central differences,
+/// one-sided where a parameter sits on a bound (the model may reject values beyond it, e.g. a
+/// negative damping).
+pub(crate) fn jacobian(problem: &Problem, x: &[f64]) -> Option<Vec<Vec<f64>>> {
+    let acc = accurate_integrator();
+    let r0 = problem.residuals(x, &acc).ok()?;
+    let cols: Vec<Option<Vec<f64>>> = (0..x.len())
+        .into_par_iter()
+        .map(|j| {
+            let f = &problem.free[j];
+            let h = 1e-4 * (f.hi - f.lo).min(x[j].abs().max(1e-3 * (f.hi - f.lo)));
+            let at = |v: f64| {
+                let mut xv = x.to_vec();
+                xv[j] = v;
+                problem.residuals(&xv, &acc).ok()
+            };
+            let (plus, minus, span) = if x[j] - h < f.lo {
+                (at(x[j] + h)?, r0.clone(), h)
+            } else if x[j] + h > f.hi {
+                (r0.clone(), at(x[j] - h)?, h)
+            } else {
+                (at(x[j] + h)?, at(x[j] - h)?, 2.0 * h)
+            };
+            Some(
+                plus.iter()
+                    .zip(&minus)
+                    .map(|(a, b)| (a - b) / span)
+                    .collect(),
+            )
+        })
+        .collect();
+    let cols: Vec<Vec<f64>> = cols.into_iter().collect::<Option<_>>()?;
+    let rows = cols.first().map_or(0, |c| c.len());
+    Some(
+        (0..rows)
+            .map(|k| cols.iter().map(|c| c[k]).collect())
+            .collect(),
+    )
+}

@@ -1,0 +1,416 @@
+//! One stage (or the simultaneous or joint pass): the stage spec applied to the unit (`set`,
+//! `replace`, ties), its free parameters resolved, the spec checked before any simulation, and
+//! the stage run (search, accurate re-evaluation, identifiability, traces).
+
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Instant;
+
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::unit::{ParamRef, Unit};
+use itaipu_dynamics::unit_file;
+
+use crate::identify;
+use crate::problem::{
+    accurate_integrator, objective_weights, sum_of_squares, EventData, FreeParam, Prior, Problem,
+};
+use crate::spec::{CalibSpec, Objective, StageSpec, Strategy, Weights};
+
+use super::*;
+
+pub(super) fn stage_err(stage: &str, msg: impl Into<String>) -> FitError {
+    FitError::Stage {
+        stage: stage.to_string(),
+        msg: msg.into(),
+    }
+}
+
+/// Applies a stage's `set` and `replace` entries to the master unit.
+pub(super) fn apply_stage_edits(master: &mut Unit, spec: &StageSpec) -> Result<(), FitError> {
+    for (section, table) in &spec.replace {
+        let block = build_block(section, table).map_err(|m| stage_err(&spec.name, m))?;
+        master
+            .put(section, block, &[])
+            .map_err(|e| stage_err(&spec.name, e.to_string()))?;
+    }
+    for (path, v) in &spec.set {
+        let r = master
+            .param(path)
+            .map_err(|e| stage_err(&spec.name, format!("set: {e}")))?;
+        master.set(r, *v);
+    }
+    Ok(())
+}
+
+/// Builds a replacement block from a unit-file table (the unit-file parser's own function): a
+/// registry model or a user-defined diagram (`model = "diagram"`, inline `diagram` table or a
+/// file relative to the working directory).
+pub(super) fn build_block(
+    section: &str,
+    table: &toml::Table,
+) -> Result<Box<dyn itaipu_dynamics::block::Block>, String> {
+    let (block, _) = unit_file::build_any_block(
+        &format!("replace.{section}"),
+        table,
+        std::path::Path::new("."),
+    )?;
+    Ok(block)
+}
+
+/// A stage spec combining the free parameters of `stages` (for the simultaneous and joint
+/// passes), objective P+Q.
+pub(super) fn combined_stage(name: &str, spec: &CalibSpec, stages: &[String]) -> StageSpec {
+    let mut all = StageSpec {
+        name: name.into(),
+        objective: Objective::Pq,
+        weights: Weights::default(),
+        window: None,
+        lowpass_hz: None,
+        set: Default::default(),
+        free: vec![],
+        tie: Default::default(),
+        replace: Default::default(),
+    };
+    for s in stages {
+        let st = spec.stage(s).expect("stages are checked against the spec");
+        all.free.extend(st.free.iter().cloned());
+        all.tie
+            .extend(st.tie.iter().map(|(a, b)| (a.clone(), b.clone())));
+        all.window = all.window.or(st.window);
+        all.lowpass_hz = all.lowpass_hz.or(st.lowpass_hz);
+    }
+    all
+}
+
+/// Resolves a stage's free parameters in `unit`, each with its prior around its value in
+/// `datasheet` (the unit before the fit) with the parameter's spread or `default_spread`.
+pub(super) fn free_params(
+    unit: &Unit,
+    spec: &StageSpec,
+    datasheet: &Unit,
+    default_spread: f64,
+) -> Result<Vec<FreeParam>, FitError> {
+    spec.free
+        .iter()
+        .map(|f| {
+            let r = unit.param(&f.param).map_err(|e| {
+                stage_err(
+                    &spec.name,
+                    format!(
+                        "free parameter {}: {e} (is its block part of this stage?)",
+                        f.param
+                    ),
+                )
+            })?;
+            let start = f.start.unwrap_or(unit.get(r));
+            let spread = f.spread.unwrap_or(default_spread);
+            let prior = datasheet
+                .param(&f.param)
+                .ok()
+                .map(|d| Prior {
+                    center: datasheet.get(d),
+                    spread,
+                })
+                .filter(|p| p.spread > 0.0 && p.center > 0.0);
+            Ok(FreeParam::new(
+                unit.param_path(r),
+                r,
+                f.min,
+                f.max,
+                start,
+                unit.param_spec(r).unit,
+            )
+            .with_prior(prior))
+        })
+        .collect()
+}
+
+/// Resolves a stage's ties `to = from` in `unit` as `(from, to)` references.
+pub(super) fn resolve_ties(
+    unit: &Unit,
+    spec: &StageSpec,
+) -> Result<Vec<(ParamRef, ParamRef)>, FitError> {
+    spec.tie
+        .iter()
+        .map(|(to, from)| {
+            let r = |p: &str| {
+                unit.param(p)
+                    .map_err(|e| stage_err(&spec.name, format!("tie {to} = {from}: {e}")))
+            };
+            Ok((r(from)?, r(to)?))
+        })
+        .collect()
+}
+
+/// Gives every tied parameter of `spec` its source's value in `unit`.
+pub(super) fn apply_ties(unit: &mut Unit, spec: &StageSpec) -> Result<(), FitError> {
+    for (from, to) in resolve_ties(unit, spec)? {
+        let v = unit.get(from);
+        unit.set(to, v);
+    }
+    Ok(())
+}
+
+/// Identifiability results in parameter names.
+pub(super) struct Ident {
+    std_errors: Vec<f64>,
+    correlation: Vec<Vec<f64>>,
+    pairs: Vec<(String, String, f64)>,
+    unidentified: Vec<String>,
+    sigma2: f64,
+    condition: f64,
+}
+
+/// Runs a stage (or the simultaneous pass) on `unit` with `free` parameters.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn run_stage(
+    name: &str,
+    label: &str,
+    unit: Unit,
+    free: Vec<FreeParam>,
+    spec: &StageSpec,
+    events: &[Event],
+    held_out: &[Event],
+    opts: &FitOptions,
+    progress: &dyn Progress,
+    use_pso: bool,
+    also_from: &[Vec<f64>],
+    cancel: Option<Arc<AtomicBool>>,
+) -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
+    let t0 = Instant::now();
+    let data: Vec<EventData> = events
+        .iter()
+        .map(|e| EventData::new(e, spec.window, spec.lowpass_hz))
+        .collect::<Result<_, _>>()
+        .map_err(|m| stage_err(name, m))?;
+    let weights = objective_weights(spec.objective, spec.weights);
+    let ties = resolve_ties(&unit, spec)?;
+    let mut problem = Problem::new(unit, free, data, weights);
+    problem.ties = ties;
+    problem.cancel = cancel;
+    if problem.free.iter().any(|f| f.prior.is_some()) {
+        problem.prior_weight = problem.measured_noise_variance();
+    }
+    let acc = accurate_integrator();
+    let start = problem.start();
+    let objective_before = problem
+        .residuals(&start, &acc)
+        .map(|r| sum_of_squares(&r))
+        .map_err(|m| stage_err(name, format!("the starting unit does not simulate: {m}")))?;
+    let mut phases = vec![];
+    let best = if opts.strategy == Strategy::Incremental && name == "gen" {
+        // Free the parameters one at a time in the listed order, each step from the last.
+        let mut x = start.clone();
+        for i in 1..=problem.dim() {
+            let mut sub = Problem::new(
+                problem.unit_at(&x),
+                problem.free[..i]
+                    .iter()
+                    .zip(&x)
+                    .map(|(f, v)| FreeParam {
+                        start: *v,
+                        ..f.clone()
+                    })
+                    .collect(),
+                problem.events.clone(),
+                weights,
+            );
+            sub.penalty = problem.penalty;
+            sub.ties = problem.ties.clone();
+            sub.prior_weight = problem.prior_weight;
+            sub.cancel = problem.cancel.clone();
+            let (b, ph) = search(
+                &sub,
+                opts,
+                &format!("{label} {i}/{}", problem.dim()),
+                progress,
+                false,
+                &[],
+            );
+            x[..i].copy_from_slice(&b);
+            phases.extend(ph.into_iter().map(|p| PhaseReport {
+                phase: format!("step {i} ({}): {}", problem.free[i - 1].path, p.phase),
+                ..p
+            }));
+        }
+        x
+    } else {
+        let (b, ph) = search(&problem, opts, label, progress, use_pso, also_from);
+        phases = ph;
+        b
+    };
+    let r_best = problem
+        .residuals(&best, &acc)
+        .map_err(|m| stage_err(name, format!("the calibrated unit does not simulate: {m}")))?;
+    let objective_after = sum_of_squares(&r_best);
+    progress.message(&format!(
+        "{label}: objective {objective_before:.5} -> {objective_after:.5}"
+    ));
+
+    // Identifiability at the optimum.
+    let ident = jacobian(&problem, &best)
+        .map(|j| identify::analyse(&j, objective_after, CORRELATION_LIMIT));
+    let n = problem.dim();
+    let id = match &ident {
+        Some(id) => Ident {
+            std_errors: id.std_errors.clone(),
+            correlation: id.correlation.clone(),
+            pairs: id
+                .correlated_pairs
+                .iter()
+                .map(|&(i, j, r)| {
+                    (
+                        problem.free[i].path.clone(),
+                        problem.free[j].path.clone(),
+                        r,
+                    )
+                })
+                .collect(),
+            unidentified: id
+                .unidentified
+                .iter()
+                .map(|&i| problem.free[i].path.clone())
+                .collect(),
+            sigma2: id.sigma2,
+            condition: id.condition,
+        },
+        None => Ident {
+            std_errors: vec![f64::NAN; n],
+            correlation: vec![vec![f64::NAN; n]; n],
+            pairs: vec![],
+            unidentified: vec![],
+            sigma2: f64::NAN,
+            condition: f64::NAN,
+        },
+    };
+    let Ident {
+        std_errors,
+        correlation,
+        pairs,
+        unidentified,
+        sigma2,
+        condition: cond,
+    } = id;
+    let parameters = problem
+        .free
+        .iter()
+        .enumerate()
+        .map(|(i, f)| ParamReport {
+            param: f.path.clone(),
+            unit: f.unit.to_string(),
+            start: f.start,
+            min: f.lo,
+            max: f.hi,
+            result: best[i],
+            std_error: std_errors[i],
+            at_bound: f.at_bound(best[i]),
+            log_scaled: f.log,
+        })
+        .collect();
+
+    let start_unit = problem.unit_at(&start);
+    let calibrated_unit = problem.unit_at(&best);
+    let mut fitness_rows = vec![];
+    let mut traces = vec![];
+    for e in events {
+        let (fs, tr_end) = fitness(&calibrated_unit, e, false).map_err(|m| stage_err(name, m))?;
+        let (_, tr_start) = fitness(&start_unit, e, false).map_err(|m| stage_err(name, m))?;
+        fitness_rows.push(fs);
+        traces.push((e.name.clone(), tr_start, tr_end));
+    }
+    for e in held_out {
+        // A held-out event that the calibrated unit cannot simulate is reported, not fatal.
+        match fitness(&calibrated_unit, e, true) {
+            Ok((fs, _)) => fitness_rows.push(fs),
+            Err(m) => progress.message(&format!("{label}: held-out event {}: {m}", e.name)),
+        }
+    }
+    let flagged = |p: &String| {
+        unidentified.contains(p)
+            || pairs
+                .iter()
+                .any(|(a, b, _): &(String, String, f64)| a == p || b == p)
+    };
+    let rel_se = |i: usize| std_errors[i] / best[i].abs().max(1e-12);
+    let weakly_determined: Vec<String> = problem
+        .free
+        .iter()
+        .enumerate()
+        .filter(|(i, f)| !flagged(&f.path) && !(rel_se(*i) <= WEAK_LIMIT))
+        .map(|(_, f)| f.path.clone())
+        .collect();
+    let identifiable: Vec<String> = problem
+        .free
+        .iter()
+        .filter(|f| !flagged(&f.path) && !weakly_determined.contains(&f.path))
+        .map(|f| f.path.clone())
+        .collect();
+    let report = StageReport {
+        stage: label.to_string(),
+        strategy: opts.strategy.to_string(),
+        objective: spec.objective,
+        weights: spec.weights,
+        window: spec.window,
+        lowpass_hz: spec.lowpass_hz,
+        models: problem
+            .unit
+            .instances()
+            .iter()
+            .map(|i| format!("{}={}", i.name, i.block.model()))
+            .collect(),
+        parameters,
+        objective_before,
+        objective_after,
+        prior_before: sum_of_squares(&problem.prior_residuals(&start)),
+        prior_after: sum_of_squares(&problem.prior_residuals(&best)),
+        fitness: fitness_rows,
+        phases,
+        simulations: problem.simulations(),
+        failed_candidates: problem.failures(),
+        failure_messages: problem.failure_messages(),
+        wall_s: t0.elapsed().as_secs_f64(),
+        seed: opts.seed,
+        residual_variance: sigma2,
+        correlation,
+        correlated_pairs: pairs,
+        unidentified,
+        weakly_determined,
+        identifiable,
+        condition_number: cond,
+    };
+    Ok((
+        report,
+        StageOutput {
+            stage: label.to_string(),
+            start_unit,
+            calibrated_unit,
+            traces,
+        },
+        best,
+    ))
+}
+
+/// Checks, before any simulation, that every `set`, `replace` and `free` entry of the stages to
+/// run resolves in the unit (as the stage will see it) and that the unit initialises.
+pub fn check_spec(unit: &Unit, spec: &CalibSpec, stages: &[String]) -> Result<(), FitError> {
+    let mut u = unit.clone();
+    for s in stages {
+        let st = spec
+            .stage(s)
+            .ok_or_else(|| FitError::Spec(format!("stage '{s}' is not in the spec")))?;
+        apply_stage_edits(&mut u, st).map_err(|e| FitError::Spec(e.to_string()))?;
+        resolve_ties(&u, st).map_err(|e| FitError::Spec(e.to_string()))?;
+        let stage_unit = u
+            .without(spec.removed_blocks(s))
+            .map_err(|e| FitError::Spec(format!("stage {s}: {e}")))?;
+        for f in &st.free {
+            stage_unit.param(&f.param).map_err(|e| {
+                FitError::Spec(format!(
+                    "stage {s}: free parameter {}: {e} (is its block part of this stage?)",
+                    f.param
+                ))
+            })?;
+        }
+    }
+    Ok(())
+}
