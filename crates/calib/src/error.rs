@@ -8,6 +8,7 @@ use crate::diagnose::user_cause::UserCauseError;
 use crate::diagnose::DiagnoseError;
 use crate::fit::FitError;
 use crate::practice::PracticeError;
+use crate::problem::ProblemError;
 use crate::pso::PsoError;
 use crate::spec::SpecError;
 
@@ -32,11 +33,13 @@ pub enum Error {
     Trial(#[from] TrialError),
     #[error(transparent)]
     Practice(#[from] PracticeError),
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
 }
 
 impl Error {
     /// Short stable identifier: the source (`"spec"`, `"fit"`, `"pso"`, `"diagnose"`, `"cause"`,
-    /// `"hide"`, `"user_cause"`, `"trial"`, `"practice"`) and, where it has variants, the
+    /// `"hide"`, `"user_cause"`, `"trial"`, `"practice"`, `"problem"`) and, where it has variants, the
     /// variant's own `kind()` after a dot.
     pub fn kind(&self) -> String {
         let (source, variant) = match self {
@@ -49,6 +52,7 @@ impl Error {
             Error::UserCause(_) => ("user_cause", None),
             Error::Trial(e) => ("trial", Some(e.kind())),
             Error::Practice(e) => ("practice", Some(e.kind())),
+            Error::Problem(e) => ("problem", Some(e.kind())),
         };
         match variant {
             Some(v) => format!("{source}.{v}"),

@@ -421,7 +421,7 @@ pub fn truth_j(practice_root: &Path, case: &PracticeCase) -> Result<f64, Practic
         .map_err(|e| PracticeError::Engine(e.to_string()))?;
     crate::fit::fitness(&r.unit, &case.event, false)
         .map(|(f, _)| f.j_pq)
-        .map_err(PracticeError::Engine)
+        .map_err(|e| PracticeError::Engine(e.to_string()))
 }
 
 /// The case folders of a practice root (`<root>/cases/*`), sorted.

@@ -162,6 +162,39 @@ pub struct EventData {
     pub in_window: Vec<bool>,
 }
 
+/// Why an event cannot be prepared or a candidate's residuals cannot be computed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ProblemError {
+    /// Fewer than 3 samples in the fit window.
+    #[error("event '{event}': fewer than 3 samples in the fit window [{start}, {end}] s")]
+    Window { event: String, start: f64, end: f64 },
+    /// The measurement's low-pass filter cannot be applied.
+    #[error("event '{event}': {msg}")]
+    Filter { event: String, msg: String },
+    /// The candidate's simulation failed.
+    #[error("{event}: {msg}")]
+    Simulation { event: String, msg: String },
+    /// The candidate's simulation ran away (|P| or |Q| beyond the divergence bound).
+    #[error("{event}: simulation diverged at t = {t:.3} s")]
+    Diverged { event: String, t: f64 },
+    /// The problem's cancel flag was set.
+    #[error("interrupted")]
+    Interrupted,
+}
+
+impl ProblemError {
+    /// A stable name of the variant.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ProblemError::Window { .. } => "window",
+            ProblemError::Filter { .. } => "filter",
+            ProblemError::Simulation { .. } => "simulation",
+            ProblemError::Diverged { .. } => "diverged",
+            ProblemError::Interrupted => "interrupted",
+        }
+    }
+}
+
 impl EventData {
     /// Prepares `event` with the window `window` (default: the event's fit window) and an
     /// optional zero-phase low-pass of the measurement.
@@ -169,7 +202,7 @@ impl EventData {
         event: &Event,
         window: Option<[f64; 2]>,
         lowpass_hz: Option<f64>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, ProblemError> {
         let r = &event.record;
         let [a, b] = window.unwrap_or([event.fit.start_s, event.fit.end_s]);
         let in_window: Vec<bool> = r
@@ -178,19 +211,21 @@ impl EventData {
             .map(|&t| t >= a - 1e-9 && t <= b + 1e-9)
             .collect();
         if in_window.iter().filter(|w| **w).count() < 3 {
-            return Err(format!(
-                "event '{}': fewer than 3 samples in the fit window [{a}, {b}] s",
-                event.name
-            ));
+            return Err(ProblemError::Window {
+                event: event.name.clone(),
+                start: a,
+                end: b,
+            });
         }
         let (mut p, mut q) = (r.p_pu.clone(), r.q_pu.clone());
         if let Some(fc) = lowpass_hz {
-            let fs = crate::filter::sample_rate(&r.time_s)
-                .map_err(|e| format!("event '{}': {e}", event.name))?;
-            p = crate::filter::lowpass_zero_phase(&p, fs, fc)
-                .map_err(|e| format!("event '{}': {e}", event.name))?;
-            q = crate::filter::lowpass_zero_phase(&q, fs, fc)
-                .map_err(|e| format!("event '{}': {e}", event.name))?;
+            let filter_err = |e: crate::filter::FilterError| ProblemError::Filter {
+                event: event.name.clone(),
+                msg: e.to_string(),
+            };
+            let fs = crate::filter::sample_rate(&r.time_s).map_err(filter_err)?;
+            p = crate::filter::lowpass_zero_phase(&p, fs, fc).map_err(filter_err)?;
+            q = crate::filter::lowpass_zero_phase(&q, fs, fc).map_err(filter_err)?;
         }
         Ok(Self {
             name: event.name.clone(),
@@ -367,25 +402,29 @@ impl Problem {
     /// Weighted residual vector `[√w_p ΔP, √w_q ΔQ]` over every event's window samples
     /// (only the signals with a non-zero weight), then the priors' residuals
     /// ([`Problem::prior_residuals`]).
-    pub fn residuals(&self, x: &[f64], sim: &SimOptions) -> Result<Vec<f64>, String> {
+    pub fn residuals(&self, x: &[f64], sim: &SimOptions) -> Result<Vec<f64>, ProblemError> {
         if self.cancelled() {
-            return Err("interrupted".into());
+            return Err(ProblemError::Interrupted);
         }
         let mut unit = self.unit_at(x);
         let (sp, sq) = (self.weights.0.sqrt(), self.weights.1.sqrt());
         let mut r = Vec::new();
         for ev in &self.events {
-            let (p, q) = simulate_pq(&mut unit, &ev.prepared, sim)
-                .map_err(|e| format!("{}: {e}", ev.name))?;
+            let (p, q) = simulate_pq(&mut unit, &ev.prepared, sim).map_err(|e| {
+                ProblemError::Simulation {
+                    event: ev.name.clone(),
+                    msg: e.to_string(),
+                }
+            })?;
             for k in 0..p.len() {
                 if !ev.in_window[k] {
                     continue;
                 }
                 if !(p[k].abs() < DIVERGED_PU && q[k].abs() < DIVERGED_PU) {
-                    return Err(format!(
-                        "{}: simulation diverged at t = {:.3} s",
-                        ev.name, ev.prepared.input.time_s[k]
-                    ));
+                    return Err(ProblemError::Diverged {
+                        event: ev.name.clone(),
+                        t: ev.prepared.input.time_s[k],
+                    });
                 }
                 if sp > 0.0 {
                     r.push(sp * (p[k] - ev.p_meas[k]));
@@ -465,7 +504,7 @@ impl Problem {
         match self.residuals(x, sim) {
             Ok(r) => Some(r),
             Err(msg) => {
-                self.record_failure(x, msg);
+                self.record_failure(x, msg.to_string());
                 None
             }
         }

@@ -93,7 +93,7 @@ pub(super) fn sigma_pq(unit: &Unit, events: &[Event]) -> Result<(f64, f64), Diag
     for e in events {
         let (_, tr) = fitness(unit, e, false).map_err(|msg| DiagnoseError::Simulation {
             event: e.name.clone(),
-            msg,
+            msg: msg.to_string(),
         })?;
         given.push(tr);
     }

@@ -32,7 +32,7 @@ pub(super) fn mode_hint(ev: &[EventEvidence], rate_hz: f64) -> Option<f64> {
 pub fn context(unit: &Unit, event: &Event) -> Result<Context, DiagnoseError> {
     let (_, tr) = fitness(unit, event, false).map_err(|msg| DiagnoseError::Simulation {
         event: event.name.clone(),
-        msg,
+        msg: msg.to_string(),
     })?;
     Ok(context_from(&tr, event))
 }
@@ -94,7 +94,7 @@ pub(super) fn reference(
         let (_, tr) =
             fitness(&reference.unit, e, false).map_err(|msg| DiagnoseError::Simulation {
                 event: e.name.clone(),
-                msg,
+                msg: msg.to_string(),
             })?;
         evidence_before.push(event_evidence(e, &tr));
         before.push((e.name.clone(), tr));
@@ -107,7 +107,7 @@ pub(super) fn reference(
         let (_, tr) =
             fitness(&reference.unit, e, true).map_err(|msg| DiagnoseError::Simulation {
                 event: e.name.clone(),
-                msg,
+                msg: msg.to_string(),
             })?;
         surrogate_held.push(
             surrogate(e, &tr, opts.seed.wrapping_add(1000 + k as u64))

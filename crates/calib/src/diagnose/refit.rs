@@ -263,10 +263,10 @@ pub(super) fn refit(
     let mut fit_problem = Problem::new(unit.clone(), free.clone(), sp.fit.clone(), weights);
     fit_problem.ties = tie_refs.clone();
     fit_problem.prior_weight = PRIOR_WEIGHT;
-    let r_fit = fit_problem.residuals(&x, &acc)?;
+    let r_fit = fit_problem.residuals(&x, &acc).map_err(|e| e.to_string())?;
     let mut held = Problem::new(unit.clone(), free, sp.held.clone(), weights);
     held.ties = tie_refs;
-    let r_held = held.residuals(&x, &acc)?;
+    let r_held = held.residuals(&x, &acc).map_err(|e| e.to_string())?;
     Ok(Refit {
         unit: fit_problem.unit_at(&x),
         values: x,

@@ -18,7 +18,8 @@ pub(super) fn split(
     held_out: &[Event],
     block_s: f64,
 ) -> Result<Split, DiagnoseError> {
-    let data = |e: &Event| EventData::new(e, None, None).map_err(DiagnoseError::Setup);
+    let data =
+        |e: &Event| EventData::new(e, None, None).map_err(|e| DiagnoseError::Setup(e.to_string()));
     if !held_out.is_empty() {
         return Ok(Split {
             fit: events.iter().map(data).collect::<Result<_, _>>()?,

@@ -26,7 +26,7 @@ use itaipu_dynamics::simulate::{simulate_prepared, Traces};
 use itaipu_dynamics::unit::Unit;
 
 use crate::local;
-use crate::problem::{accurate_integrator, EventData};
+use crate::problem::{accurate_integrator, EventData, ProblemError};
 use crate::spec::{CalibSpec, LocalMethod, Strategy};
 
 /// Correlation above which two parameters are reported as not separately identifiable.
@@ -197,11 +197,16 @@ pub fn fitness(
     unit: &Unit,
     event: &Event,
     held_out: bool,
-) -> Result<(EventFitness, Traces), String> {
+) -> Result<(EventFitness, Traces), ProblemError> {
     let data = EventData::new(event, None, None)?;
     let mut u = unit.clone();
-    let tr = simulate_prepared(&mut u, &data.prepared, event, &accurate_integrator())
-        .map_err(|e| e.to_string())?;
+    let tr =
+        simulate_prepared(&mut u, &data.prepared, event, &accurate_integrator()).map_err(|e| {
+            ProblemError::Simulation {
+                event: event.name.clone(),
+                msg: e.to_string(),
+            }
+        })?;
     let (p, q) = (tr.get("p_pu").unwrap(), tr.get("q_pu").unwrap());
     let (mut sp, mut sq, mut n) = (0.0, 0.0, 0usize);
     for k in 0..p.len() {

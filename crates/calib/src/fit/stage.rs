@@ -182,7 +182,7 @@ pub(super) fn run_stage(
         .iter()
         .map(|e| EventData::new(e, spec.window, spec.lowpass_hz))
         .collect::<Result<_, _>>()
-        .map_err(|m| stage_err(name, m))?;
+        .map_err(|m| stage_err(name, m.to_string()))?;
     let weights = objective_weights(spec.objective, spec.weights);
     let ties = resolve_ties(&unit, spec)?;
     let mut problem = Problem::new(unit, free, data, weights);
@@ -313,8 +313,10 @@ pub(super) fn run_stage(
     let mut fitness_rows = vec![];
     let mut traces = vec![];
     for e in events {
-        let (fs, tr_end) = fitness(&calibrated_unit, e, false).map_err(|m| stage_err(name, m))?;
-        let (_, tr_start) = fitness(&start_unit, e, false).map_err(|m| stage_err(name, m))?;
+        let (fs, tr_end) =
+            fitness(&calibrated_unit, e, false).map_err(|m| stage_err(name, m.to_string()))?;
+        let (_, tr_start) =
+            fitness(&start_unit, e, false).map_err(|m| stage_err(name, m.to_string()))?;
         fitness_rows.push(fs);
         traces.push((e.name.clone(), tr_start, tr_end));
     }
