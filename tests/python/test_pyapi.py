@@ -274,7 +274,10 @@ def test_ctrl_c_stops_synth_at_once():
 
 
 def test_an_interrupted_fit_keeps_its_finished_stages():
-    opts = dict(calib=CALIB, stages="gen,avr,pss", seed=1, particles=16, pso_iterations=40, lbfgs_iterations=10)
+    # A budget whose stages after `gen` take well over a second even on a fast idle machine
+    # (1 s after gen at 40 iterations was too little there), so that the interrupt lands
+    # between the end of `gen` and the end of the fit.
+    opts = dict(calib=CALIB, stages="gen,avr,pss", seed=1, particles=16, pso_iterations=150, lbfgs_iterations=10)
     t0 = time.perf_counter()
     full = ic.fit(EVENT, UNIT, **opts)
     total = time.perf_counter() - t0
