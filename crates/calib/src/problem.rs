@@ -240,6 +240,22 @@ impl EventData {
     pub fn n_window(&self) -> usize {
         self.in_window.iter().filter(|w| **w).count()
     }
+
+    /// Robust noise variances `(σ²_P, σ²_Q)` of the measured P and Q over the window
+    /// ([`noise_variance`]): what weights the datasheet prior, and what the reports show.
+    pub fn noise_variances(&self) -> (f64, f64) {
+        let take = |y: &[f64]| -> Vec<f64> {
+            y.iter()
+                .zip(&self.in_window)
+                .filter(|(_, w)| **w)
+                .map(|(v, _)| *v)
+                .collect()
+        };
+        (
+            noise_variance(&take(&self.p_meas)),
+            noise_variance(&take(&self.q_meas)),
+        )
+    }
 }
 
 /// Signal weights of an objective.
@@ -444,19 +460,13 @@ impl Problem {
         let (wp, wq) = self.weights;
         let (mut sum, mut n) = (0.0, 0usize);
         for ev in &self.events {
-            let take = |y: &[f64]| -> Vec<f64> {
-                y.iter()
-                    .zip(&ev.in_window)
-                    .filter(|(_, w)| **w)
-                    .map(|(v, _)| *v)
-                    .collect()
-            };
+            let (vp, vq) = ev.noise_variances();
             if wp > 0.0 {
-                sum += wp * noise_variance(&take(&ev.p_meas));
+                sum += wp * vp;
                 n += 1;
             }
             if wq > 0.0 {
-                sum += wq * noise_variance(&take(&ev.q_meas));
+                sum += wq * vq;
                 n += 1;
             }
         }

@@ -127,14 +127,11 @@ impl Stage {
     /// The names, in the fixed order stages run in, then `all`.
     pub const NAMES: [&'static str; 5] = ["gen", "avr", "pss", "tg", "all"];
 
+    /// Every stage, in the order of [`Stage::NAMES`].
+    const ALL: [Stage; 5] = [Stage::Gen, Stage::Avr, Stage::Pss, Stage::Tg, Stage::All];
+
     pub fn name(self) -> &'static str {
-        match self {
-            Stage::Gen => "gen",
-            Stage::Avr => "avr",
-            Stage::Pss => "pss",
-            Stage::Tg => "tg",
-            Stage::All => "all",
-        }
+        Self::NAMES[self as usize]
     }
 
     /// Stage names (each may hold several, comma-separated) as stages: at least one.
@@ -183,14 +180,11 @@ pub struct UnknownStage(pub String);
 impl FromStr for Stage {
     type Err = UnknownStage;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "gen" => Ok(Stage::Gen),
-            "avr" => Ok(Stage::Avr),
-            "pss" => Ok(Stage::Pss),
-            "tg" => Ok(Stage::Tg),
-            "all" => Ok(Stage::All),
-            other => Err(UnknownStage(other.to_string())),
-        }
+        let name = s.trim().to_ascii_lowercase();
+        Stage::ALL
+            .into_iter()
+            .find(|st| st.name() == name)
+            .ok_or(UnknownStage(name))
     }
 }
 
@@ -796,6 +790,14 @@ mod tests {
             "stages: unknown stage 'foo' (gen, avr, pss, tg or all)"
         );
         assert!(Stage::parse_list::<&str>(&[]).is_err());
+    }
+
+    #[test]
+    fn stage_names_are_the_specs_stages_then_all() {
+        assert_eq!(Stage::NAMES[..4], STAGES);
+        for st in Stage::ALL {
+            assert_eq!(st.name().parse::<Stage>().unwrap(), st);
+        }
     }
 
     #[test]

@@ -10,7 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use itaipu_calib::fit::{
     fit_with, FitControl, FitError, FitOptions, Progress, Resume, StageOutput, StageReport,
 };
-use itaipu_calib::problem::noise_variance;
+use itaipu_calib::problem::EventData;
 use itaipu_calib::request::{FitRequest, Stage};
 use itaipu_calib::spec::{CalibSpec, Strategy};
 use itaipu_dynamics::event::Event;
@@ -526,22 +526,19 @@ fn noise_levels(events: &[Event], held_out: &[Event]) -> serde_json::Value {
         .map(|e| (e, false))
         .chain(held_out.iter().map(|e| (e, true)))
         .map(|(e, h)| {
-            let r = &e.record;
-            let inside = |y: &[f64]| -> Vec<f64> {
-                r.time_s
-                    .iter()
-                    .zip(y)
-                    .filter(|(t, _)| **t >= e.fit.start_s && **t <= e.fit.end_s)
-                    .map(|(_, v)| *v)
-                    .collect()
-            };
-            let (p, q) = (inside(&r.p_pu), inside(&r.q_pu));
+            // The fit's own window and estimate (an event the fit could not window has none).
+            let (samples, vp, vq) = EventData::new(e, None, None)
+                .map(|d| {
+                    let (vp, vq) = d.noise_variances();
+                    (d.n_window(), vp, vq)
+                })
+                .unwrap_or((0, f64::NAN, f64::NAN));
             serde_json::json!({
                 "event": e.name,
                 "held_out": h,
-                "samples": p.len(),
-                "sigma_p": noise_variance(&p).sqrt(),
-                "sigma_q": noise_variance(&q).sqrt(),
+                "samples": samples,
+                "sigma_p": vp.sqrt(),
+                "sigma_q": vq.sqrt(),
             })
         })
         .collect();
