@@ -2,6 +2,7 @@
 //! `From`), so that a front end maps one type; [`Error::kind`] names the source and the
 //! variant (`"fit.stage"`, `"diagnose.interrupted"`, …).
 
+use crate::bounds::BoundError;
 use crate::diagnose::catalog::{CauseError, HideError};
 use crate::diagnose::trial::TrialError;
 use crate::diagnose::user_cause::UserCauseError;
@@ -17,6 +18,8 @@ use crate::spec::SpecError;
 pub enum Error {
     #[error(transparent)]
     Spec(#[from] SpecError),
+    #[error(transparent)]
+    Bound(#[from] BoundError),
     #[error(transparent)]
     Fit(#[from] FitError),
     #[error(transparent)]
@@ -38,12 +41,13 @@ pub enum Error {
 }
 
 impl Error {
-    /// Short stable identifier: the source (`"spec"`, `"fit"`, `"pso"`, `"diagnose"`, `"cause"`,
+    /// Short stable identifier: the source (`"spec"`, `"bound"`, `"fit"`, `"pso"`, `"diagnose"`, `"cause"`,
     /// `"hide"`, `"user_cause"`, `"trial"`, `"practice"`, `"problem"`) and, where it has variants, the
     /// variant's own `kind()` after a dot.
     pub fn kind(&self) -> String {
         let (source, variant) = match self {
             Error::Spec(e) => ("spec", Some(e.kind())),
+            Error::Bound(e) => ("bound", Some(e.kind())),
             Error::Fit(e) => ("fit", Some(e.kind())),
             Error::Pso(e) => ("pso", Some(e.kind())),
             Error::Diagnose(e) => ("diagnose", Some(e.kind())),

@@ -22,6 +22,7 @@
 // Guards are written `!(x <= limit)` on purpose: that form also catches NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod bounds;
 pub mod diagnose;
 pub mod error;
 pub mod evidence;

@@ -43,6 +43,8 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
+use crate::bounds::FreeBound;
+
 /// Stage names in their fixed order.
 pub const STAGES: [&str; 4] = ["gen", "avr", "pss", "tg"];
 
@@ -128,21 +130,6 @@ impl Default for Weights {
     }
 }
 
-/// A free parameter with its bounds.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FreeSpec {
-    /// `block.name`, e.g. `machine.x_d` (PSS/E aliases accepted: `machine.Xd`).
-    pub param: String,
-    pub min: f64,
-    pub max: f64,
-    /// Starting value; default: the value in the unit (clamped into the bounds).
-    pub start: Option<f64>,
-    /// Relative spread of this parameter's prior around the unit's value before the fit
-    /// (overrides `calibration.prior`; 0 = no prior on it).
-    pub spread: Option<f64>,
-}
-
 /// One stage.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -157,7 +144,7 @@ pub struct StageSpec {
     #[serde(default)]
     pub set: BTreeMap<String, f64>,
     #[serde(default)]
-    pub free: Vec<FreeSpec>,
+    pub free: Vec<FreeBound>,
     /// Tied parameters `to = from`: `to` takes `from`'s value in every candidate (e.g.
     /// `"machine.x_q_pp" = "machine.x_d_pp"` for a machine whose data give one X'').
     #[serde(default)]

@@ -10,6 +10,7 @@
 //! events the verdict is `none`. The hit and false-alarm rates over a larger sweep are measured
 //! by `examples/diagnose_sweep.rs`.
 
+use itaipu_calib::bounds::FreeBound;
 use itaipu_calib::diagnose::catalog::{self, Context};
 use itaipu_calib::diagnose::trial::{base_unit, run, scenario};
 use itaipu_calib::diagnose::{diagnose, DiagnoseError, DiagnoseOptions};
@@ -141,7 +142,7 @@ fn every_extension_of_the_catalog_starts_in_steady_state_on_the_base_unit() {
                 .param(&f.param)
                 .unwrap_or_else(|e| panic!("{}: {e}", c.id));
             assert!(
-                f.min < f.max && f.start >= f.min && f.start <= f.max,
+                f.min < f.max && f.start.is_some_and(|s| s >= f.min && s <= f.max),
                 "{}: bounds of {}",
                 c.id,
                 f.param
@@ -218,11 +219,12 @@ fn bad_requests_are_setup_errors() {
         "{e}"
     );
     let e = err(DiagnoseOptions {
-        refit: vec![catalog::FreeBound {
+        refit: vec![FreeBound {
             param: "machine.h".into(),
             min: 5.0,
             max: 2.0,
-            start: 3.0,
+            start: Some(3.0),
+            spread: None,
             scan: 0,
             polish_only: true,
             prior: None,
@@ -231,11 +233,12 @@ fn bad_requests_are_setup_errors() {
     });
     assert!(e.to_string().contains("upside down"), "{e}");
     let e = err(DiagnoseOptions {
-        refit: vec![catalog::FreeBound {
+        refit: vec![FreeBound {
             param: "machine.h_bar".into(),
             min: 1.0,
             max: 2.0,
-            start: 1.0,
+            start: Some(1.0),
+            spread: None,
             scan: 0,
             polish_only: true,
             prior: None,

@@ -8,6 +8,7 @@ use pyo3::exceptions::{PyDeprecationWarning, PyRuntimeError, PyTypeError, PyValu
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
+use itaipu_calib::bounds::FreeBound;
 use itaipu_calib::diagnose::{self as calib_diagnose, catalog, DiagnoseOptions};
 use itaipu_calib::fit::Silent;
 use itaipu_dynamics::simulate::Traces;
@@ -337,7 +338,7 @@ pub(crate) fn diagnose(
     let refit = refit_list(refit)?;
     // A FitResult: its whole calibrated set is re-freed with the calibration's prior (as
     // `itaipu-calib diagnose --fit`).
-    let fit_set: Vec<catalog::FreeBound> = match fit {
+    let fit_set: Vec<FreeBound> = match fit {
         Some(f) if !f.is_none() => f
             .downcast::<PyFitResult>()
             .map_err(|_| PyTypeError::new_err("fit must be a FitResult (from itaipu_calib.fit)"))?

@@ -8,7 +8,8 @@ use pyo3::exceptions::{PyKeyError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use itaipu_calib::diagnose::{self as calib_diagnose, catalog};
+use itaipu_calib::bounds::FreeBound;
+use itaipu_calib::diagnose as calib_diagnose;
 use itaipu_calib::fit::{self as calib_fit, FitOptions, FitReport, Silent, StageOutput};
 use itaipu_calib::spec::{CalibSpec, Strategy};
 use itaipu_dynamics::unit::Unit;
@@ -40,7 +41,7 @@ pub(crate) struct PyFitResult {
     pub(crate) unit: Arc<Unit>,
     pub(crate) stages: Vec<StageOutput>,
     /// The calibrated set with the calibration's prior, for `diagnose(..., fit=...)`.
-    pub(crate) calibrated_set: Vec<catalog::FreeBound>,
+    pub(crate) calibrated_set: Vec<FreeBound>,
 }
 
 impl PyFitResult {
@@ -292,7 +293,7 @@ pub(crate) fn fit(
     let worker_cancel = cancel.clone();
     let finished: Arc<Mutex<Vec<(calib_fit::StageReport, Unit)>>> = Arc::default();
     let worker_finished = finished.clone();
-    let work = move || -> Result<(calib_fit::FitResult, Vec<catalog::FreeBound>), Failure> {
+    let work = move || -> Result<(calib_fit::FitResult, Vec<FreeBound>), Failure> {
         let unit = match unit_src {
             Source::Loaded(u) => u,
             Source::Path(p) => Arc::new(read_unit(&p)?),

@@ -129,9 +129,10 @@ impl Candidates<'_> {
                     .unit
                     .param(&b.param)
                     .map(|r| ext.unit.get(r))
-                    .unwrap_or(b.start);
+                    .ok()
+                    .or(b.start);
                 ext.interacting_free.push(FreeBound {
-                    start: v.clamp(b.min, b.max),
+                    start: v.map(|v| v.clamp(b.min, b.max)),
                     polish_only: true,
                     ..b.clone()
                 });
@@ -150,7 +151,7 @@ impl Candidates<'_> {
             .filter_map(|b| {
                 let start = unit.param(&b.param).map(|r| unit.get(r)).ok()?;
                 Some(FreeBound {
-                    start: start.clamp(b.min, b.max),
+                    start: Some(start.clamp(b.min, b.max)),
                     ..b.clone()
                 })
             })
@@ -209,9 +210,10 @@ impl Candidates<'_> {
                         .unit
                         .param(&b.param)
                         .map(|p| baselines[&key].unit.get(p))
-                        .unwrap_or(b.start);
+                        .ok()
+                        .or(b.start);
                     FreeBound {
-                        start: v.clamp(b.min, b.max),
+                        start: v.map(|v| v.clamp(b.min, b.max)),
                         ..b.clone()
                     }
                 }))
@@ -260,9 +262,10 @@ impl Candidates<'_> {
                         .unit
                         .param(&b.param)
                         .map(|p| r.unit.get(p))
-                        .unwrap_or(b.start);
+                        .ok()
+                        .or(b.start);
                     FreeBound {
-                        start: v.clamp(b.min, b.max),
+                        start: v.map(|v| v.clamp(b.min, b.max)),
                         scan: 0,
                         ..b.clone()
                     }

@@ -14,7 +14,7 @@ use itaipu_dynamics::registry::{self, Role};
 use itaipu_dynamics::unit::Unit;
 use serde::Serialize;
 
-use crate::problem::Prior;
+use crate::bounds::FreeBound;
 
 /// One entry of the catalog.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -144,26 +144,6 @@ pub fn ids() -> String {
         .join(", ")
 }
 
-/// A free parameter of a candidate re-fit.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct FreeBound {
-    pub param: String,
-    pub min: f64,
-    pub max: f64,
-    pub start: f64,
-    /// Grid points to scan this parameter over before the swarm (0 = none): for a parameter
-    /// whose objective has narrow valleys (a mode frequency, a delay, a limit that is hit or
-    /// not), the best grid point becomes the start.
-    pub scan: usize,
-    /// Held at its start during the global search and freed only in the final L-BFGS polish
-    /// (for the many calibrated parameters re-freed with [`super::DiagnoseOptions::refit`]).
-    pub polish_only: bool,
-    /// The datasheet prior of a calibrated parameter (the calibration's), so that a re-fit that
-    /// bends it pays the same price as the calibration did.
-    #[serde(skip)]
-    pub prior: Option<Prior>,
-}
-
 /// What the operating point and the evidence tell the catalog about a unit on an event.
 #[derive(Debug, Clone, Default)]
 pub struct Context {
@@ -279,21 +259,13 @@ pub(crate) fn has_param(unit: &Unit, path: &str) -> bool {
     unit.param(path).is_ok()
 }
 
+/// `param` free within `[min, max]`, starting at `start` (clamped).
 pub(crate) fn fb(param: &str, min: f64, max: f64, start: f64) -> FreeBound {
-    FreeBound {
-        param: param.to_string(),
-        min,
-        max,
-        start: start.clamp(min, max),
-        scan: 0,
-        polish_only: false,
-        prior: None,
-    }
+    FreeBound::new(param, min, max).starting_at(start)
 }
 
-pub(crate) fn scanned(mut b: FreeBound, points: usize) -> FreeBound {
-    b.scan = points;
-    b
+pub(crate) fn scanned(b: FreeBound, points: usize) -> FreeBound {
+    b.scanned(points)
 }
 
 /// Adds block `name` (the wiring is resolved once all edits are made).
@@ -327,7 +299,7 @@ pub fn nuisance(unit: &Unit) -> Vec<FreeBound> {
     unit.params()
         .into_iter()
         .filter(|(path, _, _)| NUISANCE.iter().any(|n| path.rsplit('.').next() == Some(*n)))
-        .map(|(path, spec, v)| fb(&path, spec.range.0.min(v), spec.range.1.max(v), v))
+        .filter_map(|(path, _, _)| FreeBound::requested(unit, &path, None).ok())
         .collect()
 }
 
@@ -514,7 +486,11 @@ pub(crate) fn hidden_unit<'a>(
     };
     // Extension parameters start at their search start unless given.
     for f in &ext.extension_free {
-        set(&mut u, &f.param, f.start)?;
+        let v = u.get(
+            u.param(&f.param)
+                .map_err(|e| HideError::Build(e.to_string()))?,
+        );
+        set(&mut u, &f.param, f.start_from(v))?;
     }
     for (path, v) in values {
         set(&mut u, path, v)?;

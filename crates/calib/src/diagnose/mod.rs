@@ -78,9 +78,10 @@ use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
 use serde::Serialize;
 
+use crate::bounds::FreeBound;
 use crate::evidence::{self, SignalEvidence};
 use crate::fit::Progress;
-use catalog::{Context, Extension, FreeBound, CAUSES};
+use catalog::{Context, Extension, CAUSES};
 
 /// Options of a diagnosis.
 #[derive(Debug, Clone)]

@@ -3,6 +3,7 @@
 //! its χ² on the fitted and held-out samples; the standard errors of the named cause; the
 //! `refit` bounds of calibrated parameters freed again.
 
+use crate::bounds::{datasheet_prior, BoundError, PriorSource};
 use crate::evidence;
 use crate::fit::{search, FitOptions, Progress};
 use crate::problem::{
@@ -85,22 +86,10 @@ pub(super) fn variance_inflation(r: &[f64], channels: usize) -> f64 {
     (1.0 + rho) / (1.0 - rho)
 }
 
+/// `bounds` resolved in `unit` with their own priors ([`crate::bounds::resolve`]); the error is
+/// the problem's text (a re-fit's note).
 pub(super) fn resolve(unit: &Unit, bounds: &[FreeBound]) -> Result<Vec<FreeParam>, String> {
-    bounds
-        .iter()
-        .map(|b| {
-            let r = unit.param(&b.param).map_err(|e| e.to_string())?;
-            Ok(FreeParam::new(
-                unit.param_path(r),
-                r,
-                b.min,
-                b.max,
-                b.start,
-                unit.param_spec(r).unit,
-            )
-            .with_prior(b.prior))
-        })
-        .collect()
+    crate::bounds::resolve(unit, bounds, PriorSource::Given).map_err(|e| e.problem.to_string())
 }
 
 /// Grid scan of the parameters `scans` (`(index in problem.free, points)`) from the problem's
@@ -359,22 +348,15 @@ pub fn calibrated_set(
                 continue;
             }
             let spread = f.spread.unwrap_or(spec.prior);
-            let prior = datasheet
-                .param(&param)
-                .ok()
-                .map(|d| crate::problem::Prior {
-                    center: datasheet.get(d),
-                    spread,
-                })
-                .filter(|p| p.spread > 0.0 && p.center > 0.0);
             out.push(FreeBound {
+                prior: datasheet_prior(datasheet, &param, spread),
                 param,
                 min: f.min,
                 max: f.max,
-                start: calibrated.get(r).clamp(f.min, f.max),
+                start: Some(calibrated.get(r).clamp(f.min, f.max)),
+                spread: None,
                 scan: 0,
                 polish_only: true,
-                prior,
             });
         }
     }
@@ -395,28 +377,13 @@ pub fn refit_bounds(
 ) -> Result<Vec<FreeBound>, DiagnoseError> {
     let mut out: Vec<FreeBound> = vec![];
     for (path, range) in requested {
-        let r = unit.param(path).map_err(|e| refit_error(path, e))?;
-        let v = unit.get(r);
-        let (min, max) = range.unwrap_or_else(|| {
-            let (lo, hi) = unit.param_spec(r).range;
-            (lo.min(v), hi.max(v))
-        });
-        let param = unit.param_path(r);
-        if !out.iter().any(|b| b.param == param) {
+        let b = FreeBound::requested(unit, path, *range).map_err(bound_error)?;
+        if !out.iter().any(|o| o.param == b.param) {
             out.push(FreeBound {
-                param,
-                min,
-                max,
-                start: v,
-                scan: 0,
                 polish_only: true,
-                prior: None,
+                ..b
             });
         }
-    }
-    check_refit(unit, &out)?;
-    for b in &mut out {
-        b.start = b.start.clamp(b.min, b.max);
     }
     Ok(out)
 }
@@ -425,17 +392,17 @@ pub(super) fn refit_error(path: &str, why: impl std::fmt::Display) -> DiagnoseEr
     DiagnoseError::Setup(format!("refit parameter {path}: {why}"))
 }
 
-/// Checks [`DiagnoseOptions::refit`]: every parameter exists in `unit` and its bounds are not
-/// upside down, empty or NaN.
+/// A refit bound that does not resolve, as a setup error naming the parameter.
+fn bound_error(e: BoundError) -> DiagnoseError {
+    refit_error(&e.param, &e.problem)
+}
+
+/// Checks [`DiagnoseOptions::refit`]: every parameter exists in `unit` and its bounds are
+/// finite and not upside down, empty or NaN ([`FreeBound::check`]).
 pub(super) fn check_refit(unit: &Unit, refit: &[FreeBound]) -> Result<(), DiagnoseError> {
     for b in refit {
         unit.param(&b.param).map_err(|e| refit_error(&b.param, e))?;
-        if !(b.min < b.max) {
-            return Err(refit_error(
-                &b.param,
-                format!("bounds [{}, {}] are upside down or empty", b.min, b.max),
-            ));
-        }
+        b.check().map_err(bound_error)?;
     }
     Ok(())
 }

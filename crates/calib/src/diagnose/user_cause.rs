@@ -39,7 +39,8 @@ use itaipu_dynamics::registry;
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::{build_block, build_diagram_block, BuiltBlock};
 
-use super::catalog::{self, CauseError, Context, Extension, FreeBound, HideError};
+use super::catalog::{self, CauseError, Context, Extension, HideError};
+use crate::bounds::FreeBound;
 
 /// A bad cause file: the file, the field and what is wrong.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -50,20 +51,15 @@ pub struct UserCauseError {
     pub msg: String,
 }
 
-/// A parameter the re-fit frees: explicit bounds, or a factor around the unit's value.
-#[derive(Debug, Clone, PartialEq)]
-enum Bounds {
-    Fixed { min: f64, max: f64 },
-    Factor(f64),
-}
-
-#[derive(Debug, Clone, PartialEq)]
-struct FreeSpec {
-    param: String,
+/// A `[[free]]` entry of a cause file: its bound (`min`, `max`, `start`, `scan`) or, with a
+/// `factor`, a band around the unit's value within the declared range, which gives the bound's
+/// `min` and `max` per unit (they are unset, NaN, until then).
+#[derive(Debug, Clone)]
+struct UserFree {
+    bound: FreeBound,
+    factor: Option<f64>,
+    /// The entry's field in the file (messages).
     field: String,
-    bounds: Bounds,
-    start: Option<f64>,
-    scan: usize,
 }
 
 /// A cause read from a file.
@@ -79,8 +75,8 @@ pub struct UserCause {
     /// `(instance name, section, field prefix)`.
     blocks: Vec<(String, toml::Table, String)>,
     rewire: Vec<(String, Vec<(String, String)>)>,
-    free: Vec<FreeSpec>,
-    interacting: Vec<FreeSpec>,
+    free: Vec<UserFree>,
+    interacting: Vec<UserFree>,
     /// `(leader, follower)`.
     ties: Vec<(String, String)>,
 }
@@ -249,7 +245,8 @@ impl UserCause {
         // A parameter of an added block must exist in that block (checked now); one of the
         // unit's is checked against each unit.
         for s in free.iter().chain(&interacting) {
-            let (inst, p) = s.param.split_once('.').unwrap_or((&s.param, ""));
+            let param = &s.bound.param;
+            let (inst, p) = param.split_once('.').unwrap_or((param, ""));
             if let Some((_, (b, _))) = built.iter().find(|(n, _)| n == inst) {
                 if b.params().index_of(p).is_none() {
                     let names: Vec<&str> = b.params().specs().iter().map(|x| x.name).collect();
@@ -334,30 +331,29 @@ impl UserCause {
         u.ensure_finished().map_err(|e| {
             CauseError::build(format!("{}: the extended unit: {e}", self.path.display()))
         })?;
-        let bound = |s: &FreeSpec| -> Result<FreeBound, String> {
+        let bound = |s: &UserFree| -> Result<FreeBound, String> {
+            let param = &s.bound.param;
             let v = u
                 .params()
                 .into_iter()
-                .find(|(p, _, _)| *p == s.param)
+                .find(|(p, _, _)| p == param)
                 .map(|(_, _, v)| v)
-                .ok_or_else(|| format!("the unit has no parameter '{}'", s.param))?;
-            let (min, max) = match s.bounds {
-                Bounds::Fixed { min, max } => (min, max),
+                .ok_or_else(|| format!("the unit has no parameter '{param}'"))?;
+            let (min, max) = match s.factor {
+                None => (s.bound.min, s.bound.max),
                 // The band around the value within the declared range, as for a catalog cause.
-                Bounds::Factor(f) => catalog::around(&u, &s.param, f)
+                Some(f) => catalog::around(&u, param, f)
                     .map(|b| (b.min, b.max))
                     .ok_or_else(|| {
-                        format!(
-                            "{} = {v} is not > 0, so it cannot be freed by a factor",
-                            s.param
-                        )
+                        format!("{param} = {v} is not > 0, so it cannot be freed by a factor")
                     })?,
             };
             Ok(FreeBound {
-                start: s.start.unwrap_or(v).clamp(min, max),
-                scan: s.scan,
-                ..catalog::fb(&s.param, min, max, v)
-            })
+                min,
+                max,
+                ..s.bound.clone()
+            }
+            .starting_at(s.bound.start.unwrap_or(v)))
         };
         let extension_free = self
             .free
@@ -461,7 +457,7 @@ fn free_list(
     key: &str,
     path: &Path,
     required: bool,
-) -> Result<Vec<FreeSpec>, UserCauseError> {
+) -> Result<Vec<UserFree>, UserCauseError> {
     let err = |field: String, msg: &str| UserCauseError {
         path: path.into(),
         field,
@@ -476,7 +472,7 @@ fn free_list(
         )),
         Some(_) => return Err(err(key.into(), "must be one or more tables")),
     };
-    let mut out: Vec<FreeSpec> = vec![];
+    let mut out: Vec<UserFree> = vec![];
     for (k, v) in list.iter().enumerate() {
         let f = format!("{key}[{k}]");
         let e = v
@@ -501,7 +497,7 @@ fn free_list(
             Some(_) => return Err(err(format!("{f}.param"), "must be block.parameter")),
             None => return Err(err(format!("{f}.param"), "missing")),
         };
-        if out.iter().any(|o| o.param == param) {
+        if out.iter().any(|o| o.bound.param == param) {
             return Err(err(format!("{f}.param"), "given twice"));
         }
         let get = |n: &str| -> Result<Option<f64>, UserCauseError> {
@@ -513,18 +509,18 @@ fn free_list(
                     .ok_or_else(|| err(format!("{f}.{n}"), "must be a finite number")),
             }
         };
-        let bounds = match (get("min")?, get("max")?, get("factor")?) {
+        let (min, max, factor) = match (get("min")?, get("max")?, get("factor")?) {
             (Some(min), Some(max), None) => {
                 if !(max > min) {
                     return Err(err(format!("{f}.max"), "must exceed min"));
                 }
-                Bounds::Fixed { min, max }
+                (min, max, None)
             }
             (None, None, Some(fa)) => {
                 if !(fa > 1.0) {
                     return Err(err(format!("{f}.factor"), "must be > 1"));
                 }
-                Bounds::Factor(fa)
+                (f64::NAN, f64::NAN, Some(fa))
             }
             _ => {
                 return Err(err(
@@ -534,8 +530,8 @@ fn free_list(
             }
         };
         let start = get("start")?;
-        if let (Some(s), Bounds::Fixed { min, max }) = (start, &bounds) {
-            if !(s >= *min && s <= *max) {
+        if let (Some(s), None) = (start, factor) {
+            if !(s >= min && s <= max) {
                 return Err(err(format!("{f}.start"), "must lie within [min, max]"));
             }
         }
@@ -544,12 +540,13 @@ fn free_list(
             Some(toml::Value::Integer(n)) if (0..=200).contains(n) => *n as usize,
             Some(_) => return Err(err(format!("{f}.scan"), "must be an integer from 0 to 200")),
         };
-        out.push(FreeSpec {
-            param,
+        out.push(UserFree {
+            bound: FreeBound {
+                start,
+                ..FreeBound::new(param, min, max).scanned(scan)
+            },
+            factor,
             field: format!("{f}.param"),
-            bounds,
-            start,
-            scan,
         });
     }
     Ok(out)

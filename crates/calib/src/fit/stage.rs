@@ -10,9 +10,10 @@ use itaipu_dynamics::event::Event;
 use itaipu_dynamics::unit::{ParamRef, Unit};
 use itaipu_dynamics::unit_file;
 
+use crate::bounds::{BoundProblem, PriorSource};
 use crate::identify;
 use crate::problem::{
-    accurate_integrator, objective_weights, sum_of_squares, EventData, FreeParam, Prior, Problem,
+    accurate_integrator, objective_weights, sum_of_squares, EventData, FreeParam, Problem,
 };
 use crate::spec::{CalibSpec, Objective, StageSpec, Strategy, Weights};
 
@@ -90,39 +91,21 @@ pub(super) fn free_params(
     datasheet: &Unit,
     default_spread: f64,
 ) -> Result<Vec<FreeParam>, FitError> {
-    spec.free
-        .iter()
-        .map(|f| {
-            let r = unit.param(&f.param).map_err(|e| {
-                stage_err(
-                    &spec.name,
-                    format!(
-                        "free parameter {}: {e} (is its block part of this stage?)",
-                        f.param
-                    ),
-                )
-            })?;
-            let start = f.start.unwrap_or(unit.get(r));
-            let spread = f.spread.unwrap_or(default_spread);
-            let prior = datasheet
-                .param(&f.param)
-                .ok()
-                .map(|d| Prior {
-                    center: datasheet.get(d),
-                    spread,
-                })
-                .filter(|p| p.spread > 0.0 && p.center > 0.0);
-            Ok(FreeParam::new(
-                unit.param_path(r),
-                r,
-                f.min,
-                f.max,
-                start,
-                unit.param_spec(r).unit,
-            )
-            .with_prior(prior))
-        })
-        .collect()
+    crate::bounds::resolve(
+        unit,
+        &spec.free,
+        PriorSource::Datasheet {
+            datasheet,
+            default_spread,
+        },
+    )
+    .map_err(|e| match e.problem {
+        BoundProblem::Unknown(_) => stage_err(
+            &spec.name,
+            format!("{e} (is its block part of this stage?)"),
+        ),
+        _ => stage_err(&spec.name, e.to_string()),
+    })
 }
 
 /// Resolves a stage's ties `to = from` in `unit` as `(from, to)` references.
