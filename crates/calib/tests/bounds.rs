@@ -178,3 +178,55 @@ fn spec_free_tables_accept_their_keys_and_refuse_others() {
         );
     }
 }
+
+/// The catalog's search ranges that do not depend on the operating point, the evidence or the
+/// PMU rate are the parameters' declared ranges.
+#[test]
+fn catalog_search_ranges_are_the_declared_ranges() {
+    use itaipu_calib::diagnose::catalog;
+    let base = base_unit();
+    let t = itaipu_calib::diagnose::trial::scenario("none", 1, None);
+    let (_, ev) = itaipu_calib::diagnose::trial::truth_and_event(&t).unwrap();
+    let ctx = itaipu_calib::diagnose::context(&base, &ev).unwrap();
+    let no_pss = base.without(&["pss"]).unwrap();
+    let mut expected: Vec<&str> = vec![
+        "deadband.db",
+        "governor.velm",
+        "governor.r_perm",
+        "governor.t_w",
+        "load.p_load",
+        "load.q_load",
+        "oel.i_pickup",
+        "oel.a_max",
+        "oel.k_i",
+        "pss.k_x",
+        "pss.t_x2",
+        "machine.s10",
+        "machine.s12",
+        "shaft.zeta",
+    ];
+    let mut seen: Vec<String> = vec![];
+    for c in catalog::CAUSES.iter().map(|c| c.info()) {
+        for unit in [&base, &no_pss] {
+            let Ok(ext) = catalog::extend(c.id, unit, &ctx) else {
+                continue;
+            };
+            for b in ext.extension_free.iter().chain(&ext.interacting_free) {
+                if !expected.contains(&b.param.as_str()) {
+                    continue;
+                }
+                let r = ext.unit.param(&b.param).unwrap();
+                assert_eq!(
+                    (b.min, b.max),
+                    ext.unit.param_spec(r).range,
+                    "{}: {}",
+                    c.id,
+                    b.param
+                );
+                seen.push(b.param.clone());
+            }
+        }
+    }
+    expected.retain(|p| !seen.iter().any(|s| s == p));
+    assert!(expected.is_empty(), "not freed by any cause: {expected:?}");
+}

@@ -1,4 +1,5 @@
-//! One definition of every model parameter: name, PSS/E alias, unit, meaning, typical range.
+//! One definition of every model parameter: name, PSS/E alias, unit, meaning, typical value,
+//! plausible range.
 //!
 //! Each model declares its parameters once with [`param_set!`]. That single list is what the
 //! simulator reads (as plain `f64` fields with descriptive names), what the unit-model parser
@@ -18,7 +19,10 @@ pub struct ParamSpec {
     pub doc: &'static str,
     /// Typical value for a large hydro unit (the default in templates).
     pub typical: f64,
-    /// Typical range for a large hydro unit.
+    /// Plausible range for a large hydro unit: the default search range of the diagnosis (a
+    /// cause frees its extension's parameters within it, and `--refit PARAM` without bounds
+    /// within it widened to hold the value) and the reference of the plausibility warnings
+    /// (`plausibility::check_unit`: a value more than a range's width outside it).
     pub range: (f64, f64),
 }
 

@@ -259,7 +259,19 @@ pub(crate) fn has_param(unit: &Unit, path: &str) -> bool {
     unit.param(path).is_ok()
 }
 
-/// `param` free within `[min, max]`, starting at `start` (clamped).
+/// `path` of `unit` (the extended unit) free within its declared range
+/// ([`itaipu_dynamics::params::ParamSpec::range`], the plausible range), starting at `start`
+/// (clamped): a cause's search range comes from the parameter's declaration. Only ranges that
+/// depend on the operating point, the evidence or the PMU rate are computed in a cause's file
+/// (with [`fb`]).
+pub(crate) fn declared(unit: &Unit, path: &str, start: f64) -> Result<FreeBound, CauseError> {
+    FreeBound::declared(unit, path)
+        .map(|b| b.starting_at(start))
+        .map_err(CauseError::build)
+}
+
+/// `param` free within `[min, max]` computed by the cause (from the operating point, the
+/// evidence or the PMU rate), starting at `start` (clamped).
 pub(crate) fn fb(param: &str, min: f64, max: f64, start: f64) -> FreeBound {
     FreeBound::new(param, min, max).starting_at(start)
 }

@@ -51,6 +51,7 @@ impl Cause for ExciterLimit {
         })?;
         let (emax, emin) = (value(&x.unit, &pmax)?, value(&x.unit, &pmin)?);
         let hi = emax.max(efd0 + 3.0).max(2.0 * efd0);
+        // The ceiling's range comes from the field voltage at the operating point (computed here).
         x.extension_free = vec![
             scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi)), 24),
             fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05)),

@@ -5,7 +5,7 @@ use itaipu_dynamics::registry;
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    add_block, around, fb, model_of, new_block, rewire, scanned, value, Cause, CauseError,
+    add_block, around, declared, model_of, new_block, rewire, scanned, value, Cause, CauseError,
     CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH, GOVERNOR_DF_HZ,
 };
 use super::super::EventEvidence;
@@ -57,8 +57,8 @@ impl Cause for Governor {
         rewire(&mut x.unit, g, &[("speed", "speed_db")])?;
         let velm = value(&x.unit, &format!("{g}.velm"))?;
         x.extension_free = vec![
-            scanned(fb("deadband.db", 0.0, 0.004, 0.0), 9),
-            scanned(fb(&format!("{g}.velm"), 0.005, 0.5, velm), 9),
+            scanned(declared(&x.unit, "deadband.db", 0.0)?, 9),
+            scanned(declared(&x.unit, &format!("{g}.velm"), velm)?, 9),
         ];
         let (r, tw) = (
             value(&x.unit, &format!("{g}.r_perm"))?,
@@ -67,8 +67,8 @@ impl Cause for Governor {
         // On a frequency excursion the machine's inertia carries the power the governor does
         // not: a calibration without the governor's nonlinearity bends H to make up for it.
         x.interacting_free = vec![
-            fb(&format!("{g}.r_perm"), 0.01, 0.15, r),
-            fb(&format!("{g}.t_w"), 0.3, 4.0, tw),
+            declared(&x.unit, &format!("{g}.r_perm"), r)?,
+            declared(&x.unit, &format!("{g}.t_w"), tw)?,
         ];
         let m = &roles.machine;
         x.interacting_free

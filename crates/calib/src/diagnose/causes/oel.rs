@@ -4,8 +4,8 @@
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    add_block, fb, field_side, model_of, new_block, scanned, Cause, CauseError, CauseInfo, Context,
-    Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP, OEL_IFD_RISE,
+    add_block, declared, field_side, model_of, new_block, scanned, Cause, CauseError, CauseInfo,
+    Context, Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP, OEL_IFD_RISE,
 };
 use super::super::trial::Tolerance;
 use super::super::EventEvidence;
@@ -88,9 +88,9 @@ impl Cause for Oel {
         // lower pickup with a larger capacity acts as late), and off that valley the objective
         // is flat (the limiter never acts) or far worse (it acts at the wrong time).
         x.extension_free = vec![
-            scanned(fb("oel.i_pickup", 1.01, 1.6, 1.2), 12),
-            scanned(fb("oel.a_max", 0.02, 30.0, 0.3), 8),
-            fb("oel.k_i", 0.002, 0.2, 0.03),
+            scanned(declared(&x.unit, "oel.i_pickup", 1.2)?, 12),
+            scanned(declared(&x.unit, "oel.a_max", 0.3)?, 8),
+            declared(&x.unit, "oel.k_i", 0.03)?,
         ];
         x.ties = vec![("oel.i_pickup".into(), "oel.i_limit".into())];
         // A calibration without the limiter bends the AVR and the field dynamics to make up for

@@ -5,8 +5,8 @@ use itaipu_dynamics::registry;
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    add_block, around, fb, model_of, value, Cause, CauseError, CauseInfo, Context, Extension,
-    Roles, Scenario, DEEP_SEARCH,
+    add_block, around, declared, fb, model_of, value, Cause, CauseError, CauseInfo, Context,
+    Extension, Roles, Scenario, DEEP_SEARCH,
 };
 use super::super::EventEvidence;
 
@@ -41,7 +41,10 @@ impl Cause for PssState {
                 .create();
             add_block(&mut x.unit, "pss", stab3)?;
             x.description = "a STAB3 PSS (typical values) put in service".into();
-            x.extension_free = vec![fb("pss.k_x", 0.2, 5.0, 1.0), fb("pss.t_x2", 0.5, 8.0, 3.0)];
+            x.extension_free = vec![
+                declared(&x.unit, "pss.k_x", 1.0)?,
+                declared(&x.unit, "pss.t_x2", 3.0)?,
+            ];
             x.discrete_params = 1;
             x.fixed = vec![("pss.in_service".into(), 1.0)];
         }
@@ -60,6 +63,7 @@ impl Cause for PssState {
         }
         let d = format!("{m}.d");
         if let Ok(v) = value(&x.unit, &d) {
+            // Computed from the unit's value: up to 3 pu more damping than it has.
             x.interacting_free.push(fb(&d, 0.0, v.max(0.0) + 3.0, v));
         }
         Ok(())

@@ -4,8 +4,8 @@
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    fb, field_side, has_param, model_of, value, Cause, CauseError, CauseInfo, Context, Extension,
-    Roles, Scenario,
+    declared, field_side, has_param, model_of, value, Cause, CauseError, CauseInfo, Context,
+    Extension, Roles, Scenario,
 };
 use super::super::EventEvidence;
 
@@ -34,7 +34,7 @@ impl Cause for Saturation {
             )));
         }
         let (a, b) = (value(&x.unit, &s10)?, value(&x.unit, &s12)?);
-        x.extension_free = vec![fb(&s10, 0.0, 0.4, a), fb(&s12, 0.02, 1.5, b)];
+        x.extension_free = vec![declared(&x.unit, &s10, a)?, declared(&x.unit, &s12, b)?];
         // Saturation sets the incremental field-to-flux gain: a calibration with the wrong curve
         // bends the AVR and X'_d to make up for it; and a calibration that is off for any other
         // reason must not be "repaired" by a saturation curve (its baseline re-fits them too).

@@ -5,7 +5,8 @@
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    add_block, fb, new_block, Cause, CauseError, CauseInfo, Context, Extension, Roles, Scenario,
+    add_block, declared, new_block, Cause, CauseError, CauseInfo, Context, Extension, Roles,
+    Scenario,
 };
 use super::super::EventEvidence;
 
@@ -33,8 +34,8 @@ impl Cause for TerminalLoad {
         }
         add_block(&mut x.unit, "load", new_block("terminal_load", &[])?)?;
         x.extension_free = vec![
-            fb("load.p_load", 0.0, 0.15, 0.0),
-            fb("load.q_load", -0.15, 0.15, 0.0),
+            declared(&x.unit, "load.p_load", 0.0)?,
+            declared(&x.unit, "load.q_load", 0.0)?,
         ];
         Ok(())
     }

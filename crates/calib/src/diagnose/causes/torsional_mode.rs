@@ -5,8 +5,8 @@
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    add_block, fb, new_block, rewire, scanned, value, Cause, CauseError, CauseInfo, Context,
-    Extension, Roles, Scenario,
+    add_block, declared, fb, new_block, rewire, scanned, value, Cause, CauseError, CauseInfo,
+    Context, Extension, Roles, Scenario,
 };
 use super::super::trial::Tolerance;
 use super::super::EventEvidence;
@@ -75,9 +75,11 @@ impl Cause for TorsionalMode {
         x.unit.set(h_r, h - h_t);
         add_block(&mut x.unit, "shaft", shaft)?;
         rewire(&mut x.unit, &roles.machine, &[("pm", "p_shaft")])?;
+        // The frequency band comes from the resonance and the PMU rate, the turbine's share of
+        // H from the unit's H (computed here); the damping ratio's range is declared.
         x.extension_free = vec![
             scanned(fb("shaft.f_torsion_hz", f_min, f_max, f_start), 48),
-            fb("shaft.zeta", 0.0005, 0.5, 0.05),
+            declared(&x.unit, "shaft.zeta", 0.05)?,
             fb("shaft.h_turbine", 0.02 * h, 0.6 * h, h_t),
         ];
         x.interacting_free = vec![fb(&h_path, 0.4 * h, 1.05 * h, h - h_t)];

@@ -48,11 +48,11 @@ param_set! {
     /// Over-excitation limiter parameters.
     pub struct OelParams {
         ifd_rated: ("IFDRATED", "pu", 2.5, (1.5, 4.0), "rated field current, as X_adI_fd"),
-        i_pickup: ("IPU", "pu", 1.05, (1.0, 1.2), "pickup current, pu of rated"),
+        i_pickup: ("IPU", "pu", 1.05, (1.01, 1.6), "pickup current, pu of rated"),
         i_limit: ("ILIM", "pu", 1.0, (0.95, 1.1), "current the limiter regulates to when active, pu of rated (<= i_pickup)"),
-        a_max: ("AMAX", "pu2s", 6.7, (1.0, 30.0), "I²t capacity A_max ≈ (I_2² − I_pu²) t_2"),
+        a_max: ("AMAX", "pu2s", 6.7, (0.02, 30.0), "I²t capacity A_max ≈ (I_2² − I_pu²) t_2"),
         k_cool: ("KCOOL", "1/s", 0.05, (0.0, 0.2), "cooling rate of the accumulator below pickup"),
-        k_i: ("KI", "pu/s", 0.005, (0.001, 0.05), "integral gain of the limiter [pu V_OEL per pu current per s]"),
+        k_i: ("KI", "pu/s", 0.005, (0.002, 0.2), "integral gain of the limiter [pu V_OEL per pu current per s]"),
         voel_min: ("VOELMIN", "pu", -0.2, (-0.5, -0.02), "lower limit of the limiter output"),
     }
 }

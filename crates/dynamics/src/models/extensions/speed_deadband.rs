@@ -19,7 +19,7 @@ use crate::{block_common, param_set};
 param_set! {
     /// Speed-deadband parameters.
     pub struct SpeedDeadbandParams {
-        db: ("db", "pu", 0.0003, (0.0, 0.0006), "half-width of the speed deadband (0.0003 pu = ±0.018 Hz at 60 Hz)"),
+        db: ("db", "pu", 0.0003, (0.0, 0.004), "half-width of the speed deadband (0.0003 pu = ±0.018 Hz at 60 Hz)"),
     }
 }
 

@@ -19,8 +19,8 @@ use crate::{block_common, param_set};
 param_set! {
     /// Terminal-load parameters.
     pub struct TerminalLoadParams {
-        p_load: ("PL", "pu", 0.0, (0.0, 0.1), "active power drawn at 1 pu voltage (machine base)"),
-        q_load: ("QL", "pu", 0.0, (-0.1, 0.1), "reactive power drawn at 1 pu voltage (machine base, > 0 inductive)"),
+        p_load: ("PL", "pu", 0.0, (0.0, 0.15), "active power drawn at 1 pu voltage (machine base)"),
+        q_load: ("QL", "pu", 0.0, (-0.15, 0.15), "reactive power drawn at 1 pu voltage (machine base, > 0 inductive)"),
         n_p: ("nP", "-", 2.0, (0.0, 2.0), "voltage exponent of P (2 = constant impedance)"),
         n_q: ("nQ", "-", 2.0, (0.0, 2.0), "voltage exponent of Q (2 = constant impedance)"),
     }

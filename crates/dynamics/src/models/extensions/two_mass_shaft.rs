@@ -65,7 +65,7 @@ param_set! {
         h_turbine: ("Ht", "s", 0.4, (0.1, 1.5), "inertia of the turbine runner and its entrained water H_t"),
         h_generator: ("Hg", "s", 4.1, (2.0, 8.0), "generator inertia H_g (must equal machine.h)"),
         f_torsion_hz: ("ftor", "Hz", 6.0, (2.0, 20.0), "free-free torsional mode frequency (sets K_s)"),
-        zeta: ("zeta", "-", 0.05, (0.0005, 0.3), "damping ratio of the torsional mode (sets D_s); a bare shaft mode is lightly damped, 0.001-0.01"),
+        zeta: ("zeta", "-", 0.05, (0.0005, 0.5), "damping ratio of the torsional mode (sets D_s); a bare shaft mode is lightly damped, 0.001-0.01"),
         d_turbine: ("Dt", "pu", 0.0, (0.0, 1.0), "turbine damping D_t [pu torque / pu speed]"),
     }
 }

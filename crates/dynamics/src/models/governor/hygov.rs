@@ -24,15 +24,15 @@ use crate::{block_common, param_set};
 param_set! {
     /// HYGOV parameters (machine base).
     pub struct HygovParams {
-        r_perm: ("R", "pu", 0.05, (0.03, 0.06), "permanent droop"),
+        r_perm: ("R", "pu", 0.05, (0.01, 0.15), "permanent droop"),
         r_temp: ("r", "pu", 0.3, (0.2, 0.8), "temporary droop"),
         t_r: ("T_r", "s", 5.0, (3.0, 10.0), "governor (dashpot reset) time constant"),
         t_f: ("T_f", "s", 0.05, (0.03, 0.1), "filter time constant"),
         t_g: ("T_g", "s", 0.5, (0.2, 0.5), "gate servo time constant"),
-        velm: ("VELM", "pu/s", 0.2, (0.05, 0.2), "gate velocity limit"),
+        velm: ("VELM", "pu/s", 0.2, (0.005, 0.5), "gate velocity limit"),
         g_max: ("G_MAX", "pu", 1.0, (0.9, 1.0), "maximum gate opening"),
         g_min: ("G_MIN", "pu", 0.0, (0.0, 0.1), "minimum gate opening"),
-        t_w: ("T_w", "s", 1.2, (0.8, 3.0), "water inertia time constant at rated flow"),
+        t_w: ("T_w", "s", 1.2, (0.3, 4.0), "water inertia time constant at rated flow"),
         a_t: ("A_t", "-", 1.2, (1.1, 1.3), "turbine gain 1/(g_FL − g_NL)"),
         d_turb: ("D_turb", "pu", 0.5, (0.0, 0.5), "turbine damping"),
         q_nl: ("q_NL", "pu", 0.08, (0.05, 0.15), "no-load flow"),

@@ -39,8 +39,8 @@ param_set! {
         x_d_pp: ("Xppd", "pu", 0.22, (0.15, 0.28), "d-axis subtransient reactance X''d"),
         x_q_pp: ("Xppq", "pu", 0.22, (0.15, 0.28), "q-axis subtransient reactance X''q (PSS/E: = X''d)"),
         x_l: ("Xl", "pu", 0.15, (0.10, 0.20), "stator leakage reactance"),
-        s10: ("S10", "-", 0.1, (0.0, 0.2), "saturation factor at 1.0 pu flux"),
-        s12: ("S12", "-", 0.3, (0.1, 0.6), "saturation factor at 1.2 pu flux"),
+        s10: ("S10", "-", 0.1, (0.0, 0.4), "saturation factor at 1.0 pu flux"),
+        s12: ("S12", "-", 0.3, (0.02, 1.5), "saturation factor at 1.2 pu flux"),
         r_a: ("R_a", "pu", 0.002, (0.001, 0.005), "armature resistance"),
     }
 }

@@ -19,8 +19,8 @@ param_set! {
     pub struct Stab3Params {
         t_t: ("T_t", "s", 0.1, (0.0, 0.2), "power transducer time constant (0 = none)"),
         t_x1: ("T_X1", "s", 0.04, (0.03, 0.05), "low-pass time constant"),
-        t_x2: ("T_X2", "s", 3.0, (1.0, 5.0), "washout time constant"),
-        k_x: ("K_X", "s", 1.0, (1.0, 3.0), "derivative gain (washout numerator time constant)"),
+        t_x2: ("T_X2", "s", 3.0, (0.5, 8.0), "washout time constant"),
+        k_x: ("K_X", "s", 1.0, (0.2, 5.0), "derivative gain (washout numerator time constant)"),
         v_lim: ("V_LIM", "pu", 0.1, (0.05, 0.1), "symmetric output limit"),
     }
 }
