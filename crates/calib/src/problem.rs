@@ -18,7 +18,7 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
-use itaipu_dynamics::event::Event;
+use itaipu_dynamics::event::{Event, Window, MIN_SAMPLES};
 use itaipu_dynamics::integrate::{Dopri5Options, Method};
 use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
 use itaipu_dynamics::unit::{ParamRef, Unit};
@@ -158,8 +158,27 @@ pub struct EventData {
     /// Measured P and Q (system base), low-passed if the stage asks for it.
     pub p_meas: Vec<f64>,
     pub q_meas: Vec<f64>,
-    /// Samples inside the fit window.
+    /// Samples inside the fit window ([`Window::contains`]: the event module's one time
+    /// tolerance).
     pub in_window: Vec<bool>,
+}
+
+/// Sums of squared residuals over an event's window ([`EventData::window_sums`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct WindowSums {
+    /// Σ ΔP² over the window.
+    pub p: f64,
+    /// Σ ΔQ² over the window.
+    pub q: f64,
+    /// Samples in the window.
+    pub n: usize,
+}
+
+impl WindowSums {
+    /// `J = w_p Σ ΔP² + w_q Σ ΔQ²`.
+    pub fn j(&self, (wp, wq): (f64, f64)) -> f64 {
+        wp * self.p + wq * self.q
+    }
 }
 
 /// Why an event cannot be prepared or a candidate's residuals cannot be computed.
@@ -205,12 +224,9 @@ impl EventData {
     ) -> Result<Self, ProblemError> {
         let r = &event.record;
         let [a, b] = window.unwrap_or([event.fit.start_s, event.fit.end_s]);
-        let in_window: Vec<bool> = r
-            .time_s
-            .iter()
-            .map(|&t| t >= a - 1e-9 && t <= b + 1e-9)
-            .collect();
-        if in_window.iter().filter(|w| **w).count() < 3 {
+        let window = Window::new(a, b);
+        let in_window: Vec<bool> = r.time_s.iter().map(|&t| window.contains(t)).collect();
+        if in_window.iter().filter(|w| **w).count() < MIN_SAMPLES {
             return Err(ProblemError::Window {
                 event: event.name.clone(),
                 start: a,
@@ -234,6 +250,31 @@ impl EventData {
             q_meas: q,
             in_window,
         })
+    }
+
+    /// The window's samples `k` with the residuals `(k, P_k − P_meas,k, Q_k − Q_meas,k)` of a
+    /// simulated `p`, `q` (the record's samples): what J sums, in one place for the fit's
+    /// objective ([`Problem::residuals`]) and its report ([`Self::window_sums`]).
+    pub fn window_residuals<'a>(
+        &'a self,
+        p: &'a [f64],
+        q: &'a [f64],
+    ) -> impl Iterator<Item = (usize, f64, f64)> + 'a {
+        (0..p.len())
+            .filter(move |&k| self.in_window[k])
+            .map(move |k| (k, p[k] - self.p_meas[k], q[k] - self.q_meas[k]))
+    }
+
+    /// The sums of squared residuals of a simulated `p`, `q` over the window
+    /// ([`Self::window_residuals`]).
+    pub fn window_sums(&self, p: &[f64], q: &[f64]) -> WindowSums {
+        let mut s = WindowSums::default();
+        for (_, dp, dq) in self.window_residuals(p, q) {
+            s.p += dp.powi(2);
+            s.q += dq.powi(2);
+            s.n += 1;
+        }
+        s
     }
 
     /// Number of samples in the window.
@@ -432,10 +473,7 @@ impl Problem {
                     msg: e.to_string(),
                 }
             })?;
-            for k in 0..p.len() {
-                if !ev.in_window[k] {
-                    continue;
-                }
+            for (k, dp, dq) in ev.window_residuals(&p, &q) {
                 if !(p[k].abs() < DIVERGED_PU && q[k].abs() < DIVERGED_PU) {
                     return Err(ProblemError::Diverged {
                         event: ev.name.clone(),
@@ -443,10 +481,10 @@ impl Problem {
                     });
                 }
                 if sp > 0.0 {
-                    r.push(sp * (p[k] - ev.p_meas[k]));
+                    r.push(sp * dp);
                 }
                 if sq > 0.0 {
-                    r.push(sq * (q[k] - ev.q_meas[k]));
+                    r.push(sq * dq);
                 }
             }
         }

@@ -208,22 +208,15 @@ pub fn fitness(
             }
         })?;
     let (p, q) = (tr.get("p_pu").unwrap(), tr.get("q_pu").unwrap());
-    let (mut sp, mut sq, mut n) = (0.0, 0.0, 0usize);
-    for k in 0..p.len() {
-        if data.in_window[k] {
-            sp += (p[k] - data.p_meas[k]).powi(2);
-            sq += (q[k] - data.q_meas[k]).powi(2);
-            n += 1;
-        }
-    }
-    let nn = n.max(1) as f64;
+    let s = data.window_sums(p, q);
+    let nn = s.n.max(1) as f64;
     Ok((
         EventFitness {
             event: event.name.clone(),
-            j_pq: sp + sq,
-            rms_p: (sp / nn).sqrt(),
-            rms_q: (sq / nn).sqrt(),
-            samples: n,
+            j_pq: s.j((1.0, 1.0)),
+            rms_p: (s.p / nn).sqrt(),
+            rms_q: (s.q / nn).sqrt(),
+            samples: s.n,
             held_out,
         },
         tr,

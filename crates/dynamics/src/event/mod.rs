@@ -113,15 +113,11 @@ mod window;
 
 pub use self::csv::{format_g17, read_csv};
 pub use error::{EventError, Location};
-pub use window::Window;
+pub use window::{Window, TIME_TOL_S};
 
 use self::csv::{check_record_shape, validate_record, ColumnLabels};
 use spec::{check_bases, WindowSpec};
 use window::assemble;
-
-/// Tolerance, in seconds, when deciding whether a sample time lies inside a window or a window
-/// bound lies inside the record.
-pub const TIME_TOL_S: f64 = 1e-6;
 
 /// Minimum number of samples in the record, the playback window, the init window and the fit
 /// window.

@@ -6,9 +6,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use super::spec::WindowSpec;
-use super::{
-    Event, EventError, Record, DEFAULT_INIT_MIN_SAMPLES, DEFAULT_INIT_S, MIN_SAMPLES, TIME_TOL_S,
-};
+use super::{Event, EventError, Record, DEFAULT_INIT_MIN_SAMPLES, DEFAULT_INIT_S, MIN_SAMPLES};
 
 /// A closed time interval `[start_s, end_s]`, seconds on the record's time axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -16,6 +14,11 @@ pub struct Window {
     pub start_s: f64,
     pub end_s: f64,
 }
+
+/// Tolerance, in seconds, when deciding whether a sample time lies inside a window or a window
+/// bound lies inside the record: the one rule of window membership ([`Window::contains`],
+/// [`super::Record::window_range`], the fit's window in `itaipu-calib`).
+pub const TIME_TOL_S: f64 = 1e-6;
 
 impl Window {
     /// A window from `start_s` to `end_s` (not validated).

@@ -1,0 +1,62 @@
+//! J and the fit window in one place (issue 11 step 3): the window's membership is the event
+//! module's ([`Window::contains`], tolerance [`TIME_TOL_S`]), and the fit's report
+//! ([`fitness`]) and the objective ([`Problem::residuals`]) sum the same residuals
+//! ([`EventData::window_residuals`]).
+
+use itaipu_calib::diagnose::trial::{base_unit, scenario, truth_and_event};
+use itaipu_calib::fit::fitness;
+use itaipu_calib::problem::{accurate_integrator, sum_of_squares, EventData, Problem};
+use itaipu_dynamics::event::{Window, TIME_TOL_S};
+use itaipu_dynamics::simulate::simulate_pq;
+
+#[test]
+fn fitness_and_the_objective_sum_the_same_window() {
+    let (_, ev) = truth_and_event(&scenario("none", 1, None)).unwrap();
+    let unit = base_unit();
+    let data = EventData::new(&ev, None, None).unwrap();
+    let (p, q) = simulate_pq(&mut unit.clone(), &data.prepared, &accurate_integrator()).unwrap();
+
+    // The window is the event's fit window under the event module's rule.
+    let fit = Window::new(ev.fit.start_s, ev.fit.end_s);
+    let (mut sp, mut sq, mut n) = (0.0, 0.0, 0);
+    for (k, &t) in ev.record.time_s.iter().enumerate() {
+        assert_eq!(data.in_window[k], fit.contains(t), "sample {k} at {t} s");
+        if fit.contains(t) {
+            sp += (p[k] - ev.record.p_pu[k]).powi(2);
+            sq += (q[k] - ev.record.q_pu[k]).powi(2);
+            n += 1;
+        }
+    }
+    let s = data.window_sums(&p, &q);
+    assert_eq!((s.p, s.q, s.n), (sp, sq, n));
+    assert!(n >= 3 && sp > 0.0 && sq > 0.0);
+
+    // The fit's report: J = Σ ΔP² + ΔQ² over the same window.
+    let (f, _) = fitness(&unit, &ev, false).unwrap();
+    assert_eq!(f.samples, n);
+    assert!(
+        (f.j_pq - s.j((1.0, 1.0))).abs() <= 1e-12 * f.j_pq,
+        "{} {}",
+        f.j_pq,
+        s.j((1.0, 1.0))
+    );
+
+    // The objective's residuals at the unit's values, with weights, sum to w_p Σ ΔP² + w_q Σ ΔQ².
+    let w = (2.0, 0.5);
+    let problem = Problem::new(unit.clone(), vec![], vec![data.clone()], w);
+    let r = problem.residuals(&[], &accurate_integrator()).unwrap();
+    assert_eq!(r.len(), 2 * n);
+    let j = sum_of_squares(&r);
+    assert!((j - s.j(w)).abs() <= 1e-12 * j, "{j} {}", s.j(w));
+}
+
+#[test]
+fn a_window_bound_within_the_tolerance_of_a_sample_holds_it() {
+    let (_, ev) = truth_and_event(&scenario("none", 1, None)).unwrap();
+    let t = &ev.record.time_s;
+    let (a, b) = (t[10], t[20]);
+    let count = |w: [f64; 2]| EventData::new(&ev, Some(w), None).unwrap().n_window();
+    assert_eq!(count([a, b]), 11);
+    assert_eq!(count([a + 0.5 * TIME_TOL_S, b - 0.5 * TIME_TOL_S]), 11);
+    assert_eq!(count([a + 2.0 * TIME_TOL_S, b - 2.0 * TIME_TOL_S]), 9);
+}
