@@ -192,15 +192,19 @@ impl FromStr for Strategy {
     type Err = RequestError;
     /// `sequential`, `incremental` or `simultaneous-first` (any case).
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s.to_ascii_lowercase().as_str() {
-            "sequential" => Ok(Strategy::Sequential),
-            "incremental" => Ok(Strategy::Incremental),
-            "simultaneous-first" => Ok(Strategy::SimultaneousFirst),
-            _ => Err(RequestError::new(
-                "strategy",
-                format!(" must be 'sequential', 'incremental' or 'simultaneous-first' (got '{s}')"),
-            )),
-        }
+        let name = s.to_ascii_lowercase();
+        Strategy::ALL
+            .into_iter()
+            .find(|st| st.name() == name)
+            .ok_or_else(|| {
+                let quoted: Vec<String> =
+                    Strategy::NAMES.iter().map(|n| format!("'{n}'")).collect();
+                let (last, rest) = quoted.split_last().expect("strategies");
+                RequestError::new(
+                    "strategy",
+                    format!(" must be {} or {last} (got '{s}')", rest.join(", ")),
+                )
+            })
     }
 }
 
@@ -798,6 +802,27 @@ mod tests {
         for st in Stage::ALL {
             assert_eq!(st.name().parse::<Stage>().unwrap(), st);
         }
+    }
+
+    #[test]
+    fn strategy_names_are_the_specs_names() {
+        for st in Strategy::ALL {
+            assert_eq!(st.name().parse::<Strategy>().unwrap(), st);
+            let spec: crate::spec::CalibSpec = crate::spec::CalibSpec::parse(
+                &format!("[calibration]\nstrategy = \"{}\"\n", st.name()),
+                std::path::Path::new("spec.toml"),
+            )
+            .unwrap();
+            assert_eq!(spec.strategy, st);
+        }
+        assert_eq!(
+            "greedy".parse::<Strategy>().unwrap_err().to_string(),
+            RequestError::new(
+                "strategy",
+                " must be 'sequential', 'incremental' or 'simultaneous-first' (got 'greedy')"
+            )
+            .to_string()
+        );
     }
 
     #[test]

@@ -88,13 +88,26 @@ pub enum Strategy {
     SimultaneousFirst,
 }
 
+impl Strategy {
+    /// The names, as in the spec (serde's kebab-case names; a test ties the two), on the
+    /// command line and in Python, in the order of [`Strategy::ALL`].
+    pub const NAMES: [&'static str; 3] = ["sequential", "incremental", "simultaneous-first"];
+
+    /// Every strategy, in the order of [`Strategy::NAMES`].
+    pub const ALL: [Strategy; 3] = [
+        Strategy::Sequential,
+        Strategy::Incremental,
+        Strategy::SimultaneousFirst,
+    ];
+
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
+}
+
 impl std::fmt::Display for Strategy {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Strategy::Sequential => "sequential",
-            Strategy::Incremental => "incremental",
-            Strategy::SimultaneousFirst => "simultaneous-first",
-        })
+        f.write_str(self.name())
     }
 }
 

@@ -80,7 +80,7 @@ fn stage_parser() -> impl TypedValueParser<Value = Stage> {
 
 /// `--strategy`: parsed by [`Strategy`]'s `FromStr`.
 fn strategy_parser() -> impl TypedValueParser<Value = Strategy> {
-    PossibleValuesParser::new(["sequential", "incremental", "simultaneous-first"])
+    PossibleValuesParser::new(Strategy::NAMES)
         .map(|s| s.parse::<Strategy>().expect("a strategy name"))
 }
 
