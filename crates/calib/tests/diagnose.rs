@@ -119,8 +119,12 @@ fn every_extension_of_the_catalog_starts_in_steady_state_on_the_base_unit() {
     let t = scenario("none", 1, None);
     let (_, ev) = itaipu_calib::diagnose::trial::truth_and_event(&t).unwrap();
     let ctx = itaipu_calib::diagnose::context(&base, &ev).unwrap();
-    for c in catalog::CAUSES.iter().map(|c| c.info()) {
-        let ext = catalog::extend(c.id, &base, &ctx).unwrap_or_else(|e| panic!("{}: {e}", c.id));
+    let every_variant = catalog::CAUSES.iter().map(|c| c.info()).flat_map(|c| {
+        let all =
+            catalog::extend_all(c.id, &base, &ctx).unwrap_or_else(|e| panic!("{}: {e}", c.id));
+        all.into_iter().map(move |x| (c, x))
+    });
+    for (c, ext) in every_variant {
         let tr = itaipu_dynamics::simulate::simulate(
             &ext.unit,
             &ev,
@@ -149,6 +153,36 @@ fn every_extension_of_the_catalog_starts_in_steady_state_on_the_base_unit() {
             );
         }
     }
+}
+
+#[test]
+fn the_exciter_ceiling_is_tried_constant_and_fed_from_the_terminals() {
+    // A SEXS unit on a dip: two structures, the second the bus-fed SEXS with the same gains,
+    // each counting the choice between them as one discrete parameter.
+    let base = base_unit();
+    let t = scenario("none", 1, None);
+    let (_, ev) = itaipu_calib::diagnose::trial::truth_and_event(&t).unwrap();
+    let ctx = itaipu_calib::diagnose::context(&base, &ev).unwrap();
+    let all = catalog::extend_all("exciter_limit", &base, &ctx).unwrap();
+    assert_eq!(all.len(), 2);
+    assert!(all.iter().all(|x| x.discrete_params == 1));
+    let exc = |x: &catalog::Extension| x.unit.block("exciter").unwrap().model().to_string();
+    assert_eq!(exc(&all[0]), "SEXS");
+    assert_eq!(exc(&all[1]), "SEXS_bus_fed");
+    for p in ["k", "te", "ta_tb", "tb"] {
+        let path = format!("exciter.{p}");
+        let v = |u: &itaipu_dynamics::unit::Unit| u.get(u.param(&path).unwrap());
+        assert_eq!(v(&all[1].unit), v(&base), "{path}");
+    }
+    let free: Vec<&str> = all[1]
+        .extension_free
+        .iter()
+        .map(|f| f.param.as_str())
+        .collect();
+    assert_eq!(free, ["exciter.vr_max", "exciter.k_c", "exciter.vr_min"]);
+    // A cause with one structure has one extension and no discrete parameter for it.
+    let one = catalog::extend_all("saturation", &base, &ctx).unwrap();
+    assert_eq!((one.len(), one[0].discrete_params), (1, 0));
 }
 
 #[test]

@@ -4,8 +4,8 @@
 //! halving the step doubles the steps and must not add a single allocation.)
 
 use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::integrate::Method;
@@ -13,18 +13,29 @@ use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
 use itaipu_dynamics::unit_file::read_unit;
 
 struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+thread_local! {
+    /// Allocations made by this thread: the playback runs on the test's thread, and the test
+    /// harness's own threads (output capture, the timer) allocate when they like, which made a
+    /// process-wide count flaky on a loaded machine.
+    static ALLOCS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn count_one() {
+    // `try_with`: the thread-local may already be gone while a thread exits.
+    let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
+}
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
+        count_one();
         unsafe { System.alloc(l) }
     }
     unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
         unsafe { System.dealloc(p, l) }
     }
     unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
+        count_one();
         unsafe { System.realloc(p, l, n) }
     }
 }
@@ -50,10 +61,10 @@ fn allocations_of_a_playback_do_not_grow_with_the_number_of_steps() {
             };
             // One run first: anything allocated once per unit (caches) is not counted.
             simulate_pq(&mut unit, &prepared, &opts).unwrap();
-            let before = ALLOCS.load(Ordering::Relaxed);
+            let before = ALLOCS.with(Cell::get);
             let (p, _) = simulate_pq(&mut unit, &prepared, &opts).unwrap();
             assert!(p.iter().all(|x| x.is_finite()));
-            ALLOCS.load(Ordering::Relaxed) - before
+            ALLOCS.with(Cell::get) - before
         };
         let (coarse, fine) = (count(2e-3), count(1e-3));
         println!("{file}: {coarse} allocations at 2 ms, {fine} at 1 ms");

@@ -48,6 +48,25 @@ pub trait Cause: Sync {
     /// events (no exciter, no dip to reach a limit).
     fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError>;
 
+    /// How many alternative structures the cause has (e.g. an exciter ceiling that is constant
+    /// or follows the supply voltage). Each is re-fitted and the best kept, with one more
+    /// discrete parameter in the information criterion when there are several. Default: one.
+    fn variants(&self) -> usize {
+        1
+    }
+
+    /// The extension of variant `variant` (`0..variants()`); variant 0 is [`Cause::extend`].
+    fn extend_variant(
+        &self,
+        x: &mut Extension,
+        roles: &Roles,
+        ctx: &Context,
+        variant: usize,
+    ) -> Result<(), CauseError> {
+        debug_assert_eq!(variant, 0, "a cause with one structure has one variant");
+        self.extend(x, roles, ctx)
+    }
+
     /// Features of the evidence that point to the cause (shown in the candidates' table, not
     /// used to rank).
     fn signature(&self, _ev: &[super::EventEvidence], _ctx: &Context) -> Vec<String> {
@@ -215,6 +234,10 @@ pub struct Extension {
     /// Multiplier of the swarm's iterations for this candidate (a structural change that moves
     /// many interacting parameters at once needs a longer search).
     pub search_factor: usize,
+    /// The re-fit starts every parameter with a prior at its datasheet value instead of its
+    /// calibrated one (limits: a calibration that mimicked a limit bent the unit so that it
+    /// never reaches the limit, and there the limit's parameters have no gradient to follow).
+    pub from_datasheet: bool,
 }
 
 fn role_of(block: &dyn Block) -> Role {
@@ -349,6 +372,37 @@ pub(crate) fn field_side(u: &Unit, exciter: Option<&str>, machine: &str) -> Vec<
 /// Builds the extension of `unit` for `cause` ([`Cause::extend`]), with the set-point offsets
 /// (nuisance parameters) freed in every re-fit.
 pub fn extend(cause_id: &str, unit: &Unit, ctx: &Context) -> Result<Extension, CauseError> {
+    extend_variant(cause_id, unit, ctx, 0)
+}
+
+/// The extensions of every variant of a cause ([`Cause::variants`]): variant 0's error is the
+/// cause's; a later variant that cannot be built is left out.
+pub fn extend_all(
+    cause_id: &str,
+    unit: &Unit,
+    ctx: &Context,
+) -> Result<Vec<Extension>, CauseError> {
+    let c = cause(cause_id).ok_or_else(|| CauseError::Unknown(cause_id.to_string()))?;
+    let first = extend_variant(cause_id, unit, ctx, 0)?;
+    let mut all = vec![first];
+    all.extend((1..c.variants()).filter_map(|v| extend_variant(cause_id, unit, ctx, v).ok()));
+    let n = all.len();
+    if n > 1 {
+        // Choosing among the structures is one more (discrete) parameter.
+        for e in &mut all {
+            e.discrete_params += 1;
+        }
+    }
+    Ok(all)
+}
+
+/// The extension of variant `variant` of a cause.
+pub fn extend_variant(
+    cause_id: &str,
+    unit: &Unit,
+    ctx: &Context,
+    variant: usize,
+) -> Result<Extension, CauseError> {
     let c = cause(cause_id).ok_or_else(|| CauseError::Unknown(cause_id.to_string()))?;
     let info = c.info();
     let mut u = unit.clone();
@@ -370,8 +424,9 @@ pub fn extend(cause_id: &str, unit: &Unit, ctx: &Context) -> Result<Extension, C
         description: info.extension.to_string(),
         fixed: vec![],
         search_factor: 1,
+        from_datasheet: false,
     };
-    c.extend(&mut ext, &roles, ctx)?;
+    c.extend_variant(&mut ext, &roles, ctx, variant)?;
     ext.unit.ensure_finished().map_err(CauseError::build)?;
     free_nuisance(&mut ext);
     Ok(ext)

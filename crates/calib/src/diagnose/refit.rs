@@ -25,8 +25,9 @@ pub(super) type RefitRecord = (Refit, Vec<FreeBound>, Vec<(String, String)>);
 pub(super) const REFIT_RK4_STEP_MAX_S: f64 = 5e-3;
 
 /// Largest grid product scanned jointly (simulations) before falling back to one-at-a-time
-/// scans.
-pub(super) const MAX_JOINT_SCAN: usize = 200;
+/// scans (the largest the catalog asks for: the exciter ceiling's 24 points by T_E's 8 and its
+/// datasheet value, 216).
+pub(super) const MAX_JOINT_SCAN: usize = 240;
 
 /// Identifies a set of free parameters (for re-using a baseline re-fit).
 pub(super) fn bounds_key(bounds: &[FreeBound]) -> String {
@@ -102,12 +103,19 @@ pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)]) {
         .iter()
         .map(|&(jj, n)| {
             let f = &problem.free[jj];
-            (
-                jj,
-                (0..n)
-                    .map(|i| f.from_unit(i as f64 / (n - 1) as f64))
-                    .collect(),
-            )
+            let mut grid: Vec<f64> = (0..n)
+                .map(|i| f.from_unit(i as f64 / (n - 1) as f64))
+                .collect();
+            // The datasheet value is a grid point too: a calibration that bent the parameter
+            // to mimic the missing effect left it off the valley the extension lies in.
+            if let Some(c) = f
+                .prior
+                .map(|p| p.center)
+                .filter(|c| (f.lo..=f.hi).contains(c))
+            {
+                grid.push(c);
+            }
+            (jj, grid)
         })
         .collect();
     let product: usize = scanned.iter().map(|(_, g)| g.len()).product();
@@ -255,6 +263,7 @@ pub(super) fn refit(
     let r_fit = fit_problem.residuals(&x, &acc).map_err(|e| e.to_string())?;
     let mut held = Problem::new(unit.clone(), free, sp.held.clone(), weights);
     held.ties = tie_refs;
+    held.prior_weight = PRIOR_WEIGHT;
     let r_held = held.residuals(&x, &acc).map_err(|e| e.to_string())?;
     Ok(Refit {
         unit: fit_problem.unit_at(&x),

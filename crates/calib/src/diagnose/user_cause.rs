@@ -386,6 +386,7 @@ impl UserCause {
             description: self.extension.clone(),
             fixed: vec![],
             search_factor: self.search_factor,
+            from_datasheet: false,
         };
         catalog::free_nuisance(&mut ext);
         Ok(ext)
@@ -595,6 +596,20 @@ pub fn describe(id: &str, users: &[UserCause]) -> Option<(String, String)> {
         .iter()
         .find(|u| u.id == id)
         .map(|u| (u.title.clone(), u.extension.clone()))
+}
+
+/// [`catalog::extend_all`] for a catalog cause (every variant), [`UserCause::extend`] for a
+/// user one (one structure).
+pub fn extend_all(
+    id: &str,
+    unit: &Unit,
+    ctx: &Context,
+    users: &[UserCause],
+) -> Result<Vec<Extension>, catalog::CauseError> {
+    match users.iter().find(|u| u.id == id) {
+        Some(u) => Ok(vec![u.extend(unit, ctx)?]),
+        None => catalog::extend_all(id, unit, ctx),
+    }
 }
 
 /// [`catalog::extend`] for a catalog cause, [`UserCause::extend`] for a user one.

@@ -1,12 +1,15 @@
 //! `exciter_limit`: the exciter's output limits reached in the dip, modelled by freeing the
 //! exciter's ceiling E_MAX and floor E_MIN (with the AVR gain and the field side a calibration
-//! without the limit bends).
+//! without the limit bends). Two structures are tried and the better kept: a constant ceiling
+//! (a rotating exciter, or a static one with its own supply) and, for SEXS, a ceiling fed from
+//! the terminals, `E_fd,max = V_t·V_RMAX − K_C·X_adI_fd` (`SEXS_bus_fed`, `models.md` §12.3: a
+//! thyristor bridge supplied by the generator's own voltage, whose ceiling falls with the dip).
 
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    fb, field_side, has_param, model_of, scanned, value, Cause, CauseError, CauseInfo, Context,
-    Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP,
+    fb, field_side, has_param, model_of, new_block, scanned, value, Cause, CauseError, CauseInfo,
+    Context, Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP,
 };
 use super::super::trial::Tolerance;
 use super::super::EventEvidence;
@@ -18,7 +21,8 @@ static INFO: CauseInfo = CauseInfo {
     title: "exciter output limits reached",
     signature: "Q residual confined to the dip and the first recovery seconds (the field voltage \
                 saturates on its ceiling or floor), small before and long after",
-    extension: "exciter ceiling E_MAX and floor E_MIN freed (with the AVR gain)",
+    extension: "exciter ceiling E_MAX and floor E_MIN freed (with the AVR gain); for SEXS also \
+                a ceiling fed from the terminals, V_t·V_RMAX − K_C·X_adI_fd, the better kept",
     key_params: &["exciter.e_max", "exciter.e_min"],
 };
 
@@ -68,6 +72,72 @@ impl Cause for ExciterLimit {
             b.scan = 8;
         }
         x.search_factor = DEEP_SEARCH;
+        x.from_datasheet = true;
+        Ok(())
+    }
+
+    fn variants(&self) -> usize {
+        2
+    }
+
+    fn extend_variant(
+        &self,
+        x: &mut Extension,
+        roles: &Roles,
+        ctx: &Context,
+        variant: usize,
+    ) -> Result<(), CauseError> {
+        self.extend(x, roles, ctx)?;
+        if variant == 0 {
+            x.description =
+                "exciter ceiling E_MAX and floor E_MIN freed (with the AVR gain)".into();
+            return Ok(());
+        }
+        // The supply-fed ceiling: SEXS with the same gains, its limits per pu of V_t.
+        let exc = roles
+            .exciter
+            .as_deref()
+            .expect("extend checked the exciter");
+        if model_of(&x.unit, exc) != "SEXS" {
+            return Err(CauseError::not_applicable(
+                "a supply-fed ceiling is built for SEXS only",
+            ));
+        }
+        let efd0 = ctx.efd0.expect("extend checked E_fd0");
+        let i0 = ctx.xadifd0.filter(|i| *i > 0.0).ok_or_else(|| {
+            CauseError::build("the field current at the operating point is unknown")
+        })?;
+        let get = |n: &str| value(&x.unit, &format!("{exc}.{n}"));
+        let (emax, emin) = (get("e_max")?, get("e_min")?);
+        let gains = [
+            ("ta_tb", get("ta_tb")?),
+            ("tb", get("tb")?),
+            ("k", get("k")?),
+            ("te", get("te")?),
+            ("v_ref_offset", get("v_ref_offset")?),
+        ];
+        // At the operating point (V_t ≈ 1) the ceiling V_RMAX − K_C·I_fd0 must hold E_fd0: the
+        // search starts K_C at 0.05 and spans the constant variant's ceilings plus the largest
+        // commutation drop; a candidate whose ceiling is below E_fd0 does not initialise.
+        let k_c = 0.05;
+        let (lo, hi) = (efd0 + 0.05, emax.max(efd0 + 3.0).max(2.0 * efd0) + 0.2 * i0);
+        let vr_min = emin.min(-2.0);
+        let mut values: Vec<(&str, f64)> = gains.to_vec();
+        values.extend([
+            ("vr_max", hi.min(emax + k_c * i0).max(lo + k_c * i0)),
+            ("vr_min", vr_min),
+            ("k_c", k_c),
+        ]);
+        let block = new_block("SEXS_bus_fed", &values)?;
+        x.unit.put(exc, block, &[]).map_err(CauseError::build)?;
+        x.extension_free = vec![
+            scanned(fb(&format!("{exc}.vr_max"), lo, hi, emax + k_c * i0), 24),
+            fb(&format!("{exc}.k_c"), 0.0, 0.2, k_c),
+            fb(&format!("{exc}.vr_min"), vr_min, efd0 - 0.05, vr_min),
+        ];
+        x.description = "exciter ceiling fed from the terminals, V_t·V_RMAX − K_C·X_adI_fd, and \
+                         floor V_t·V_RMIN freed (with the AVR gain)"
+            .into();
         Ok(())
     }
 

@@ -58,7 +58,7 @@ impl Cause for Governor {
         let velm = value(&x.unit, &format!("{g}.velm"))?;
         x.extension_free = vec![
             scanned(declared(&x.unit, "deadband.db", 0.0)?, 9),
-            scanned(declared(&x.unit, &format!("{g}.velm"), velm)?, 9),
+            scanned(declared(&x.unit, &format!("{g}.velm"), velm)?, 4),
         ];
         let (r, tw) = (
             value(&x.unit, &format!("{g}.r_perm"))?,
@@ -66,8 +66,10 @@ impl Cause for Governor {
         );
         // On a frequency excursion the machine's inertia carries the power the governor does
         // not: a calibration without the governor's nonlinearity bends H to make up for it.
+        // The permanent droop is scanned with the deadband: both cut the steady response to a
+        // frequency deviation, so a calibration without the deadband raises the droop instead.
         x.interacting_free = vec![
-            declared(&x.unit, &format!("{g}.r_perm"), r)?,
+            scanned(declared(&x.unit, &format!("{g}.r_perm"), r)?, 4),
             declared(&x.unit, &format!("{g}.t_w"), tw)?,
         ];
         let m = &roles.machine;

@@ -97,6 +97,7 @@ impl Cause for Oel {
         // the field being pulled back (as for `exciter_limit`).
         x.interacting_free = field_side(&x.unit, Some(exc), &roles.machine);
         x.search_factor = DEEP_SEARCH;
+        x.from_datasheet = true;
         Ok(())
     }
 

@@ -20,7 +20,7 @@ param_set! {
     /// Terminal-load parameters.
     pub struct TerminalLoadParams {
         p_load: ("PL", "pu", 0.0, (0.0, 0.15), "active power drawn at 1 pu voltage (machine base)"),
-        q_load: ("QL", "pu", 0.0, (-0.15, 0.15), "reactive power drawn at 1 pu voltage (machine base, > 0 inductive)"),
+        q_load: ("QL", "pu", 0.0, (0.0, 0.15), "reactive power drawn at 1 pu voltage (machine base, > 0 inductive: an auxiliary load of motors and transformers draws reactive power)"),
         n_p: ("nP", "-", 2.0, (0.0, 2.0), "voltage exponent of P (2 = constant impedance)"),
         n_q: ("nQ", "-", 2.0, (0.0, 2.0), "voltage exponent of Q (2 = constant impedance)"),
     }
