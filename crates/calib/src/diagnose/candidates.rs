@@ -434,9 +434,33 @@ fn fit_extension(
         pso_iterations: opts.pso_iterations * ext.search_factor.max(1),
         ..opts.clone()
     };
-    let mut r = refit(
+    let mut r = match refit(
         &ext.unit, &bounds, &ext.ties, sp, weights, &opts, label, progress,
-    )?;
+    ) {
+        Ok(r) => r,
+        // The datasheet values together with the calibrated ones may break a physical relation
+        // (a datasheet X_d below a calibrated X'_d held by its own bounds): then from the
+        // calibrated values.
+        Err(_) if ext.from_datasheet => {
+            let calibrated: Vec<FreeBound> = ext
+                .extension_free
+                .iter()
+                .chain(&ext.interacting_free)
+                .cloned()
+                .collect();
+            refit(
+                &ext.unit,
+                &calibrated,
+                &ext.ties,
+                sp,
+                weights,
+                &opts,
+                &format!("{label} from the calibrated values"),
+                progress,
+            )?
+        }
+        Err(e) => return Err(e),
+    };
     if r.chi2_fit > baseline.chi2_fit && has_base {
         let from_base: Vec<FreeBound> = ext
             .extension_free
