@@ -4,8 +4,8 @@
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    add_block, declared, field_side, model_of, new_block, scanned, Cause, CauseError, CauseInfo,
-    Context, Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP, OEL_IFD_RISE,
+    add_block, declared, fb, field_side, model_of, new_block, scanned, Cause, CauseError,
+    CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP, OEL_IFD_RISE,
 };
 use super::super::trial::Tolerance;
 use super::super::EventEvidence;
@@ -87,8 +87,13 @@ impl Cause for Oel {
         // Pickup and I²t capacity scanned jointly: together they set when the limiter acts (a
         // lower pickup with a larger capacity acts as late), and off that valley the objective
         // is flat (the limiter never acts) or far worse (it acts at the wrong time).
+        // The pickup's range is computed here, not declared: the rated current is the calibrated
+        // unit's pre-event field current, and the re-fit from the datasheet values (below) may
+        // put the unit's own pre-event current well under it (a calibration that mimicked the
+        // limiter raised X_d), so the pickup may lie under 1 × it; a candidate whose own current
+        // starts above its pickup does not initialise.
         x.extension_free = vec![
-            scanned(declared(&x.unit, "oel.i_pickup", 1.2)?, 12),
+            scanned(fb("oel.i_pickup", 0.6, 1.6, 1.2), 12),
             scanned(declared(&x.unit, "oel.a_max", 0.3)?, 8),
             declared(&x.unit, "oel.k_i", 0.03)?,
         ];
