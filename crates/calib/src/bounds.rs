@@ -68,6 +68,18 @@ impl FreeBound {
         }
     }
 
+    /// The same bound starting at its value in `unit` (clamped), or at its own start (clamped)
+    /// where `unit` lacks the parameter: a re-fit continuing from where another one ended.
+    pub fn starting_in(&self, unit: &Unit) -> Self {
+        match unit.param(&self.param) {
+            Ok(r) => self.clone().starting_at(unit.get(r)),
+            Err(_) => Self {
+                start: self.start.map(|v| v.clamp(self.min, self.max)),
+                ..self.clone()
+            },
+        }
+    }
+
     /// The same bound scanned over `points` grid points before the swarm.
     pub fn scanned(self, points: usize) -> Self {
         Self {

@@ -231,3 +231,18 @@ fn catalog_search_ranges_are_the_declared_ranges() {
     expected.retain(|p| !seen.iter().any(|s| s == p));
     assert!(expected.is_empty(), "not freed by any cause: {expected:?}");
 }
+
+#[test]
+fn a_bound_continues_from_a_units_value_or_keeps_its_start() {
+    let mut unit = base_unit();
+    let r = unit.param("machine.h").unwrap();
+    unit.set(r, 4.0);
+    let b = FreeBound::new("machine.h", 1.0, 3.0).starting_at(2.0);
+    // The unit's value, clamped into the bounds.
+    assert_eq!(b.starting_in(&unit).start, Some(3.0));
+    unit.set(r, 1.5);
+    assert_eq!(b.starting_in(&unit).start, Some(1.5));
+    // A unit without the parameter: the bound's own start.
+    let other = FreeBound::new("oel.i_pickup", 1.0, 1.5).starting_at(1.2);
+    assert_eq!(other.starting_in(&unit).start, Some(1.2));
+}

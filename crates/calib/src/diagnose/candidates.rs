@@ -123,13 +123,8 @@ impl Candidates<'_> {
         let base_bounds: Vec<FreeBound> = ext
             .interacting_free
             .iter()
-            .filter_map(|b| {
-                let start = unit.param(&b.param).map(|r| unit.get(r)).ok()?;
-                Some(FreeBound {
-                    start: Some(start.clamp(b.min, b.max)),
-                    ..b.clone()
-                })
-            })
+            .filter(|b| unit.param(&b.param).is_ok())
+            .map(|b| b.starting_in(unit))
             .collect();
         let key = bounds_key(&base_bounds);
         if !baselines.contains_key(&key) {
@@ -385,16 +380,9 @@ fn with_calibrated_set(mut ext: Extension, opts: &DiagnoseOptions) -> Extension 
                 f.prior = b.prior;
             }
         } else if ext.unit.param(&b.param).is_ok() {
-            let v = ext
-                .unit
-                .param(&b.param)
-                .map(|r| ext.unit.get(r))
-                .ok()
-                .or(b.start);
             ext.interacting_free.push(FreeBound {
-                start: v.map(|v| v.clamp(b.min, b.max)),
                 polish_only: true,
-                ..b.clone()
+                ..b.starting_in(&ext.unit)
             });
         }
     }
@@ -419,17 +407,12 @@ fn fit_extension(
     progress: &dyn Progress,
 ) -> Result<Refit, String> {
     let mut bounds = ext.extension_free.clone();
-    bounds.extend(ext.interacting_free.iter().map(|b| {
-        FreeBound {
-            start: b
-                .prior
-                .filter(|_| ext.from_datasheet)
-                .map(|p| p.center)
-                .or(b.start)
-                .map(|v| v.clamp(b.min, b.max)),
-            ..b.clone()
-        }
-    }));
+    bounds.extend(ext.interacting_free.iter().map(
+        |b| match b.prior.filter(|_| ext.from_datasheet) {
+            Some(p) => b.clone().starting_at(p.center),
+            None => b.clone(),
+        },
+    ));
     let opts = DiagnoseOptions {
         pso_iterations: opts.pso_iterations * ext.search_factor.max(1),
         ..opts.clone()
@@ -466,18 +449,11 @@ fn fit_extension(
             .extension_free
             .iter()
             .cloned()
-            .chain(ext.interacting_free.iter().map(|b| {
-                let v = baseline
-                    .unit
-                    .param(&b.param)
-                    .map(|p| baseline.unit.get(p))
-                    .ok()
-                    .or(b.start);
-                FreeBound {
-                    start: v.map(|v| v.clamp(b.min, b.max)),
-                    ..b.clone()
-                }
-            }))
+            .chain(
+                ext.interacting_free
+                    .iter()
+                    .map(|b| b.starting_in(&baseline.unit)),
+            )
             .collect();
         if let Ok(r2) = refit(
             &ext.unit,
@@ -515,18 +491,9 @@ fn baseline_from(
 ) -> Option<Refit> {
     let start: Vec<FreeBound> = base_bounds
         .iter()
-        .map(|b| {
-            let v = from
-                .unit
-                .param(&b.param)
-                .map(|p| from.unit.get(p))
-                .ok()
-                .or(b.start);
-            FreeBound {
-                start: v.map(|v| v.clamp(b.min, b.max)),
-                scan: 0,
-                ..b.clone()
-            }
+        .map(|b| FreeBound {
+            scan: 0,
+            ..b.starting_in(&from.unit)
         })
         .collect();
     let polish = DiagnoseOptions {
