@@ -3,7 +3,7 @@
 //! and calibrates like the unit with the built-in blocks; bad diagrams exit 4, a diagram that
 //! cannot start exits 5; `diagram` draws the wiring; `models diagram` lists the primitives.
 
-use itaipu_calib_e2e::{cli, data, TempDir};
+use itaipu_calib_e2e::{cli, data, TempDir, FIT_BUDGET};
 
 fn column(path: &std::path::Path, name: &str) -> Vec<f64> {
     let text = std::fs::read_to_string(path).unwrap();
@@ -58,18 +58,16 @@ fn the_diagram_unit_simulates_and_calibrates_like_the_builtin_unit() {
     // diagram's parameters).
     let (fd, fb) = (tmp.path().join("fd"), tmp.path().join("fb"));
     let small = [
-        "--stage",
-        "avr",
-        "--particles",
-        "6",
-        "--pso-iterations",
-        "3",
-        "--lbfgs-iterations",
-        "3",
-        "--no-plot",
-        "--calib",
-        calib.to_str().unwrap(),
-    ];
+        &[
+            "--stage",
+            "avr",
+            "--no-plot",
+            "--calib",
+            calib.to_str().unwrap(),
+        ][..],
+        &FIT_BUDGET[..],
+    ]
+    .concat();
     let mut a = vec![
         "fit",
         "--unit",

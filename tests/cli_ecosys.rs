@@ -3,7 +3,7 @@
 //! unit, `dyr write` back — and the two commands' handling of bad input (exit codes, nothing
 //! overwritten).
 
-use itaipu_calib_e2e::{cli, cli_on, data, file_names, TempDir};
+use itaipu_calib_e2e::{cli, cli_on, data, file_names, TempDir, FIT_BUDGET};
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::unit_file::read_unit;
 
@@ -11,14 +11,11 @@ fn s(p: &std::path::Path) -> &str {
     p.to_str().expect("a UTF-8 path")
 }
 
-#[test]
-fn comtrade_and_dyr_of_the_bundled_event_calibrate_like_the_bundled_files() {
-    let tmp = TempDir::new("ecosys");
-    let ev_dir = tmp.path().join("ev");
-    let cfg = data("itaipu/pmu/itaipu.cfg");
-    let import = [
+/// `import CFG` on the Itaipu bases (1000 MVA system, 60 Hz, 18 kV) into `out`.
+fn import(cfg: &std::path::Path, out: &std::path::Path) -> u8 {
+    cli(&[
         "import",
-        s(&cfg),
+        s(cfg),
         "--system-mva",
         "1000",
         "--nominal-hz",
@@ -26,9 +23,16 @@ fn comtrade_and_dyr_of_the_bundled_event_calibrate_like_the_bundled_files() {
         "--v-base-kv",
         "18",
         "--out",
-        s(&ev_dir),
-    ];
-    assert_eq!(cli(&import), 0);
+        s(out),
+    ])
+}
+
+#[test]
+fn comtrade_and_dyr_of_the_bundled_event_calibrate_like_the_bundled_files() {
+    let tmp = TempDir::new("ecosys");
+    let ev_dir = tmp.path().join("ev");
+    let cfg = data("itaipu/pmu/itaipu.cfg");
+    assert_eq!(import(&cfg, &ev_dir), 0);
     assert_eq!(
         file_names(&ev_dir),
         ["event.toml", "import.json", "itaipu.csv", "manifest.json"],
@@ -49,7 +53,7 @@ fn comtrade_and_dyr_of_the_bundled_event_calibrate_like_the_bundled_files() {
     assert!(worst(&a.q_pu, &b.q_pu) < 5e-3, "Q");
     assert!(worst(&a.v_mag_pu, &b.v_mag_pu) < 1e-3, "|V|");
     // Importing again into the same folder is refused: nothing is overwritten.
-    assert_ne!(cli(&import), 0);
+    assert_ne!(import(&cfg, &ev_dir), 0);
 
     // The .dyr (bases in unit.bases.toml beside it) is the bundled unit file's machine.
     let dyr = data("itaipu/unit.dyr");
@@ -77,18 +81,10 @@ fn comtrade_and_dyr_of_the_bundled_event_calibrate_like_the_bundled_files() {
         &dyr,
         &fit_dir,
         &[
-            "--calib",
-            s(&calib),
-            "--stage",
-            "gen",
-            "--particles",
-            "6",
-            "--pso-iterations",
-            "3",
-            "--lbfgs-iterations",
-            "3",
-            "--no-plot",
-        ],
+            &["--calib", s(&calib), "--stage", "gen", "--no-plot"][..],
+            &FIT_BUDGET[..],
+        ]
+        .concat(),
     );
     assert_eq!(code, 0);
     for f in [
@@ -143,19 +139,7 @@ fn bad_imports_and_dyr_files_exit_with_their_codes_and_write_nothing() {
     // A COMTRADE .cfg that is not one: bad event data, exit 3.
     let cfg = tmp.write("broken.cfg", "this is not a COMTRADE configuration\n");
     let out = tmp.path().join("ev");
-    let code = cli(&[
-        "import",
-        s(&cfg),
-        "--system-mva",
-        "1000",
-        "--nominal-hz",
-        "60",
-        "--v-base-kv",
-        "18",
-        "--out",
-        s(&out),
-    ]);
-    assert_eq!(code, 3);
+    assert_eq!(import(&cfg, &out), 3);
     assert!(!out.join("event.toml").exists(), "no event from a bad file");
     // A .dyr without its bases (no side file, no --mbase): usage error, exit 2.
     let dyr = tmp.write(

@@ -81,6 +81,17 @@ pub fn file_names(dir: &Path) -> Vec<String> {
     v
 }
 
+/// Swarm and L-BFGS settings of a quick fit stage: the command's path, not the optimum, is
+/// under test.
+pub const FIT_BUDGET: [&str; 6] = [
+    "--particles",
+    "6",
+    "--pso-iterations",
+    "3",
+    "--lbfgs-iterations",
+    "3",
+];
+
 /// Swarm and L-BFGS settings of a quick diagnosis (a second or so per cause).
 pub const DIAGNOSE_BUDGET: [&str; 6] = [
     "--particles",
