@@ -196,8 +196,8 @@ fn catalog_search_ranges_are_the_declared_ranges() {
         "governor.t_w",
         "load.p_load",
         "load.q_load",
-        // (oel.i_pickup's range is computed by the cause: the rated current it reads against is
-        // the calibrated unit's pre-event current, which a re-fit from the datasheet may leave.)
+        // (oel.ifd_rated's range is computed by the cause: it is read against the calibrated
+        // unit's pre-event field current, which a re-fit from the datasheet may leave.)
         "oel.a_max",
         "oel.k_i",
         "pss.k_x",

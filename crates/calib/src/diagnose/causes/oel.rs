@@ -12,6 +12,11 @@ use super::super::EventEvidence;
 
 pub struct Oel;
 
+/// Pickup and regulated current of the limiter, per unit of the rated field current: the usual
+/// setting (pick up at 105 %, pull back to 100 %), held fixed; the rated current is searched.
+const PICKUP: f64 = 1.05;
+const LIMIT: f64 = 1.0;
+
 static INFO: CauseInfo = CauseInfo {
     id: "oel",
     title: "over-excitation limiter acting after the event",
@@ -19,9 +24,9 @@ static INFO: CauseInfo = CauseInfo {
         "Q residual that appears seconds after the event, while the field current stays high, \
                 and grows (the limiter pulls the field back)",
     extension:
-        "inverse-time OEL on the field current (pickup, I²t capacity, integral gain), with the AVR \
-                gain, T_E, X'_d and H",
-    key_params: &["oel.i_pickup", "oel.a_max"],
+        "inverse-time OEL on the field current (rated current, picking up at 105 % and pulling back \
+                to 100 % of it; I²t capacity, integral gain), with the AVR gain, T_E, X'_d and H",
+    key_params: &["oel.ifd_rated", "oel.a_max"],
 };
 
 impl Cause for Oel {
@@ -69,14 +74,22 @@ impl Cause for Oel {
                 "the field current at the operating point is not positive",
             ));
         }
-        // Rated field current = the pre-event one, so pickup and limit read as multiples of it
-        // (the pickup stays at least 1 % above, so the limiter starts inactive).
+        // The limiter's settings are read the usual way: it picks up at 105 % of the rated field
+        // current and regulates back to 100 % (the block's defaults, the common setting of an
+        // inverse-time OEL). What a record identifies is the level the limiter regulates the
+        // field current to, so the rated current is what is searched, not the pickup (with the
+        // pickup tied to the regulated level, as before, the fit put the pickup at the regulated
+        // level and read it 5 % low). The rated current's range is computed here, not declared:
+        // it is read against the calibrated unit's pre-event field current i0, and the re-fit
+        // from the datasheet values (below) may put the unit's own pre-event current well under
+        // i0 (a calibration that mimicked the limiter raised X_d), so the range reaches down to
+        // 0.6 × i0; a candidate whose own current starts above its pickup does not initialise.
         let oel = new_block(
             "oel",
             &[
                 ("ifd_rated", i0),
-                ("i_pickup", 1.2),
-                ("i_limit", 1.2),
+                ("i_pickup", PICKUP),
+                ("i_limit", LIMIT),
                 ("a_max", 2.0),
                 ("k_cool", 0.05),
                 ("k_i", 0.01),
@@ -84,20 +97,14 @@ impl Cause for Oel {
             ],
         )?;
         add_block(&mut x.unit, "oel", oel)?;
-        // Pickup and I²t capacity scanned jointly: together they set when the limiter acts (a
-        // lower pickup with a larger capacity acts as late), and off that valley the objective
-        // is flat (the limiter never acts) or far worse (it acts at the wrong time).
-        // The pickup's range is computed here, not declared: the rated current is the calibrated
-        // unit's pre-event field current, and the re-fit from the datasheet values (below) may
-        // put the unit's own pre-event current well under it (a calibration that mimicked the
-        // limiter raised X_d), so the pickup may lie under 1 × it; a candidate whose own current
-        // starts above its pickup does not initialise.
+        // Rated current and I²t capacity scanned jointly: together they set when the limiter
+        // acts (a lower pickup with a larger capacity acts as late), and off that valley the
+        // objective is flat (the limiter never acts) or far worse (it acts at the wrong time).
         x.extension_free = vec![
-            scanned(fb("oel.i_pickup", 0.6, 1.6, 1.2), 12),
+            scanned(fb("oel.ifd_rated", 0.6 * i0, 1.6 * i0, i0), 12),
             scanned(declared(&x.unit, "oel.a_max", 0.3)?, 8),
             declared(&x.unit, "oel.k_i", 0.03)?,
         ];
-        x.ties = vec![("oel.i_pickup".into(), "oel.i_limit".into())];
         // A calibration without the limiter bends the AVR and the field dynamics to make up for
         // the field being pulled back (as for `exciter_limit`).
         x.interacting_free = field_side(&x.unit, Some(exc), &roles.machine);
@@ -112,12 +119,14 @@ impl Cause for Oel {
 
     fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
         Scenario {
+            // The truth reads its settings against the pre-event field current (the search's
+            // start) and picks up at 104-106 % of it; the key is the regulated current.
             values: vec![
-                ("oel.i_pickup", 1.04 + 0.02 * spread(1)),
+                ("oel.i_pickup", 1.05 + 0.01 * spread(1)),
                 ("oel.a_max", 0.1 + 0.05 * spread(2)),
                 ("oel.k_i", 0.05),
             ],
-            key: Some(("oel.i_pickup", Tolerance::Rel(0.05))),
+            key: Some(("oel.ifd_rated", Tolerance::Rel(0.05))),
             kind: EventKind::FaultDip,
         }
     }
