@@ -277,8 +277,14 @@ impl Candidates<'_> {
                             }
                         }
                     }
-                    null_fit = (b0.chi2_fit - r0.chi2_fit).max(0.0);
-                    null_held = (b0.chi2_held - r0.chi2_held).max(0.0);
+                    // Only the residuals' part of the surrogate's gain is noise fitting. Its
+                    // priors' part is not: the surrogate was made by the reference, whose
+                    // calibration may have bent datasheet values to absorb the cause, so an
+                    // extension that returns them gains that part there as on the record, and
+                    // netting it out would make an absorbed cause unnameable by construction.
+                    let data = |chi2: f64, prior: f64| chi2 - prior;
+                    null_fit = (data(b0.chi2_fit, b0.chi2_prior) - data(r0.chi2_fit, r0.chi2_prior)).max(0.0);
+                    null_held = (data(b0.chi2_held, b0.chi2_prior) - data(r0.chi2_held, r0.chi2_prior)).max(0.0);
                     rep.simulations += r0.simulations;
                 }
                 _ => rep.note = "the surrogate (noise-only) re-fit failed: the gain is not corrected for noise fitting".into(),

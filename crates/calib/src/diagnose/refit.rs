@@ -44,6 +44,8 @@ pub(super) struct Refit {
     pub(super) unit: Unit,
     pub(super) chi2_fit: f64,
     pub(super) chi2_held: f64,
+    /// The priors' part of both χ² (the same rows in each: the values are the same).
+    pub(super) chi2_prior: f64,
     pub(super) n_fit: usize,
     pub(super) n_held: usize,
     pub(super) simulations: usize,
@@ -57,6 +59,7 @@ pub(super) struct Refit {
 pub(super) struct Scores {
     pub(super) chi2_fit: f64,
     pub(super) chi2_held: f64,
+    pub(super) chi2_prior: f64,
     pub(super) vif: f64,
 }
 
@@ -65,6 +68,7 @@ impl Refit {
         Scores {
             chi2_fit: self.chi2_fit,
             chi2_held: self.chi2_held,
+            chi2_prior: self.chi2_prior,
             vif: self.vif,
         }
     }
@@ -265,11 +269,13 @@ pub(super) fn refit(
     held.ties = tie_refs;
     held.prior_weight = PRIOR_WEIGHT;
     let r_held = held.residuals(&x, &acc).map_err(|e| e.to_string())?;
+    let chi2_prior = sum_of_squares(&fit_problem.prior_residuals(&x));
     Ok(Refit {
         unit: fit_problem.unit_at(&x),
         values: x,
         chi2_fit: sum_of_squares(&r_fit),
         chi2_held: sum_of_squares(&r_held),
+        chi2_prior,
         n_fit: r_fit.len(),
         n_held: r_held.len(),
         simulations,
