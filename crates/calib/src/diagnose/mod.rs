@@ -22,7 +22,8 @@
 //!    extension, so a gain is the extension's alone.
 //! 5. **Gain.** `Δχ²` on the fitted samples, the relative drop of the fitted and of the held-out
 //!    χ², each net of the gain the same re-fits achieve on a surrogate of the events (the
-//!    reference's own simulation with the noise drawn again: pure noise fitting), and the
+//!    reference's own simulation with the noise drawn again: pure noise fitting; the residuals'
+//!    part of that gain only, not the priors', see `candidates`), and the
 //!    Bayesian information criterion difference `ΔBIC = Δχ²/VIF − k ln(N/VIF)` (k = the
 //!    extension's parameters, N = fitted residuals, VIF = `(1 + ρ₁)/(1 − ρ₁)` from the baseline
 //!    residual's lag-1 autocorrelation, so that a coloured residual counts as fewer independent
@@ -213,8 +214,9 @@ pub struct Gains {
     pub chi2_fit_ext: f64,
     pub chi2_held_base: f64,
     pub chi2_held_ext: f64,
-    /// χ² drop the same re-fit achieves on the surrogate events, where the reference model is
-    /// exact and only noise can be fitted (fitted and held-out samples).
+    /// χ² drop of the residuals (the priors' rows left out) that the same re-fit achieves on
+    /// the surrogate events, where the reference model is exact and only noise can be fitted
+    /// (fitted and held-out samples).
     pub null_gain_fit: f64,
     pub null_gain_held: f64,
     /// Net relative drop on the fitted samples:
