@@ -147,7 +147,6 @@ impl Candidates<'_> {
                 }
             }
         }
-        let base_opts = opts;
         let mut r = match fit_extension(
             &ext,
             &baselines[&key],
@@ -184,10 +183,7 @@ impl Candidates<'_> {
                     r.chi2_fit + x.extension_free.len() as f64 * (r.n_fit.max(1) as f64).ln()
                 };
                 if ic(&r2, &alt) < ic(&r, &ext) {
-                    r = Refit {
-                        simulations: r.simulations + r2.simulations,
-                        ..r2
-                    };
+                    r = r.replaced_by(r2);
                     ext = alt;
                     rep.extension = ext.description.clone();
                     rep.fixed = ext.fixed.clone();
@@ -196,13 +192,7 @@ impl Candidates<'_> {
                 }
             }
         }
-        let mut bounds = ext.extension_free.clone();
-        bounds.extend(ext.interacting_free.iter().cloned());
-        let ext_opts = DiagnoseOptions {
-            pso_iterations: opts.pso_iterations * ext.search_factor.max(1),
-            ..opts.clone()
-        };
-        let opts = &ext_opts;
+        let bounds: Vec<FreeBound> = ext.free().cloned().collect();
         let k = ext.extension_free.len() + ext.discrete_params;
         let n = r.n_fit.max(1) as f64;
         let bic = |d_fit: f64, vif: f64| d_fit / vif - k as f64 * (n / vif).max(1.0).ln();
@@ -254,7 +244,7 @@ impl Candidates<'_> {
                     &[],
                     sp_null,
                     weights,
-                    base_opts,
+                    opts,
                     &format!("{id} null baseline"),
                     progress,
                 ) {
@@ -263,14 +253,14 @@ impl Candidates<'_> {
             }
             // The standard search budget: on the surrogate the reference is exact and the
             // start is its optimum, so the longer search a bent calibration needs buys nothing.
-            match (baselines.get(&nkey), refit(&ext.unit, &bounds, &ext.ties, sp_null, weights, base_opts, &format!("{id} null"), progress)) {
+            match (baselines.get(&nkey), refit(&ext.unit, &bounds, &ext.ties, sp_null, weights, opts, &format!("{id} null"), progress)) {
                 (Some(b0), Ok(r0)) => {
                     // The null baseline again from where the extension's null re-fit ended, as
                     // on the record: the noise-fitting gain is the extension's, not a luckier
                     // search.
                     let mut b0 = b0.clone_scores();
                     if b0.chi2_fit > r0.chi2_fit && !base_bounds.is_empty() {
-                        if let Some(b2) = baseline_from(unit, &base_bounds, &r0, sp_null, weights, base_opts, &format!("{id} null baseline again"), progress) {
+                        if let Some(b2) = baseline_from(unit, &base_bounds, &r0, sp_null, weights, opts, &format!("{id} null baseline again"), progress) {
                             if b2.chi2_fit < b0.chi2_fit {
                                 b0 = b2.clone_scores();
                                 baselines.insert(nkey.clone(), b2);
@@ -282,9 +272,10 @@ impl Candidates<'_> {
                     // calibration may have bent datasheet values to absorb the cause, so an
                     // extension that returns them gains that part there as on the record, and
                     // netting it out would make an absorbed cause unnameable by construction.
-                    let data = |chi2: f64, prior: f64| chi2 - prior;
-                    null_fit = (data(b0.chi2_fit, b0.chi2_prior) - data(r0.chi2_fit, r0.chi2_prior)).max(0.0);
-                    null_held = (data(b0.chi2_held, b0.chi2_prior) - data(r0.chi2_held, r0.chi2_prior)).max(0.0);
+                    let (b_fit, b_held) = b0.residuals_chi2();
+                    let (e_fit, e_held) = r0.clone_scores().residuals_chi2();
+                    null_fit = (b_fit - e_fit).max(0.0);
+                    null_held = (b_held - e_held).max(0.0);
                     rep.simulations += r0.simulations;
                 }
                 _ => rep.note = "the surrogate (noise-only) re-fit failed: the gain is not corrected for noise fitting".into(),
@@ -372,11 +363,7 @@ impl Candidates<'_> {
 /// polish-only parameters at their value in the extended unit.
 fn with_calibrated_set(mut ext: Extension, opts: &DiagnoseOptions) -> Extension {
     for b in &opts.refit {
-        let known = ext
-            .extension_free
-            .iter()
-            .chain(&ext.interacting_free)
-            .any(|f| f.param == b.param);
+        let known = ext.free().any(|f| f.param == b.param);
         if known {
             for f in ext
                 .interacting_free
@@ -431,12 +418,7 @@ fn fit_extension(
         // (a datasheet X_d below a calibrated X'_d held by its own bounds): then from the
         // calibrated values.
         Err(_) if ext.from_datasheet => {
-            let calibrated: Vec<FreeBound> = ext
-                .extension_free
-                .iter()
-                .chain(&ext.interacting_free)
-                .cloned()
-                .collect();
+            let calibrated: Vec<FreeBound> = ext.free().cloned().collect();
             refit(
                 &ext.unit,
                 &calibrated,
@@ -472,10 +454,9 @@ fn fit_extension(
             progress,
         ) {
             if r2.chi2_fit < r.chi2_fit {
-                r = Refit {
-                    simulations: r.simulations + r2.simulations,
-                    ..r2
-                };
+                r = r.replaced_by(r2);
+            } else {
+                r.simulations += r2.simulations;
             }
         }
     }

@@ -240,6 +240,13 @@ pub struct Extension {
     pub from_datasheet: bool,
 }
 
+impl Extension {
+    /// Every parameter a re-fit of the extension frees: its own, then the interacting ones.
+    pub fn free(&self) -> impl Iterator<Item = &FreeBound> {
+        self.extension_free.iter().chain(&self.interacting_free)
+    }
+}
+
 fn role_of(block: &dyn Block) -> Role {
     registry::find(block.model()).map_or(Role::Other, |m| m.role)
 }
@@ -490,18 +497,13 @@ impl HideError {
 pub fn hideable_params(unit: &Unit, ext: &Extension) -> Vec<String> {
     let old: Vec<&str> = unit.instances().iter().map(|i| i.name.as_str()).collect();
     let mut known: Vec<String> = vec![];
-    let candidates = ext
-        .extension_free
-        .iter()
-        .chain(&ext.interacting_free)
-        .map(|f| f.param.clone())
-        .chain(
-            ext.unit
-                .params()
-                .into_iter()
-                .map(|(p, _, _)| p)
-                .filter(|p| !old.contains(&p.split('.').next().unwrap_or(""))),
-        );
+    let candidates = ext.free().map(|f| f.param.clone()).chain(
+        ext.unit
+            .params()
+            .into_iter()
+            .map(|(p, _, _)| p)
+            .filter(|p| !old.contains(&p.split('.').next().unwrap_or(""))),
+    );
     for p in candidates {
         if !known.contains(&p) && !ext.ties.iter().any(|(_, to)| *to == p) {
             known.push(p);

@@ -63,7 +63,25 @@ pub(super) struct Scores {
     pub(super) vif: f64,
 }
 
+impl Scores {
+    /// The fitted and held-out χ² without the priors' rows.
+    pub(super) fn residuals_chi2(&self) -> (f64, f64) {
+        (
+            self.chi2_fit - self.chi2_prior,
+            self.chi2_held - self.chi2_prior,
+        )
+    }
+}
+
 impl Refit {
+    /// `other` in this re-fit's place, with both re-fits' simulations counted.
+    pub(super) fn replaced_by(self, other: Refit) -> Refit {
+        Refit {
+            simulations: self.simulations + other.simulations,
+            ..other
+        }
+    }
+
     pub(super) fn clone_scores(&self) -> Scores {
         Scores {
             chi2_fit: self.chi2_fit,

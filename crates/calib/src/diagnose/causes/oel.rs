@@ -12,11 +12,6 @@ use super::super::EventEvidence;
 
 pub struct Oel;
 
-/// Pickup and regulated current of the limiter, per unit of the rated field current: the usual
-/// setting (pick up at 105 %, pull back to 100 %), held fixed; the rated current is searched.
-const PICKUP: f64 = 1.05;
-const LIMIT: f64 = 1.0;
-
 static INFO: CauseInfo = CauseInfo {
     id: "oel",
     title: "over-excitation limiter acting after the event",
@@ -75,8 +70,8 @@ impl Cause for Oel {
             ));
         }
         // The limiter's settings are read the usual way: it picks up at 105 % of the rated field
-        // current and regulates back to 100 % (the block's defaults, the common setting of an
-        // inverse-time OEL). What a record identifies is the level the limiter regulates the
+        // current and regulates back to 100 % (the block's declared defaults, left as they are:
+        // the common setting of an inverse-time OEL). What a record identifies is the level the limiter regulates the
         // field current to, so the rated current is what is searched, not the pickup (with the
         // pickup tied to the regulated level, as before, the fit put the pickup at the regulated
         // level and read it 5 % low). The rated current's range is computed here, not declared:
@@ -88,8 +83,6 @@ impl Cause for Oel {
             "oel",
             &[
                 ("ifd_rated", i0),
-                ("i_pickup", PICKUP),
-                ("i_limit", LIMIT),
                 ("a_max", 2.0),
                 ("k_cool", 0.05),
                 ("k_i", 0.01),
