@@ -14,6 +14,13 @@ use crate::evidence::PEAK_WINDOW_HZ;
 
 pub struct TorsionalMode;
 
+/// Upper edge of the electromechanical band [Hz] (`models.md` §12.1: hydro torsional modes lie
+/// well above the 0.2-2 Hz electromechanical band): the lowest torsional frequency searched. Below
+/// it a heavily damped "shaft" only filters the mechanical power the governor delivers, which is
+/// the governor's and the swing's business (practice p09, a governor deadband, was once named a
+/// 1.94 Hz mode with ζ = 0.3 from a search that started at 1 Hz).
+pub const ELECTROMECHANICAL_BAND_MAX_HZ: f64 = 2.0;
+
 static INFO: CauseInfo = CauseInfo {
     id: "torsional_mode",
     title: "torsional mode of the turbine-generator shaft",
@@ -46,20 +53,21 @@ impl Cause for TorsionalMode {
         // Split the calibrated (rigid) inertia: 15 % to the turbine to start with.
         let h_t = 0.15 * h;
         let nyquist = 0.5 * ctx.rate_hz;
-        let f_hi = (0.9 * nyquist).clamp(1.0, 25.0);
+        let f_lo = ELECTROMECHANICAL_BAND_MAX_HZ;
+        let f_hi = (0.9 * nyquist).clamp(f_lo, 25.0);
         // A resonance in the residual pins the frequency (the spectrum's resolution is a few
         // hundredths of a hertz): the re-fit searches within 2 % of it.
         let resonance = ctx
             .shaft_resonance
             .as_ref()
             .map(|p| p.freq_hz)
-            .filter(|f| *f > 1.0 && *f < f_hi);
+            .filter(|f| *f > f_lo && *f < f_hi);
         let f_start = resonance
-            .or(ctx.mode_hint_hz.filter(|f| *f > 1.0 && *f < f_hi))
+            .or(ctx.mode_hint_hz.filter(|f| *f > f_lo && *f < f_hi))
             .unwrap_or(0.5 * f_hi);
         let (f_min, f_max) = match resonance {
             Some(f) => (0.98 * f, (1.02 * f).min(f_hi)),
-            None => (1.0, f_hi),
+            None => (f_lo, f_hi),
         };
         let shaft = new_block(
             "two_mass_shaft",
