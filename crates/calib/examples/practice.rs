@@ -6,6 +6,10 @@
 //!
 //! `cargo run --release -p itaipu-calib --example practice -- [ROOT] [CASE ...] [--no-diagnose]`
 //! (ROOT defaults to `../shared/practice` beside the checkout). Writes `out/practice.json`.
+//! Environment: `VERBOSE` prints each stage and each candidate's gains, `FAILURES` (with
+//! `VERBOSE`) each stage's first failure messages, `REUSE_FITS` re-uses the calibrated units of
+//! an earlier run (`out/practice/<case>.toml`), `NO_REFIT` diagnoses without re-fitting the
+//! calibrated set.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -16,6 +20,11 @@ use itaipu_calib::practice::{case_dirs, practice_spec, score, truth_j, AnswerKey
 use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
 
 fn print_stage(st: &itaipu_calib::fit::StageReport) {
+    if std::env::var("FAILURES").is_ok() {
+        for m in st.failure_messages.iter().take(3) {
+            println!("        failure: {m}");
+        }
+    }
     println!(
         "      {} {:.5} -> {:.5} ({:.1} s, {} failed) {}",
         st.stage,

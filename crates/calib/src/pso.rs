@@ -34,7 +34,10 @@
 //!    improvements that add up to a significant one still counts. An improvement from `a` to
 //!    `b` is significant when `a − b > tol · max(|a|, |b|)`, or when `a` is infinite and `b`
 //!    finite. Note this is purely relative: on a cost whose minimum is exactly 0 the run keeps
-//!    going while the cost keeps shrinking geometrically.
+//!    going while the cost keeps shrinking geometrically. Optionally, when every evaluation
+//!    has failed (cost at or above `failed_cost`) after `give_up_iterations` iterations
+//!    (`StopReason::NothingFeasible`): with no feasible point the swarm has nothing to follow,
+//!    and each failed evaluation may cost a whole step budget.
 //!
 //! The defaults (`w = 0.7298`, `c1 = c2 = 1.49618`) are the Clerc–Kennedy constriction
 //! coefficients, which give a convergent swarm without relying on the velocity clamp.
@@ -91,6 +94,11 @@ pub struct PsoOptions {
     pub stall_iterations: usize,
     /// Relative improvement threshold for stall detection (finite, ≥ 0). Default 1e-6.
     pub tol: f64,
+    /// A cost at or above this is a failed evaluation (a caller's penalty). Default `+∞`.
+    pub failed_cost: f64,
+    /// Stop when every evaluation so far has failed after this many iterations
+    /// (`StopReason::NothingFeasible`); 0 disables it. Default 0.
+    pub give_up_iterations: usize,
 }
 
 impl Default for PsoOptions {
@@ -105,6 +113,8 @@ impl Default for PsoOptions {
             seed: 1,
             stall_iterations: 20,
             tol: 1e-6,
+            failed_cost: f64::INFINITY,
+            give_up_iterations: 0,
         }
     }
 }
@@ -188,6 +198,9 @@ pub enum StopReason {
     MaxIterations,
     /// The best cost improved by less than `tol` (relative) for `stall_iterations` iterations.
     Stalled,
+    /// Every evaluation failed (cost at or above `failed_cost`) through `give_up_iterations`
+    /// iterations: a swarm with no feasible point has nothing to move towards.
+    NothingFeasible,
 }
 
 /// Outcome of [`minimize`].
@@ -361,6 +374,13 @@ where
         }
         if opts.stall_iterations > 0 && stall >= opts.stall_iterations {
             stopped_by = StopReason::Stalled;
+            break;
+        }
+        if opts.give_up_iterations > 0
+            && t >= opts.give_up_iterations
+            && !(gbest_cost < opts.failed_cost)
+        {
+            stopped_by = StopReason::NothingFeasible;
             break;
         }
     }
@@ -1262,5 +1282,39 @@ mod tests {
             (o.inertia, o.cognitive, o.social, o.max_velocity, o.tol),
             (0.7298, 1.49618, 1.49618, 0.2, 1e-6)
         );
+    }
+
+    #[test]
+    fn a_swarm_that_finds_nothing_feasible_gives_up() {
+        // Every point fails: the swarm stops after `give_up_iterations` and says why.
+        let o = PsoOptions {
+            particles: 8,
+            iterations: 50,
+            stall_iterations: 0,
+            failed_cost: 1e30,
+            give_up_iterations: 5,
+            ..Default::default()
+        };
+        let r = minimize(|_: &[f64]| 1e30, 2, None, &o, |_, _| {});
+        assert_eq!(r.stopped_by, StopReason::NothingFeasible);
+        assert_eq!(r.iterations, 5);
+        assert_eq!(r.evaluations, 8 * 6);
+        // A cost feasible on half the box: the initial swarm finds it, the swarm goes on and
+        // ends on the feasible region's minimum exactly as it would without the rule.
+        let f = |u: &[f64]| {
+            if u[0] < 0.5 {
+                1e30
+            } else {
+                (u[0] - 0.75).powi(2) + (u[1] - 0.5).powi(2)
+            }
+        };
+        let off = PsoOptions {
+            give_up_iterations: 0,
+            ..o.clone()
+        };
+        let without = minimize(f, 2, None, &off, |_, _| {});
+        let with = minimize(f, 2, None, &o, |_, _| {});
+        assert!(with.best_cost < 1e-6, "{}", with.best_cost);
+        assert_eq!(with, without);
     }
 }

@@ -60,3 +60,59 @@ fn a_window_bound_within_the_tolerance_of_a_sample_holds_it() {
     assert_eq!(count([a + 0.5 * TIME_TOL_S, b - 0.5 * TIME_TOL_S]), 11);
     assert_eq!(count([a + 2.0 * TIME_TOL_S, b - 2.0 * TIME_TOL_S]), 9);
 }
+
+/// The searches' integrators against the accurate one on an independent record (the bundled
+/// practice case p01, the nominal unit): what a swarm or a Levenberg-Marquardt step ranks is the
+/// accurate J to well within the differences they rank, and the search integrator takes a
+/// quarter fewer steps at least than the tolerances it replaced.
+#[test]
+fn the_search_integrators_agree_with_the_accurate_one_on_a_practice_record() {
+    use itaipu_calib::local::lm_integrator;
+    use itaipu_calib::practice::PracticeCase;
+    use itaipu_calib::problem::search_integrator;
+    use itaipu_dynamics::simulate::{run_playback, SimOptions};
+
+    let dir =
+        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/practice/cases/p01");
+    let case = PracticeCase::load(&dir).unwrap();
+    let data = EventData::new(&case.event, None, None).unwrap();
+    let run = |o: &SimOptions| simulate_pq(&mut case.unit.clone(), &data.prepared, o).unwrap();
+    let (pa, qa) = run(&accurate_integrator());
+    let ja = data.window_sums(&pa, &qa).j((1.0, 1.0));
+    for (name, o, pq_tol, j_tol) in [
+        ("search", search_integrator(), 2e-4, 2e-3),
+        ("lm", lm_integrator(), 2e-5, 2e-4),
+    ] {
+        let (p, q) = run(&o);
+        let dev = p
+            .iter()
+            .zip(&pa)
+            .chain(q.iter().zip(&qa))
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        let j = data.window_sums(&p, &q).j((1.0, 1.0));
+        assert!(dev < pq_tol, "{name}: max |ΔP|, |ΔQ| {dev:e} pu");
+        assert!((j - ja).abs() < j_tol * ja, "{name}: J {j} against {ja}");
+    }
+    // Its cost: fewer steps than the tolerances it replaced (rtol 1e-6, atol 1e-7).
+    let steps = |o: &SimOptions| {
+        let s = run_playback(&mut case.unit.clone(), &data.prepared, o, |_, _, _| {}).unwrap();
+        s.steps_accepted + s.steps_rejected
+    };
+    let before = SimOptions {
+        method: itaipu_dynamics::integrate::Method::Dopri5(
+            itaipu_dynamics::integrate::Dopri5Options {
+                rtol: 1e-6,
+                atol: 1e-7,
+                h_max: 0.05,
+                max_steps: 25_000,
+                ..Default::default()
+            },
+        ),
+    };
+    let (now, then) = (steps(&search_integrator()), steps(&before));
+    assert!(
+        (now as f64) < 0.75 * then as f64,
+        "the search integrator took {now} steps, the earlier tolerances {then}"
+    );
+}

@@ -282,8 +282,8 @@ impl Candidates<'_> {
             }
         }
         let base = &baselines[&key];
-        let (rms_p_base, rms_q_base) = rms_pq(&base.unit, events);
-        let (rms_p_ext, rms_q_ext) = rms_pq(&r.unit, events);
+        let ((rms_p_base, rms_q_base), (rms_p_ext, rms_q_ext)) =
+            rayon::join(|| rms_pq(&base.unit, events), || rms_pq(&r.unit, events));
         let (net_fit, net_held) = (raw_fit - null_fit, raw_held - null_held);
         let gains = Gains {
             chi2_fit_base: base.chi2_fit,

@@ -282,11 +282,16 @@ pub(super) fn refit(
     let mut fit_problem = Problem::new(unit.clone(), free.clone(), sp.fit.clone(), weights);
     fit_problem.ties = tie_refs.clone();
     fit_problem.prior_weight = PRIOR_WEIGHT;
-    let r_fit = fit_problem.residuals(&x, &acc).map_err(|e| e.to_string())?;
     let mut held = Problem::new(unit.clone(), free, sp.held.clone(), weights);
     held.ties = tie_refs;
     held.prior_weight = PRIOR_WEIGHT;
-    let r_held = held.residuals(&x, &acc).map_err(|e| e.to_string())?;
+    // The two accurate simulations side by side (each is one thread's work).
+    let (r_fit, r_held) = rayon::join(
+        || fit_problem.residuals(&x, &acc),
+        || held.residuals(&x, &acc),
+    );
+    let r_fit = r_fit.map_err(|e| e.to_string())?;
+    let r_held = r_held.map_err(|e| e.to_string())?;
     let chi2_prior = sum_of_squares(&fit_problem.prior_residuals(&x));
     Ok(Refit {
         unit: fit_problem.unit_at(&x),

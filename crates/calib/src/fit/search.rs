@@ -16,6 +16,15 @@ use super::*;
 /// The local phase also runs from each point of `also_from` (physical values): the joint pass
 /// starts from the staged result and from the datasheet values, so that a stage that derailed
 /// (fitted a unit whose other blocks were still wrong) cannot trap the result.
+/// Iterations after which a swarm none of whose candidates has simulated gives up
+/// ([`pso::StopReason::NothingFeasible`]). A stage may start from a unit no candidate near it
+/// simulates within the search's step budget (practice p03: a generator stage ending on a
+/// near-degenerate machine, X'_d = X''_d = X_l, made every AVR, PSS and governor candidate
+/// fail after the full 25 000 steps, 1 240 of them a stage, 13-15 s each); the local method,
+/// with its larger budget, then starts from the stage's start as it would after 30 such
+/// iterations.
+pub(crate) const SWARM_GIVE_UP_ITERATIONS: usize = 5;
+
 pub(crate) fn search(
     problem: &Problem,
     opts: &FitOptions,
@@ -36,6 +45,8 @@ pub(crate) fn search(
             iterations: opts.pso_iterations,
             seed: opts.seed,
             stall_iterations: 30,
+            failed_cost: problem.penalty,
+            give_up_iterations: SWARM_GIVE_UP_ITERATIONS,
             ..Default::default()
         };
         let u0 = problem.to_unit(&start);
@@ -84,7 +95,10 @@ pub(crate) fn search(
         };
         phases.push(PhaseReport {
             phase: if lm {
-                format!("{name}{from_txt} (Dormand-Prince, rtol 1e-8)")
+                format!(
+                    "{name}{from_txt} (Dormand-Prince, rtol {:e})",
+                    crate::local::LM_RTOL
+                )
             } else {
                 format!("{name}{from_txt} (RK4 h = {:.3} ms)", res.step_s * 1e3)
             },
