@@ -196,6 +196,7 @@ pub(super) fn refit(
         lbfgs_step_max_s: REFIT_RK4_STEP_MAX_S,
         polish: false,
         local: crate::spec::LocalMethod::Lm,
+        lm_stop: crate::local::LmStop::COMPARISON,
     };
     let mut x: Vec<f64> = free.iter().map(|f| f.start).collect();
     let mut simulations = 0;

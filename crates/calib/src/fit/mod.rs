@@ -72,6 +72,8 @@ pub struct FitOptions {
     pub polish: bool,
     /// The local method after each swarm.
     pub local: LocalMethod,
+    /// When Levenberg-Marquardt counts as converged.
+    pub lm_stop: local::LmStop,
 }
 
 impl FitOptions {
@@ -88,6 +90,7 @@ impl FitOptions {
             lbfgs_step_max_s: local::RK4_STEP_MAX_S,
             polish: spec.polish,
             local: spec.local,
+            lm_stop: local::LmStop::CALIBRATION,
         }
     }
 }
@@ -236,5 +239,6 @@ pub fn quick_options(stages: &[&str], seed: u64) -> FitOptions {
         lbfgs_step_max_s: local::RK4_STEP_MAX_S,
         polish: false,
         local: LocalMethod::Lm,
+        lm_stop: local::LmStop::CALIBRATION,
     }
 }

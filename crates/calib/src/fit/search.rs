@@ -77,7 +77,7 @@ pub(crate) fn search(
         let name = if lm { "levenberg-marquardt" } else { "lbfgs" };
         progress.phase(stage, name, opts.lbfgs_iterations);
         let res = if lm {
-            local::levenberg_marquardt(problem, from, opts.lbfgs_iterations)
+            local::levenberg_marquardt(problem, from, opts.lbfgs_iterations, opts.lm_stop)
         } else {
             local::refine(
                 problem,
