@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::fit::{fitness, Progress};
+use crate::fit::fitness;
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::unit::Unit;
 
@@ -53,11 +53,10 @@ pub(super) struct Candidates<'a> {
     pub events: &'a [Event],
     pub ctx: &'a Context,
     pub evidence: &'a [EventEvidence],
-    pub sp: &'a Split,
+    /// The re-fits on the record's split.
+    pub env: RefitEnv<'a>,
+    /// The surrogate's split.
     pub sp_null: &'a Split,
-    pub weights: (f64, f64),
-    pub opts: &'a DiagnoseOptions,
-    pub progress: &'a dyn Progress,
     pub baselines: BTreeMap<String, Refit>,
 }
 
@@ -65,17 +64,10 @@ impl Candidates<'_> {
     /// Scores the cause `id`: its report, and its re-fit when it has one (for the standard
     /// errors of a named cause).
     pub(super) fn score(&mut self, id: &str) -> (CandidateReport, Option<RefitRecord>) {
-        let (unit, events, ctx, evidence_before, sp, sp_null, weights, opts, progress) = (
-            self.unit,
-            self.events,
-            self.ctx,
-            self.evidence,
-            self.sp,
-            self.sp_null,
-            self.weights,
-            self.opts,
-            self.progress,
-        );
+        let (unit, events, ctx, evidence_before, env) =
+            (self.unit, self.events, self.ctx, self.evidence, self.env);
+        let (opts, progress) = (env.opts, env.progress);
+        let env_null = env.on(self.sp_null);
         let baselines = &mut self.baselines;
         // A catalog cause (its evidence rules and signature), or a user cause (none).
         let cause = catalog::cause(id);
@@ -128,16 +120,7 @@ impl Candidates<'_> {
             .collect();
         let key = bounds_key(&base_bounds);
         if !baselines.contains_key(&key) {
-            match refit(
-                unit,
-                &base_bounds,
-                &[],
-                sp,
-                weights,
-                opts,
-                &format!("{id} baseline"),
-                progress,
-            ) {
+            match refit(&env, unit, &base_bounds, &[], &format!("{id} baseline")) {
                 Ok(r) => {
                     baselines.insert(key.clone(), r);
                 }
@@ -147,16 +130,7 @@ impl Candidates<'_> {
                 }
             }
         }
-        let mut r = match fit_extension(
-            &ext,
-            &baselines[&key],
-            !base_bounds.is_empty(),
-            sp,
-            weights,
-            opts,
-            id,
-            progress,
-        ) {
+        let mut r = match fit_extension(&env, &ext, &baselines[&key], !base_bounds.is_empty(), id) {
             Ok(r) => r,
             Err(msg) => {
                 rep.note =
@@ -170,14 +144,11 @@ impl Candidates<'_> {
         for alt in exts {
             let label = format!("{id} ({})", alt.description);
             if let Ok(r2) = fit_extension(
+                &env,
                 &alt,
                 &baselines[&key],
                 !base_bounds.is_empty(),
-                sp,
-                weights,
-                opts,
                 &label,
-                progress,
             ) {
                 let ic = |r: &Refit, x: &Extension| {
                     r.chi2_fit + x.extension_free.len() as f64 * (r.n_fit.max(1) as f64).ln()
@@ -213,14 +184,11 @@ impl Candidates<'_> {
         );
         if !base_bounds.is_empty() && could_pass {
             if let Some(b2) = baseline_from(
+                &env,
                 unit,
                 &base_bounds,
                 &r,
-                sp,
-                weights,
-                opts,
                 &format!("{id} baseline again"),
-                progress,
             ) {
                 if b2.chi2_fit < baselines[&key].chi2_fit {
                     baselines.insert(key.clone(), b2);
@@ -239,28 +207,25 @@ impl Candidates<'_> {
             let nkey = format!("null:{key}");
             if !baselines.contains_key(&nkey) {
                 if let Ok(b) = refit(
+                    &env_null,
                     unit,
                     &base_bounds,
                     &[],
-                    sp_null,
-                    weights,
-                    opts,
                     &format!("{id} null baseline"),
-                    progress,
                 ) {
                     baselines.insert(nkey.clone(), b);
                 }
             }
             // The standard search budget: on the surrogate the reference is exact and the
             // start is its optimum, so the longer search a bent calibration needs buys nothing.
-            match (baselines.get(&nkey), refit(&ext.unit, &bounds, &ext.ties, sp_null, weights, opts, &format!("{id} null"), progress)) {
+            match (baselines.get(&nkey), refit(&env_null, &ext.unit, &bounds, &ext.ties, &format!("{id} null"))) {
                 (Some(b0), Ok(r0)) => {
                     // The null baseline again from where the extension's null re-fit ended, as
                     // on the record: the noise-fitting gain is the extension's, not a luckier
                     // search.
                     let mut b0 = b0.clone_scores();
                     if b0.chi2_fit > r0.chi2_fit && !base_bounds.is_empty() {
-                        if let Some(b2) = baseline_from(unit, &base_bounds, &r0, sp_null, weights, opts, &format!("{id} null baseline again"), progress) {
+                        if let Some(b2) = baseline_from(&env_null, unit, &base_bounds, &r0, &format!("{id} null baseline again")) {
                             if b2.chi2_fit < b0.chi2_fit {
                                 b0 = b2.clone_scores();
                                 baselines.insert(nkey.clone(), b2);
@@ -388,16 +353,12 @@ fn with_calibrated_set(mut ext: Extension, opts: &DiagnoseOptions) -> Extension 
 /// baseline, it is run again from where the baseline ended, so that with the extension at its
 /// neutral start it is at least the baseline. (A datasheet start for every cause was measured
 /// on the practice set: it let a deadband un-bend a clean record's calibration, a false alarm.)
-#[allow(clippy::too_many_arguments)]
 fn fit_extension(
+    env: &RefitEnv,
     ext: &Extension,
     baseline: &Refit,
     has_base: bool,
-    sp: &Split,
-    weights: (f64, f64),
-    opts: &DiagnoseOptions,
     label: &str,
-    progress: &dyn Progress,
 ) -> Result<Refit, String> {
     let mut bounds = ext.extension_free.clone();
     bounds.extend(ext.interacting_free.iter().map(
@@ -407,12 +368,11 @@ fn fit_extension(
         },
     ));
     let opts = DiagnoseOptions {
-        pso_iterations: opts.pso_iterations * ext.search_factor.max(1),
-        ..opts.clone()
+        pso_iterations: env.opts.pso_iterations * ext.search_factor.max(1),
+        ..env.opts.clone()
     };
-    let mut r = match refit(
-        &ext.unit, &bounds, &ext.ties, sp, weights, &opts, label, progress,
-    ) {
+    let env = env.with(&opts);
+    let mut r = match refit(&env, &ext.unit, &bounds, &ext.ties, label) {
         Ok(r) => r,
         // The datasheet values together with the calibrated ones may break a physical relation
         // (a datasheet X_d below a calibrated X'_d held by its own bounds): then from the
@@ -420,14 +380,11 @@ fn fit_extension(
         Err(_) if ext.from_datasheet => {
             let calibrated: Vec<FreeBound> = ext.free().cloned().collect();
             refit(
+                &env,
                 &ext.unit,
                 &calibrated,
                 &ext.ties,
-                sp,
-                weights,
-                &opts,
                 &format!("{label} from the calibrated values"),
-                progress,
             )?
         }
         Err(e) => return Err(e),
@@ -444,14 +401,11 @@ fn fit_extension(
             )
             .collect();
         if let Ok(r2) = refit(
+            &env,
             &ext.unit,
             &from_base,
             &ext.ties,
-            sp,
-            weights,
-            &opts,
             &format!("{label} from the baseline"),
-            progress,
         ) {
             if r2.chi2_fit < r.chi2_fit {
                 r = r.replaced_by(r2);
@@ -465,16 +419,12 @@ fn fit_extension(
 
 /// The baseline polished (no swarm, no scans) from the interacting values a re-fit `from`
 /// ended at.
-#[allow(clippy::too_many_arguments)]
 fn baseline_from(
+    env: &RefitEnv,
     unit: &Unit,
     base_bounds: &[FreeBound],
     from: &Refit,
-    sp: &Split,
-    weights: (f64, f64),
-    opts: &DiagnoseOptions,
     label: &str,
-    progress: &dyn Progress,
 ) -> Option<Refit> {
     let start: Vec<FreeBound> = base_bounds
         .iter()
@@ -485,7 +435,7 @@ fn baseline_from(
         .collect();
     let polish = DiagnoseOptions {
         pso_iterations: 0,
-        ..opts.clone()
+        ..env.opts.clone()
     };
-    refit(unit, &start, &[], sp, weights, &polish, label, progress).ok()
+    refit(&env.with(&polish), unit, &start, &[], label).ok()
 }

@@ -429,11 +429,13 @@ fn diagnose_run(
         events,
         ctx: &ctx,
         evidence: &evidence_before,
-        sp: &sp,
+        env: RefitEnv {
+            sp: &sp,
+            weights,
+            opts,
+            progress,
+        },
         sp_null: &sp_null,
-        weights,
-        opts,
-        progress,
         baselines,
     };
     let mut reports = vec![];

@@ -74,19 +74,17 @@ pub(super) fn reference(
     progress: &dyn Progress,
 ) -> Result<Reference, DiagnoseError> {
     let nuisance = catalog::nuisance(unit);
-    let reference = refit(
-        unit,
-        &nuisance,
-        &[],
+    let env = RefitEnv {
         sp,
         weights,
         opts,
-        "nuisance offsets",
         progress,
-    )
-    .map_err(|msg| DiagnoseError::Simulation {
-        event: events[0].name.clone(),
-        msg,
+    };
+    let reference = refit(&env, unit, &nuisance, &[], "nuisance offsets").map_err(|msg| {
+        DiagnoseError::Simulation {
+            event: events[0].name.clone(),
+            msg,
+        }
     })?;
     let mut before = vec![];
     let mut evidence_before = vec![];

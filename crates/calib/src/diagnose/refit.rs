@@ -169,17 +169,41 @@ pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)]) {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+/// What every re-fit of a diagnosis shares: the samples it fits and judges (the record's split,
+/// or its surrogate's), the noise weights, the options and where progress goes.
+#[derive(Clone, Copy)]
+pub(super) struct RefitEnv<'a> {
+    pub(super) sp: &'a Split,
+    pub(super) weights: (f64, f64),
+    pub(super) opts: &'a DiagnoseOptions,
+    pub(super) progress: &'a dyn Progress,
+}
+
+impl<'a> RefitEnv<'a> {
+    /// The same re-fits on the samples `sp` (the surrogate's, say).
+    pub(super) fn on(self, sp: &'a Split) -> Self {
+        Self { sp, ..self }
+    }
+
+    /// The same re-fits with the options `opts` (a longer swarm, or none).
+    pub(super) fn with(self, opts: &'a DiagnoseOptions) -> Self {
+        Self { opts, ..self }
+    }
+}
+
 pub(super) fn refit(
+    env: &RefitEnv,
     unit: &Unit,
     bounds: &[FreeBound],
     ties: &[(String, String)],
-    sp: &Split,
-    weights: (f64, f64),
-    opts: &DiagnoseOptions,
     label: &str,
-    progress: &dyn Progress,
 ) -> Result<Refit, String> {
+    let RefitEnv {
+        sp,
+        weights,
+        opts,
+        progress,
+    } = *env;
     if opts.cancelled() {
         return Err("interrupted".into());
     }
