@@ -471,20 +471,43 @@ impl Problem {
     /// (only the signals with a non-zero weight), then the priors' residuals
     /// ([`Problem::prior_residuals`]).
     pub fn residuals(&self, x: &[f64], sim: &SimOptions) -> Result<Vec<f64>, ProblemError> {
+        let pq = self.simulate(x, sim)?;
+        self.residuals_from(x, &pq)
+    }
+
+    /// The simulated P and Q of every event at physical values `x` (the record's samples).
+    pub fn simulate(
+        &self,
+        x: &[f64],
+        sim: &SimOptions,
+    ) -> Result<Vec<(Vec<f64>, Vec<f64>)>, ProblemError> {
         if self.cancelled() {
             return Err(ProblemError::Interrupted);
         }
         let mut unit = self.unit_at(x);
-        let (sp, sq) = (self.weights.0.sqrt(), self.weights.1.sqrt());
-        let mut r = Vec::new();
-        for ev in &self.events {
-            let (p, q) = simulate_pq(&mut unit, &ev.prepared, sim).map_err(|e| {
-                ProblemError::Simulation {
+        self.events
+            .iter()
+            .map(|ev| {
+                simulate_pq(&mut unit, &ev.prepared, sim).map_err(|e| ProblemError::Simulation {
                     event: ev.name.clone(),
                     msg: e.to_string(),
-                }
-            })?;
-            for (k, dp, dq) in ev.window_residuals(&p, &q) {
+                })
+            })
+            .collect()
+    }
+
+    /// The residuals at physical values `x` from the events' simulated P and Q `pq` (as
+    /// [`Self::simulate`] gives them): another problem over the same events with other windows
+    /// (a fit/held-out split) reads the same simulation.
+    pub fn residuals_from(
+        &self,
+        x: &[f64],
+        pq: &[(Vec<f64>, Vec<f64>)],
+    ) -> Result<Vec<f64>, ProblemError> {
+        let (sp, sq) = (self.weights.0.sqrt(), self.weights.1.sqrt());
+        let mut r = Vec::new();
+        for (ev, (p, q)) in self.events.iter().zip(pq) {
+            for (k, dp, dq) in ev.window_residuals(p, q) {
                 if !(p[k].abs() < DIVERGED_PU && q[k].abs() < DIVERGED_PU) {
                     return Err(ProblemError::Diverged {
                         event: ev.name.clone(),

@@ -310,13 +310,18 @@ pub(super) fn refit(
     let mut held = Problem::new(unit.clone(), free, sp.held.clone(), weights);
     held.ties = tie_refs;
     held.prior_weight = PRIOR_WEIGHT;
-    // The two accurate simulations side by side (each is one thread's work).
-    let (r_fit, r_held) = rayon::join(
-        || fit_problem.residuals(&x, &acc),
-        || held.residuals(&x, &acc),
-    );
-    let r_fit = r_fit.map_err(|e| e.to_string())?;
-    let r_held = r_held.map_err(|e| e.to_string())?;
+    // One accurate simulation per event: the fitted and held-out samples of a block split are
+    // windows on the same events (held-out events are simulated on their own).
+    let pq = fit_problem.simulate(&x, &acc).map_err(|e| e.to_string())?;
+    let r_fit = fit_problem
+        .residuals_from(&x, &pq)
+        .map_err(|e| e.to_string())?;
+    let r_held = if sp.blocks {
+        held.residuals_from(&x, &pq)
+    } else {
+        held.residuals(&x, &acc)
+    }
+    .map_err(|e| e.to_string())?;
     let chi2_prior = sum_of_squares(&fit_problem.prior_residuals(&x));
     Ok(Refit {
         unit: fit_problem.unit_at(&x),

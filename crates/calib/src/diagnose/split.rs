@@ -10,6 +10,9 @@ use super::*;
 pub(super) struct Split {
     pub(super) fit: Vec<EventData>,
     pub(super) held: Vec<EventData>,
+    /// The held-out samples are windows on the fitted events (alternate blocks), not events of
+    /// their own: one simulation gives both.
+    pub(super) blocks: bool,
     pub(super) description: String,
 }
 
@@ -24,6 +27,7 @@ pub(super) fn split(
         return Ok(Split {
             fit: events.iter().map(data).collect::<Result<_, _>>()?,
             held: held_out.iter().map(data).collect::<Result<_, _>>()?,
+            blocks: false,
             description: format!(
                 "fitted on {} event(s), judged on {} held-out event(s)",
                 events.len(),
@@ -58,6 +62,7 @@ pub(super) fn split(
     Ok(Split {
         fit,
         held,
+        blocks: true,
         description: format!(
             "alternate {block_s} s blocks of each event, one fitted block starting \
              {DISTURBANCE_LEAD_S} s before the disturbance: even blocks fitted, odd blocks held out"
