@@ -353,6 +353,9 @@ pub fn accurate_integrator() -> SimOptions {
     }
 }
 
+/// One event's simulated P and Q at the record's samples ([`Problem::simulate`]).
+pub type SimulatedPq = (Vec<f64>, Vec<f64>);
+
 /// Largest |P| or |Q| [pu] a sane simulation produces; beyond it a candidate has diverged.
 const DIVERGED_PU: f64 = 100.0;
 /// Failure messages kept (all of them up to this many, so that the sorted first few are the same
@@ -476,11 +479,7 @@ impl Problem {
     }
 
     /// The simulated P and Q of every event at physical values `x` (the record's samples).
-    pub fn simulate(
-        &self,
-        x: &[f64],
-        sim: &SimOptions,
-    ) -> Result<Vec<(Vec<f64>, Vec<f64>)>, ProblemError> {
+    pub fn simulate(&self, x: &[f64], sim: &SimOptions) -> Result<Vec<SimulatedPq>, ProblemError> {
         if self.cancelled() {
             return Err(ProblemError::Interrupted);
         }
@@ -499,11 +498,7 @@ impl Problem {
     /// The residuals at physical values `x` from the events' simulated P and Q `pq` (as
     /// [`Self::simulate`] gives them): another problem over the same events with other windows
     /// (a fit/held-out split) reads the same simulation.
-    pub fn residuals_from(
-        &self,
-        x: &[f64],
-        pq: &[(Vec<f64>, Vec<f64>)],
-    ) -> Result<Vec<f64>, ProblemError> {
+    pub fn residuals_from(&self, x: &[f64], pq: &[SimulatedPq]) -> Result<Vec<f64>, ProblemError> {
         let (sp, sq) = (self.weights.0.sqrt(), self.weights.1.sqrt());
         let mut r = Vec::new();
         for (ev, (p, q)) in self.events.iter().zip(pq) {

@@ -71,10 +71,10 @@ impl Cause for Oel {
         }
         // The limiter's settings are read the usual way: it picks up at 105 % of the rated field
         // current and regulates back to 100 % (the block's declared defaults, left as they are:
-        // the common setting of an inverse-time OEL). What a record identifies is the level the limiter regulates the
-        // field current to, so the rated current is what is searched, not the pickup (with the
-        // pickup tied to the regulated level, as before, the fit put the pickup at the regulated
-        // level and read it 5 % low). The rated current's range is computed here, not declared:
+        // the common setting of an inverse-time OEL). What a record identifies is the level the
+        // limiter regulates the field current to, so the rated current is what is searched, not
+        // the pickup (with the pickup tied to the regulated level, as before, the fit put the
+        // pickup at the regulated level and read it 5 % low). The rated current's range is computed here, not declared:
         // it is read against the calibrated unit's pre-event field current i0, and the re-fit
         // from the datasheet values (below) may put the unit's own pre-event current well under
         // i0 (a calibration that mimicked the limiter raised X_d), so the range reaches down to
