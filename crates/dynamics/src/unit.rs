@@ -35,6 +35,10 @@ pub struct Instance {
     map: Vec<usize>,
     x_offset: usize,
     ev_offset: usize,
+    /// The block's state and event counts, set with the offsets by [`Unit::finish`] (read on
+    /// every right-hand side: a virtual call each saved).
+    x_len: usize,
+    ev_len: usize,
 }
 
 impl Instance {
@@ -162,6 +166,8 @@ impl Unit {
             map: vec![],
             x_offset: 0,
             ev_offset: 0,
+            x_len: 0,
+            ev_len: 0,
         });
         self.finished = false;
         Ok(())
@@ -248,8 +254,10 @@ impl Unit {
             }
             inst.x_offset = nx;
             inst.ev_offset = nev;
-            nx += inst.nx();
-            nev += inst.block.n_events();
+            inst.x_len = inst.nx();
+            inst.ev_len = inst.block.n_events();
+            nx += inst.x_len;
+            nev += inst.ev_len;
             inst.block.set_nominal_frequency(self.nominal_hz);
         }
         self.sig_v = 0;
@@ -523,7 +531,7 @@ impl Unit {
     pub fn eval_outputs(&mut self, t: f64, x: &[f64]) {
         for &b in &self.eval_order {
             let inst = &self.instances[b];
-            let (o, n) = (inst.x_offset, inst.block.state_names().len());
+            let (o, n) = (inst.x_offset, inst.x_len);
             let mut io = Io::new(&mut self.bus, &inst.map);
             inst.block.outputs(t, &x[o..o + n], &mut io);
         }
@@ -533,7 +541,7 @@ impl Unit {
     #[inline]
     pub fn eval_derivatives(&mut self, t: f64, x: &[f64], dx: &mut [f64]) {
         for inst in &self.instances {
-            let (o, n) = (inst.x_offset, inst.block.state_names().len());
+            let (o, n) = (inst.x_offset, inst.x_len);
             let io = Io::new(&mut self.bus, &inst.map);
             inst.block
                 .derivatives(t, &x[o..o + n], &io, &mut dx[o..o + n]);
@@ -574,11 +582,11 @@ impl Unit {
 
     fn eval_events(&mut self, x: &[f64], g: &mut [f64]) {
         for inst in &self.instances {
-            let ne = inst.block.n_events();
+            let ne = inst.ev_len;
             if ne == 0 {
                 continue;
             }
-            let (o, n) = (inst.x_offset, inst.nx());
+            let (o, n) = (inst.x_offset, inst.x_len);
             let io = Io::new(&mut self.bus, &inst.map);
             inst.block.events(
                 &x[o..o + n],
@@ -591,10 +599,10 @@ impl Unit {
     fn update_modes(&mut self, x: &mut [f64]) -> bool {
         let mut changed = false;
         for inst in &mut self.instances {
-            if inst.block.n_events() == 0 {
+            if inst.ev_len == 0 {
                 continue;
             }
-            let (o, n) = (inst.x_offset, inst.block.state_names().len());
+            let (o, n) = (inst.x_offset, inst.x_len);
             let io = Io::new(&mut self.bus, &inst.map);
             changed |= inst.block.update_modes(&mut x[o..o + n], &io);
         }
