@@ -67,7 +67,7 @@ fn a_window_bound_within_the_tolerance_of_a_sample_holds_it() {
 /// quarter fewer steps at least than the tolerances it replaced.
 #[test]
 fn the_search_integrators_agree_with_the_accurate_one_on_a_practice_record() {
-    use itaipu_calib::local::lm_integrator;
+    use itaipu_calib::local::{lm_integrator, LmStop, LM_RTOL};
     use itaipu_calib::practice::PracticeCase;
     use itaipu_calib::problem::search_integrator;
     use itaipu_dynamics::simulate::{run_playback, SimOptions};
@@ -81,7 +81,13 @@ fn the_search_integrators_agree_with_the_accurate_one_on_a_practice_record() {
     let ja = data.window_sums(&pa, &qa).j((1.0, 1.0));
     for (name, o, pq_tol, j_tol) in [
         ("search", search_integrator(), 2e-4, 2e-3),
-        ("lm", lm_integrator(), 2e-5, 2e-4),
+        ("lm", lm_integrator(LM_RTOL), 2e-5, 2e-4),
+        (
+            "lm comparison",
+            lm_integrator(LmStop::COMPARISON.rtol),
+            1e-4,
+            1e-3,
+        ),
     ] {
         let (p, q) = run(&o);
         let dev = p

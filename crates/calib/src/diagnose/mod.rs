@@ -426,7 +426,6 @@ fn diagnose_run(
     };
     let mut candidates = Candidates {
         unit,
-        events,
         ctx: &ctx,
         evidence: &evidence_before,
         env: RefitEnv {

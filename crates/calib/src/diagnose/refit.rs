@@ -8,6 +8,7 @@ use crate::evidence;
 use crate::fit::{search, FitOptions, Progress};
 use crate::problem::{
     accurate_integrator, search_integrator, sum_of_squares, EventData, FreeParam, Problem,
+    SimulatedPq, WindowSums,
 };
 use crate::spec::Strategy;
 use itaipu_dynamics::event::Event;
@@ -52,6 +53,9 @@ pub(super) struct Refit {
     pub(super) failures: usize,
     /// Variance inflation of the fitted residual, `(1 + ρ₁)/(1 − ρ₁)` (AR(1) approximation).
     pub(super) vif: f64,
+    /// RMS of P and Q [pu] over every sample of the fitted events (the fitted and held-out
+    /// blocks both; held-out events apart), from the same accurate simulation as the χ².
+    pub(super) rms_pq: (f64, f64),
 }
 
 /// The scores of a re-fit (without its unit and values).
@@ -323,6 +327,7 @@ pub(super) fn refit(
     }
     .map_err(|e| e.to_string())?;
     let chi2_prior = sum_of_squares(&fit_problem.prior_residuals(&x));
+    let rms_pq = rms_over_events(&fit_problem, sp.blocks.then_some(&held), &pq);
     Ok(Refit {
         unit: fit_problem.unit_at(&x),
         values: x,
@@ -341,7 +346,25 @@ pub(super) fn refit(
                 1
             },
         ),
+        rms_pq,
     })
+}
+
+/// RMS of P and Q (unweighted) over the windows of `fit`'s events, plus those of `held`'s
+/// (windows on the same events, in the same order) when given, from the simulation `pq`.
+fn rms_over_events(fit: &Problem, held: Option<&Problem>, pq: &[SimulatedPq]) -> (f64, f64) {
+    let mut s = WindowSums::default();
+    for (i, (p, q)) in pq.iter().enumerate() {
+        let parts = std::iter::once(&fit.events[i]).chain(held.map(|h| &h.events[i]));
+        for ev in parts {
+            let w = ev.window_sums(p, q);
+            s.p += w.p;
+            s.q += w.q;
+            s.n += w.n;
+        }
+    }
+    let n = s.n.max(1) as f64;
+    ((s.p / n).sqrt(), (s.q / n).sqrt())
 }
 
 /// Standard errors of the re-fitted parameters `bounds` at `values` of `unit` (already at
@@ -473,4 +496,54 @@ pub(super) fn check_refit(unit: &Unit, refit: &[FreeBound]) -> Result<(), Diagno
         b.check().map_err(bound_error)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::trial::{scenario, truth_and_event};
+    use crate::fit::{fitness, Silent};
+
+    /// A re-fit's RMS comes from its own simulation over the fitted and held-out blocks: it
+    /// equals the RMS of [`fitness`] over every sample of the event (a separate simulation), and
+    /// the fitted blocks alone give another number.
+    #[test]
+    fn a_refits_rms_covers_every_sample_of_the_event() {
+        let (unit, ev) = truth_and_event(&scenario("saturation", 3, None)).unwrap();
+        let mut calibrated = unit.clone();
+        let r = calibrated.param("exciter.k").unwrap();
+        calibrated.set(r, 0.8 * unit.get(r));
+        let sp = super::super::split::split(std::slice::from_ref(&ev), &[], 0.5).unwrap();
+        let opts = DiagnoseOptions::default();
+        let env = RefitEnv {
+            sp: &sp,
+            weights: (1.0, 1.0),
+            opts: &opts,
+            progress: &Silent,
+        };
+        let out = refit(&env, &calibrated, &[], &[], "as given").unwrap();
+        let (f, _) = fitness(&calibrated, &ev, false).unwrap();
+        let (p, q) = out.rms_pq;
+        assert!(
+            (p - f.rms_p).abs() <= 1e-9 * f.rms_p,
+            "{p} against {}",
+            f.rms_p
+        );
+        assert!(
+            (q - f.rms_q).abs() <= 1e-9 * f.rms_q,
+            "{q} against {}",
+            f.rms_q
+        );
+        let fitted_only = rms_over_events(
+            &Problem::new(calibrated.clone(), vec![], sp.fit.clone(), (1.0, 1.0)),
+            None,
+            &Problem::new(calibrated, vec![], sp.fit.clone(), (1.0, 1.0))
+                .simulate(&[], &accurate_integrator())
+                .unwrap(),
+        );
+        assert!(
+            (fitted_only.0 - p).abs() > 1e-6 * p,
+            "the held-out blocks count"
+        );
+    }
 }

@@ -97,7 +97,7 @@ pub(crate) fn search(
             phase: if lm {
                 format!(
                     "{name}{from_txt} (Dormand-Prince, rtol {:e})",
-                    crate::local::LM_RTOL
+                    opts.lm_stop.rtol
                 )
             } else {
                 format!("{name}{from_txt} (RK4 h = {:.3} ms)", res.step_s * 1e3)
