@@ -224,6 +224,9 @@ pub struct Gains {
     pub fit_drop: f64,
     /// Net relative drop on the held-out samples, likewise.
     pub held_drop: f64,
+    /// Relative held-out drop on the contiguous segments of the second held-out test, when it
+    /// ran (an extension whose fitted gain passes and whose held-out blocks do not confirm it).
+    pub held_drop_segments: Option<f64>,
     /// `Δχ²/VIF − k ln(N/VIF)` with the net `Δχ²`: the BIC difference with the χ² difference
     /// and the sample size deflated by the baseline residual's variance inflation (positive
     /// favours the extension).
@@ -400,6 +403,12 @@ fn diagnose_run(
     let (sigma_p, sigma_q) = noise::sigma_pq(unit, events)?;
     let weights = (1.0 / sigma_p.powi(2), 1.0 / sigma_q.powi(2));
     let sp = split(events, held_out, opts.block_s)?;
+    // The contiguous segments of the second held-out test (without held-out events).
+    let sp_long = if sp.blocks {
+        Some(split(events, held_out, SEGMENT_S)?)
+    } else {
+        None
+    };
 
     // 2. The reference: the unit with its set-point offsets (nuisance) re-fitted; the evidence
     //    and the verdict are about what it still gets wrong.
@@ -435,6 +444,7 @@ fn diagnose_run(
             progress,
         },
         sp_null: &sp_null,
+        sp_long: sp_long.as_ref(),
         baselines,
     };
     let mut reports = vec![];

@@ -70,6 +70,11 @@ pub(super) fn split(
     })
 }
 
+/// Length of the contiguous segments of the second held-out test [s]: a fitted segment holds
+/// the disturbance and the first seconds after it, the held-out ones the later phases of the
+/// response (the same alignment as the blocks).
+pub(super) const SEGMENT_S: f64 = 3.0;
+
 /// How far before the disturbance the fitted block that holds it starts [s].
 pub(super) const DISTURBANCE_LEAD_S: f64 = 0.1;
 

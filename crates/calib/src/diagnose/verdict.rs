@@ -217,7 +217,7 @@ pub(super) fn decide(
                 .collect();
             let statement = format!(
                 "{}: {}. The extension ({}) lowers χ² on the fitted samples by {:.0} % ({:.1} -> {:.1}) and on the held-out \
-                 samples by {:.0} %; ΔBIC = {:.1} with {} added parameter(s). Fitted values: {}.",
+                 samples by {:.0} %{}; ΔBIC = {:.1} with {} added parameter(s). Fitted values: {}.",
                 rep.cause,
                 rep.title,
                 rep.extension,
@@ -225,6 +225,10 @@ pub(super) fn decide(
                 g.chi2_fit_base,
                 g.chi2_fit_ext,
                 100.0 * g.held_drop,
+                g.held_drop_segments.map_or(String::new(), |d| format!(
+                    " (on the held-out {SEGMENT_S} s segments of the second test by {:.0} %)",
+                    100.0 * d
+                )),
                 g.delta_bic,
                 g.k,
                 params.join(", ")
