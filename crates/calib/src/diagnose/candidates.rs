@@ -199,13 +199,27 @@ impl Candidates<'_> {
                         fit_extension(&env_long, &ext, bl, !base_bounds.is_empty(), &label)
                     {
                         let gain = bl.chi2_held - rl.chi2_held;
-                        segments_pass = gain >= opts.min_held_drop * bl.chi2_held;
+                        // Per held-out sample, against the baseline re-fitted on the blocks: a
+                        // baseline that predicts the held-out segments far worse has over-fitted
+                        // the segments it saw, and two such predictions say nothing of structure.
+                        let per = |r: &Refit| r.chi2_held / r.n_held.max(1) as f64;
+                        let overfit = per(bl) / per(&baselines[&key]).max(1e-300);
+                        let informative = overfit <= SEGMENT_OVERFIT;
+                        segments_pass = informative && gain >= opts.min_held_drop * bl.chi2_held;
                         held_drop_segments = Some(gain / bl.chi2_held.max(1e-300));
                         rep.note = format!(
-                            "held out on {SEGMENT_S} s segments: χ² {:.1} -> {:.1} ({:+.1} %)",
+                            "held out on {SEGMENT_S} s segments: χ² {:.1} -> {:.1} ({:+.1} %){}",
                             bl.chi2_held,
                             rl.chi2_held,
-                            100.0 * gain / bl.chi2_held.max(1e-300)
+                            100.0 * gain / bl.chi2_held.max(1e-300),
+                            if informative {
+                                String::new()
+                            } else {
+                                format!(
+                                    ", not counted: the baseline re-fitted on the segments predicts \
+                                     the others {overfit:.1} × worse per sample than the blocks"
+                                )
+                            }
                         );
                         rep.simulations += rl.simulations;
                     }
