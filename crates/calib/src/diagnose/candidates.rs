@@ -162,70 +162,31 @@ impl Candidates<'_> {
         let fits = |d_fit: f64, base: &Scores| {
             bic(d_fit, base.vif) > opts.bic_threshold && d_fit >= opts.min_fit_drop * base.chi2_fit
         };
-        // The second held-out test, on contiguous segments (without held-out events): for
-        // an extension that gains on the fitted blocks but not on the interleaved held-out
-        // ones. Interleaved 0.5 s blocks test that the gain is not noise; a model that absorbed
-        // the cause by bending its parameters predicts them about as well as the fitted ones,
-        // and an effect confined to the disturbance (a terminal load acts in the dip, which a
-        // fitted block holds) leaves them nothing to predict. Longer segments hold out whole
-        // phases of the response (the recovery after the dip), which a bent model predicts
-        // worse: the extension and its baseline are re-fitted on the fitted segments and judged
-        // on the others.
-        let mut segments_pass = false;
-        let mut held_drop_segments = None;
-        {
+        // The second held-out test, on contiguous segments (without held-out events), for an
+        // extension whose fitted gain passes but whose held-out blocks do not confirm it.
+        let segments = {
             let b = baselines[&key].clone_scores();
             let (d_fit, d_held) = (b.chi2_fit - r.chi2_fit, b.chi2_held - r.chi2_held);
-            if let Some(sp_long) = self
-                .sp_long
+            self.sp_long
                 .filter(|_| fits(d_fit, &b) && d_held < opts.min_held_drop * b.chi2_held)
-            {
-                let env_long = env.on(sp_long);
-                let lkey = format!("segments:{key}");
-                if !baselines.contains_key(&lkey) {
-                    if let Ok(b) = refit(
-                        &env_long,
+                .and_then(|sp_long| {
+                    segments_test(
+                        &env.on(sp_long),
                         unit,
                         &base_bounds,
-                        &[],
-                        &format!("{id} baseline on segments"),
-                    ) {
-                        baselines.insert(lkey.clone(), b);
-                    }
-                }
-                if let Some(bl) = baselines.get(&lkey) {
-                    let label = format!("{id} on segments");
-                    if let Ok(rl) =
-                        fit_extension(&env_long, &ext, bl, !base_bounds.is_empty(), &label)
-                    {
-                        let gain = bl.chi2_held - rl.chi2_held;
-                        // Per held-out sample, against the baseline re-fitted on the blocks: a
-                        // baseline that predicts the held-out segments far worse has over-fitted
-                        // the segments it saw, and two such predictions say nothing of structure.
-                        let per = |r: &Refit| r.chi2_held / r.n_held.max(1) as f64;
-                        let overfit = per(bl) / per(&baselines[&key]).max(1e-300);
-                        let informative = overfit <= SEGMENT_OVERFIT;
-                        segments_pass = informative && gain >= opts.min_held_drop * bl.chi2_held;
-                        held_drop_segments = Some(gain / bl.chi2_held.max(1e-300));
-                        rep.note = format!(
-                            "held out on {SEGMENT_S} s segments: χ² {:.1} -> {:.1} ({:+.1} %){}",
-                            bl.chi2_held,
-                            rl.chi2_held,
-                            100.0 * gain / bl.chi2_held.max(1e-300),
-                            if informative {
-                                String::new()
-                            } else {
-                                format!(
-                                    ", not counted: the baseline re-fitted on the segments predicts \
-                                     the others {overfit:.1} × worse per sample than the blocks"
-                                )
-                            }
-                        );
-                        rep.simulations += rl.simulations;
-                    }
-                }
-            }
+                        &ext,
+                        baselines,
+                        &key,
+                        id,
+                    )
+                })
+        };
+        let segments_pass = segments.as_ref().is_some_and(|t| t.passes(opts));
+        if let Some(t) = &segments {
+            rep.note = t.note();
+            rep.simulations += t.simulations;
         }
+        let held_drop_segments = segments.as_ref().map(SegmentsTest::drop);
         let passes = |d_fit: f64, d_held: f64, base: &Scores| {
             fits(d_fit, base) && (segments_pass || d_held >= opts.min_held_drop * base.chi2_held)
         };
@@ -378,6 +339,85 @@ impl Candidates<'_> {
         rep.wall_s = t0.elapsed().as_secs_f64();
         (rep, Some((r, bounds, ext.ties)))
     }
+}
+
+/// The second held-out test's outcome: the baseline's and the extension's χ² on the held-out
+/// segments, and how much worse per sample the baseline re-fitted on the segments predicts them
+/// than the baseline re-fitted on the blocks predicts the held-out blocks.
+struct SegmentsTest {
+    base_held: f64,
+    ext_held: f64,
+    overfit: f64,
+    simulations: usize,
+}
+
+impl SegmentsTest {
+    /// The relative held-out drop on the segments.
+    fn drop(&self) -> f64 {
+        (self.base_held - self.ext_held) / self.base_held.max(1e-300)
+    }
+
+    /// Informative ([`SEGMENT_OVERFIT`]) and the held-out drop at least the threshold.
+    fn passes(&self, opts: &DiagnoseOptions) -> bool {
+        self.overfit <= SEGMENT_OVERFIT && self.drop() >= opts.min_held_drop
+    }
+
+    fn note(&self) -> String {
+        format!(
+            "held out on {SEGMENT_S} s segments: χ² {:.1} -> {:.1} ({:+.1} %){}",
+            self.base_held,
+            self.ext_held,
+            100.0 * self.drop(),
+            if self.overfit <= SEGMENT_OVERFIT {
+                String::new()
+            } else {
+                format!(
+                    ", not counted: the baseline re-fitted on the segments predicts the others \
+                     {:.1} × worse per sample than the blocks",
+                    self.overfit
+                )
+            }
+        )
+    }
+}
+
+/// The second held-out test, on contiguous segments (`env` on the segments' split): the
+/// extension and its baseline (cached in `baselines` beside the blocks' one, `key`) re-fitted on
+/// the fitted segments and judged on the others. For an extension whose fitted gain passes but
+/// whose interleaved held-out blocks do not confirm it: interleaved 0.5 s blocks test that the
+/// gain is not noise, but a model that absorbed the cause by bending its parameters predicts
+/// them about as well as the fitted ones, and an effect confined to the disturbance (a terminal
+/// load acts in the dip, which a fitted block holds) leaves them nothing to predict. Longer
+/// segments hold out whole phases of the response (the recovery after the dip), which a bent
+/// model predicts worse. `None` when a re-fit fails.
+fn segments_test(
+    env: &RefitEnv,
+    unit: &Unit,
+    base_bounds: &[FreeBound],
+    ext: &Extension,
+    baselines: &mut BTreeMap<String, Refit>,
+    key: &str,
+    id: &str,
+) -> Option<SegmentsTest> {
+    let lkey = format!("segments:{key}");
+    if !baselines.contains_key(&lkey) {
+        let label = format!("{id} baseline on segments");
+        let b = refit(env, unit, base_bounds, &[], &label).ok()?;
+        baselines.insert(lkey.clone(), b);
+    }
+    let bl = &baselines[&lkey];
+    let label = format!("{id} on segments");
+    let rl = fit_extension(env, ext, bl, !base_bounds.is_empty(), &label).ok()?;
+    // Per held-out sample, against the baseline re-fitted on the blocks: a baseline that
+    // predicts the held-out segments far worse has over-fitted the segments it saw, and two
+    // such predictions say nothing of structure.
+    let per = |r: &Refit| r.chi2_held / r.n_held.max(1) as f64;
+    Some(SegmentsTest {
+        base_held: bl.chi2_held,
+        ext_held: rl.chi2_held,
+        overfit: per(bl) / per(&baselines[key]).max(1e-300),
+        simulations: rl.simulations,
+    })
 }
 
 /// The extension with the calibrated set of [`DiagnoseOptions::refit`] re-freed: a cause's own
