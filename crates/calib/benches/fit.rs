@@ -101,33 +101,11 @@ fn diagnose_full_catalog_20s(bencher: Bencher) {
 /// with the calibration's prior. The target: within 60 s on 2 cores.
 #[divan::bench(sample_count = 1, sample_size = 1)]
 fn practice_fit_and_diagnose(bencher: Bencher) {
-    use itaipu_calib::diagnose::{calibrated_set, diagnose, DiagnoseOptions};
-    use itaipu_calib::practice::{practice_spec, PracticeCase};
+    use itaipu_calib::practice::{fit_and_diagnose, PracticeCase};
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/practice/cases/p01");
     let case = PracticeCase::load(&dir).unwrap();
-    let spec = practice_spec(&case.unit).unwrap();
-    let opts = FitOptions::from_spec(&spec);
     bencher.bench(|| {
-        let r = fit(
-            &case.unit,
-            &spec,
-            std::slice::from_ref(&case.event),
-            &[],
-            &opts,
-            &Silent,
-        )
-        .unwrap();
-        let d = diagnose(
-            &r.unit,
-            std::slice::from_ref(&case.event),
-            &[],
-            &DiagnoseOptions {
-                refit: calibrated_set(&spec, &opts.stages, &case.unit, &r.unit),
-                ..Default::default()
-            },
-            &Silent,
-        )
-        .unwrap();
+        let (_, d) = fit_and_diagnose(&case, &Silent).unwrap();
         divan::black_box(d.report.verdict.cause)
     });
 }

@@ -14,9 +14,11 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use itaipu_calib::diagnose::{calibrated_set, diagnose, DiagnoseOptions};
+use itaipu_calib::diagnose::diagnose;
 use itaipu_calib::fit::{fit, FitOptions, Silent};
-use itaipu_calib::practice::{case_dirs, practice_spec, score, truth_j, AnswerKey, PracticeCase};
+use itaipu_calib::practice::{
+    case_dirs, diagnose_options, practice_spec, score, truth_j, AnswerKey, PracticeCase,
+};
 use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
 
 fn print_stage(st: &itaipu_calib::fit::StageReport) {
@@ -116,19 +118,15 @@ fn main() {
             let t1 = Instant::now();
             // The whole calibrated set re-fitted with the calibration's prior (unless
             // NO_REFIT is set, for comparison with the cause-specific re-fits alone).
-            let refit = if std::env::var("NO_REFIT").is_ok() {
-                vec![]
-            } else {
-                calibrated_set(&spec, &opts.stages, &case.unit, &calibrated)
-            };
+            let mut dopts = diagnose_options(&case, &spec, &opts.stages, &calibrated);
+            if std::env::var("NO_REFIT").is_ok() {
+                dopts.refit.clear();
+            }
             let d = diagnose(
                 &calibrated,
                 std::slice::from_ref(&case.event),
                 &[],
-                &DiagnoseOptions {
-                    refit,
-                    ..Default::default()
-                },
+                &dopts,
                 &Silent,
             );
             Some((d, t1.elapsed().as_secs_f64()))

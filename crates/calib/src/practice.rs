@@ -16,6 +16,8 @@ use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::parse_unit;
 use serde_json::Value;
 
+use crate::diagnose::{calibrated_set, diagnose, DiagnoseOptions, DiagnoseResult};
+use crate::fit::{fit, FitOptions, FitResult, Progress};
 use crate::spec::{CalibSpec, SpecError};
 
 /// Relative bounds of every free parameter around its nominal value: `[lo·x₀, hi·x₀]`.
@@ -384,6 +386,44 @@ impl AnswerKey {
             nominal_errors,
         })
     }
+}
+
+/// The protocol's diagnosis options: the whole calibrated set of `spec`'s `stages` re-freed in
+/// every re-fit, with the calibration's prior around the case's nominal unit (what
+/// `itaipu-calib diagnose --fit` does with a fit's outputs).
+pub fn diagnose_options(
+    case: &PracticeCase,
+    spec: &CalibSpec,
+    stages: &[String],
+    calibrated: &Unit,
+) -> DiagnoseOptions {
+    DiagnoseOptions {
+        refit: calibrated_set(spec, stages, &case.unit, calibrated),
+        ..Default::default()
+    }
+}
+
+/// The whole protocol on one case, as a user would run it: the default staged fit of the
+/// nominal unit with the one [`practice_spec`], then `diagnose` on the calibrated unit with
+/// [`diagnose_options`]. The answer key is not read.
+pub fn fit_and_diagnose(
+    case: &PracticeCase,
+    progress: &dyn Progress,
+) -> Result<(FitResult, DiagnoseResult), PracticeError> {
+    let engine = |e: &dyn std::fmt::Display| PracticeError::Engine(format!("{}: {e}", case.name));
+    let spec = practice_spec(&case.unit).map_err(|e| engine(&e))?;
+    let opts = FitOptions::from_spec(&spec);
+    let events = std::slice::from_ref(&case.event);
+    let fitted = fit(&case.unit, &spec, events, &[], &opts, progress).map_err(|e| engine(&e))?;
+    let d = diagnose(
+        &fitted.unit,
+        events,
+        &[],
+        &diagnose_options(case, &spec, &opts.stages, &fitted.unit),
+        progress,
+    )
+    .map_err(|e| engine(&e))?;
+    Ok((fitted, d))
 }
 
 /// The true unit of a case without its hidden effect (`true_unit` of the answer key), for the

@@ -150,23 +150,7 @@ fn the_default_staged_fit_reaches_the_floor_with_every_uncertain_parameter_free(
 /// whole calibrated set with its prior (as `cargo run --example practice` does); the verdict and
 /// the candidates' report, the key read only to score.
 fn fit_and_diagnose(name: &str) -> (itaipu_calib::diagnose::Diagnosis, String) {
-    use itaipu_calib::diagnose::{calibrated_set, diagnose, DiagnoseOptions};
-    let c = case(name);
-    let spec = practice_spec(&c.unit).unwrap();
-    let opts = FitOptions::from_spec(&spec);
-    let events = std::slice::from_ref(&c.event);
-    let r = fit(&c.unit, &spec, events, &[], &opts, &Silent).unwrap();
-    let d = diagnose(
-        &r.unit,
-        events,
-        &[],
-        &DiagnoseOptions {
-            refit: calibrated_set(&spec, &opts.stages, &c.unit, &r.unit),
-            ..Default::default()
-        },
-        &Silent,
-    )
-    .unwrap();
+    let (_, d) = itaipu_calib::practice::fit_and_diagnose(&case(name), &Silent).unwrap();
     let hidden = AnswerKey::read(&root(), name).unwrap().cause;
     (d.report, hidden)
 }

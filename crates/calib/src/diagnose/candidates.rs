@@ -43,7 +43,7 @@ pub(super) struct Candidates<'a> {
     pub sp_null: &'a Split,
     /// The split on contiguous segments for the second held-out test (without held-out events;
     /// [`SEGMENT_S`]).
-    pub sp_long: Option<&'a Split>,
+    pub sp_segments: Option<&'a Split>,
     pub baselines: BTreeMap<String, Refit>,
 }
 
@@ -167,11 +167,11 @@ impl Candidates<'_> {
         let segments = {
             let b = baselines[&key].clone_scores();
             let (d_fit, d_held) = (b.chi2_fit - r.chi2_fit, b.chi2_held - r.chi2_held);
-            self.sp_long
+            self.sp_segments
                 .filter(|_| fits(d_fit, &b) && d_held < opts.min_held_drop * b.chi2_held)
-                .and_then(|sp_long| {
+                .and_then(|sp_segments| {
                     segments_test(
-                        &env.on(sp_long),
+                        &env.on(sp_segments),
                         unit,
                         &base_bounds,
                         &ext,

@@ -404,7 +404,7 @@ fn diagnose_run(
     let weights = (1.0 / sigma_p.powi(2), 1.0 / sigma_q.powi(2));
     let sp = split(events, held_out, opts.block_s)?;
     // The contiguous segments of the second held-out test (without held-out events).
-    let sp_long = if sp.blocks {
+    let sp_segments = if sp.blocks {
         Some(split(events, held_out, SEGMENT_S)?)
     } else {
         None
@@ -444,7 +444,7 @@ fn diagnose_run(
             progress,
         },
         sp_null: &sp_null,
-        sp_long: sp_long.as_ref(),
+        sp_segments: sp_segments.as_ref(),
         baselines,
     };
     let mut reports = vec![];
