@@ -167,6 +167,9 @@ library defines one:
   unknown stage or key...), a spec that does not fit the unit (``"spec"``: e.g. an unknown
   parameter in ``free``), a fit that cannot run (``"stage"``, ``"setup"``), or a diagnosis that
   cannot run (``"setup"``, e.g. an unknown cause).
+* :class:`OutputError`: an output file or folder could not be written, or would overwrite one.
+* :class:`InternalError`: a bug (an internal invariant broken; a Rust panic is caught and
+  raised as this, never as ``PanicException``): please report it with the message.
 
 Bad options raise ``ValueError``; arguments of the wrong type ``TypeError``.
 """
@@ -178,7 +181,9 @@ from ._core import (
     EventError,
     FitResult,
     InitError,
+    InternalError,
     ItaipuError,
+    OutputError,
     Parameter,
     SimulationError,
     Traces,
@@ -207,7 +212,9 @@ __all__ = [
     "EventError",
     "FitResult",
     "InitError",
+    "InternalError",
     "ItaipuError",
+    "OutputError",
     "Parameter",
     "SimulationError",
     "Traces",

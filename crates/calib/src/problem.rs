@@ -190,9 +190,13 @@ pub enum ProblemError {
     /// The measurement's low-pass filter cannot be applied.
     #[error("event '{event}': {msg}")]
     Filter { event: String, msg: String },
-    /// The candidate's simulation failed.
-    #[error("{event}: {msg}")]
-    Simulation { event: String, msg: String },
+    /// The candidate's simulation failed (the engine's error, kept typed: an initialisation
+    /// failure and an integration failure are told apart by every front end).
+    #[error("{event}: {error}")]
+    Simulation {
+        event: String,
+        error: itaipu_dynamics::simulate::SimError,
+    },
     /// The candidate's simulation ran away (|P| or |Q| beyond the divergence bound).
     #[error("{event}: simulation diverged at t = {t:.3} s")]
     Diverged { event: String, t: f64 },
@@ -487,9 +491,11 @@ impl Problem {
         self.events
             .iter()
             .map(|ev| {
-                simulate_pq(&mut unit, &ev.prepared, sim).map_err(|e| ProblemError::Simulation {
-                    event: ev.name.clone(),
-                    msg: e.to_string(),
+                simulate_pq(&mut unit, &ev.prepared, sim).map_err(|error| {
+                    ProblemError::Simulation {
+                        event: ev.name.clone(),
+                        error,
+                    }
                 })
             })
             .collect()

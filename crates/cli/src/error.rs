@@ -2,12 +2,15 @@
 //! here, once ([`exit_code`] and the `From` conversions), so that a command only writes `?`.
 
 use itaipu_calib::diagnose::DiagnoseError;
+use itaipu_calib::error::{Error, ErrorClass};
+use itaipu_calib::fit::FitError;
 use itaipu_calib::request::{RequestError, Style, SynthFailure};
 use itaipu_calib::spec::SpecError;
+use itaipu_dynamics::dyr::DyrError;
 use itaipu_dynamics::event::{Event, EventError};
 use itaipu_dynamics::plausibility;
+use itaipu_dynamics::pmu_import::ImportError;
 use itaipu_dynamics::simulate::SimError;
-use itaipu_dynamics::synthetic::SynthError;
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::UnitFileError;
 
@@ -27,97 +30,75 @@ impl CliError {
     }
 }
 
-/// A library error the command line maps to an exit code.
-pub enum LibError<'a> {
-    /// A rejected option: 2.
-    Request(&'a RequestError),
-    /// Bad event data: 3.
-    Event(&'a EventError),
-    /// Bad unit model: 4.
-    Unit(&'a UnitFileError),
-    /// Bad calibration spec: 4.
-    Spec(&'a SpecError),
-    /// Initialisation (5) or integration (6) failure.
-    Sim(&'a SimError),
-    /// A synthetic event that could not be made: 5, or 6 for an integration failure.
-    Synth(&'a SynthError),
-    /// A diagnosis that cannot run: 6, or 130 after a cancel.
-    Diagnose(&'a DiagnoseError),
-}
-
-/// The exit code of each library error (also in `--help`, [`crate::EXIT_CODES`]).
-pub fn exit_code(e: LibError<'_>) -> u8 {
-    match e {
-        LibError::Request(_) => 2,
-        LibError::Event(_) => 3,
-        LibError::Unit(_) | LibError::Spec(_) => 4,
-        LibError::Sim(SimError::Init(_) | SimError::Frequency { .. }) => 5,
-        LibError::Sim(SimError::Solve(_)) => 6,
-        LibError::Synth(SynthError::Sim(SimError::Solve(_))) => 6,
-        LibError::Synth(_) => 5,
-        // The command line sets no cancel flag (a signal ends the process, exit 130/143).
-        LibError::Diagnose(DiagnoseError::Interrupted { .. }) => 130,
-        LibError::Diagnose(_) => 6,
+/// The exit code of each class of library error (also in `--help`, [`crate::EXIT_CODES`]): the
+/// one place the command line turns an error into a number.
+pub fn exit_code(class: ErrorClass) -> u8 {
+    match class {
+        ErrorClass::Usage => 2,
+        ErrorClass::EventData => 3,
+        ErrorClass::UnitModel | ErrorClass::Spec => 4,
+        ErrorClass::Init => 5,
+        ErrorClass::Simulation | ErrorClass::Calibration => 6,
+        ErrorClass::Output => 7,
+        // A signal's own code (143 for SIGTERM) is set where the signal is known.
+        ErrorClass::Interrupted => 130,
+        // EX_SOFTWARE (sysexits.h): an internal error.
+        ErrorClass::Internal => 70,
     }
 }
 
-impl From<RequestError> for CliError {
-    fn from(e: RequestError) -> Self {
-        CliError::new(exit_code(LibError::Request(&e)), e.message(Style::Cli))
+impl From<Error> for CliError {
+    fn from(e: Error) -> Self {
+        let code = exit_code(e.class());
+        let msg = match &e {
+            Error::Request(r) => r.message(Style::Cli),
+            Error::Diagnose(d) => format!("diagnose: {d}"),
+            _ => e.to_string(),
+        };
+        CliError::new(code, msg)
     }
 }
 
-/// `From<E> for CliError` for the library errors whose message is their `Display` text.
+/// `From<E> for CliError` for each library error, through [`Error`] (one mapping).
 macro_rules! cli_error_from {
-    ($($err:ty => $kind:ident),* $(,)?) => {
+    ($($err:ty),* $(,)?) => {
         $(impl From<$err> for CliError {
             fn from(e: $err) -> Self {
-                CliError::new(exit_code(LibError::$kind(&e)), e.to_string())
+                CliError::from(Error::from(e))
             }
         })*
     };
 }
 
 cli_error_from!(
-    EventError => Event,
-    UnitFileError => Unit,
-    SpecError => Spec,
-    SimError => Sim,
+    RequestError,
+    EventError,
+    UnitFileError,
+    SpecError,
+    SimError,
+    DiagnoseError,
+    FitError,
+    DyrError,
+    ImportError,
 );
-
-impl From<DiagnoseError> for CliError {
-    fn from(e: DiagnoseError) -> Self {
-        CliError::new(exit_code(LibError::Diagnose(&e)), format!("diagnose: {e}"))
-    }
-}
 
 /// A synthesis failure, the unit file named: `hides` (the `--hide` options, when any) are
 /// named after a failure of the final run.
 pub fn synth_error(unit_path: &std::path::Path, e: SynthFailure, hides: &[String]) -> CliError {
     let path = unit_path.display();
+    let code = exit_code(Error::from(e.clone()).class());
     match e {
-        SynthFailure::Probe(e) => {
-            CliError::new(exit_code(LibError::Synth(&e)), format!("{path}: {e}"))
+        SynthFailure::Synth(e) if !hides.is_empty() => CliError::new(
+            code,
+            format!("{path}: {e} (with the hidden cause(s) {})", hides.join(" ")),
+        ),
+        SynthFailure::Hide { written, error } if code == 2 => {
+            CliError::new(code, format!("--hide {written}: {error}"))
         }
-        SynthFailure::Synth(e) => {
-            let err = CliError::new(exit_code(LibError::Synth(&e)), format!("{path}: {e}"));
-            if hides.is_empty() {
-                err
-            } else {
-                CliError::new(
-                    err.code,
-                    format!("{} (with the hidden cause(s) {})", err.msg, hides.join(" ")),
-                )
-            }
-        }
-        e @ SynthFailure::Context(_) => CliError::new(5, format!("{path}: {e}")),
-        SynthFailure::Hide {
-            written,
-            error: itaipu_calib::diagnose::catalog::HideError::Build(msg),
-        } => CliError::new(4, format!("{path}: --hide {written}: {msg}")),
         SynthFailure::Hide { written, error } => {
-            CliError::new(2, format!("--hide {written}: {error}"))
+            CliError::new(code, format!("{path}: --hide {written}: {error}"))
         }
+        e => CliError::new(code, format!("{path}: {e}")),
     }
 }
 

@@ -443,28 +443,18 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         }
         Err(e) => {
             // The starting unit cannot initialise at the measured operating point: exit 5, as
-            // for simulate.
-            let init_failed =
-                matches!(&e, FitError::Setup(m) if m.contains("initialisation failed"));
-            let code = match e {
-                FitError::Spec(_) => 4,
-                FitError::Output(_) => 7,
-                _ if init_failed => 5,
-                _ => 6,
-            };
-            let mut msg = e.to_string();
+            // for simulate, with the operating point it was given.
+            let e = itaipu_calib::Error::from(e);
+            let init_failed = e.class() == itaipu_calib::error::ErrorClass::Init;
+            let mut err = CliError::from(e);
             if let (true, Some(ev)) = (init_failed, events.first()) {
-                {
-                    msg = format!(
-                        "{msg}; {}",
-                        itaipu_dynamics::plausibility::describe_operating_point(
-                            ev,
-                            unit.machine_mva
-                        )
-                    );
-                }
+                err.msg = format!(
+                    "{}; {}",
+                    err.msg,
+                    itaipu_dynamics::plausibility::describe_operating_point(ev, unit.machine_mva)
+                );
             }
-            return Err(CliError::new(code, msg));
+            return Err(err);
         }
     };
     let write = |p: &Path, text: &str| crate::output::write_synced(p, text.as_bytes());

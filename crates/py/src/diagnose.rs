@@ -18,7 +18,7 @@ use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
 use crate::args::{
     event_sources, load_events, source, str_or_list, swapped_events_unit, worker_pool, Source,
 };
-use crate::errors::{raise, request_error, CalibrationError, Failure};
+use crate::errors::{raise, request_error, CalibrationError, Failure, IntoPyErr};
 use crate::fit::PyFitResult;
 use crate::traces::traces_dict;
 use crate::unit::PyUnit;

@@ -5,13 +5,7 @@ use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 use pyo3::{create_exception, PyTypeInfo};
 
-use itaipu_calib::diagnose::DiagnoseError;
-use itaipu_calib::fit::FitError;
-use itaipu_calib::spec::SpecError;
-use itaipu_dynamics::event::EventError as RsEventError;
-use itaipu_dynamics::simulate::SimError;
-use itaipu_dynamics::unit::UnitError;
-use itaipu_dynamics::unit_file::UnitFileError;
+use itaipu_calib::error::ErrorClass;
 
 use itaipu_calib::request::{RequestError, Style};
 
@@ -57,49 +51,27 @@ create_exception!(
      diagnosis, e.g. an unknown cause)."
 );
 
-/// A failure inside the GIL-free part of a call, converted to a Python exception afterwards.
-pub(crate) enum Failure {
-    Event(RsEventError),
-    Unit(UnitFileError),
-    Sim(SimError),
-    Spec(SpecError),
-    Fit(FitError),
-    Diagnose(DiagnoseError),
-    /// A bad argument found while running (ValueError).
-    Value(String),
-    /// The unit cannot initialise (InitError, kind 'init').
-    Init(String),
-    /// A parameter edit the library refused (UnitModelError, kind 'unknown_param' or
-    /// 'bad_param').
-    UnitEdit(UnitError),
-}
-
-/// `From<E> for Failure` for each library error kept as is.
-macro_rules! failure_from {
-    ($($err:ty => $variant:ident),* $(,)?) => {
-        $(impl From<$err> for Failure {
-            fn from(e: $err) -> Self {
-                Failure::$variant(e)
-            }
-        })*
-    };
-}
-
-failure_from!(
-    RsEventError => Event,
-    UnitFileError => Unit,
-    SimError => Sim,
-    SpecError => Spec,
-    FitError => Fit,
-    DiagnoseError => Diagnose,
+create_exception!(
+    itaipu_calib,
+    OutputError,
+    ItaipuError,
+    "An output file or folder could not be written, or would overwrite something (kind: \
+     'output')."
+);
+create_exception!(
+    itaipu_calib,
+    InternalError,
+    ItaipuError,
+    "A bug in itaipu_calib (an internal invariant broken, e.g. a caught Rust panic): never the \
+     input's fault; please report it with the message."
 );
 
+/// A failure inside the GIL-free part of a call: the library's one error type, converted to a
+/// Python exception afterwards by its class ([`ErrorClass`]), here and only here.
+pub(crate) type Failure = itaipu_calib::Error;
+
 /// An exception of type `T` with message `msg` and attribute `kind`.
-pub(crate) fn raise<T: PyTypeInfo>(
-    py: Python<'_>,
-    msg: String,
-    kind: Option<&'static str>,
-) -> PyErr {
+pub(crate) fn raise<T: PyTypeInfo>(py: Python<'_>, msg: String, kind: Option<&str>) -> PyErr {
     let err = PyErr::new::<T, _>(msg);
     // Setting an attribute on a fresh exception instance cannot fail in practice; if it did,
     // the class attribute `kind = None` still answers.
@@ -107,32 +79,33 @@ pub(crate) fn raise<T: PyTypeInfo>(
     err
 }
 
-impl Failure {
-    pub(crate) fn into_pyerr(self, py: Python<'_>) -> PyErr {
-        match self {
-            Failure::Event(e) => raise::<EventError>(py, e.to_string(), Some(e.kind())),
-            Failure::Unit(e) => raise::<UnitModelError>(py, e.to_string(), Some(e.kind())),
-            Failure::Sim(e @ (SimError::Init(_) | SimError::Frequency { .. })) => {
-                raise::<InitError>(py, e.to_string(), Some(e.kind()))
+/// The Python form of a library error.
+pub(crate) trait IntoPyErr {
+    fn into_pyerr(self, py: Python<'_>) -> PyErr;
+}
+
+impl IntoPyErr for itaipu_calib::Error {
+    fn into_pyerr(self, py: Python<'_>) -> PyErr {
+        // The variant's own kind (`"io"`, `"syntax"`, …) where it has one, else the source.
+        let full = self.kind();
+        let kind = full.rsplit('.').next().unwrap_or(&full).to_string();
+        let msg = match &self {
+            itaipu_calib::Error::Request(r) => r.message(Style::Python),
+            _ => self.to_string(),
+        };
+        match self.class() {
+            ErrorClass::Usage => PyValueError::new_err(msg),
+            ErrorClass::EventData => raise::<EventError>(py, msg, Some(&kind)),
+            ErrorClass::UnitModel => raise::<UnitModelError>(py, msg, Some(&kind)),
+            ErrorClass::Spec | ErrorClass::Calibration => {
+                raise::<CalibrationError>(py, msg, Some(&kind))
             }
-            Failure::Sim(e @ SimError::Solve(_)) => {
-                raise::<SimulationError>(py, e.to_string(), Some(e.kind()))
-            }
-            Failure::Spec(e) => raise::<CalibrationError>(py, e.to_string(), Some(e.kind())),
-            Failure::Fit(e) => raise::<CalibrationError>(py, e.to_string(), Some(e.kind())),
-            Failure::Diagnose(e @ DiagnoseError::Setup(_)) => {
-                raise::<CalibrationError>(py, e.to_string(), Some(e.kind()))
-            }
-            Failure::Diagnose(e @ DiagnoseError::Simulation { .. }) => {
-                raise::<SimulationError>(py, e.to_string(), Some(e.kind()))
-            }
+            ErrorClass::Init => raise::<InitError>(py, msg, Some(&kind)),
+            ErrorClass::Simulation => raise::<SimulationError>(py, msg, Some(&kind)),
+            ErrorClass::Output => raise::<OutputError>(py, msg, Some(&kind)),
             // Only after a signal, which `interrupt::interruptible` raises first.
-            Failure::Diagnose(e @ DiagnoseError::Interrupted { .. }) => {
-                PyKeyboardInterrupt::new_err(e.to_string())
-            }
-            Failure::UnitEdit(e) => raise::<UnitModelError>(py, e.to_string(), Some(e.kind())),
-            Failure::Value(msg) => PyValueError::new_err(msg),
-            Failure::Init(msg) => raise::<InitError>(py, msg, Some("init")),
+            ErrorClass::Interrupted => PyKeyboardInterrupt::new_err(msg),
+            ErrorClass::Internal => raise::<InternalError>(py, msg, Some("internal")),
         }
     }
 }
@@ -140,10 +113,4 @@ impl Failure {
 /// A rejected option (the library's [`RequestError`]): ValueError, options named as in Python.
 pub(crate) fn request_error(e: RequestError) -> PyErr {
     PyValueError::new_err(e.message(Style::Python))
-}
-
-impl From<RequestError> for Failure {
-    fn from(e: RequestError) -> Self {
-        Failure::Value(e.message(Style::Python))
-    }
 }

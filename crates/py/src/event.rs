@@ -13,7 +13,7 @@ use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::read_unit;
 
 use crate::args::{array, source, Source};
-use crate::errors::Failure;
+use crate::errors::{Failure, IntoPyErr};
 use crate::unit::PyUnit;
 
 /// A measured event: the PMU record played back into a unit, with its bases and windows.

@@ -20,7 +20,7 @@ use crate::args::{
     Source,
 };
 use crate::diagnose::json_to_py;
-use crate::errors::{request_error, Failure};
+use crate::errors::{request_error, Failure, IntoPyErr};
 use crate::traces::PyTraces;
 use crate::unit::PyUnit;
 use crate::{interrupt, pandas, params};

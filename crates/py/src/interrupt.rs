@@ -25,9 +25,20 @@ pub(crate) fn interruptible<T: Send + 'static>(
         })?;
     loop {
         if worker.is_finished() {
-            return Ok(worker
-                .join()
-                .unwrap_or_else(|p| std::panic::resume_unwind(p)));
+            // A panic in the worker is a bug: InternalError (an Exception), never a
+            // PanicException that `except Exception` does not catch.
+            return worker.join().map_err(|payload| {
+                let msg = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "a panic without a message".into());
+                crate::errors::raise::<crate::errors::InternalError>(
+                    py,
+                    format!("internal error (a bug, please report it): {msg}"),
+                    Some("internal"),
+                )
+            });
         }
         py.detach(|| std::thread::sleep(Duration::from_millis(20)));
         if let Err(e) = py.check_signals() {

@@ -28,7 +28,8 @@ use pyo3::prelude::*;
 
 use crate::diagnose::{causes, PyDiagnosis};
 use crate::errors::{
-    CalibrationError, EventError, InitError, ItaipuError, SimulationError, UnitModelError,
+    CalibrationError, EventError, InitError, InternalError, ItaipuError, OutputError,
+    SimulationError, UnitModelError,
 };
 use crate::event::{check, load_event, PyEvent};
 use crate::fit::PyFitResult;
@@ -52,6 +53,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("InitError", py.get_type::<InitError>())?;
     m.add("SimulationError", py.get_type::<SimulationError>())?;
     m.add("CalibrationError", py.get_type::<CalibrationError>())?;
+    m.add("OutputError", py.get_type::<OutputError>())?;
+    m.add("InternalError", py.get_type::<InternalError>())?;
     m.add_class::<PyEvent>()?;
     m.add_class::<PyUnit>()?;
     m.add_class::<PyTraces>()?;

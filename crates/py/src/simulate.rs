@@ -9,7 +9,7 @@ use itaipu_dynamics::simulate::{SimOptions, Traces};
 use itaipu_dynamics::unit_file::read_unit;
 
 use crate::args::{source, swap_error, swapped_events_unit, Source};
-use crate::errors::{request_error, Failure};
+use crate::errors::{request_error, Failure, IntoPyErr};
 use crate::event::PyEvent;
 use crate::traces::PyTraces;
 use crate::unit::PyUnit;

@@ -9,12 +9,11 @@ use pyo3::types::{PyDict, PyTuple};
 use itaipu_dynamics::unit_file::read_unit;
 
 use crate::args::{source, Source};
-use crate::errors::{request_error, Failure};
+use crate::errors::{request_error, Failure, IntoPyErr};
 use crate::event::PyEvent;
 use crate::interrupt;
 use crate::unit::PyUnit;
-use itaipu_calib::request::{HideSpec, SynthFailure, SynthRequest, Synthesized};
-use itaipu_dynamics::synthetic::SynthError;
+use itaipu_calib::request::{HideSpec, SynthRequest, Synthesized};
 
 /// Makes a realistic synthetic event from the engine (the same generator as
 /// `itaipu-calib synth`): a grid-side voltage profile (`kind`: "dip", "frequency", "step" or
@@ -78,13 +77,7 @@ pub(crate) fn synth(
         };
         request
             .run(&unit, "itaipu_calib.synth")
-            .map_err(|e| match e {
-                SynthFailure::Probe(SynthError::Sim(e))
-                | SynthFailure::Synth(SynthError::Sim(e)) => Failure::Sim(e),
-                e @ SynthFailure::Context(_) => Failure::Init(e.to_string()),
-                SynthFailure::Hide { error, .. } => Failure::Value(format!("hide: {error}")),
-                e => Failure::Value(e.to_string()),
-            })
+            .map_err(Failure::from)
     })?;
     let Synthesized { event, truth, .. } = result.map_err(|f| f.into_pyerr(py))?;
     let event = Bound::new(

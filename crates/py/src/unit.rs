@@ -10,7 +10,7 @@ use pyo3::types::PyDict;
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
 
-use crate::errors::Failure;
+use crate::errors::{Failure, IntoPyErr};
 
 /// A generating-unit model (machine, exciter, stabiliser, governor, further blocks).
 ///
@@ -98,7 +98,7 @@ impl PyUnit {
                 inner: Arc::new(u),
                 path: self.path.clone(),
             })
-            .map_err(|e| Failure::UnitEdit(e).into_pyerr(py))
+            .map_err(|e| Failure::from(e).into_pyerr(py))
     }
 
     fn __repr__(&self) -> String {

@@ -153,9 +153,14 @@ pub enum DiagnoseError {
     /// Bad request (unknown cause, no event).
     #[error("{0}")]
     Setup(String),
-    /// The unit does not simulate on an event as given.
+    /// The unit does not simulate on an event as given; `error` is the engine's own error when
+    /// there is one (an initialisation failure is then told apart from an integration failure).
     #[error("the unit does not simulate on event '{event}': {msg}")]
-    Simulation { event: String, msg: String },
+    Simulation {
+        event: String,
+        msg: String,
+        error: Option<itaipu_dynamics::simulate::SimError>,
+    },
     /// Stopped by [`DiagnoseOptions::cancel`]; `tried` lists the causes tried up to then (the
     /// last one possibly cut short). Nothing of the run is kept.
     #[error("interrupted (causes tried: {})", if tried.is_empty() { "none".to_string() } else { tried.join(", ") })]
@@ -163,6 +168,20 @@ pub enum DiagnoseError {
 }
 
 impl DiagnoseError {
+    /// [`DiagnoseError::Simulation`] on `event` from a fitness or re-fit failure, keeping the
+    /// engine's error.
+    pub(crate) fn simulation(event: &str, e: &crate::problem::ProblemError) -> Self {
+        let error = match e {
+            crate::problem::ProblemError::Simulation { error, .. } => Some(error.clone()),
+            _ => None,
+        };
+        DiagnoseError::Simulation {
+            event: event.to_string(),
+            msg: e.to_string(),
+            error,
+        }
+    }
+
     pub fn kind(&self) -> &'static str {
         match self {
             DiagnoseError::Setup(_) => "setup",

@@ -91,10 +91,8 @@ pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Eve
 pub(super) fn sigma_pq(unit: &Unit, events: &[Event]) -> Result<(f64, f64), DiagnoseError> {
     let mut given = vec![];
     for e in events {
-        let (_, tr) = fitness(unit, e, false).map_err(|msg| DiagnoseError::Simulation {
-            event: e.name.clone(),
-            msg: msg.to_string(),
-        })?;
+        let (_, tr) =
+            fitness(unit, e, false).map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
         given.push(tr);
     }
     let n_all: f64 = events.iter().map(|e| e.record.time_s.len() as f64).sum();

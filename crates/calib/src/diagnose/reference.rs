@@ -30,10 +30,8 @@ pub(super) fn mode_hint(ev: &[EventEvidence], rate_hz: f64) -> Option<f64> {
 ///
 /// [`DiagnoseError::Simulation`] when the unit does not simulate on the event.
 pub fn context(unit: &Unit, event: &Event) -> Result<Context, DiagnoseError> {
-    let (_, tr) = fitness(unit, event, false).map_err(|msg| DiagnoseError::Simulation {
-        event: event.name.clone(),
-        msg: msg.to_string(),
-    })?;
+    let (_, tr) =
+        fitness(unit, event, false).map_err(|e| DiagnoseError::simulation(&event.name, &e))?;
     Ok(context_from(&tr, event))
 }
 
@@ -84,16 +82,14 @@ pub(super) fn reference(
         DiagnoseError::Simulation {
             event: events[0].name.clone(),
             msg,
+            error: None,
         }
     })?;
     let mut before = vec![];
     let mut evidence_before = vec![];
     for e in events {
-        let (_, tr) =
-            fitness(&reference.unit, e, false).map_err(|msg| DiagnoseError::Simulation {
-                event: e.name.clone(),
-                msg: msg.to_string(),
-            })?;
+        let (_, tr) = fitness(&reference.unit, e, false)
+            .map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
         evidence_before.push(event_evidence(e, &tr));
         before.push((e.name.clone(), tr));
     }
@@ -102,11 +98,8 @@ pub(super) fn reference(
     // shows. The reference is exact there, so a re-fit's gain on them is pure noise fitting.
     let mut surrogate_held = vec![];
     for (k, e) in held_out.iter().enumerate() {
-        let (_, tr) =
-            fitness(&reference.unit, e, true).map_err(|msg| DiagnoseError::Simulation {
-                event: e.name.clone(),
-                msg: msg.to_string(),
-            })?;
+        let (_, tr) = fitness(&reference.unit, e, true)
+            .map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
         surrogate_held.push(
             surrogate(e, &tr, opts.seed.wrapping_add(1000 + k as u64))
                 .map_err(DiagnoseError::Setup)?,

@@ -105,6 +105,10 @@ pub enum FitError {
     Stage { stage: String, msg: String },
     #[error("{0}")]
     Setup(String),
+    /// The starting unit does not simulate on a fitted event (it cannot initialise at the
+    /// measured operating point, or the integration fails); the engine's error is kept.
+    #[error("the starting unit: {0}")]
+    Start(ProblemError),
     /// Stopped by [`FitControl::cancel`] at a candidate boundary; `finished` names the passes
     /// (stages) that completed and were handed to [`FitControl::on_stage`].
     #[error("interrupted; finished stages: {}", if finished.is_empty() { "none".to_string() } else { finished.join(", ") })]
@@ -121,6 +125,7 @@ impl FitError {
             FitError::Spec(_) => "spec",
             FitError::Stage { .. } => "stage",
             FitError::Setup(_) => "setup",
+            FitError::Start(_) => "start",
             FitError::Interrupted { .. } => "interrupted",
             FitError::Output(_) => "output",
         }
@@ -203,13 +208,12 @@ pub fn fitness(
 ) -> Result<(EventFitness, Traces), ProblemError> {
     let data = EventData::new(event, None, None)?;
     let mut u = unit.clone();
-    let tr =
-        simulate_prepared(&mut u, &data.prepared, event, &accurate_integrator()).map_err(|e| {
-            ProblemError::Simulation {
-                event: event.name.clone(),
-                msg: e.to_string(),
-            }
-        })?;
+    let tr = simulate_prepared(&mut u, &data.prepared, event, &accurate_integrator()).map_err(
+        |error| ProblemError::Simulation {
+            event: event.name.clone(),
+            error,
+        },
+    )?;
     let (p, q) = (tr.get("p_pu").unwrap(), tr.get("q_pu").unwrap());
     let s = data.window_sums(p, q);
     let nn = s.n.max(1) as f64;

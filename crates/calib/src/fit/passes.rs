@@ -77,11 +77,7 @@ pub fn fit_with(
     let mut master = unit.clone();
     let mut start_fitness = vec![];
     for e in events {
-        start_fitness.push(
-            fitness(&master, e, false)
-                .map_err(|m| FitError::Setup(format!("the starting unit: {m}")))?
-                .0,
-        );
+        start_fitness.push(fitness(&master, e, false).map_err(FitError::Start)?.0);
     }
     for e in held_out {
         if let Ok((f, _)) = fitness(&master, e, true) {
