@@ -7,6 +7,8 @@ from typing import Any, Dict, final, Iterable, List, Literal, Mapping, Optional,
 import numpy as np
 import numpy.typing as npt
 
+from ._report import Report as _Report
+
 __version__: str
 
 _Array = npt.NDArray[np.float64]
@@ -22,6 +24,7 @@ class SimulationError(ItaipuError): ...
 class CalibrationError(ItaipuError): ...
 class OutputError(ItaipuError): ...
 class InternalError(ItaipuError): ...
+class ItaipuWarning(UserWarning): ...
 
 @final
 class Event:
@@ -121,7 +124,10 @@ class Traces:
 @final
 class FitResult:
     @property
-    def report(self) -> Dict[str, Any]: ...
+    def report(self) -> _Report: ...
+    @property
+    def warnings(self) -> List[str]: ...
+    def write(self, out: _PathLike, *, overwrite: bool = False) -> Path: ...
     @property
     def unit(self) -> Unit: ...
     @property
@@ -156,6 +162,7 @@ class Diagnosis:
     def traces_after(self) -> Dict[str, Dict[str, _Array]]: ...
     def to_json(self) -> str: ...
     def to_pandas(self) -> Any: ...
+    def write(self, out: _PathLike, *, overwrite: bool = False) -> Path: ...
 
 _Events = Union[_PathLike, Event, Iterable[Union[_PathLike, Event]]]
 _Hide = Union[
@@ -213,10 +220,11 @@ def fit(
     seed: Optional[int] = None,
     particles: Optional[int] = None,
     pso_iterations: Optional[int] = None,
-    lbfgs_iterations: Optional[int] = None,
+    local_iterations: Optional[int] = None,
     polish: bool = True,
     held_out: Optional[_Events] = (),
     threads: Optional[int] = None,
+    lbfgs_iterations: Optional[int] = None,
 ) -> FitResult: ...
 def models() -> List[Dict[str, Any]]: ...
 def causes() -> List[Dict[str, Any]]: ...
@@ -257,18 +265,21 @@ def synth(
 ) -> Tuple[Event, Unit]: ...
 def diagnose(
     events: _Events,
-    unit: Union[_PathLike, Unit],
+    unit: Union[_PathLike, Unit, None] = None,
     held_out: Optional[_Events] = None,
     *,
     causes: Union[str, Sequence[str], None] = None,
-    seed: int = 1,
-    particles: int = 16,
-    pso_iterations: int = 20,
-    lbfgs_iterations: int = 15,
+    seed: Optional[int] = None,
+    particles: Optional[int] = None,
+    pso_iterations: Optional[int] = None,
+    local_iterations: Optional[int] = None,
     threads: Optional[int] = None,
     refit: Union[str, Sequence[str], Mapping[str, Tuple[float, float]], None] = None,
     fit: Optional[FitResult] = None,
     user_causes: Union[_PathLike, Sequence[_PathLike], None] = None,
+    lbfgs_iterations: Optional[int] = None,
 ) -> Diagnosis: ...
 def noise_sigma(values: Sequence[float]) -> float: ...
+def defaults() -> Dict[str, Dict[str, int]]: ...
+def stages() -> List[str]: ...
 def _cli_main(argv: Sequence[str]) -> int: ...

@@ -130,6 +130,14 @@ pub enum Error {
     Practice(#[from] PracticeError),
     #[error(transparent)]
     Problem(#[from] ProblemError),
+    /// A simulation of the unit as given failed, traced back to the data (the samples around
+    /// the time it failed, or the operating point it could not initialise at).
+    #[error("{error}; {detail}")]
+    Located { error: SimError, detail: String },
+    /// The plausibility layer found errors in the inputs (each with its file, line, column and
+    /// fix).
+    #[error("implausible data:\n  {}", .0.join("\n  "))]
+    Implausible(Vec<String>),
     /// An output file or folder (path and what went wrong).
     #[error("{0}")]
     Output(String),
@@ -158,10 +166,13 @@ impl Error {
             Error::Diagnose(e) => ("diagnose", Some(e.kind())),
             Error::Cause(e) => ("cause", Some(e.kind())),
             Error::Hide(e) => ("hide", Some(e.kind())),
-            Error::UserCause(_) => ("user_cause", None),
+            // A user cause file is a spec of the user's, as a calibration spec is.
+            Error::UserCause(_) => ("user_cause", Some("spec")),
             Error::Trial(e) => ("trial", Some(e.kind())),
             Error::Practice(e) => ("practice", Some(e.kind())),
             Error::Problem(e) => ("problem", Some(e.kind())),
+            Error::Located { error, .. } => ("sim", Some(error.kind())),
+            Error::Implausible(_) => ("event", Some("implausible")),
             Error::Output(_) => ("output", None),
             Error::Internal(_) => ("internal", None),
         };
@@ -214,6 +225,8 @@ impl Error {
             Error::Hide(e) => hide_class(e),
             Error::Trial(_) | Error::Practice(_) => C::Calibration,
             Error::Problem(e) => C::of_problem(e),
+            Error::Located { error, .. } => C::of_sim(error),
+            Error::Implausible(_) => C::EventData,
             Error::Output(_) => C::Output,
             Error::Internal(_) => C::Internal,
         }

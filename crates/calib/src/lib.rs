@@ -14,8 +14,13 @@
 //!   cross-correlation with the inputs, spectrum, matrix-pencil modes).
 //! * [`practice`]: the practice set of independent events, its one spec and its answer keys.
 //! * [`fit`]: stages, strategies and reports.
-//! * [`request`]: the validated options of both front ends (command line, Python).
-//! * [`error`]: [`Error`], the one error type every error of the crate converts into.
+//! * [`request`]: the validated options of both front ends (command line, Python), and their
+//!   defaults.
+//! * [`job`]: the fit and the diagnosis as every front end runs them: inputs, plausibility,
+//!   reports, output files.
+//! * [`error`]: [`Error`], the one error type every error of the crate and the engine converts
+//!   into, with its [`error::ErrorClass`] for the front ends.
+//! * [`output`]: output folders that are never half-written (staging, manifest, partial).
 //! * [`diagnose`]: residual evidence, the catalog of causes with their model extensions,
 //!   re-fits and gains, and the verdict.
 
@@ -29,7 +34,9 @@ pub mod evidence;
 pub mod filter;
 pub mod fit;
 pub mod identify;
+pub mod job;
 pub mod local;
+pub mod output;
 pub mod practice;
 pub mod problem;
 pub mod pso;

@@ -60,7 +60,7 @@ pub struct RequestError {
 
 impl RequestError {
     /// `<option> <text>`.
-    fn new(option: &'static str, text: impl Into<String>) -> Self {
+    pub(crate) fn new(option: &'static str, text: impl Into<String>) -> Self {
         Self {
             option,
             pieces: vec![Piece::Option(option), Piece::Text(text.into())],
@@ -276,14 +276,88 @@ impl SimulateRequest {
 // Search settings (fit and diagnose)
 // -------------------------------------------------------------------------------------------
 
-/// Swarm, L-BFGS and thread settings given by the user; `None` keeps the spec's or the
-/// command's default.
+/// The defaults of a search (a swarm, then the local method), declared once: read by the
+/// library, the command line's help, the Python module (`itaipu_calib.defaults()`) and the
+/// README (checked by a test).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct SearchDefaults {
+    pub seed: u64,
+    pub particles: usize,
+    pub pso_iterations: usize,
+    /// Iterations of the local method (Levenberg-Marquardt steps, or L-BFGS iterations).
+    pub local_iterations: u64,
+}
+
+/// A diagnosis' re-fits: each candidate's swarm and local method, per re-fit.
+pub const DIAGNOSE_SEARCH: SearchDefaults = SearchDefaults {
+    seed: 1,
+    particles: 16,
+    pso_iterations: 20,
+    local_iterations: 15,
+};
+
+/// A fit's, per stage, where the calibration spec does not set them (`[calibration] seed`,
+/// `[calibration.pso]`, `[calibration.lbfgs]`).
+pub const FIT_SEARCH: SearchDefaults = SearchDefaults {
+    seed: crate::spec::DEFAULT_SEED,
+    particles: crate::spec::DEFAULT_PARTICLES,
+    pso_iterations: crate::spec::DEFAULT_PSO_ITERATIONS,
+    local_iterations: crate::spec::DEFAULT_LOCAL_ITERATIONS,
+};
+
+/// Every option of the search that a user can set, with its help text (front-end neutral; the
+/// defaults come from [`SearchDefaults`]), as `(name, help)`: the command line builds its
+/// `--help` from it and Python its documentation.
+pub const SEARCH_OPTIONS: &[(&str, &str)] = &[
+    (
+        "seed",
+        "Random seed of the swarms. Same seed, same numbers, on any number of threads.",
+    ),
+    ("particles", "Swarm size (at least 2)."),
+    ("pso_iterations", "Maximum swarm iterations."),
+    (
+        "local_iterations",
+        "Maximum iterations of the local method after the swarm (Levenberg-Marquardt steps, or \
+         L-BFGS iterations with `local = \"lbfgs\"` in the spec).",
+    ),
+    ("threads", "Worker threads (default: all cores)."),
+];
+
+/// The help of search option `name` for a front end: its text, then the defaults of `fit` (per
+/// stage, where the spec does not set them) and `diagnose` (per candidate re-fit).
+pub fn search_help(name: &str) -> String {
+    let text = SEARCH_OPTIONS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map_or("", |(_, h)| h);
+    let pick = |d: &SearchDefaults| -> Option<String> {
+        match name {
+            "seed" => Some(d.seed.to_string()),
+            "particles" => Some(d.particles.to_string()),
+            "pso_iterations" => Some(d.pso_iterations.to_string()),
+            "local_iterations" => Some(d.local_iterations.to_string()),
+            _ => None,
+        }
+    };
+    match (pick(&FIT_SEARCH), pick(&DIAGNOSE_SEARCH)) {
+        (Some(f), Some(d)) => format!(
+            "{text} Default: fit, the spec's, else {f} (per stage); diagnose, {d} (per candidate \
+             re-fit)."
+        ),
+        _ => text.to_string(),
+    }
+}
+
+/// Swarm, local-method and thread settings given by the user; `None` keeps the spec's or the
+/// command's default ([`SearchDefaults`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Search {
     pub seed: Option<u64>,
     pub particles: Option<usize>,
     pub pso_iterations: Option<usize>,
-    pub lbfgs_iterations: Option<u64>,
+    /// Iterations of the local method (Levenberg-Marquardt or L-BFGS). The command line's
+    /// `--local-iterations` (old spelling `--lbfgs-iterations`), Python's `local_iterations`.
+    pub local_iterations: Option<u64>,
     pub threads: Option<usize>,
 }
 
@@ -305,7 +379,7 @@ impl Search {
     }
 
     /// Overrides the given settings with those the user gave (after [`Search::validate`]).
-    pub fn apply(&self, seed: &mut u64, particles: &mut usize, pso: &mut usize, lbfgs: &mut u64) {
+    pub fn apply(&self, seed: &mut u64, particles: &mut usize, pso: &mut usize, local: &mut u64) {
         if let Some(s) = self.seed {
             *seed = s;
         }
@@ -315,8 +389,8 @@ impl Search {
         if let Some(n) = self.pso_iterations {
             *pso = n;
         }
-        if let Some(n) = self.lbfgs_iterations {
-            *lbfgs = n;
+        if let Some(n) = self.local_iterations {
+            *local = n;
         }
     }
 
@@ -405,6 +479,54 @@ pub fn parse_refit(text: &str) -> Result<RefitRequest, RequestError> {
             };
             Ok((p.trim().to_string(), Some((num(lo)?, num(hi)?))))
         }
+    }
+}
+
+/// What the user asks of a diagnosis: the causes to try (ids of the catalog or of the user
+/// causes; empty = all), the user cause files, calibrated parameters to free again in every
+/// re-fit, and the search settings. The calibrated set of a fit is added by the job
+/// ([`crate::job::prepare_diagnose`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DiagnoseRequest {
+    pub causes: Vec<String>,
+    pub user_causes: Vec<std::path::PathBuf>,
+    pub refit: Vec<RefitRequest>,
+    pub search: Search,
+}
+
+impl DiagnoseRequest {
+    /// The diagnosis options for `unit`: the user causes read, the cause ids checked against
+    /// the catalog and the user causes (in the order given, without duplicates), the re-fit
+    /// requests resolved in the unit, the search settings over [`DIAGNOSE_SEARCH`].
+    pub fn options(&self, unit: &Unit) -> Result<DiagnoseOptions, crate::Error> {
+        self.search.validate()?;
+        let user_causes = diagnose::user_cause::read_all(&self.user_causes)?;
+        let mut causes: Vec<String> = vec![];
+        for c in &self.causes {
+            let c = c.trim();
+            if !diagnose::user_cause::known(c, &user_causes) {
+                return Err(RequestError::new(
+                    "cause",
+                    format!(
+                        ": unknown cause '{c}' (known: {})",
+                        diagnose::user_cause::ids(&user_causes)
+                    ),
+                )
+                .into());
+            }
+            if !causes.iter().any(|k| k == c) {
+                causes.push(c.to_string());
+            }
+        }
+        let mut opts = DiagnoseOptions {
+            causes,
+            user_causes,
+            ..Default::default()
+        };
+        self.search.apply_diagnose(&mut opts)?;
+        opts.refit = diagnose::refit_bounds(unit, &self.refit)
+            .map_err(|e| RequestError::new("refit", format!(": {e} (unit '{}')", unit.name)))?;
+        Ok(opts)
     }
 }
 

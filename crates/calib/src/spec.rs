@@ -181,11 +181,21 @@ pub struct PsoSpec {
     pub iterations: usize,
 }
 
+/// Swarm size of a stage when the spec does not say.
+pub const DEFAULT_PARTICLES: usize = 40;
+/// Swarm iterations of a stage when the spec does not say.
+pub const DEFAULT_PSO_ITERATIONS: usize = 100;
+/// Local-method iterations of a stage when the spec does not say (`[calibration.lbfgs]
+/// iterations`: the table keeps its historical name; it caps Levenberg-Marquardt too).
+pub const DEFAULT_LOCAL_ITERATIONS: u64 = 100;
+/// Swarm seed when the spec does not say.
+pub const DEFAULT_SEED: u64 = 1;
+
 fn default_particles() -> usize {
-    40
+    DEFAULT_PARTICLES
 }
 fn default_pso_iterations() -> usize {
-    100
+    DEFAULT_PSO_ITERATIONS
 }
 
 impl Default for PsoSpec {
@@ -208,7 +218,7 @@ pub struct LbfgsSpec {
 }
 
 fn default_lbfgs_iterations() -> u64 {
-    100
+    DEFAULT_LOCAL_ITERATIONS
 }
 fn default_memory() -> usize {
     7
@@ -283,7 +293,7 @@ fn default_strategy() -> Strategy {
     Strategy::Sequential
 }
 fn default_seed() -> u64 {
-    1
+    DEFAULT_SEED
 }
 
 #[derive(Deserialize)]

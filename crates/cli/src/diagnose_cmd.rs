@@ -2,18 +2,12 @@
 //! cause of the catalog explains it, the extended and re-fitted unit, evidence plots and an HTML
 //! report.
 
-use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use itaipu_calib::diagnose::{
-    calibrated_set, catalog, diagnose, refit_bounds,
-    user_cause::{self, read_all, UserCause},
-    CandidateReport, DiagnoseOptions, Diagnosis, RefitRequest,
-};
+use itaipu_calib::diagnose::{catalog, CandidateReport, Diagnosis, RefitRequest};
 use itaipu_calib::evidence::SignalEvidence;
-use itaipu_calib::request::parse_refit;
-use itaipu_calib::spec::CalibSpec;
-use itaipu_dynamics::unit_file::unit_to_toml;
+use itaipu_calib::job;
+use itaipu_calib::request::{parse_refit, DiagnoseRequest};
 
 use crate::fit_cmd::Reporter;
 use crate::report::diagnose::{plausible, top_window};
@@ -86,28 +80,6 @@ fn refit_requests(requested: &[String]) -> Result<Vec<RefitRequest>, CliError> {
         .collect::<Result<_, _>>()?)
 }
 
-/// The `--cause` ids, checked against the catalog, without duplicates, in the order given.
-fn causes(requested: &[String], users: &[UserCause]) -> Result<Vec<String>, CliError> {
-    let mut seen = BTreeSet::new();
-    let mut out = vec![];
-    for c in requested {
-        let c = c.trim();
-        if !user_cause::known(c, users) {
-            return Err(CliError::new(
-                2,
-                format!(
-                    "--cause: unknown cause '{c}' (known: {})",
-                    user_cause::ids(users)
-                ),
-            ));
-        }
-        if seen.insert(c.to_string()) {
-            out.push(c.to_string());
-        }
-    }
-    Ok(out)
-}
-
 /// The user causes' files, for the provenance.
 fn user_cause_inputs(paths: &[PathBuf]) -> Vec<InputFile> {
     paths
@@ -118,39 +90,31 @@ fn user_cause_inputs(paths: &[PathBuf]) -> Vec<InputFile> {
 
 pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     // Usage errors first, then the input files, then the output folder, then the (long) run.
-    let user_causes = read_all(&a.user_cause).map_err(|e| CliError::new(4, e.to_string()))?;
-    let mut opts = DiagnoseOptions {
-        causes: causes(&a.cause, &user_causes)?,
-        user_causes,
-        ..Default::default()
+    let request = DiagnoseRequest {
+        causes: a.cause.clone(),
+        user_causes: a.user_cause.clone(),
+        refit: refit_requests(&a.refit)?,
+        search: a.search.request(),
     };
-    a.search.request().apply_diagnose(&mut opts)?;
     let pool = a.search.pool()?;
     let threads = pool.current_num_threads();
-    let unit_path = match (&a.unit, &a.fit) {
-        (Some(p), _) => p.clone(),
-        (None, Some(dir)) => dir.join("calibrated.toml"),
-        (None, None) => bundled("itaipu/unit.toml")?,
+    let (unit_path, unit, calibrated_set, fit_files) = match (&a.unit, &a.fit) {
+        (Some(p), _) => (p.clone(), load_unit(p)?, vec![], vec![]),
+        (None, Some(dir)) => {
+            let f = job::read_fit_folder(dir)?;
+            (f.unit_path, f.unit, f.calibrated_set, f.files)
+        }
+        (None, None) => {
+            let p = bundled("itaipu/unit.toml")?;
+            let u = load_unit(&p)?;
+            (p, u, vec![], vec![])
+        }
     };
     let event_paths = if a.event.is_empty() {
         vec![bundled("itaipu/event.toml")?]
     } else {
         a.event.clone()
     };
-    let unit = load_unit(&unit_path)?;
-    opts.refit = refit_bounds(&unit, &refit_requests(&a.refit)?)
-        .map_err(|e| CliError::new(2, format!("--refit: {e} (unit {})", unit_path.display())))?;
-    if let Some(dir) = &a.fit {
-        let spec_path = dir.join("calibration.toml");
-        let spec = CalibSpec::from_file(&spec_path)?;
-        let datasheet = load_unit(&dir.join("datasheet.toml"))?;
-        let stages: Vec<String> = spec.stages.iter().map(|s| s.name.clone()).collect();
-        for b in calibrated_set(&spec, &stages, &datasheet, &unit) {
-            if !opts.refit.iter().any(|r| r.param == b.param) {
-                opts.refit.push(b);
-            }
-        }
-    }
     let events = event_paths
         .iter()
         .map(|p| load_event(p))
@@ -161,20 +125,20 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         .map(|p| load_event(p))
         .collect::<Result<Vec<_>, _>>()?;
     let name = events.first().map(|e| e.name.clone()).unwrap_or_default();
-    let warnings = crate::plausibility(
-        &events.iter().chain(&held_out).collect::<Vec<_>>(),
+    // The output folder: checked before the inputs are played back, started before the run.
+    crate::check_out(a.out.as_deref(), a.force)?;
+    let (opts, warnings) = job::prepare_diagnose(
         &unit,
-        &unit_path,
+        Some(&unit_path),
+        &events,
+        &held_out,
+        &request,
+        &calibrated_set,
     )?;
-    // The output folder: checked and started before the (long) diagnosis.
-    let staging = prepare_out(a.out.as_deref(), &format!("diagnose-{name}"), a.force)?;
-    // One playback of the unit on every event first (milliseconds): a unit that does not
-    // initialise or integrate on an event stops here with the sample or the operating point
-    // the failure comes from, not after the diagnosis with the event's name only.
-    for e in events.iter().chain(&held_out) {
-        itaipu_dynamics::simulate::simulate(&unit, e, &Default::default())
-            .map_err(|err| crate::explain_sim_error(err, e, &unit))?;
+    for w in &warnings {
+        eprintln!("warning: {w}");
     }
+    let staging = prepare_out(a.out.as_deref(), &format!("diagnose-{name}"), a.force)?;
     let tried = if opts.causes.is_empty() {
         format!(
             "all {} causes",
@@ -218,40 +182,23 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     };
     println!("{}", wrap(&header, WIDTH, "diagnose ", "         "));
     let reporter = Reporter::new();
-    let result = pool.install(|| diagnose(&unit, &events, &held_out, &opts, &reporter));
+    let result =
+        pool.install(|| job::run_diagnose(&unit, &events, &held_out, &opts, warnings, &reporter));
     reporter.finish();
-    let result = result?;
-    let report = &result.report;
+    let run = result?;
+    let report = &run.report;
 
     let out = staging.path().to_path_buf();
-    let write = |p: &Path, text: &str| {
-        std::fs::write(p, text)
-            .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))
-    };
-    let json = serde_json::to_string_pretty(report).map_err(|e| CliError::new(7, e.to_string()))?;
-    write(&out.join("diagnosis.json"), &json)?;
-    let mut written = vec!["diagnosis.json".to_string()];
-    let extended_note = match &result.extended_unit {
-        Some(u) => {
-            let mut u = u.clone();
-            let note = format!(
-                "extended for {} and re-fitted by itaipu-calib diagnose, seed {}",
-                report.verdict.cause, opts.seed
-            );
-            u.description = if unit.description.trim().is_empty() {
-                note
-            } else {
-                format!("{} ({note})", unit.description)
-            };
-            write(&out.join("extended.toml"), &unit_to_toml(&u))?;
-            written.push("extended.toml".into());
-            None
-        }
-        None => Some(format!(
+    let mut written: Vec<String> = job::write_diagnosis_files(&out, &run)?
+        .into_iter()
+        .map(String::from)
+        .collect();
+    let extended_note = run.extended_unit.is_none().then(|| {
+        format!(
             "no cause named ({}): extended.toml not written",
             report.verdict.cause
-        )),
-    };
+        )
+    });
     let plots = if a.no_plot {
         vec![]
     } else {
@@ -260,19 +207,12 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
             .chain(&held_out)
             .map(|e| (e.name.clone(), e.nominal_hz))
             .collect();
-        draw_plots(&out, &hz, &result.report, &result.before, &result.after)?
+        draw_plots(&out, &hz, report, &run.before, &run.after)?
     };
     written.extend(plots.iter().map(|p| p.file.clone()));
     let mut inputs = vec![InputFile::new("unit", &unit_path)];
-    if let Some(dir) = &a.fit {
-        inputs.push(InputFile::new(
-            "calibration spec",
-            &dir.join("calibration.toml"),
-        ));
-        inputs.push(InputFile::new(
-            "datasheet unit",
-            &dir.join("datasheet.toml"),
-        ));
+    for (what, p) in &fit_files {
+        inputs.push(InputFile::new(what, p));
     }
     inputs.extend(user_cause_inputs(&a.user_cause));
     for e in &events {
@@ -282,9 +222,9 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         inputs.extend(InputFile::event(e, true));
     }
     let prov = Provenance::new(inputs, opts.seed);
-    write(
+    crate::output::write_synced(
         &out.join("report.html"),
-        &report::diagnose::html(report, &prov, &plots, !a.no_plot),
+        report::diagnose::html(report, &prov, &plots, !a.no_plot).as_bytes(),
     )?;
     written.push("report.html".into());
 
@@ -292,11 +232,7 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     if let Some(n) = extended_note {
         println!("{n}");
     }
-    crate::write_warnings(&out, &warnings)?;
-    if !warnings.is_empty() {
-        written.push("warnings.json".into());
-    }
-    let target = staging.commit(Some(opts.seed))?;
+    let target = crate::output::commit(staging, Some(opts.seed))?;
     written.push(crate::output::MANIFEST.into());
     println!("wrote    {}/", target.display());
     let files: Vec<&str> = written.iter().map(String::as_str).collect();
@@ -547,27 +483,6 @@ mod tests {
             assert!(l.chars().count() <= 40, "{l}");
             assert!(l.starts_with("head") || l.starts_with("         "));
         }
-    }
-
-    #[test]
-    fn causes_are_checked_and_deduplicated() {
-        let ok = causes(
-            &[
-                "saturation".into(),
-                "measurement_skew".into(),
-                "saturation".into(),
-            ],
-            &[],
-        )
-        .unwrap();
-        assert_eq!(ok, ["saturation", "measurement_skew"]);
-        let e = causes(&["saturation".into(), "gremlins".into()], &[]).unwrap_err();
-        assert_eq!(e.code, 2);
-        assert!(
-            e.msg.contains("gremlins") && e.msg.contains("measurement_skew"),
-            "{}",
-            e.msg
-        );
     }
 
     #[test]

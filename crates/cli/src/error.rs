@@ -8,7 +8,6 @@ use itaipu_calib::request::{RequestError, Style, SynthFailure};
 use itaipu_calib::spec::SpecError;
 use itaipu_dynamics::dyr::DyrError;
 use itaipu_dynamics::event::{Event, EventError};
-use itaipu_dynamics::plausibility;
 use itaipu_dynamics::pmu_import::ImportError;
 use itaipu_dynamics::simulate::SimError;
 use itaipu_dynamics::unit::Unit;
@@ -102,32 +101,9 @@ pub fn synth_error(unit_path: &std::path::Path, e: SynthFailure, hides: &[String
     }
 }
 
-/// A simulation error traced back to the data: an integration failure at time t names the
-/// samples around t, an initialisation failure the operating point it was given.
+/// A simulation error traced back to the data ([`itaipu_calib::job::explain`]): an
+/// integration failure at time t names the samples around t, an initialisation failure the
+/// operating point it was given.
 pub fn explain_sim_error(e: SimError, event: &Event, unit: &Unit) -> CliError {
-    use itaipu_dynamics::integrate::SolveError;
-    let mut err = CliError::from(e.clone());
-    let t = match &e {
-        SimError::Solve(
-            SolveError::NonFinite { t, .. }
-            | SolveError::StepUnderflow { t, .. }
-            | SolveError::TooManySteps { t, .. }
-            | SolveError::EventLoop { t },
-        ) => Some(*t),
-        _ => None,
-    };
-    match (&e, t) {
-        (_, Some(t)) => {
-            err.msg = format!("{}; {}", err.msg, plausibility::locate_time(event, t));
-        }
-        (SimError::Init(_), None) => {
-            err.msg = format!(
-                "{}; {}",
-                err.msg,
-                plausibility::describe_operating_point(event, unit.machine_mva)
-            );
-        }
-        _ => {}
-    }
-    err
+    CliError::from(itaipu_calib::job::explain(e, event, unit))
 }

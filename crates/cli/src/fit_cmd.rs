@@ -7,14 +7,11 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use indicatif::{ProgressBar, ProgressStyle};
-use itaipu_calib::fit::{
-    fit_with, FitControl, FitError, FitOptions, Progress, Resume, StageOutput, StageReport,
-};
-use itaipu_calib::problem::EventData;
+use itaipu_calib::fit::{FitControl, FitError, Progress, Resume, StageOutput, StageReport};
+use itaipu_calib::job;
 use itaipu_calib::request::{FitRequest, Stage};
-use itaipu_calib::spec::{CalibSpec, Strategy};
+use itaipu_calib::spec::Strategy;
 use itaipu_dynamics::event::Event;
-use itaipu_dynamics::plausibility::{Finding, Severity};
 use itaipu_dynamics::simulate::simulate;
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::unit_to_toml;
@@ -144,8 +141,11 @@ impl Progress for Reporter {
 }
 
 /// The interrupt flag of `fit` and the signal that set it, registered once per process
-/// (SIGINT, SIGTERM). A second signal while the first is being handled ends the process at
-/// once (exit 130 or 143).
+/// (SIGINT, SIGTERM). The first signal sets the flag: the fit stops at its next candidate and
+/// keeps its finished stages. A second signal, while the first is being handled, ends the
+/// process at once (exit 130 or 143), after renaming the output folder into place as it stands:
+/// `partial.json` is kept up to date in it from the start (see `cmd_fit`), so it is marked
+/// partial and resumable either way.
 fn interrupt_flags() -> (Arc<AtomicBool>, Arc<AtomicUsize>) {
     static FLAGS: OnceLock<(Arc<AtomicBool>, Arc<AtomicUsize>)> = OnceLock::new();
     FLAGS
@@ -155,13 +155,29 @@ fn interrupt_flags() -> (Arc<AtomicBool>, Arc<AtomicUsize>) {
             #[cfg(unix)]
             {
                 use signal_hook::consts::{SIGINT, SIGTERM};
-                for (sig, code) in [(SIGINT, 130), (SIGTERM, 143)] {
-                    // Registration fails only for forbidden signals; then a signal ends the
-                    // process as usual, which loses nothing written (the folder is temporary).
-                    let _ =
-                        signal_hook::flag::register_conditional_shutdown(sig, code, flag.clone());
-                    let _ = signal_hook::flag::register_usize(sig, which.clone(), sig as usize);
-                    let _ = signal_hook::flag::register(sig, flag.clone());
+                if let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) {
+                    let (flag, which) = (flag.clone(), which.clone());
+                    std::thread::spawn(move || {
+                        for sig in signals.forever() {
+                            if !flag.swap(true, Ordering::SeqCst) {
+                                which.store(sig as usize, Ordering::SeqCst);
+                                continue;
+                            }
+                            let (name, code) = signal_name(sig as usize);
+                            // Held to the exit: no folder is renamed or removed after.
+                            let (_held, kept) = itaipu_calib::output::finish_on_signal();
+                            for k in &kept {
+                                eprintln!(
+                                    "error: interrupted again by {name}: the finished stages are kept in {} (marked incomplete by partial.json); run the same command with --resume to go on",
+                                    k.display()
+                                );
+                            }
+                            if kept.is_empty() {
+                                eprintln!("error: interrupted again by {name}; nothing written");
+                            }
+                            std::process::exit(code as i32);
+                        }
+                    });
                 }
             }
             (flag, which)
@@ -229,105 +245,59 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     } else {
         a.event.clone()
     };
-    let calib_path = match (&a.calib, bundled_unit) {
-        (Some(p), _) => p.clone(),
-        (None, true) => bundled("itaipu/calibration.toml")?,
-        (None, false) => unit_path.clone(),
+    let calib_given = match (&a.calib, bundled_unit) {
+        (Some(p), _) => Some(p.clone()),
+        (None, true) => Some(bundled("itaipu/calibration.toml")?),
+        (None, false) => None,
     };
     let unit = load_unit(&unit_path)?;
-    let spec = CalibSpec::from_file(&calib_path)?;
-    let events = event_paths
-        .iter()
-        .map(|p| load_event(p))
-        .collect::<Result<Vec<_>, _>>()?;
-    let held_out = a
-        .held_out
-        .iter()
-        .map(|p| load_event(p))
-        .collect::<Result<Vec<_>, _>>()?;
-
-    let mut opts = FitOptions::from_spec(&spec);
-    FitRequest {
+    let (spec, calib_path, spec_text) =
+        job::FitInputs::read_spec(calib_given.as_deref(), Some(&unit_path))?;
+    let inputs = job::FitInputs {
+        unit,
+        unit_path: Some(unit_path.clone()),
+        spec,
+        spec_path: Some(calib_path.clone()),
+        spec_text: Some(spec_text.clone()),
+        events: event_paths
+            .iter()
+            .map(|p| load_event(p))
+            .collect::<Result<Vec<_>, _>>()?,
+        held_out: a
+            .held_out
+            .iter()
+            .map(|p| load_event(p))
+            .collect::<Result<Vec<_>, _>>()?,
+    };
+    let request = FitRequest {
         stages: a.stage.clone(),
         strategy: a.strategy,
         search: a.search.request(),
         no_polish: a.no_polish,
-    }
-    .apply(&mut opts)?;
-    let pool = a.search.pool()?;
-    let mut warnings = crate::plausibility(
-        &events.iter().chain(&held_out).collect::<Vec<_>>(),
-        &unit,
-        &unit_path,
-    )?;
-    warnings.extend(start_warnings(&unit, &spec, &opts.stages, &calib_path));
-    for w in warnings.iter().filter(|w| w.kind == "start_clamped") {
+    };
+    let (opts, warnings) = job::prepare_fit(&inputs, &request)?;
+    for w in &warnings {
         eprintln!("warning: {w}");
     }
+    let pool = a.search.pool()?;
+    let unit = &inputs.unit;
+    let events = &inputs.events;
+    let held_out = &inputs.held_out;
     let name = events.first().map(|e| e.name.clone()).unwrap_or_default();
     let mut input_paths: Vec<&Path> = vec![&unit_path, &calib_path];
     input_paths.extend(event_paths.iter().map(|p| p.as_path()));
     input_paths.extend(a.held_out.iter().map(|p| p.as_path()));
-    let inputs = input_hashes(&input_paths)?;
+    let inputs_hashes = input_hashes(&input_paths)?;
     let options = format!("{opts:?}");
 
     // --resume: the partial folder of an interrupted run with the same inputs and options.
     let resumed: Option<(PathBuf, PartialState, Unit)> = if a.resume {
-        let Some(dir) = a.out.as_deref() else {
-            return Err(CliError::new(
-                2,
-                "--resume needs --out: the folder an interrupted fit left",
-            ));
-        };
-        if dir.join(crate::output::MANIFEST).is_file() {
-            return Err(CliError::new(
-                2,
-                format!(
-                    "--resume: {} is complete (it has manifest.json); nothing to resume",
-                    dir.display()
-                ),
-            ));
-        }
-        let pj = dir.join(crate::output::PARTIAL);
-        let text = std::fs::read_to_string(&pj).map_err(|e| {
-            CliError::new(
-                2,
-                format!(
-                    "--resume: {}: {e} (not the folder of an interrupted fit)",
-                    pj.display()
-                ),
-            )
-        })?;
-        let st: PartialState = serde_json::from_str(&text)
-            .map_err(|e| CliError::new(2, format!("--resume: {}: {e}", pj.display())))?;
-        if st.options != options {
-            return Err(CliError::new(
-                2,
-                format!(
-                    "--resume: the options differ from the interrupted run's (give the same stages, strategy, seed and search settings)\n  then: {}\n  now:  {options}",
-                    st.options
-                ),
-            ));
-        }
-        if st.inputs != inputs {
-            let diff = st
-                .inputs
-                .iter()
-                .zip(&inputs)
-                .find(|(x, y)| x != y)
-                .map(|(x, y)| format!("{} (then) / {} (now)", x.0, y.0))
-                .unwrap_or_else(|| "a different number of input files".into());
-            return Err(CliError::new(
-                2,
-                format!("--resume: the input files differ from the interrupted run's: {diff}"),
-            ));
-        }
-        let master = if st.finished_stages.is_empty() {
-            unit.clone()
-        } else {
-            load_unit(&dir.join(RESUME_UNIT))?
-        };
-        Some((dir.to_path_buf(), st, master))
+        Some(read_partial(
+            a.out.as_deref(),
+            &options,
+            &inputs_hashes,
+            unit,
+        )?)
     } else {
         check_out(a.out.as_deref(), a.force)?;
         None
@@ -375,6 +345,25 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
             st.finished_stages.join(", ")
         );
     }
+    let (flag, which) = interrupt_flags();
+    flag.store(false, Ordering::SeqCst);
+    which.store(0, Ordering::SeqCst);
+    // The folder is marked partial and resumable from now on, so that whatever ends the run
+    // (a first signal, a second one) leaves it complete or resumable.
+    let partial = |f: &Finished, sig: &str| {
+        PartialState {
+        complete: false,
+        note: "interrupted: an incomplete result. Every stage folder listed in finished_stages is complete and usable (its unit.toml simulates); run the same command again with --resume to go on".into(),
+        interrupted_by: sig.into(),
+        finished_stages: f.labels.clone(),
+        command: crate::output::command(),
+        options: options.clone(),
+        inputs: inputs_hashes.clone(),
+        stage_reports: f.reports.clone(),
+    }
+    };
+    write_partial(&out, &partial(&finished.lock().expect("finished"), "-"))?;
+    staging.mark_resumable();
     println!(
         "fit    unit {} ({}), events {}, spec {}, stages {}, strategy {}, seed {}, {} threads",
         unit.name,
@@ -391,18 +380,23 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         pool.current_num_threads()
     );
     let reporter = Reporter::new();
-    let (flag, which) = interrupt_flags();
-    flag.store(false, Ordering::SeqCst);
-    which.store(0, Ordering::SeqCst);
     let no_plot = a.no_plot;
     let on_stage = |rep: &StageReport, st: &StageOutput, master: &Unit| -> Result<(), FitError> {
-        write_stage(&out, st, rep, no_plot).map_err(|e| FitError::Output(e.msg))?;
-        crate::output::write_synced(&out.join(RESUME_UNIT), unit_to_toml(master).as_bytes())
-            .map_err(|e| FitError::Output(e.msg))?;
+        let to_fit = |e: itaipu_calib::Error| FitError::Output(e.to_string());
+        job::write_stage_files(&out, st, |dir| {
+            if no_plot {
+                return Ok(());
+            }
+            stage_plots(dir, st, rep).map_err(|e| itaipu_calib::Error::Output(e.msg))
+        })
+        .map_err(to_fit)?;
+        itaipu_calib::output::write_synced(&out.join(RESUME_UNIT), unit_to_toml(master).as_bytes())
+            .map_err(to_fit)?;
         let mut f = finished.lock().expect("finished");
         f.labels.push(rep.stage.clone());
         f.reports
             .push(serde_json::to_value(rep).map_err(|e| FitError::Output(e.to_string()))?);
+        write_partial(&out, &partial(&f, "-")).map_err(|e| FitError::Output(e.msg))?;
         Ok(())
     };
     let control = FitControl {
@@ -410,27 +404,27 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         on_stage: Some(&on_stage),
         resume,
     };
-    let result =
-        pool.install(|| fit_with(&unit, &spec, &events, &held_out, &opts, &reporter, &control));
+    let resumed_reports = resumed
+        .as_ref()
+        .map(|(_, st, _)| (st.finished_stages.clone(), st.stage_reports.clone()))
+        .unwrap_or_default();
+    let result = pool.install(|| {
+        job::run_fit(
+            &inputs,
+            &opts,
+            warnings,
+            &reporter,
+            &control,
+            resumed_reports,
+        )
+    });
     reporter.finish();
-    let result = match result {
+    let run = match result {
         Ok(r) => r,
-        Err(FitError::Interrupted { .. }) => {
+        Err(itaipu_calib::Error::Fit(FitError::Interrupted { .. })) => {
             let (sig, code) = signal_name(which.load(Ordering::SeqCst));
             let f = finished.lock().expect("finished");
-            let state = PartialState {
-                complete: false,
-                note: "interrupted: an incomplete result. Every stage folder listed in finished_stages is complete and usable (its unit.toml simulates); run the same command again with --resume to go on".into(),
-                interrupted_by: sig.into(),
-                finished_stages: f.labels.clone(),
-                command: crate::output::command(),
-                options: options.clone(),
-                inputs: inputs.clone(),
-                stage_reports: f.reports.clone(),
-            };
-            let text = serde_json::to_string_pretty(&state)
-                .map_err(|e| CliError::new(7, e.to_string()))?;
-            crate::output::write_synced(&out.join(crate::output::PARTIAL), text.as_bytes())?;
+            write_partial(&out, &partial(&f, sig))?;
             let target = staging.keep_partial()?;
             return Err(CliError::new(
                 code,
@@ -444,7 +438,6 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         Err(e) => {
             // The starting unit cannot initialise at the measured operating point: exit 5, as
             // for simulate, with the operating point it was given.
-            let e = itaipu_calib::Error::from(e);
             let init_failed = e.class() == itaipu_calib::error::ErrorClass::Init;
             let mut err = CliError::from(e);
             if let (true, Some(ev)) = (init_failed, events.first()) {
@@ -457,82 +450,99 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
             return Err(err);
         }
     };
-    let write = |p: &Path, text: &str| crate::output::write_synced(p, text.as_bytes());
-    let mut report =
-        serde_json::to_value(&result.report).map_err(|e| CliError::new(7, e.to_string()))?;
-    {
-        let f = finished.lock().expect("finished");
-        report["stages"] = serde_json::Value::Array(f.reports.clone());
-        report["warnings"] =
-            serde_json::to_value(&warnings).map_err(|e| CliError::new(7, e.to_string()))?;
-        if let Some((_, st, _)) = &resumed {
-            report["resumed_stages"] = serde_json::json!(st.finished_stages);
-        }
-        report["noise"] = noise_levels(&events, &held_out);
-    }
-    let json =
-        serde_json::to_string_pretty(&report).map_err(|e| CliError::new(7, e.to_string()))?;
-    write(&out.join("report.json"), &json)?;
-    let mut calibrated = result.unit.clone();
-    calibrated.description = format!(
-        "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
-        unit.description,
-        opts.stages.join("+"),
-        opts.seed
-    );
-    write(&out.join("calibrated.toml"), &unit_to_toml(&calibrated))?;
-    // What `diagnose --fit` needs to re-fit the same calibrated set with the same prior: the unit
-    // as given (the datasheet values the prior is centred on) and the spec.
-    write(&out.join("datasheet.toml"), &unit_to_toml(&unit))?;
-    let spec_text = std::fs::read_to_string(&calib_path)
-        .map_err(|e| CliError::new(7, format!("cannot read {}: {e}", calib_path.display())))?;
-    write(&out.join("calibration.toml"), &spec_text)?;
-    write(
+    let report = run.report.to_json()?;
+    job::write_fit_files(&out, &run, &spec_text)?;
+    crate::output::write_synced(
         &out.join("report.html"),
-        &fit_report_html(
+        fit_report_html(
             &report,
-            &unit,
-            &result.unit,
-            &events,
-            &held_out,
+            unit,
+            &run.unit,
+            events,
+            held_out,
             [&unit_path, &calib_path],
             opts.seed,
             !a.no_plot,
-        ),
+        )
+        .as_bytes(),
     )?;
     let _ = std::fs::remove_file(out.join(RESUME_UNIT));
-    let target = staging.commit(Some(opts.seed))?;
-    print!("{}", result.report.to_text());
+    let _ = std::fs::remove_file(out.join(crate::output::PARTIAL));
+    let target = crate::output::commit(staging, Some(opts.seed))?;
+    print!("{}", run.report.to_text());
     println!("wrote  {}/report.json, report.html, calibrated.toml, datasheet.toml, calibration.toml, <stage>/{{unit.toml, traces.csv, traces_start.csv{}}}, manifest.json", target.display(), if a.no_plot { "" } else { ", plot.svg" });
     Ok(())
 }
 
-/// `report.json`'s `noise`: per event (fitted, then held out) the robust noise standard
-/// deviations of the measured P and Q (second differences, as the prior's weight) over the
-/// event's fit window.
-fn noise_levels(events: &[Event], held_out: &[Event]) -> serde_json::Value {
-    let rows: Vec<serde_json::Value> = events
-        .iter()
-        .map(|e| (e, false))
-        .chain(held_out.iter().map(|e| (e, true)))
-        .map(|(e, h)| {
-            // The fit's own window and estimate (an event the fit could not window has none).
-            let (samples, vp, vq) = EventData::new(e, None, None)
-                .map(|d| {
-                    let (vp, vq) = d.noise_variances();
-                    (d.n_window(), vp, vq)
-                })
-                .unwrap_or((0, f64::NAN, f64::NAN));
-            serde_json::json!({
-                "event": e.name,
-                "held_out": h,
-                "samples": samples,
-                "sigma_p": vp.sqrt(),
-                "sigma_q": vq.sqrt(),
-            })
-        })
-        .collect();
-    serde_json::Value::Array(rows)
+/// Writes `partial.json` into the folder being written.
+fn write_partial(out: &Path, state: &PartialState) -> Result<(), CliError> {
+    let text = serde_json::to_string_pretty(state).map_err(|e| CliError::new(7, e.to_string()))?;
+    crate::output::write_synced(&out.join(crate::output::PARTIAL), text.as_bytes())
+}
+
+/// `--resume`: the partial folder `out` of an interrupted run, checked against this run's
+/// options and input hashes; the unit the next stage starts from.
+fn read_partial(
+    out: Option<&Path>,
+    options: &str,
+    inputs: &[(String, String)],
+    unit: &Unit,
+) -> Result<(PathBuf, PartialState, Unit), CliError> {
+    let Some(dir) = out else {
+        return Err(CliError::new(
+            2,
+            "--resume needs --out: the folder an interrupted fit left",
+        ));
+    };
+    if dir.join(crate::output::MANIFEST).is_file() {
+        return Err(CliError::new(
+            2,
+            format!(
+                "--resume: {} is complete (it has manifest.json); nothing to resume",
+                dir.display()
+            ),
+        ));
+    }
+    let pj = dir.join(crate::output::PARTIAL);
+    let text = std::fs::read_to_string(&pj).map_err(|e| {
+        CliError::new(
+            2,
+            format!(
+                "--resume: {}: {e} (not the folder of an interrupted fit)",
+                pj.display()
+            ),
+        )
+    })?;
+    let st: PartialState = serde_json::from_str(&text)
+        .map_err(|e| CliError::new(2, format!("--resume: {}: {e}", pj.display())))?;
+    if st.options != options {
+        return Err(CliError::new(
+            2,
+            format!(
+                "--resume: the options differ from the interrupted run's (give the same stages, strategy, seed and search settings)\n  then: {}\n  now:  {options}",
+                st.options
+            ),
+        ));
+    }
+    if st.inputs != inputs {
+        let diff = st
+            .inputs
+            .iter()
+            .zip(inputs)
+            .find(|(x, y)| x != y)
+            .map(|(x, y)| format!("{} (then) / {} (now)", x.0, y.0))
+            .unwrap_or_else(|| "a different number of input files".into());
+        return Err(CliError::new(
+            2,
+            format!("--resume: the input files differ from the interrupted run's: {diff}"),
+        ));
+    }
+    let master = if st.finished_stages.is_empty() {
+        unit.clone()
+    } else {
+        load_unit(&dir.join(RESUME_UNIT))?
+    };
+    Ok((dir.to_path_buf(), st, master))
 }
 
 /// The fit's `report.html`: the unit as given and the calibrated unit simulated once more on
@@ -589,129 +599,59 @@ fn fit_report_html(
     crate::report::fit::html(report, &prov, &traces, plots)
 }
 
-/// A free parameter without `start` whose value in the unit lies outside its bounds starts
-/// from the nearest bound: said, not done in silence.
-fn start_warnings(
-    unit: &Unit,
-    spec: &CalibSpec,
-    stages: &[String],
-    calib_path: &Path,
-) -> Vec<Finding> {
-    let mut out = vec![];
-    for (k, st) in spec.stages.iter().enumerate() {
-        if !stages.contains(&st.name) {
-            continue;
-        }
-        for (j, f) in st.free.iter().enumerate() {
-            if f.start.is_some() {
-                continue;
-            }
-            let v = match st.set.get(&f.param) {
-                Some(v) => *v,
-                None => match unit.param(&f.param) {
-                    Ok(r) => unit.get(r),
-                    Err(_) => continue,
-                },
-            };
-            if !(v >= f.min && v <= f.max) {
-                out.push(Finding {
-                    severity: Severity::Warning,
-                    kind: "start_clamped",
-                    file: calib_path.to_path_buf(),
-                    line: None,
-                    time_s: None,
-                    column: format!("calibration.stage[{k}].free[{j}] ({})", f.param),
-                    message: format!(
-                        "the unit's value {v} lies outside [{}, {}]; stage {} starts from {}",
-                        f.min,
-                        f.max,
-                        st.name,
-                        v.clamp(f.min, f.max)
-                    ),
-                    fix: "widen the bounds, or give start = ... in the free entry".into(),
-                });
-            }
-        }
-    }
-    out
-}
-
-/// Writes a finished stage's folder: unit, traces and plots.
-fn write_stage(
-    out: &Path,
-    st: &StageOutput,
-    rep: &StageReport,
-    no_plot: bool,
-) -> Result<(), CliError> {
-    let write = |p: &Path, text: &str| crate::output::write_synced(p, text.as_bytes());
-    let dir = out.join(&st.stage);
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| CliError::new(7, format!("cannot create {}: {e}", dir.display())))?;
+/// Draws a finished stage's plots into its folder `dir`: per fitted event, measured, start and
+/// calibrated P and Q (`plot[_<event>].svg`).
+fn stage_plots(dir: &Path, st: &StageOutput, rep: &StageReport) -> Result<(), CliError> {
     for (ev, start, end) in &st.traces {
-        let suffix = if st.traces.len() > 1 {
-            format!("_{ev}")
-        } else {
-            String::new()
+        let suffix = job::stage_trace_suffix(st, ev);
+        let t = &end.time_s;
+        let g = |tr: &itaipu_dynamics::simulate::Traces, n: &str| {
+            tr.get(n).map(|c| c.to_vec()).unwrap_or_default()
         };
-        let p = dir.join(format!("traces{suffix}.csv"));
-        end.write_csv(&p)
-            .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))?;
-        let p = dir.join(format!("traces_start{suffix}.csv"));
-        start
-            .write_csv(&p)
-            .map_err(|e| CliError::new(7, format!("cannot write {}: {e}", p.display())))?;
-        if !no_plot {
-            let t = &end.time_s;
-            let g = |tr: &itaipu_dynamics::simulate::Traces, n: &str| {
-                tr.get(n).map(|c| c.to_vec()).unwrap_or_default()
-            };
-            let (pm, qm, ps, qs, pe, qe) = (
-                g(end, "p_meas_pu"),
-                g(end, "q_meas_pu"),
-                g(start, "p_pu"),
-                g(start, "q_pu"),
-                g(end, "p_pu"),
-                g(end, "q_pu"),
-            );
-            let series = |label: &str, y, color, thin| plot::Series {
-                label: label.into(),
-                x: t,
-                y,
-                color,
-                thin,
-            };
-            let panels = vec![
-                plot::Panel {
-                    y_label: "P [pu, system base]".into(),
-                    series: vec![
-                        series("measured", pm.as_slice(), plot::MEASURED, true),
-                        series("start", ps.as_slice(), plot::START, true),
-                        series("calibrated", pe.as_slice(), plot::SIMULATED, false),
-                    ],
-                },
-                plot::Panel {
-                    y_label: "Q [pu, system base]".into(),
-                    series: vec![
-                        series("measured", qm.as_slice(), plot::MEASURED, true),
-                        series("start", qs.as_slice(), plot::START, true),
-                        series("calibrated", qe.as_slice(), plot::SIMULATED, false),
-                    ],
-                },
-            ];
-            let title = format!(
-                "{ev}, stage {}: objective {:.4} -> {:.4}",
-                st.stage, rep.objective_before, rep.objective_after
-            );
-            plot::draw(
-                &dir.join(format!("plot{suffix}.svg")),
-                &title,
-                "time [s]",
-                &panels,
-            )
-            .map_err(|e| CliError::new(7, e))?;
-        }
+        let (pm, qm, ps, qs, pe, qe) = (
+            g(end, "p_meas_pu"),
+            g(end, "q_meas_pu"),
+            g(start, "p_pu"),
+            g(start, "q_pu"),
+            g(end, "p_pu"),
+            g(end, "q_pu"),
+        );
+        let series = |label: &str, y, color, thin| plot::Series {
+            label: label.into(),
+            x: t,
+            y,
+            color,
+            thin,
+        };
+        let panels = vec![
+            plot::Panel {
+                y_label: "P [pu, system base]".into(),
+                series: vec![
+                    series("measured", pm.as_slice(), plot::MEASURED, true),
+                    series("start", ps.as_slice(), plot::START, true),
+                    series("calibrated", pe.as_slice(), plot::SIMULATED, false),
+                ],
+            },
+            plot::Panel {
+                y_label: "Q [pu, system base]".into(),
+                series: vec![
+                    series("measured", qm.as_slice(), plot::MEASURED, true),
+                    series("start", qs.as_slice(), plot::START, true),
+                    series("calibrated", qe.as_slice(), plot::SIMULATED, false),
+                ],
+            },
+        ];
+        let title = format!(
+            "{ev}, stage {}: objective {:.4} -> {:.4}",
+            st.stage, rep.objective_before, rep.objective_after
+        );
+        plot::draw(
+            &dir.join(format!("plot{suffix}.svg")),
+            &title,
+            "time [s]",
+            &panels,
+        )
+        .map_err(|e| CliError::new(7, e))?;
     }
-    // Last: the stage's unit, so that a stage folder with unit.toml is complete.
-    write(&dir.join("unit.toml"), &unit_to_toml(&st.calibrated_unit))?;
     Ok(())
 }

@@ -84,7 +84,7 @@ pub fn cmd_import(a: &ImportArgs) -> Result<(), CliError> {
     let staging = prepare_out(a.out.as_deref(), &format!("import-{}", event.name), a.force)?;
     let written = write_event_folder(&event, &report, staging.path())
         .map_err(|e| CliError::new(7, e.to_string()))?;
-    let target = staging.commit(None)?;
+    let target = crate::output::commit(staging, None)?;
     let written: Vec<std::path::PathBuf> = written
         .iter()
         .filter_map(|p| p.file_name())

@@ -1,14 +1,15 @@
-//! Reading the inputs of a command: bundled data files, events and units (exit codes 3 and 4),
-//! the plausibility layer, and its warnings file.
+//! Reading the inputs of a command: bundled data files, and the library's readers and
+//! plausibility layer ([`itaipu_calib::job`]) with their warnings printed.
 
 use std::path::{Path, PathBuf};
 
 use itaipu_dynamics::event::Event;
-use itaipu_dynamics::plausibility::{self, Finding, Severity};
+use itaipu_dynamics::plausibility::Finding;
 use itaipu_dynamics::unit::Unit;
-use itaipu_dynamics::unit_file::read_unit;
 
-use crate::{dyr_cmd, output, CliError};
+use itaipu_calib::job;
+
+use crate::CliError;
 
 /// Locates a bundled data file: `./data/…`, then next to the executable's repository
 /// (`target/<profile>/../../data/…`), then `$ITAIPU_CALIB_DATA/…`.
@@ -30,49 +31,28 @@ pub fn bundled(rel: &str) -> Result<PathBuf, CliError> {
 
 /// Reads an event file (exit code 3 on error).
 pub fn load_event(path: &Path) -> Result<Event, CliError> {
-    Ok(Event::from_toml_file(path)?)
+    Ok(job::load_event(path)?)
 }
 
-/// Reads a unit file (exit code 4 on error). A `.dyr` is read with the bases of
+/// Reads a unit file (exit code 4 on error): TOML, or a `.dyr` with the bases of
 /// `<stem>.bases.toml` beside it (its warnings printed).
 pub fn load_unit(path: &Path) -> Result<Unit, CliError> {
-    if path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("dyr"))
-    {
-        let d = dyr_cmd::load_dyr(path, None, None, &dyr_cmd::BasesArgs::default())?;
-        for w in &d.warnings {
-            eprintln!("warning: {w}");
-        }
-        return Ok(d.unit);
+    let u = job::load_unit(path)?;
+    for w in &u.warnings {
+        eprintln!("warning: {w}");
     }
-    Ok(read_unit(path)?)
+    Ok(u.unit)
 }
 
-/// The plausibility layer ([`itaipu_dynamics::plausibility`]) on events (against the unit's
-/// rating) and on the unit's parameters: an error stops the run (exit 3, every error listed
-/// with file, line, column and fix); warnings are printed and returned, for the outputs.
+/// The plausibility layer on events (against the unit's rating) and on the unit's parameters
+/// ([`job::check_inputs`]): an error stops the run (exit 3, every error listed with file, line,
+/// column and fix); warnings are printed and returned, for the outputs.
 pub fn plausibility(
     events: &[&Event],
     unit: &Unit,
     unit_path: &Path,
 ) -> Result<Vec<Finding>, CliError> {
-    let mut all = vec![];
-    for e in events {
-        all.extend(plausibility::check_event(e, Some(unit.machine_mva)));
-    }
-    all.extend(plausibility::check_unit(unit, unit_path));
-    let errors: Vec<String> = all
-        .iter()
-        .filter(|f| f.severity == Severity::Error)
-        .map(|f| f.to_string())
-        .collect();
-    if !errors.is_empty() {
-        return Err(CliError::new(
-            3,
-            format!("implausible data:\n  {}", errors.join("\n  ")),
-        ));
-    }
+    let all = job::check_inputs(events, unit, Some(unit_path))?;
     for f in &all {
         eprintln!("warning: {f}");
     }
@@ -81,10 +61,6 @@ pub fn plausibility(
 
 /// Writes `warnings.json` into `dir` when there are warnings.
 pub fn write_warnings(dir: &Path, warnings: &[Finding]) -> Result<(), CliError> {
-    if warnings.is_empty() {
-        return Ok(());
-    }
-    let text =
-        serde_json::to_string_pretty(warnings).map_err(|e| CliError::new(7, e.to_string()))?;
-    output::write_synced(&dir.join("warnings.json"), text.as_bytes())
+    job::write_warnings(dir, warnings)?;
+    Ok(())
 }

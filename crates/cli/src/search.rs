@@ -1,28 +1,23 @@
-//! Swarm, L-BFGS and thread options shared by `fit` and `diagnose`.
+//! Swarm, local-method and thread options shared by `fit` and `diagnose`: their help text and
+//! defaults come from the library ([`itaipu_calib::request::search_help`]).
 
-use itaipu_calib::request::Search;
+use itaipu_calib::request::{search_help, Search};
 
 use crate::CliError;
 
-/// Swarm, L-BFGS and thread options shared by `fit` and `diagnose`.
+/// Swarm, local-method and thread options shared by `fit` and `diagnose`.
 #[derive(clap::Args, Debug)]
 pub struct SearchArgs {
-    /// Random seed of the swarms (fit: the spec's; diagnose: 1). Same seed, same numbers, on
-    /// any number of threads.
-    #[arg(long)]
+    #[arg(long, help = search_help("seed"))]
     pub seed: Option<u64>,
-    /// Swarm size (fit: the spec's, else 40; diagnose: 16 per candidate re-fit).
-    #[arg(long)]
+    #[arg(long, help = search_help("particles"))]
     pub particles: Option<usize>,
-    /// Maximum swarm iterations (fit: per stage, the spec's, else 100; diagnose: 20 per re-fit).
-    #[arg(long)]
+    #[arg(long, help = search_help("pso_iterations"))]
     pub pso_iterations: Option<usize>,
-    /// Maximum L-BFGS iterations (fit: per stage, the spec's, else 100; diagnose: 15 per
-    /// re-fit).
-    #[arg(long)]
-    pub lbfgs_iterations: Option<u64>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// (`--lbfgs-iterations`, the old spelling, is an alias: it caps Levenberg-Marquardt too.)
+    #[arg(long, alias = "lbfgs-iterations", help = search_help("local_iterations"))]
+    pub local_iterations: Option<u64>,
+    #[arg(long, help = search_help("threads"))]
     pub threads: Option<usize>,
 }
 
@@ -34,7 +29,7 @@ impl SearchArgs {
             seed: self.seed,
             particles: self.particles,
             pso_iterations: self.pso_iterations,
-            lbfgs_iterations: self.lbfgs_iterations,
+            local_iterations: self.local_iterations,
             threads: self.threads,
         }
     }

@@ -251,7 +251,7 @@ pub fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     if !warnings.is_empty() {
         written.push("warnings.json".to_string());
     }
-    let target = staging.commit(None)?;
+    let target = crate::output::commit(staging, None)?;
     written.push(output::MANIFEST.to_string());
     println!("wrote  {}/{{{}}}", target.display(), written.join(", "));
     Ok(())

@@ -193,7 +193,7 @@ pub fn cmd_synth(a: &SynthArgs) -> Result<(), CliError> {
     for h in &a.hide {
         println!("hidden {h}");
     }
-    let target = staging.commit(Some(a.seed))?;
+    let target = crate::output::commit(staging, Some(a.seed))?;
     println!(
         "wrote  {}/event.toml, {csv_name}, truth.toml, truth.json, manifest.json",
         target.display()

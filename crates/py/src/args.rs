@@ -7,8 +7,8 @@ use numpy::PyArray1;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 
+use itaipu_calib::job::load_unit as read_unit_any;
 use itaipu_dynamics::event::Event;
-use itaipu_dynamics::unit_file::read_unit;
 
 use crate::errors::Failure;
 use crate::event::PyEvent;
@@ -88,7 +88,7 @@ pub(crate) fn swapped_events_unit(
             && unit.downcast::<PyUnit>().is_err()
             && unit.try_iter().is_ok());
     };
-    Ok(py.detach(|| read_unit(&first).is_ok() && read_unit(&second).is_err()))
+    Ok(py.detach(|| read_unit_any(&first).is_ok() && read_unit_any(&second).is_err()))
 }
 
 /// A TypeError for `func` called with the unit first and the events second.
@@ -143,4 +143,35 @@ pub(crate) fn worker_pool(threads: Option<usize>) -> PyResult<Option<rayon::Thre
                 })
         })
         .transpose()
+}
+
+/// An argument renamed: the value of `new`, or of `old` with a DeprecationWarning; both given
+/// is a TypeError.
+pub(crate) fn renamed<T>(
+    py: Python<'_>,
+    old: &str,
+    new: &str,
+    old_value: Option<T>,
+    new_value: Option<T>,
+) -> PyResult<Option<T>> {
+    match (old_value, new_value) {
+        (Some(_), Some(_)) => Err(PyTypeError::new_err(format!(
+            "{new} and {old} (its old name) were both given: give {new} only"
+        ))),
+        (Some(v), None) => {
+            let msg = std::ffi::CString::new(format!(
+                "{old} is deprecated: it is now {new} (it caps the local method, \
+                 Levenberg-Marquardt or L-BFGS)"
+            ))
+            .unwrap_or_else(|_| c"deprecated argument".to_owned());
+            PyErr::warn(
+                py,
+                &py.get_type::<pyo3::exceptions::PyDeprecationWarning>(),
+                &msg,
+                1,
+            )?;
+            Ok(Some(v))
+        }
+        (None, v) => Ok(v),
+    }
 }

@@ -9,16 +9,18 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use itaipu_calib::bounds::FreeBound;
-use itaipu_calib::diagnose::{self as calib_diagnose, catalog, DiagnoseOptions};
+use itaipu_calib::diagnose::{self as calib_diagnose, catalog};
 use itaipu_calib::fit::Silent;
+use itaipu_calib::job;
+use itaipu_calib::request::DiagnoseRequest;
 use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
-use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
+use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::args::{
     event_sources, load_events, source, str_or_list, swapped_events_unit, worker_pool, Source,
 };
-use crate::errors::{raise, request_error, CalibrationError, Failure, IntoPyErr};
+use crate::errors::{request_error, Failure, IntoPyErr};
 use crate::fit::PyFitResult;
 use crate::traces::traces_dict;
 use crate::unit::PyUnit;
@@ -72,6 +74,8 @@ pub(crate) fn json_to_py<'py>(
 /// window, start_s, end_s]` or None); `cause` its cause id, `none` or `unexplained`.
 #[pyclass(name = "Diagnosis", module = "itaipu_calib", frozen)]
 pub(crate) struct PyDiagnosis {
+    /// The finished diagnosis, for [`job::write_diagnosis_files`].
+    pub(crate) run: Arc<job::DiagnoseRun>,
     pub(crate) report: serde_json::Value,
     pub(crate) extended_unit: Option<Arc<Unit>>,
     pub(crate) before: Vec<(String, Traces)>,
@@ -184,6 +188,30 @@ impl PyDiagnosis {
         pandas::data_frame(py, pandas::rows(py, rows)?, Some("cause"))
     }
 
+    /// Writes the diagnosis' files into the folder `out` as the command line's `diagnose --out`
+    /// does (diagnosis.json, extended.toml when a cause is named, warnings.json when there are
+    /// warnings, manifest.json last; no plots or HTML), through a temporary folder renamed into
+    /// place. An existing non-empty `out` is refused unless `overwrite=True` (and then only a
+    /// folder of ours, replaced whole). Returns the folder. Raises OutputError.
+    #[pyo3(signature = (out, *, overwrite = false))]
+    fn write(&self, py: Python<'_>, out: PathBuf, overwrite: bool) -> PyResult<PathBuf> {
+        let run = self.run.clone();
+        py.detach(move || {
+            Failure::catch("Diagnosis.write", || {
+                let staging = itaipu_calib::output::prepare_out(Some(&out), "diagnose", overwrite)?;
+                job::write_diagnosis_files(staging.path(), &run)?;
+                staging.commit(
+                    Some(run.report.seed),
+                    vec![
+                        "itaipu_calib.Diagnosis.write".into(),
+                        out.display().to_string(),
+                    ],
+                )
+            })
+        })
+        .map_err(|e| e.into_pyerr(py))
+    }
+
     /// The report as JSON text (indented).
     fn to_json(&self) -> PyResult<String> {
         serde_json::to_string_pretty(&self.report)
@@ -266,62 +294,117 @@ pub(crate) fn refit_list(
 
 /// Diagnoses what `unit` (normally already calibrated) still gets wrong on `events`: residual
 /// evidence, then each cause of the catalog (or of `causes`) as a model extension re-fitted by
-/// particle swarm and L-BFGS and judged by its gain (ΔBIC, fitted and held-out χ²), then a
-/// verdict, as the command line's `diagnose`.
+/// particle swarm and the local method and judged by its gain (ΔBIC, fitted and held-out χ²),
+/// then a verdict, as the command line's `diagnose`: the same library job
+/// ([`job::run_diagnose`]), so the same numbers, warnings and verdict.
 ///
-/// `unit` is a path or a Unit; `events` and `held_out` paths to event files or Event objects,
-/// or lists of them. Without `held_out`, each event is split into alternating blocks, fitted
-/// and held out. `causes` (ids, see the catalog: torsional_mode, exciter_limit, saturation,
-/// governor, measurement_skew, terminal_load, pss_state, oel) limits the causes tried. `seed`,
-/// `particles`, `pso_iterations` and `lbfgs_iterations` set each re-fit; `threads` the worker
-/// threads (default: all cores). `refit` names calibrated parameters to free again in every
-/// re-fit (a list of paths, or a dict of path to (min, max)), e.g. the stage parameters a
-/// calibration may have bent for the missing cause. `fit` (a FitResult, normally the one whose
-/// `.unit` is diagnosed) re-frees its whole calibrated set, within the spec's bounds and with the
-/// calibration's datasheet prior, as `itaipu-calib diagnose --fit`. `user_causes` (a path or a
-/// list of paths) adds causes written by the user, as `itaipu-calib diagnose --user-cause`. The
-/// GIL is released while it runs. Returns a Diagnosis.
+/// `unit` is a path (unit TOML or `.dyr`) or a Unit; `events` and `held_out` paths to event
+/// files or Event objects, or lists of them. Without `held_out`, each event is split into
+/// alternating blocks, fitted and held out. `causes` (ids, see `causes()`) limits the causes
+/// tried. `seed`, `particles`, `pso_iterations` and `local_iterations` set each re-fit (None:
+/// `defaults()["diagnose"]`; `lbfgs_iterations` is the old name of `local_iterations`);
+/// `threads` the worker threads (default: all cores). `refit` names calibrated parameters to
+/// free again in every re-fit (a list of paths, or a dict of path to (min, max)). `fit` (a
+/// FitResult) diagnoses that fit's calibrated unit with its whole calibrated set re-freed,
+/// within the spec's bounds and with the calibration's datasheet prior, as `itaipu-calib
+/// diagnose --fit`: `unit` is then left out (or is `fit.unit`). `user_causes` (a path or a list
+/// of paths) adds causes written by the user, as `--user-cause`. The GIL is released while it
+/// runs. Plausibility warnings on the inputs are issued as `ItaipuWarning`s and kept in the
+/// report's `warnings`. Returns a Diagnosis.
 ///
-/// Raises CalibrationError (kind 'setup': e.g. an unknown cause), SimulationError (kind
-/// 'simulation': the unit does not simulate on an event as given), EventError,
-/// UnitModelError; ValueError for bad options, TypeError for bad argument types.
+/// Raises CalibrationError (a diagnosis that cannot run), SimulationError or InitError (the
+/// unit does not simulate on an event as given), EventError, UnitModelError; ValueError for bad
+/// options (an unknown cause, a bad `refit` parameter: `kind` names the option), TypeError for
+/// bad argument types.
 #[pyfunction]
 #[pyo3(
-    signature = (events, unit, held_out = None, *, causes = None, seed = 1, particles = 16, pso_iterations = 20,
-                 lbfgs_iterations = 15, threads = None, refit = None, fit = None, user_causes = None),
-    text_signature = "(events, unit, held_out=None, *, causes=None, seed=1, particles=16, pso_iterations=20, \
-                      lbfgs_iterations=15, threads=None, refit=None, fit=None, user_causes=None)"
+    signature = (events, unit = None, held_out = None, *, causes = None, seed = None, particles = None,
+                 pso_iterations = None, local_iterations = None, threads = None, refit = None, fit = None,
+                 user_causes = None, lbfgs_iterations = None),
+    text_signature = "(events, unit=None, held_out=None, *, causes=None, seed=None, particles=None, \
+                      pso_iterations=None, local_iterations=None, threads=None, refit=None, fit=None, user_causes=None)"
 )]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
     py: Python<'_>,
     events: &Bound<'_, PyAny>,
-    unit: &Bound<'_, PyAny>,
+    unit: Option<&Bound<'_, PyAny>>,
     held_out: Option<&Bound<'_, PyAny>>,
     causes: Option<&Bound<'_, PyAny>>,
-    seed: u64,
-    particles: usize,
-    pso_iterations: usize,
-    lbfgs_iterations: u64,
+    seed: Option<u64>,
+    particles: Option<usize>,
+    pso_iterations: Option<usize>,
+    local_iterations: Option<u64>,
     threads: Option<usize>,
     refit: Option<&Bound<'_, PyAny>>,
     fit: Option<&Bound<'_, PyAny>>,
     user_causes: Option<&Bound<'_, PyAny>>,
+    lbfgs_iterations: Option<u64>,
 ) -> PyResult<PyDiagnosis> {
+    let local_iterations = crate::args::renamed(
+        py,
+        "lbfgs_iterations",
+        "local_iterations",
+        lbfgs_iterations,
+        local_iterations,
+    )?;
+    let unit = unit.filter(|u| !u.is_none());
     // The order was (unit, events) before issue 14: still accepted, with a warning.
-    let (events, unit) = if swapped_events_unit(py, events, unit)? {
-        PyErr::warn(
-            py,
-            &py.get_type::<PyDeprecationWarning>(),
-            c"diagnose(unit, events) is deprecated: the order is diagnose(events, unit), as in \
-              fit(events, unit) and simulate(event, unit); the two arguments were swapped",
-            1,
-        )?;
-        (unit, events)
-    } else {
-        (events, unit)
+    let (events, unit) = match unit {
+        Some(u) if swapped_events_unit(py, events, u)? => {
+            PyErr::warn(
+                py,
+                &py.get_type::<PyDeprecationWarning>(),
+                c"diagnose(unit, events) is deprecated: the order is diagnose(events, unit), as in \
+                  fit(events, unit) and simulate(event, unit); the two arguments were swapped",
+                1,
+            )?;
+            (u, Some(events))
+        }
+        u => (events, u),
     };
-    let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
+    // A FitResult: its calibrated unit, with its whole calibrated set re-freed with the
+    // calibration's prior (as `itaipu-calib diagnose --fit`).
+    let fit: Option<Bound<'_, PyFitResult>> = match fit {
+        Some(f) if !f.is_none() => Some(
+            f.cast::<PyFitResult>()
+                .map_err(|_| {
+                    PyTypeError::new_err("fit must be a FitResult (from itaipu_calib.fit)")
+                })?
+                .clone(),
+        ),
+        _ => None,
+    };
+    let (unit_src, calibrated_set): (Source<Unit>, Vec<FreeBound>) = match (unit, &fit) {
+        (None, None) => {
+            return Err(PyTypeError::new_err(
+                "diagnose needs a unit (a path or a Unit), or fit= a FitResult",
+            ))
+        }
+        (Some(u), None) => (source::<PyUnit, _>(u, "unit", |x| x.inner.clone())?, vec![]),
+        (given, Some(f)) => {
+            let f = f.get();
+            if let Some(u) = given {
+                let same = u
+                    .cast::<PyUnit>()
+                    .is_ok_and(|x| Arc::ptr_eq(&x.get().inner, &f.unit));
+                if !same {
+                    return Err(crate::errors::usage_error(
+                        py,
+                        "unit",
+                        "diagnose(..., fit=r) diagnoses the fit's own calibrated unit (r.unit) \
+                         with its calibrated set re-freed: leave unit out (or pass r.unit), as the \
+                         command line's --fit, which conflicts with --unit",
+                    ));
+                }
+            }
+            (Source::Loaded(f.unit.clone()), f.calibrated_set.clone())
+        }
+    };
+    let unit_path: Option<PathBuf> = match &unit_src {
+        Source::Path(p) => Some(p.clone()),
+        Source::Loaded(_) => None,
+    };
     // Cause files written by the user (`diagnose --user-cause`): a path or a list of paths.
     let user_paths: Vec<PathBuf> = match user_causes {
         None => vec![],
@@ -333,78 +416,68 @@ pub(crate) fn diagnose(
             })?,
         },
     };
-    let user_causes = calib_diagnose::user_cause::read_all(&user_paths)
-        .map_err(|e| raise::<CalibrationError>(py, e.to_string(), Some("spec")))?;
-    let refit = refit_list(refit)?;
-    // A FitResult: its whole calibrated set is re-freed with the calibration's prior (as
-    // `itaipu-calib diagnose --fit`).
-    let fit_set: Vec<FreeBound> = match fit {
-        Some(f) if !f.is_none() => f
-            .downcast::<PyFitResult>()
-            .map_err(|_| PyTypeError::new_err("fit must be a FitResult (from itaipu_calib.fit)"))?
-            .get()
-            .calibrated_set
-            .clone(),
-        _ => vec![],
+    let request = DiagnoseRequest {
+        causes: cause_list(causes)?,
+        user_causes: user_paths,
+        refit: refit_list(refit)?,
+        search: Search {
+            seed,
+            particles,
+            pso_iterations,
+            local_iterations,
+            threads,
+        },
     };
+    request.search.validate().map_err(request_error)?;
     let events = event_sources(events, "events")?;
     let held_out = match held_out {
         Some(h) if !h.is_none() => event_sources(h, "held_out")?,
         _ => vec![],
     };
-    let causes = cause_list(causes)?;
-    Search {
-        particles: Some(particles),
-        threads,
-        ..Default::default()
-    }
-    .validate()
-    .map_err(request_error)?;
     let pool = worker_pool(threads)?;
-    let cancel = Arc::new(AtomicBool::new(false));
-    let mut opts = DiagnoseOptions {
-        causes,
-        user_causes,
-        seed,
-        particles,
-        pso_iterations,
-        lbfgs_iterations,
-        cancel: Some(cancel.clone()),
-        ..Default::default()
-    };
-    // Ctrl-C stops the re-fits at their next candidate evaluation: KeyboardInterrupt, nothing
-    // kept (a verdict needs every cause).
-    let result = interrupt::interruptible(
-        py,
-        Some(cancel),
-        move || -> Result<calib_diagnose::DiagnoseResult, Failure> {
+    let prepared = py.detach(move || {
+        Failure::catch("diagnose", || {
             let unit = match unit_src {
-                Source::Loaded(u) => u,
-                Source::Path(p) => Arc::new(read_unit(&p)?),
+                Source::Loaded(u) => Arc::unwrap_or_clone(u),
+                Source::Path(p) => job::load_unit(&p)?.unit,
             };
-            opts.refit = calib_diagnose::refit_bounds(&unit, &refit)?;
-            for b in fit_set {
-                if !opts.refit.iter().any(|r| r.param == b.param) && unit.param(&b.param).is_ok() {
-                    opts.refit.push(b);
-                }
-            }
             let events = load_events(events)?;
             let held_out = load_events(held_out)?;
-            let run = || calib_diagnose::diagnose(&unit, &events, &held_out, &opts, &Silent);
-            Ok(match pool {
+            let (opts, warnings) = job::prepare_diagnose(
+                &unit,
+                unit_path.as_deref(),
+                &events,
+                &held_out,
+                &request,
+                &calibrated_set,
+            )?;
+            Ok((unit, events, held_out, opts, warnings))
+        })
+    });
+    let (unit, events, held_out, mut opts, warnings) = prepared.map_err(|e| e.into_pyerr(py))?;
+    crate::errors::warn_all(py, &warnings)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    opts.cancel = Some(cancel.clone());
+    // Ctrl-C stops the re-fits at their next candidate evaluation: KeyboardInterrupt, nothing
+    // kept (a verdict needs every cause).
+    let result = interrupt::interruptible(py, Some(cancel), move || {
+        Failure::catch("diagnose", || {
+            let run = || job::run_diagnose(&unit, &events, &held_out, &opts, warnings, &Silent);
+            match pool {
                 Some(pool) => pool.install(run),
                 None => run(),
-            }?)
-        },
-    )?;
-    let result = result.map_err(|e| e.into_pyerr(py))?;
-    let report = serde_json::to_value(&result.report)
+            }
+        })
+    })?;
+    let run = result.map_err(|e| e.into_pyerr(py))?;
+    let report = serde_json::to_value(&run.report)
         .map_err(|e| PyRuntimeError::new_err(format!("diagnosis report: {e}")))?;
     Ok(PyDiagnosis {
         report,
-        extended_unit: result.extended_unit.map(Arc::new),
-        before: result.before,
-        after: result.after,
+        extended_unit: run.extended_unit.clone().map(Arc::new),
+        before: run.before.clone(),
+        after: run.after.clone(),
+        run: Arc::new(run),
     })
 }
 

@@ -1,7 +1,7 @@
 //! The Python exception classes and the one conversion of each library error into them
 //! (`Failure::into_pyerr`, `request_error`).
 
-use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyValueError};
+use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::{create_exception, PyTypeInfo};
 
@@ -66,6 +66,30 @@ create_exception!(
      input's fault; please report it with the message."
 );
 
+create_exception!(
+    itaipu_calib,
+    ItaipuWarning,
+    PyUserWarning,
+    "A plausibility warning on the inputs (an implausible sample, a parameter far outside its \
+     typical range, a starting value clamped into the spec's bounds): the run goes on; the \
+     warning is also kept in the result's report."
+);
+
+/// Issues every finding as an [`ItaipuWarning`] (what the command line prints as
+/// `warning: ...`).
+pub(crate) fn warn_all(
+    py: Python<'_>,
+    findings: &[itaipu_dynamics::plausibility::Finding],
+) -> PyResult<()> {
+    let cat = py.get_type::<ItaipuWarning>();
+    for f in findings {
+        let msg = std::ffi::CString::new(f.to_string().replace('\0', " "))
+            .unwrap_or_else(|_| c"warning".to_owned());
+        PyErr::warn(py, &cat, &msg, 1)?;
+    }
+    Ok(())
+}
+
 /// A failure inside the GIL-free part of a call: the library's one error type, converted to a
 /// Python exception afterwards by its class ([`ErrorClass`]), here and only here.
 pub(crate) type Failure = itaipu_calib::Error;
@@ -94,7 +118,12 @@ impl IntoPyErr for itaipu_calib::Error {
             _ => self.to_string(),
         };
         match self.class() {
-            ErrorClass::Usage => PyValueError::new_err(msg),
+            // A ValueError (a bad argument value), with the option at fault as its `kind`.
+            ErrorClass::Usage => {
+                let err = PyValueError::new_err(msg);
+                let _ = err.value(py).setattr("kind", kind);
+                err
+            }
             ErrorClass::EventData => raise::<EventError>(py, msg, Some(&kind)),
             ErrorClass::UnitModel => raise::<UnitModelError>(py, msg, Some(&kind)),
             ErrorClass::Spec | ErrorClass::Calibration => {
@@ -108,6 +137,13 @@ impl IntoPyErr for itaipu_calib::Error {
             ErrorClass::Internal => raise::<InternalError>(py, msg, Some("internal")),
         }
     }
+}
+
+/// A usage error found by the binding itself: ValueError with `kind` the argument at fault.
+pub(crate) fn usage_error(py: Python<'_>, arg: &str, msg: &str) -> PyErr {
+    let err = PyValueError::new_err(format!("{arg}: {msg}"));
+    let _ = err.value(py).setattr("kind", arg);
+    err
 }
 
 /// A rejected option (the library's [`RequestError`]): ValueError, options named as in Python.

@@ -7,10 +7,10 @@ use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use itaipu_calib::job::load_unit as read_unit_any;
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::plausibility::{check_event, check_unit, Finding, Severity};
 use itaipu_dynamics::unit::Unit;
-use itaipu_dynamics::unit_file::read_unit;
 
 use crate::args::{array, source, Source};
 use crate::errors::{Failure, IntoPyErr};
@@ -198,7 +198,7 @@ pub(crate) fn check<'py>(
             let unit = match unit {
                 None => None,
                 Some((Some(u), p)) => Some((u, p)),
-                Some((None, p)) => Some((Arc::new(read_unit(&p)?), p)),
+                Some((None, p)) => Some((Arc::new(read_unit_any(&p)?.unit), p)),
             };
             let mut out = check_event(&event, unit.as_ref().map(|(u, _)| u.machine_mva));
             if let Some((u, p)) = &unit {

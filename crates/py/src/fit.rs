@@ -4,16 +4,15 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
-use pyo3::exceptions::{PyKeyError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyKeyError, PyRuntimeError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use itaipu_calib::bounds::FreeBound;
-use itaipu_calib::diagnose as calib_diagnose;
-use itaipu_calib::fit::{self as calib_fit, FitOptions, FitReport, Silent, StageOutput};
-use itaipu_calib::spec::{CalibSpec, Strategy};
+use itaipu_calib::fit::{self as calib_fit, FitReport, Silent, StageOutput};
+use itaipu_calib::job;
+use itaipu_calib::spec::Strategy;
 use itaipu_dynamics::unit::Unit;
-use itaipu_dynamics::unit_file::read_unit;
 
 use crate::args::{
     event_sources, load_events, source, str_or_list, swap_error, swapped_events_unit, worker_pool,
@@ -37,16 +36,23 @@ use itaipu_calib::request::{FitRequest, Search, Stage};
 #[pyclass(name = "FitResult", module = "itaipu_calib", frozen)]
 pub(crate) struct PyFitResult {
     pub(crate) report: FitReport,
+    /// The whole report as JSON text (`report.json`: [`FitSummary::to_json`]).
     pub(crate) report_json: String,
+    /// The report as text ([`FitSummary::to_text`]).
+    pub(crate) report_text: String,
+    pub(crate) warnings: Vec<String>,
     pub(crate) unit: Arc<Unit>,
-    pub(crate) stages: Vec<StageOutput>,
     /// The calibrated set with the calibration's prior, for `diagnose(..., fit=...)`.
     pub(crate) calibrated_set: Vec<FreeBound>,
+    /// The finished fit (its stages' units and traces; what [`job::write_fit_files`] needs to
+    /// write the fit's folder).
+    pub(crate) run: Arc<job::FitRun>,
+    pub(crate) spec_text: String,
 }
 
 impl PyFitResult {
     fn unknown_stage(&self, stage: &str) -> PyErr {
-        let names: Vec<&str> = self.stages.iter().map(|s| s.stage.as_str()).collect();
+        let names: Vec<&str> = self.run.stages.iter().map(|s| s.stage.as_str()).collect();
         PyKeyError::new_err(format!(
             "no stage '{stage}' in this fit (stages: {})",
             names.join(", ")
@@ -61,13 +67,55 @@ impl PyFitResult {
 
 #[pymethods]
 impl PyFitResult {
-    /// The fit report as a dict (unit, events, held_out, strategy, seed, threads,
-    /// start_fitness, stages: list of stage reports with parameters, objective_before/after,
-    /// fitness, phases, identifiability, ...; wall_s).
+    /// The fit report (the command line's `report.json`): a dict (unit, events, held_out,
+    /// strategy, seed, threads, start_fitness, stages: the stage reports with parameters, fit
+    /// statistics, determination flags, correlations, fitness, phases...; warnings, noise,
+    /// wall_s). Calling it, `result.report()`, gives the report as text (what the command line
+    /// prints; also `fit_report()` and `print(result)`).
     #[getter]
     fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        py.import("json")?
-            .call_method1("loads", (&self.report_json,))
+        let d = py
+            .import("json")?
+            .call_method1("loads", (&self.report_json,))?;
+        py.import("itaipu_calib._report")?
+            .getattr("Report")?
+            .call1((d, &self.report_text))
+    }
+
+    /// The plausibility warnings on the inputs (each a line naming the file, the sample or
+    /// parameter, and the fix), as in the report's `warnings`.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
+    }
+
+    /// Writes the fit's files into the folder `out` as the command line's `fit --out` does
+    /// (report.json, calibrated.toml, datasheet.toml, calibration.toml, a folder per stage with
+    /// its unit and traces, manifest.json last; no plots or HTML): through a temporary folder
+    /// renamed into place, so that `out` is complete or absent. An existing non-empty `out` is
+    /// refused unless `overwrite=True` (and then only a folder of ours, replaced whole).
+    /// Returns the folder. Raises OutputError.
+    #[pyo3(signature = (out, *, overwrite = false))]
+    fn write(&self, py: Python<'_>, out: PathBuf, overwrite: bool) -> PyResult<PathBuf> {
+        let run = self.run.clone();
+        let spec_text = self.spec_text.clone();
+        py.detach(move || -> Result<PathBuf, Failure> {
+            Failure::catch("FitResult.write", || {
+                let staging = itaipu_calib::output::prepare_out(Some(&out), "fit", overwrite)?;
+                for st in &run.stages {
+                    job::write_stage_files(staging.path(), st, |_| Ok(()))?;
+                }
+                job::write_fit_files(staging.path(), &run, &spec_text)?;
+                staging.commit(
+                    Some(run.options.seed),
+                    vec![
+                        "itaipu_calib.FitResult.write".into(),
+                        out.display().to_string(),
+                    ],
+                )
+            })
+        })
+        .map_err(|e| e.into_pyerr(py))
     }
 
     /// The calibrated full unit (every block, with every stage's results).
@@ -82,7 +130,7 @@ impl PyFitResult {
     /// Names of the stages run, in order.
     #[getter]
     fn stages(&self) -> Vec<String> {
-        self.stages.iter().map(|s| s.stage.clone()).collect()
+        self.run.stages.iter().map(|s| s.stage.clone()).collect()
     }
 
     /// Calibrated values of the free parameters of `stage`: `{"block.name": value}` in the
@@ -125,6 +173,7 @@ impl PyFitResult {
     #[pyo3(signature = (stage, event = None))]
     fn traces(&self, stage: &str, event: Option<&str>) -> PyResult<(PyTraces, PyTraces)> {
         let st = self
+            .run
             .stages
             .iter()
             .find(|s| s.stage == stage)
@@ -172,11 +221,11 @@ impl PyFitResult {
     /// parameter table (start, bounds, result, standard error, at bound), what the data do not
     /// determine; then J per event and stage. `print(result)` prints the same.
     fn fit_report(&self) -> String {
-        self.report.to_text()
+        self.report_text.clone()
     }
 
     fn __str__(&self) -> String {
-        self.report.to_text()
+        self.report_text.clone()
     }
 
     /// The parameters of `params()` as a pandas DataFrame indexed by name (columns stage,
@@ -209,29 +258,35 @@ impl PyFitResult {
     }
 }
 
-/// Calibrates `unit` against `events`, stage by stage (particle swarm, then L-BFGS), as the
-/// command line's `fit`.
+/// Calibrates `unit` against `events`, stage by stage (particle swarm, then the local method),
+/// as the command line's `fit`: the same library job ([`job::run_fit`]), so the same numbers,
+/// warnings and report.
 ///
 /// `events` (and `held_out`) are paths to event files or Event objects, or lists of them; the
-/// objective sums over `events`, `held_out` events are only scored. `unit` is a path or a Unit.
-/// `calib` is a file with a `[calibration]` table; by default the unit file's own (a Unit that
-/// was not read from a file then needs `calib`). `stages` is "all" (every stage the spec lists)
+/// objective sums over `events`, `held_out` events are only scored. `unit` is a path (a unit
+/// TOML file, or a PSS/E `.dyr` with its `<stem>.bases.toml` beside it) or a Unit. `calib` is a
+/// file with a `[calibration]` table; by default the unit file's own (a Unit that was not read
+/// from a file, or a `.dyr`, then needs `calib`). `stages` is "all" (every stage the spec lists)
 /// or some of gen, avr, pss, tg (a list or a comma-separated string), run in that order.
 /// `strategy` ('sequential', 'incremental', 'simultaneous-first'), `seed`, `particles`,
-/// `pso_iterations` and `lbfgs_iterations` override the spec; `polish=False` skips the final
-/// joint refinement ('joint') after several stages. `threads` sets the worker threads (default:
-/// all cores); same seed, same numbers, whatever the number of threads. The GIL is released
-/// while files are read and the fit runs.
+/// `pso_iterations` and `local_iterations` (the local method's iterations: Levenberg-Marquardt
+/// steps or L-BFGS iterations; `lbfgs_iterations` is the old name) override the spec (None:
+/// the spec's, else `defaults()["fit"]`); `polish=False` skips the final joint refinement
+/// ('joint') after several stages. `threads` sets the worker threads (default: all cores); same
+/// seed, same numbers, whatever the number of threads. The GIL is released while files are
+/// read and the fit runs. Plausibility warnings on the inputs are issued as `ItaipuWarning`s
+/// and kept in `FitResult.warnings`.
 ///
-/// Raises CalibrationError (bad spec, or a fit that cannot run), EventError, UnitModelError
-/// (and ValueError for bad options, TypeError for bad argument types).
+/// Raises CalibrationError (bad spec, or a fit that cannot run), EventError, UnitModelError,
+/// InitError (the unit cannot start at the measured operating point), ValueError for bad
+/// options, TypeError for bad argument types.
 #[pyfunction]
 #[pyo3(
     signature = (events, unit, *, calib = None, stages = None, strategy = None, seed = None, particles = None,
-                 pso_iterations = None, lbfgs_iterations = None, polish = true, held_out = None,
-                 threads = None),
+                 pso_iterations = None, local_iterations = None, polish = true, held_out = None,
+                 threads = None, lbfgs_iterations = None),
     text_signature = "(events, unit, *, calib=None, stages='all', strategy=None, seed=None, particles=None, \
-                      pso_iterations=None, lbfgs_iterations=None, polish=True, held_out=(), threads=None)"
+                      pso_iterations=None, local_iterations=None, polish=True, held_out=(), threads=None)"
 )]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn fit(
@@ -244,31 +299,31 @@ pub(crate) fn fit(
     seed: Option<u64>,
     particles: Option<usize>,
     pso_iterations: Option<usize>,
-    lbfgs_iterations: Option<u64>,
+    local_iterations: Option<u64>,
     polish: bool,
     held_out: Option<&Bound<'_, PyAny>>,
     threads: Option<usize>,
+    lbfgs_iterations: Option<u64>,
 ) -> PyResult<PyFitResult> {
     if swapped_events_unit(py, events, unit)? {
         return Err(swap_error("fit"));
     }
+    let local_iterations = crate::args::renamed(
+        py,
+        "lbfgs_iterations",
+        "local_iterations",
+        lbfgs_iterations,
+        local_iterations,
+    )?;
     let events = event_sources(events, "events")?;
     let unit_src = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
     let held_out = match held_out {
         Some(h) => event_sources(h, "held_out")?,
         None => vec![],
     };
-    let calib = match calib {
-        Some(p) => p,
-        None => match &unit_src {
-            Source::Path(p) => p.clone(),
-            Source::Loaded(_) => unit.downcast::<PyUnit>()?.get().path.clone().ok_or_else(|| {
-                PyValueError::new_err(
-                    "calib is required: unit is a Unit that was not read from a file (e.g. FitResult.unit), \
-                     so it has no [calibration] table; pass calib=<file with a [calibration] table>",
-                )
-            })?,
-        },
+    let unit_file: Option<PathBuf> = match &unit_src {
+        Source::Path(p) => Some(p.clone()),
+        Source::Loaded(_) => unit.cast::<PyUnit>()?.get().path.clone(),
     };
     let request = FitRequest {
         stages: stage_list(stages)?,
@@ -280,74 +335,106 @@ pub(crate) fn fit(
             seed,
             particles,
             pso_iterations,
-            lbfgs_iterations,
+            local_iterations,
             threads,
         },
         no_polish: !polish,
     };
     request.search.validate().map_err(request_error)?;
     let pool = worker_pool(threads)?;
+    // Inputs, options and warnings first (quick), with the GIL released.
+    let prepared = py.detach(move || {
+        Failure::catch("fit", || {
+            let unit = match unit_src {
+                Source::Loaded(u) => Arc::unwrap_or_clone(u),
+                Source::Path(p) => job::load_unit(&p)?.unit,
+            };
+            let (spec, spec_path, spec_text) =
+                job::FitInputs::read_spec(calib.as_deref(), unit_file.as_deref())?;
+            let inputs = job::FitInputs {
+                unit,
+                unit_path: unit_file,
+                spec,
+                spec_path: Some(spec_path),
+                spec_text: Some(spec_text),
+                events: load_events(events)?,
+                held_out: load_events(held_out)?,
+            };
+            let (opts, warnings) = job::prepare_fit(&inputs, &request)?;
+            Ok((inputs, opts, warnings))
+        })
+    });
+    let (inputs, opts, warnings) = prepared.map_err(|e| e.into_pyerr(py))?;
+    crate::errors::warn_all(py, &warnings)?;
     // Ctrl-C (KeyboardInterrupt) stops the fit at its next candidate evaluation; the passes
     // finished by then are kept on the exception (see `fit`'s documentation).
     let cancel = Arc::new(AtomicBool::new(false));
     let worker_cancel = cancel.clone();
     let finished: Arc<Mutex<Vec<(calib_fit::StageReport, Unit)>>> = Arc::default();
     let worker_finished = finished.clone();
-    let work = move || -> Result<(calib_fit::FitResult, Vec<FreeBound>), Failure> {
-        let unit = match unit_src {
-            Source::Loaded(u) => u,
-            Source::Path(p) => Arc::new(read_unit(&p)?),
-        };
-        let spec = CalibSpec::from_file(&calib)?;
-        let events = load_events(events)?;
-        let held_out = load_events(held_out)?;
-        let mut opts = FitOptions::from_spec(&spec);
-        request.apply(&mut opts)?;
-        let on_stage = |rep: &calib_fit::StageReport,
-                        _: &StageOutput,
-                        master: &Unit|
-         -> Result<(), calib_fit::FitError> {
-            if let Ok(mut f) = worker_finished.lock() {
-                f.push((rep.clone(), master.clone()));
-            }
-            Ok(())
-        };
-        let control = calib_fit::FitControl {
-            cancel: Some(worker_cancel),
-            on_stage: Some(&on_stage),
-            ..Default::default()
-        };
-        let run =
-            || calib_fit::fit_with(&unit, &spec, &events, &held_out, &opts, &Silent, &control);
-        let mut result = match &pool {
-            Some(pool) => pool.install(run),
-            None => run(),
-        }?;
-        // As the command line's calibrated.toml.
-        result.unit.description = format!(
-            "{} (calibrated by itaipu-calib fit, stages {}, seed {})",
-            unit.description,
-            opts.stages.join("+"),
-            opts.seed
-        );
-        let set = calib_diagnose::calibrated_set(&spec, &opts.stages, &unit, &result.unit);
-        Ok((result, set))
+    let work = move || -> Result<(job::FitRun, String), Failure> {
+        Failure::catch("fit", || {
+            let on_stage = |rep: &calib_fit::StageReport,
+                            _: &StageOutput,
+                            master: &Unit|
+             -> Result<(), calib_fit::FitError> {
+                if let Ok(mut f) = worker_finished.lock() {
+                    f.push((rep.clone(), master.clone()));
+                }
+                Ok(())
+            };
+            let control = calib_fit::FitControl {
+                cancel: Some(worker_cancel),
+                on_stage: Some(&on_stage),
+                ..Default::default()
+            };
+            let run = || {
+                job::run_fit(
+                    &inputs,
+                    &opts,
+                    warnings,
+                    &Silent,
+                    &control,
+                    Default::default(),
+                )
+            };
+            let run = match &pool {
+                Some(pool) => pool.install(run),
+                None => run(),
+            }?;
+            Ok((run, inputs.spec_text.clone().unwrap_or_default()))
+        })
     };
     let result = interrupt::interruptible(py, Some(cancel), work).inspect_err(|e| {
         if let Ok(f) = finished.lock() {
             let _ = keep_finished(py, e, &f);
         }
     })?;
-    let (result, calibrated_set) = result.map_err(|e| e.into_pyerr(py))?;
-    let report_json = serde_json::to_string(&result.report)
-        .map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
-    Ok(PyFitResult {
-        report: result.report,
-        report_json,
-        unit: Arc::new(result.unit),
-        stages: result.stages,
-        calibrated_set,
-    })
+    let (run, spec_text) = result.map_err(|e| e.into_pyerr(py))?;
+    PyFitResult::new(run, spec_text)
+}
+
+impl PyFitResult {
+    /// The Python result of a finished fit.
+    pub(crate) fn new(run: job::FitRun, spec_text: String) -> PyResult<Self> {
+        let report_json = run
+            .report
+            .to_json()
+            .and_then(|v| {
+                serde_json::to_string(&v).map_err(|e| itaipu_calib::Error::Output(e.to_string()))
+            })
+            .map_err(|e| PyRuntimeError::new_err(format!("fit report: {e}")))?;
+        Ok(PyFitResult {
+            report: run.report.fit.clone(),
+            report_json,
+            report_text: run.report.to_text(),
+            warnings: run.report.warnings.iter().map(|w| w.to_string()).collect(),
+            unit: Arc::new(run.unit.clone()),
+            calibrated_set: run.calibrated_set.clone(),
+            spec_text,
+            run: Arc::new(run),
+        })
+    }
 }
 
 /// Puts what an interrupted fit finished on its KeyboardInterrupt: `finished_stages` (names,

@@ -28,12 +28,12 @@ use pyo3::prelude::*;
 
 use crate::diagnose::{causes, PyDiagnosis};
 use crate::errors::{
-    CalibrationError, EventError, InitError, InternalError, ItaipuError, OutputError,
-    SimulationError, UnitModelError,
+    CalibrationError, EventError, InitError, InternalError, ItaipuError, ItaipuWarning,
+    OutputError, SimulationError, UnitModelError,
 };
 use crate::event::{check, load_event, PyEvent};
 use crate::fit::PyFitResult;
-use crate::library::{models, noise_sigma};
+use crate::library::{defaults, models, noise_sigma, stages};
 use crate::traces::PyTraces;
 use crate::unit::{load_unit, PyUnit};
 
@@ -55,6 +55,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("CalibrationError", py.get_type::<CalibrationError>())?;
     m.add("OutputError", py.get_type::<OutputError>())?;
     m.add("InternalError", py.get_type::<InternalError>())?;
+    m.add("ItaipuWarning", py.get_type::<ItaipuWarning>())?;
     m.add_class::<PyEvent>()?;
     m.add_class::<PyUnit>()?;
     m.add_class::<PyTraces>()?;
@@ -70,6 +71,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(synth::synth, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(noise_sigma, m)?)?;
+    m.add_function(wrap_pyfunction!(defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(stages, m)?)?;
     m.add_function(wrap_pyfunction!(cli::_cli_main, m)?)?;
     m.add_class::<params::PyParameter>()?;
     ecosys::register(m)?;

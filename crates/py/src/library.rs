@@ -53,3 +53,31 @@ pub(crate) fn models<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
 pub(crate) fn noise_sigma(values: Vec<f64>) -> f64 {
     itaipu_calib::problem::noise_variance(&values).sqrt()
 }
+
+/// The defaults of the search settings, declared once in the library (what `fit` and
+/// `diagnose` use where an argument is None, and what the command line's `--help` prints):
+/// `{"fit": {...}, "diagnose": {...}}`, each with seed, particles, pso_iterations and
+/// local_iterations (`fit`'s apply where the calibration spec does not set them).
+#[pyfunction]
+pub(crate) fn defaults<'py>(py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+    use itaipu_calib::request::{SearchDefaults, DIAGNOSE_SEARCH, FIT_SEARCH};
+    let one = |d: &SearchDefaults| -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+        let x = pyo3::types::PyDict::new(py);
+        x.set_item("seed", d.seed)?;
+        x.set_item("particles", d.particles)?;
+        x.set_item("pso_iterations", d.pso_iterations)?;
+        x.set_item("local_iterations", d.local_iterations)?;
+        Ok(x)
+    };
+    let out = pyo3::types::PyDict::new(py);
+    out.set_item("fit", one(&FIT_SEARCH)?)?;
+    out.set_item("diagnose", one(&DIAGNOSE_SEARCH)?)?;
+    Ok(out)
+}
+
+/// The calibration stages, in the fixed order they run in (`gen`, `avr`, `pss`, `tg`), then
+/// `all`: the names `fit(stages=...)` and the command line's `--stage` accept.
+#[pyfunction]
+pub(crate) fn stages() -> Vec<&'static str> {
+    itaipu_calib::request::Stage::NAMES.to_vec()
+}

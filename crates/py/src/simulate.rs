@@ -4,9 +4,9 @@ use std::sync::Arc;
 
 use pyo3::prelude::*;
 
+use itaipu_calib::job::load_unit as read_unit_any;
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::{SimOptions, Traces};
-use itaipu_dynamics::unit_file::read_unit;
 
 use crate::args::{source, swap_error, swapped_events_unit, Source};
 use crate::errors::{request_error, Failure, IntoPyErr};
@@ -48,7 +48,7 @@ pub(crate) fn simulate(
         };
         let unit = match unit {
             Source::Loaded(u) => u,
-            Source::Path(p) => Arc::new(read_unit(&p)?),
+            Source::Path(p) => Arc::new(read_unit_any(&p)?.unit),
         };
         Ok(itaipu_dynamics::simulate(&unit, &event, &opts)?)
     });

@@ -6,7 +6,7 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use itaipu_dynamics::unit_file::read_unit;
+use itaipu_calib::job::load_unit as read_unit_any;
 
 use crate::args::{source, Source};
 use crate::errors::{request_error, Failure, IntoPyErr};
@@ -73,7 +73,7 @@ pub(crate) fn synth(
     let result = interrupt::interruptible(py, None, move || -> Result<Synthesized, Failure> {
         let unit = match unit {
             Source::Loaded(u) => u,
-            Source::Path(p) => Arc::new(read_unit(&p)?),
+            Source::Path(p) => Arc::new(read_unit_any(&p)?.unit),
         };
         request
             .run(&unit, "itaipu_calib.synth")

@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use itaipu_dynamics::unit::Unit;
-use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
+use itaipu_dynamics::unit_file::unit_to_toml;
 
 use crate::errors::{Failure, IntoPyErr};
 
@@ -113,13 +113,22 @@ impl PyUnit {
     }
 }
 
-/// Reads a unit model file (TOML). Raises UnitModelError.
+/// Reads a unit model file: a unit TOML file, or a PSS/E `.dyr` with its bases in
+/// `<stem>.bases.toml` beside it (the reader's warnings issued as ItaipuWarning). Raises
+/// UnitModelError.
 #[pyfunction]
 pub(crate) fn load_unit(py: Python<'_>, path: PathBuf) -> PyResult<PyUnit> {
-    py.detach(|| read_unit(&path))
-        .map(|u| PyUnit {
-            inner: Arc::new(u),
-            path: Some(path),
-        })
-        .map_err(|e| Failure::from(e).into_pyerr(py))
+    let loaded = py
+        .detach(|| Failure::catch("load_unit", || itaipu_calib::job::load_unit(&path)))
+        .map_err(|e| e.into_pyerr(py))?;
+    let cat = py.get_type::<crate::errors::ItaipuWarning>();
+    for w in &loaded.warnings {
+        let msg =
+            std::ffi::CString::new(w.replace('\0', " ")).unwrap_or_else(|_| c"warning".to_owned());
+        PyErr::warn(py, &cat, &msg, 1)?;
+    }
+    Ok(PyUnit {
+        inner: Arc::new(loaded.unit),
+        path: Some(path),
+    })
 }

@@ -132,10 +132,10 @@ impl Default for DiagnoseOptions {
             causes: vec![],
             user_causes: vec![],
             refit: vec![],
-            seed: 1,
-            particles: 16,
-            pso_iterations: 20,
-            lbfgs_iterations: 15,
+            seed: crate::request::DIAGNOSE_SEARCH.seed,
+            particles: crate::request::DIAGNOSE_SEARCH.particles,
+            pso_iterations: crate::request::DIAGNOSE_SEARCH.pso_iterations,
+            lbfgs_iterations: crate::request::DIAGNOSE_SEARCH.local_iterations,
             lbfgs_memory: 7,
             block_s: 0.5,
             bic_threshold: 10.0,
@@ -341,6 +341,8 @@ pub struct Diagnosis {
     /// Evidence with the named extension (empty when none is named).
     pub evidence_after: Vec<EventEvidence>,
     pub noise: NoiseModel,
+    /// Plausibility warnings on the inputs (set by [`crate::job::run_diagnose`]).
+    pub warnings: Vec<itaipu_dynamics::plausibility::Finding>,
     /// Calibrated parameters freed again in every re-fit ([`DiagnoseOptions::refit`]).
     pub refit: Vec<FreeBound>,
     pub seed: u64,
@@ -509,6 +511,7 @@ fn diagnose_run(
             n_fit: sp.fit.iter().map(|d| d.n_window()).sum(),
             n_held: sp.held.iter().map(|d| d.n_window()).sum(),
         },
+        warnings: vec![],
         refit: opts.refit.clone(),
         seed: opts.seed,
         threads: rayon::current_num_threads(),

@@ -13,7 +13,10 @@ mod search;
 mod stage;
 
 pub use passes::{fit, fit_with};
-pub use report::{EventFitness, FitReport, ParamReport, PhaseReport, StageReport};
+pub use report::{
+    Determination, EventFitness, FitReport, FitStatistics, ParamReport, PhaseReport, StageReport,
+    DETERMINED_LIMIT, NOT_DETERMINED_LIMIT,
+};
 pub(crate) use search::{jacobian, search};
 pub use stage::check_spec;
 use stage::*;
@@ -31,8 +34,10 @@ use crate::spec::{CalibSpec, LocalMethod, Strategy};
 
 /// Correlation above which two parameters are reported as not separately identifiable.
 pub const CORRELATION_LIMIT: f64 = 0.95;
-/// Relative standard error above which a parameter is reported as only weakly determined.
-pub const WEAK_LIMIT: f64 = 0.01;
+/// Correlation above which a pair is listed in a stage report (lmfit lists correlations above
+/// a `min_correl` too): |ρ| = 0.8 means that 64 % of one estimate's variance moves with the
+/// other's.
+pub const CORRELATION_REPORT: f64 = 0.8;
 
 /// Receives progress (implemented by the CLI as a progress bar or plain lines).
 pub trait Progress: Sync {

@@ -1,11 +1,58 @@
 //! What a fit reports: per parameter, event, phase and stage, and the whole fit as text.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
+use crate::fit::{CORRELATION_LIMIT, CORRELATION_REPORT};
 use crate::spec::{Objective, Weights};
 
+/// Relative standard error up to which a parameter is **determined** by the data: 10 %, the
+/// spread a datasheet value is typically trusted to (the practice family's nominal errors are
+/// 20-50 %; the models' typical ranges span about ±10 % around a unit's value). A fit that pins
+/// a parameter tighter than the datasheet does has told the engineer something.
+pub const DETERMINED_LIMIT: f64 = 0.10;
+/// Relative standard error above which a parameter is **not determined**: a 1-σ interval that
+/// holds zero (and any value of the same sign up to twice the estimate) says nothing of it.
+pub const NOT_DETERMINED_LIMIT: f64 = 1.0;
+
+/// How well the data determine a fitted parameter (see [`DETERMINED_LIMIT`],
+/// [`NOT_DETERMINED_LIMIT`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Determination {
+    /// Relative standard error at most [`DETERMINED_LIMIT`], not at a bound.
+    Determined,
+    /// Relative standard error between the two limits, not at a bound.
+    Weak,
+    /// Relative standard error above [`NOT_DETERMINED_LIMIT`], infinite or unknown (the data do
+    /// not move the residuals along it), or the estimate at a bound (the standard error of a
+    /// value held by its bound says nothing).
+    NotDetermined,
+}
+
+impl Determination {
+    /// The flag of a parameter with relative standard error `rel` (NaN: unknown).
+    pub fn of(rel: f64, at_bound: bool) -> Self {
+        if at_bound || !(rel <= NOT_DETERMINED_LIMIT) {
+            Determination::NotDetermined
+        } else if rel <= DETERMINED_LIMIT {
+            Determination::Determined
+        } else {
+            Determination::Weak
+        }
+    }
+
+    /// As the reports print it.
+    pub fn label(self) -> &'static str {
+        match self {
+            Determination::Determined => "determined",
+            Determination::Weak => "weak",
+            Determination::NotDetermined => "not determined",
+        }
+    }
+}
+
 /// One parameter's line in a stage report.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ParamReport {
     pub param: String,
     pub unit: String,
@@ -15,12 +62,51 @@ pub struct ParamReport {
     pub result: f64,
     /// Standard error from the Fisher approximation (∞ when not determined by the data).
     pub std_error: f64,
+    /// `std_error / |result|` (∞ or NaN where the standard error is).
+    pub relative_error: f64,
+    pub determination: Determination,
     pub at_bound: bool,
     pub log_scaled: bool,
 }
 
+/// Goodness of fit of a stage at its optimum, as lmfit reports it: `n` data points (the
+/// residual terms of the fitted signals over the fitted events' windows), `k` free parameters,
+/// `χ² = Σ (Δ/σ)²` with σ each event's measured noise ([`crate::job::NoiseRow`]), the reduced
+/// `χ²/(n − k)`, and `AIC = n ln(χ²/n) + 2k`, `BIC = n ln(χ²/n) + k ln n`. A reduced χ² near 1
+/// is a fit at the measurement noise; on a PMU playback about 1.5-2 is the floor (the voltage
+/// noise played back drives the model too).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FitStatistics {
+    pub n_data: usize,
+    pub n_free: usize,
+    pub chi2: f64,
+    pub reduced_chi2: f64,
+    pub aic: f64,
+    pub bic: f64,
+}
+
+impl FitStatistics {
+    /// From `chi2` over `n` terms with `k` free parameters.
+    pub fn new(chi2: f64, n: usize, k: usize) -> Self {
+        let nf = n as f64;
+        let ll = nf * (chi2 / nf).ln();
+        Self {
+            n_data: n,
+            n_free: k,
+            chi2,
+            reduced_chi2: if n > k {
+                chi2 / (n - k) as f64
+            } else {
+                f64::NAN
+            },
+            aic: ll + 2.0 * k as f64,
+            bic: ll + k as f64 * nf.ln(),
+        }
+    }
+}
+
 /// Objective values of the unit on one event.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EventFitness {
     pub event: String,
     /// Σ(ΔP² + ΔQ²) over the event's fit window (system base), RaPId's J.
@@ -32,7 +118,7 @@ pub struct EventFitness {
 }
 
 /// One phase's counters.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PhaseReport {
     pub phase: String,
     pub iterations: u64,
@@ -41,7 +127,7 @@ pub struct PhaseReport {
 }
 
 /// The report of one stage.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StageReport {
     pub stage: String,
     pub strategy: String,
@@ -67,20 +153,27 @@ pub struct StageReport {
     pub wall_s: f64,
     pub seed: u64,
     pub residual_variance: f64,
+    /// Goodness of fit at the optimum (lmfit's statistics).
+    pub statistics: FitStatistics,
     pub correlation: Vec<Vec<f64>>,
+    /// Pairs with |ρ| above [`CORRELATION_REPORT`], strongest first: what moves together.
+    pub correlations: Vec<(String, String, f64)>,
     /// Pairs with |ρ| above [`CORRELATION_LIMIT`]: not separately identifiable.
     pub correlated_pairs: Vec<(String, String, f64)>,
+    /// Parameters in the numerical null space of the Jacobian: the residuals do not move
+    /// along them (a subset of `not_determined`).
     pub unidentified: Vec<String>,
-    /// Determined, but with a relative standard error above [`WEAK_LIMIT`].
-    pub weakly_determined: Vec<String>,
-    /// Parameters the data determine: not unidentified, not in a correlated pair, relative
-    /// standard error at most [`WEAK_LIMIT`].
-    pub identifiable: Vec<String>,
+    /// [`Determination::Determined`] parameters, in the spec's order.
+    pub determined: Vec<String>,
+    /// [`Determination::Weak`] parameters.
+    pub weak: Vec<String>,
+    /// [`Determination::NotDetermined`] parameters.
+    pub not_determined: Vec<String>,
     pub condition_number: f64,
 }
 
 /// The whole fit.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FitReport {
     pub unit: String,
     pub events: Vec<String>,
@@ -92,6 +185,40 @@ pub struct FitReport {
     pub start_fitness: Vec<EventFitness>,
     pub stages: Vec<StageReport>,
     pub wall_s: f64,
+}
+
+/// A number to 4 significant digits (scientific outside 1e-3..1e5).
+fn sig(v: f64) -> String {
+    if !v.is_finite() {
+        return if v.is_nan() {
+            "nan".into()
+        } else {
+            "inf".into()
+        };
+    }
+    if v != 0.0 && (v.abs() < 1e-3 || v.abs() >= 1e5) {
+        format!("{v:.3e}")
+    } else {
+        format!("{}", (v * 1e4).round() / 1e4)
+    }
+}
+
+/// A relative error as a percentage.
+fn rel_pct(r: f64) -> String {
+    if r.is_finite() {
+        format!("{:.1} %", 100.0 * r)
+    } else {
+        "-".into()
+    }
+}
+
+/// Names joined with commas, or `none`.
+fn list(v: &[String]) -> String {
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.join(", ")
+    }
 }
 
 impl FitReport {
@@ -124,48 +251,61 @@ impl FitReport {
                     ph.phase, ph.iterations, ph.best_objective, ph.stopped_by
                 );
             }
+            let st = &s.statistics;
             let _ = writeln!(
                 out,
-                "  {:<22} {:>10} {:>21} {:>10} {:>10}",
-                "parameter", "start", "bounds", "result", "std err"
+                "  fit statistics: {} data points, {} free parameters, chi-square {}, reduced \
+                 chi-square {:.3}, AIC {:.1}, BIC {:.1}",
+                st.n_data,
+                st.n_free,
+                sig(st.chi2),
+                st.reduced_chi2,
+                st.aic,
+                st.bic
+            );
+            let _ = writeln!(
+                out,
+                "  {:<22} {:>11} {:>11} {:>8}  {:<15} {:>10} {:>21}",
+                "parameter", "value", "std err", "rel err", "flag", "start", "bounds"
             );
             for p in &s.parameters {
                 let _ = writeln!(
                     out,
-                    "  {:<22} {:>10.4} {:>10}-{:<10} {:>10.4} {:>10.2e}{}",
+                    "  {:<22} {:>11} {:>11} {:>8}  {:<15} {:>10} {:>10}-{:<10}",
                     p.param,
-                    p.start,
+                    sig(p.result),
+                    sig(p.std_error),
+                    rel_pct(p.relative_error),
+                    format!(
+                        "{}{}",
+                        p.determination.label(),
+                        if p.at_bound { " (bound)" } else { "" }
+                    ),
+                    sig(p.start),
                     format!("{}", p.min),
                     format!("{}", p.max),
-                    p.result,
-                    p.std_error,
-                    if p.at_bound { "  at bound" } else { "" }
                 );
             }
-            for (a, b, rho) in &s.correlated_pairs {
+            if !s.correlations.is_empty() {
                 let _ = writeln!(
                     out,
-                    "  not separately identifiable: {a} and {b} (correlation {rho:+.3})"
+                    "  correlations above {CORRELATION_REPORT} ({} or more: not separately \
+                     identifiable):",
+                    CORRELATION_LIMIT
                 );
-            }
-            for u in &s.unidentified {
-                let _ = writeln!(out, "  not determined by the data: {u}");
-            }
-            if !s.weakly_determined.is_empty() {
-                let _ = writeln!(
-                    out,
-                    "  weakly determined (std err > 1 %): {}",
-                    s.weakly_determined.join(", ")
-                );
+                for (a, b, rho) in &s.correlations {
+                    let _ = writeln!(out, "    C({a}, {b}) = {rho:+.3}");
+                }
             }
             let _ = writeln!(
                 out,
-                "  identifiable: {}",
-                if s.identifiable.is_empty() {
-                    "none".to_string()
-                } else {
-                    s.identifiable.join(", ")
-                }
+                "  determined (rel err <= {:.0} %): {}; weak: {}; not determined (rel err > \
+                 {:.0} % or at a bound): {}",
+                100.0 * DETERMINED_LIMIT,
+                list(&s.determined),
+                list(&s.weak),
+                100.0 * NOT_DETERMINED_LIMIT,
+                list(&s.not_determined)
             );
         }
         let _ = writeln!(out);

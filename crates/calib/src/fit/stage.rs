@@ -274,22 +274,43 @@ pub(super) fn run_stage(
         sigma2,
         condition: cond,
     } = id;
-    let parameters = problem
+    let parameters: Vec<ParamReport> = problem
         .free
         .iter()
         .enumerate()
-        .map(|(i, f)| ParamReport {
-            param: f.path.clone(),
-            unit: f.unit.to_string(),
-            start: f.start,
-            min: f.lo,
-            max: f.hi,
-            result: best[i],
-            std_error: std_errors[i],
-            at_bound: f.at_bound(best[i]),
-            log_scaled: f.log,
+        .map(|(i, f)| {
+            let at_bound = f.at_bound(best[i]);
+            let relative_error = std_errors[i] / best[i].abs();
+            ParamReport {
+                param: f.path.clone(),
+                unit: f.unit.to_string(),
+                start: f.start,
+                min: f.lo,
+                max: f.hi,
+                result: best[i],
+                std_error: std_errors[i],
+                relative_error,
+                determination: Determination::of(relative_error, at_bound),
+                at_bound,
+                log_scaled: f.log,
+            }
         })
         .collect();
+    let statistics = stage_statistics(&problem, &best, &acc)
+        .map_err(|m| stage_err(name, format!("the calibrated unit does not simulate: {m}")))?;
+    let with = |d: Determination| -> Vec<String> {
+        parameters
+            .iter()
+            .filter(|p| p.determination == d)
+            .map(|p| p.param.clone())
+            .collect()
+    };
+    let (determined, weak, not_determined) = (
+        with(Determination::Determined),
+        with(Determination::Weak),
+        with(Determination::NotDetermined),
+    );
+    let correlations = strong_correlations(&problem, &correlation);
 
     let start_unit = problem.unit_at(&start);
     let calibrated_unit = problem.unit_at(&best);
@@ -310,26 +331,6 @@ pub(super) fn run_stage(
             Err(m) => progress.message(&format!("{label}: held-out event {}: {m}", e.name)),
         }
     }
-    let flagged = |p: &String| {
-        unidentified.contains(p)
-            || pairs
-                .iter()
-                .any(|(a, b, _): &(String, String, f64)| a == p || b == p)
-    };
-    let rel_se = |i: usize| std_errors[i] / best[i].abs().max(1e-12);
-    let weakly_determined: Vec<String> = problem
-        .free
-        .iter()
-        .enumerate()
-        .filter(|(i, f)| !flagged(&f.path) && !(rel_se(*i) <= WEAK_LIMIT))
-        .map(|(_, f)| f.path.clone())
-        .collect();
-    let identifiable: Vec<String> = problem
-        .free
-        .iter()
-        .filter(|f| !flagged(&f.path) && !weakly_determined.contains(&f.path))
-        .map(|f| f.path.clone())
-        .collect();
     let report = StageReport {
         stage: label.to_string(),
         strategy: opts.strategy.to_string(),
@@ -356,11 +357,14 @@ pub(super) fn run_stage(
         wall_s: t0.elapsed().as_secs_f64(),
         seed: opts.seed,
         residual_variance: sigma2,
+        statistics,
         correlation,
+        correlations,
         correlated_pairs: pairs,
         unidentified,
-        weakly_determined,
-        identifiable,
+        determined,
+        weak,
+        not_determined,
         condition_number: cond,
     };
     Ok((
@@ -398,4 +402,51 @@ pub fn check_spec(unit: &Unit, spec: &CalibSpec, stages: &[String]) -> Result<()
         }
     }
     Ok(())
+}
+
+/// lmfit's goodness-of-fit statistics of `problem` at `x` ([`FitStatistics`]): the residuals of
+/// the fitted signals (those with a non-zero weight) over every event's window, each in units
+/// of its event's measured noise σ ([`EventData::noise_variances`]: the one noise the reports
+/// show).
+fn stage_statistics(
+    problem: &Problem,
+    x: &[f64],
+    sim: &itaipu_dynamics::simulate::SimOptions,
+) -> Result<FitStatistics, crate::problem::ProblemError> {
+    let pq = problem.simulate(x, sim)?;
+    let (wp, wq) = problem.weights;
+    let (mut chi2, mut n) = (0.0, 0usize);
+    for (ev, (p, q)) in problem.events.iter().zip(&pq) {
+        let (vp, vq) = ev.noise_variances();
+        for (_, dp, dq) in ev.window_residuals(p, q) {
+            if wp > 0.0 {
+                chi2 += dp * dp / vp.max(f64::MIN_POSITIVE);
+                n += 1;
+            }
+            if wq > 0.0 {
+                chi2 += dq * dq / vq.max(f64::MIN_POSITIVE);
+                n += 1;
+            }
+        }
+    }
+    Ok(FitStatistics::new(chi2, n, problem.dim()))
+}
+
+/// The pairs of `problem`'s parameters whose estimates correlate above [`CORRELATION_REPORT`]
+/// (`correlation` from the identifiability analysis; NaN entries left out), strongest first.
+fn strong_correlations(problem: &Problem, correlation: &[Vec<f64>]) -> Vec<(String, String, f64)> {
+    let mut out = vec![];
+    for (i, row) in correlation.iter().enumerate() {
+        for (j, rho) in row.iter().enumerate().skip(i + 1) {
+            if rho.abs() > CORRELATION_REPORT {
+                out.push((
+                    problem.free[i].path.clone(),
+                    problem.free[j].path.clone(),
+                    *rho,
+                ));
+            }
+        }
+    }
+    out.sort_by(|a, b| b.2.abs().total_cmp(&a.2.abs()));
+    out
 }
