@@ -186,7 +186,16 @@ def read_dyr(
     zr: Optional[float] = None,
     zx: Optional[float] = None,
 ) -> Unit: ...
-def write_dyr(unit: Unit, path: _PathLike, *, bus: int = 1, id: str = "1") -> List[str]: ...
+def write_dyr(
+    unit: Unit,
+    path: _PathLike,
+    *,
+    bus: int = 1,
+    id: str = "1",
+    events: Union[_PathLike, Event, Sequence[Union[_PathLike, Event]], None] = None,
+    lossy: bool = False,
+    force: bool = False,
+) -> Dict[str, Any]: ...
 def import_pmu(
     path: _PathLike,
     system_mva: float,

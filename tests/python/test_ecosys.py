@@ -17,10 +17,32 @@ def test_the_itaipu_dyr_reads_to_the_unit_file_parameters_and_round_trips(tmp_pa
     ref = ic.load_unit(ITAIPU / "unit.toml").parameters()
     got = u.parameters()
     assert {k: v for k, v in ref.items() if not k.startswith("governor.")} == dict(got)
-    lost = ic.write_dyr(u, tmp_path / "u.dyr", bus=7, id="G1")
-    assert lost == []
+    r = ic.write_dyr(u, tmp_path / "u.dyr", bus=7, id="G1", events=ITAIPU / "event.toml")
+    assert r["faithful"] and r["lost"] == []
+    [e] = r["events"]
+    assert e["max_dp"] <= 1e-6 and e["max_dq"] <= 1e-6 and e["j_written"] == e["j_unit"]
     again = ic.read_dyr(tmp_path / "u.dyr", bus=7, id="G1")
     assert dict(again.parameters()) == dict(got)
+    # Never over an existing file without force.
+    with pytest.raises(ic.UnitModelError) as x:
+        ic.write_dyr(u, tmp_path / "u.dyr", bus=7, id="G1")
+    assert x.value.kind == "exists"
+
+
+def test_a_dyr_that_is_not_the_unit_is_refused_unless_lossy(tmp_path):
+    # X''q != X''d: PSS/E's GENSAE holds one X''; the written model plays back differently.
+    u = ic.load_unit(ITAIPU / "unit.toml").with_params({"machine.x_q_pp": 0.26})
+    ev = ITAIPU / "event.toml"
+    with pytest.raises(ic.UnitModelError) as x:
+        ic.write_dyr(u, tmp_path / "u.dyr", events=ev)
+    assert x.value.kind == "lossy" and "machine.x_q_pp" in str(x.value)
+    assert "J = " in str(x.value) and not (tmp_path / "u.dyr").exists()
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        r = ic.write_dyr(u, tmp_path / "u.dyr", events=ev, lossy=True)
+    assert not r["faithful"] and r["events"][0]["j_written"] != r["events"][0]["j_unit"]
+    assert any("not the unit" in str(m.message) for m in w)
+    assert (tmp_path / "u.dyr").is_file() and (tmp_path / "u.bases.toml").is_file()
 
 
 def test_unsupported_records_warn_and_bad_ones_raise(tmp_path):

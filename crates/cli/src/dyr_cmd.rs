@@ -1,15 +1,19 @@
 //! `itaipu-calib dyr`: read a unit from a PSS/E `.dyr` into a unit file, or write a unit file
-//! (e.g. `fit`'s `calibrated.toml`) as a `.dyr` and its side file of bases.
+//! (e.g. `fit`'s `calibrated.toml`) as a `.dyr` and its side file of bases, only if the `.dyr`
+//! read back is the unit (the library's checked writer, [`write_dyr_file`]) or `--lossy`.
 
 use std::path::{Path, PathBuf};
 
 use clap::Subcommand;
 use itaipu_dynamics::dyr::{
-    read_dyr, resolve_bases, side_file, write_dyr, DyrError, DyrUnit, PartialBases,
+    read_dyr, resolve_bases, side_file, write_dyr_file, DyrError, DyrUnit, DyrWriteError,
+    DyrWriteOptions, PartialBases,
 };
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::plausibility::{self, Severity};
 use itaipu_dynamics::unit_file::unit_to_toml;
 
-use crate::{load_unit, CliError};
+use crate::{bundled, explain_sim_error, load_event, load_unit, CliError};
 
 #[derive(clap::Args, Debug)]
 pub struct DyrArgs {
@@ -22,7 +26,11 @@ pub enum DyrCmd {
     /// Read one unit's records (GENSAE, GENSAL, GENROU, GENCLS, SEXS, STAB3, IEEEST, HYGOV)
     /// into a unit file; other records are reported by line.
     Read(ReadArgs),
-    /// Write a unit file as .dyr records and a side file of bases (<out stem>.bases.toml).
+    /// Write a unit file as .dyr records and a side file of bases (<out stem>.bases.toml), only
+    /// if the .dyr read back is the unit: played back on the event(s) within 1e-6 pu of the
+    /// unit (parameters compared when there is no event). Otherwise refused (exit 4) with J of
+    /// both and what the .dyr cannot hold, unless --lossy.
+    #[command(after_help = WRITE_EXIT_CODES)]
     Write(WriteArgs),
 }
 
@@ -86,7 +94,22 @@ pub struct WriteArgs {
     /// Overwrite existing files.
     #[arg(long)]
     pub force: bool,
+    /// Event(s) to play the unit and the written .dyr back on (repeatable). Default: the events
+    /// of the fit whose folder holds the unit file (its manifest's command line), else
+    /// event.toml beside the unit file; with none, the parameters are compared.
+    #[arg(long, value_name = "E.toml")]
+    pub event: Vec<PathBuf>,
+    /// Write even when the .dyr read back is not the unit (a warning quotes J of both and what
+    /// is lost).
+    #[arg(long)]
+    pub lossy: bool,
 }
+
+/// `dyr write`'s exit codes.
+const WRITE_EXIT_CODES: &str = "Exit codes: 0 written, 2 usage error, 3 bad event data, 4 bad \
+unit file, or a .dyr that would not be the unit (nothing written; --lossy writes it), 5 / 6 the \
+unit does not initialise / integrate on an event, 7 an output file exists (without --force) or \
+cannot be written.";
 
 fn dyr_error(e: DyrError) -> CliError {
     CliError::new(4, e.to_string())
@@ -170,25 +193,208 @@ pub fn cmd_dyr(a: &DyrArgs) -> Result<(), CliError> {
                 d.unit.machine_mva,
                 d.unit.nominal_hz
             );
+            // The plausibility checks `simulate`, `fit` and `diagnose` run on the unit.
+            for f in plausibility::check_unit(&d.unit, &r.file) {
+                eprintln!("warning: {f}");
+            }
             println!("wrote  {}", out.display());
         }
-        DyrCmd::Write(w) => {
-            let unit = load_unit(&w.unit)?;
-            let out = w
-                .out
-                .clone()
-                .unwrap_or_else(|| w.unit.with_extension("dyr"));
-            let side = side_file(&out);
-            refuse_existing(&out, w.force)?;
-            refuse_existing(&side, w.force)?;
-            let t = write_dyr(&unit, w.bus, &w.id);
-            for m in &t.warnings {
-                eprintln!("warning: {m}");
+        DyrCmd::Write(w) => cmd_write(w)?,
+    }
+    Ok(())
+}
+
+/// The events `dyr write` compares on, and where they come from: `--event`, else the events of
+/// the fit whose folder holds the unit file, else `event.toml` beside the unit file.
+fn write_events(w: &WriteArgs) -> Result<(Vec<Event>, String), CliError> {
+    if !w.event.is_empty() {
+        let ev = w
+            .event
+            .iter()
+            .map(|p| load_event(p))
+            .collect::<Result<Vec<_>, _>>()?;
+        return Ok((ev, "--event".into()));
+    }
+    if let Some((dir, paths)) = fit_events(&w.unit) {
+        let names = fit_event_names(&dir);
+        let mut found = vec![];
+        let mut missing = vec![];
+        for p in paths {
+            match load_event(&p) {
+                Ok(e) if names.is_empty() || names.contains(&e.name) => found.push(e),
+                _ => missing.push(p.display().to_string()),
             }
-            write(&out, &t.dyr)?;
-            write(&side, &t.bases)?;
-            println!("wrote  {}, {}", out.display(), side.display());
+        }
+        if !missing.is_empty() {
+            eprintln!(
+                "note: event(s) {} of the fit in {} not found or not the fit's (give --event)",
+                missing.join(", "),
+                dir.display()
+            );
+        }
+        if !found.is_empty() {
+            return Ok((found, format!("the fit's, from {}", dir.display())));
         }
     }
+    let beside = w.unit.with_file_name("event.toml");
+    if beside.is_file() {
+        let e = load_event(&beside)?;
+        return Ok((vec![e], format!("{} beside the unit", beside.display())));
+    }
+    Ok((vec![], String::new()))
+}
+
+/// The fit folder holding `unit` (the folder itself or, for a stage's `unit.toml`, its parent)
+/// and the event files its manifest's command line named (`fit` without `--event`: the bundled
+/// event, as `fit` does).
+fn fit_events(unit: &Path) -> Option<(PathBuf, Vec<PathBuf>)> {
+    let dir = match unit.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    for d in [Some(dir), dir.parent()].into_iter().flatten() {
+        let Ok(text) = std::fs::read_to_string(d.join("manifest.json")) else {
+            continue;
+        };
+        let Ok(m) = serde_json::from_str::<serde_json::Value>(&text) else {
+            continue;
+        };
+        let cmd: Vec<&str> = m["command"]
+            .as_array()
+            .map(|a| a.iter().filter_map(|v| v.as_str()).collect())
+            .unwrap_or_default();
+        if cmd.get(1) != Some(&"fit") {
+            continue;
+        }
+        let mut paths = vec![];
+        let mut it = cmd.iter().skip(2);
+        while let Some(a) = it.next() {
+            if *a == "--event" {
+                if let Some(p) = it.next() {
+                    paths.push(PathBuf::from(p));
+                }
+            } else if let Some(p) = a.strip_prefix("--event=") {
+                paths.push(PathBuf::from(p));
+            }
+        }
+        if paths.is_empty() {
+            paths.extend(bundled("itaipu/event.toml").ok());
+        }
+        return Some((d.to_path_buf(), paths));
+    }
+    None
+}
+
+/// The names of the events a fit folder's `report.json` lists (empty if unreadable).
+fn fit_event_names(dir: &Path) -> Vec<String> {
+    std::fs::read_to_string(dir.join("report.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|r| {
+            r["events"].as_array().map(|a| {
+                a.iter()
+                    .filter_map(|v| v.as_str().map(String::from))
+                    .collect()
+            })
+        })
+        .unwrap_or_default()
+}
+
+fn cmd_write(w: &WriteArgs) -> Result<(), CliError> {
+    let unit = load_unit(&w.unit)?;
+    let out = w
+        .out
+        .clone()
+        .unwrap_or_else(|| w.unit.with_extension("dyr"));
+    let side = side_file(&out);
+    // Existing outputs are refused before anything is computed.
+    refuse_existing(&out, w.force)?;
+    refuse_existing(&side, w.force)?;
+    let (events, source) = write_events(w)?;
+    let mut findings = vec![];
+    for e in &events {
+        findings.extend(plausibility::check_event(e, Some(unit.machine_mva)));
+    }
+    let errors: Vec<String> = findings
+        .iter()
+        .filter(|f| f.severity == Severity::Error)
+        .map(|f| f.to_string())
+        .collect();
+    if !errors.is_empty() {
+        return Err(CliError::new(
+            3,
+            format!("implausible data:\n  {}", errors.join("\n  ")),
+        ));
+    }
+    for f in &findings {
+        eprintln!("warning: {f}");
+    }
+    if events.is_empty() {
+        eprintln!(
+            "note: no event to play back (give --event E.toml): the unit and the .dyr read back are compared parameter by parameter"
+        );
+    } else {
+        println!(
+            "check  write -> read -> simulate on {} ({source})",
+            events
+                .iter()
+                .map(|e| e.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let opts = DyrWriteOptions {
+        bus: w.bus,
+        id: w.id.clone(),
+        lossy: w.lossy,
+        force: w.force,
+        ..Default::default()
+    };
+    let r = write_dyr_file(&unit, &out, &events, &opts).map_err(|e| match e {
+        DyrWriteError::Exists { .. } | DyrWriteError::Io { .. } => CliError::new(7, e.to_string()),
+        DyrWriteError::Unfaithful { ref report, .. } => {
+            // The plausibility of what would have been written, too.
+            for f in &report.findings {
+                eprintln!("warning: {f}");
+            }
+            CliError::new(
+                4,
+                format!(
+                    "{e}. Nothing written: --lossy writes it anyway; or make the unit one the .dyr holds (X''q: fit again with tie = {{ \"machine.x_q_pp\" = \"machine.x_d_pp\" }} in the stage)"
+                ),
+            )
+        }
+        DyrWriteError::Simulation { event, source } => {
+            match events.iter().find(|x| x.name == event) {
+                Some(ev) => explain_sim_error(source, ev, &unit),
+                None => CliError::from(source),
+            }
+        }
+        DyrWriteError::ReadBack(_) => CliError::new(4, e.to_string()),
+    })?;
+    // The plausibility warnings reading the .dyr will give, now.
+    for f in &r.findings {
+        eprintln!("warning: {f}");
+    }
+    for n in &r.notes {
+        eprintln!("warning: {n}");
+    }
+    for l in &r.lost {
+        eprintln!("warning: not in the .dyr: {l}");
+    }
+    if r.faithful() {
+        if r.events.is_empty() {
+            println!("check  every parameter, option, wiring and block reads back unchanged");
+        }
+        for c in &r.events {
+            println!("check  {c}: equal within {:e} pu", r.tolerance_pu);
+        }
+    } else {
+        eprintln!(
+            "warning: --lossy: written, but the .dyr read back is not the unit: {}",
+            r.comparison()
+        );
+    }
+    println!("wrote  {}, {}", out.display(), side.display());
     Ok(())
 }

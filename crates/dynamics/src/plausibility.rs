@@ -8,7 +8,8 @@
 //! 1e300. [`check_event`] finds these and returns one [`Finding`] each, naming the file, the
 //! line (where the CSV can be re-read to find it) or the time of the sample, the column and
 //! the fix; [`Severity::Error`] findings should stop a run, warnings be reported with it.
-//! [`check_unit`] warns about parameters far outside the model library's ranges.
+//! [`check_unit`] warns about parameters far outside the model library's ranges and about
+//! machine saturation data that is no magnetisation curve (`S(1.2) <= S(1.0)`).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -55,7 +56,7 @@ pub enum Severity {
 pub struct Finding {
     pub severity: Severity,
     /// Stable identifier: `time_gap`, `dropout`, `angle_radians`, `frequency`, `time_scale`,
-    /// `absorbing_p`, `above_rating`, `absurd_value`, `spike`, `parameter_range`.
+    /// `absorbing_p`, `above_rating`, `absurd_value`, `spike`, `parameter_range`, `saturation`.
     pub kind: &'static str,
     /// The file the data are in (the CSV, or the unit file).
     pub file: PathBuf,
@@ -463,6 +464,7 @@ fn short(v: f64) -> String {
 
 /// Parameters of `unit` far outside the model library's typical ranges (more than a range's
 /// width beyond it): warnings naming the file and the parameter.
+/// Also saturation data that is no curve (`S(1.0) > 0`, `S(1.2) <= S(1.0)`).
 pub fn check_unit(unit: &Unit, file: &Path) -> Vec<Finding> {
     let mut out = vec![];
     for (path, spec, v) in unit.params() {
@@ -486,6 +488,53 @@ pub fn check_unit(unit: &Unit, file: &Path) -> Vec<Finding> {
                     spec.doc
                 ),
                 fix: "check the value and its unit (itaipu-calib models shows every range)".into(),
+            });
+        }
+    }
+    out.extend(check_saturation(unit, file));
+    out
+}
+
+/// Machine saturation data that is no magnetisation curve: `S(1.2) <= S(1.0)` with `S(1.0) > 0`
+/// (saturation that does not grow with flux; with S(1.0) = S(1.2) GENSAE's exponential curve is
+/// `Se = S(1.0)` at every flux, RaPId's Itaipu `S10 = S12 = 1` among them). `S(1.0) = 0` is
+/// the usual way of writing "no saturation" and is not flagged.
+fn check_saturation(unit: &Unit, file: &Path) -> Vec<Finding> {
+    let mut out = vec![];
+    for inst in unit.instances() {
+        let ps = inst.block.params();
+        let (Some(i10), Some(i12)) = (ps.index_of("s10"), ps.index_of("s12")) else {
+            continue;
+        };
+        let (s10, s12) = (ps.get(i10), ps.get(i12));
+        if s10 > 0.0 && s12 <= s10 {
+            // GENSAE's curve is S(1.0)·ψⁿ, n = ln(S12/S10)/ln 1.2: flat or falling with flux.
+            let shape = if inst.block.model() == "GENSAE" {
+                format!(
+                    "; GENSAE's exponential curve is then S(1.0)·ψ^n with n = {}{}",
+                    short((s12 / s10).ln() / 1.2f64.ln()),
+                    if s12 == s10 {
+                        format!(": Se = {} at every flux level", short(s10))
+                    } else {
+                        String::new()
+                    }
+                )
+            } else {
+                String::new()
+            };
+            out.push(Finding {
+                severity: Severity::Warning,
+                kind: "saturation",
+                file: file.to_path_buf(),
+                line: None,
+                time_s: None,
+                column: format!("{}.s12", inst.name),
+                message: format!(
+                    "S(1.0) = {} and S(1.2) = {}: a saturation factor that does not grow from 1.0 to 1.2 pu flux is no magnetisation curve{shape}",
+                    short(s10),
+                    short(s12),
+                ),
+                fix: "take S(1.0) < S(1.2) from the open-circuit curve (typically 0.05-0.2 and 0.2-0.6), or S(1.0) = 0 for no saturation".into(),
             });
         }
     }

@@ -5,8 +5,12 @@
 
 use std::path::{Path, PathBuf};
 
-use itaipu_dynamics::dyr::{parse_dyr, read_dyr, write_dyr, DyrBases, DyrError, PartialBases};
+use itaipu_dynamics::dyr::{
+    parse_dyr, read_dyr, side_file, write_dyr, write_dyr_checked, write_dyr_file, DyrBases,
+    DyrError, DyrWrite, DyrWriteError, DyrWriteOptions, PartialBases, ROUND_TRIP_TOL_PU,
+};
 use itaipu_dynamics::event::{Event, Record};
+use itaipu_dynamics::plausibility::check_unit;
 use itaipu_dynamics::registry;
 use itaipu_dynamics::simulate::{simulate, SimOptions};
 use itaipu_dynamics::unit::Unit;
@@ -151,6 +155,22 @@ fn read_write_read_keeps_every_parameter_of_every_supported_model() {
         );
         // Written again, the same text.
         assert_eq!(write_dyr(&d.unit, 3001, "G1").dyr, w.dyr);
+        // The checked writer finds nothing lost.
+        let c = write_dyr_checked(
+            &u,
+            3001,
+            "G1",
+            &[],
+            &SimOptions::default(),
+            ROUND_TRIP_TOL_PU,
+            Path::new("rt.dyr"),
+        )
+        .unwrap();
+        assert!(
+            c.faithful() && c.lost.is_empty(),
+            "{models:?}: {}",
+            c.summary()
+        );
     }
 }
 
@@ -294,9 +314,19 @@ fn the_writer_names_what_pss_e_cannot_hold() {
     let mut u = unit_of(&[("machine", "GENSAE"), ("exciter", "SEXS")], None);
     let r = u.param("machine.x_q_pp").unwrap();
     u.set(r, 0.25);
+    let r = u.param("exciter.v_ref_offset").unwrap();
+    u.set(r, 0.004);
     let shaft = registry::find("two_mass_shaft").unwrap().create();
     u.add("shaft", shaft, &[]).unwrap();
     let w = write_dyr(&u, 1, "1");
+    assert!(
+        w.warnings
+            .iter()
+            .any(|m| m
+                .starts_with("exciter.v_ref_offset = 0.004 has no place in PSS/E's SEXS record")),
+        "{:?}",
+        w.warnings
+    );
     assert!(
         w.warnings.iter().any(|m| m.contains("X''q = 0.25")),
         "{:?}",
@@ -329,4 +359,335 @@ fn bases_come_from_the_side_file_or_the_command_line() {
         e.to_string().contains("mbase: must be a finite number > 0"),
         "{e}"
     );
+}
+
+// ---- Faithful round trips (issue 25 item 4): write -> read -> simulate equals the unit, or the
+// ---- write is refused with J of both and what is lost.
+
+/// The unit `itaipu-calib fit` calibrates on the bundled record (stages gen+avr+pss+tg, seed 1):
+/// X''q = 0.956 against X''d = 0.204, RaPId's S(1.0) = S(1.2) = 1, a HYGOV governor.
+const CALIBRATED: &str = r#"
+name = "itaipu-60hz-unit"
+machine_mva = 737.0
+nominal_hz = 60.0
+[machine]
+model = "GENSAE"
+t_d0_prime = 4.676291340799366
+t_d0_pp = 0.478355518584614
+t_q0_pp = 0.16584476048509955
+h = 3.5652274014991763
+d = 1.0
+x_d = 2.0
+x_q = 1.7988098998767226
+x_d_prime = 1.5120361384127439
+x_d_pp = 0.2044101216714163
+x_q_pp = 0.9560276355831075
+x_l = 0.13
+s10 = 1.0
+s12 = 1.0
+r_a = 5.814855385298601e-5
+[exciter]
+model = "SEXS"
+ta_tb = 50.0
+tb = 0.023096102033575983
+k = 204.34000137715867
+te = 8.812869412818278
+e_min = 1.0
+e_max = 4.5
+[pss]
+model = "STAB3"
+t_t = 0.36441042031602894
+t_x1 = 0.423874018214716
+t_x2 = 0.3738452227666129
+k_x = 1.0
+v_lim = 1.1
+[governor]
+model = "HYGOV"
+r_perm = 0.05
+r_temp = 0.1099641431033837
+t_r = 1.0
+t_f = 0.05
+t_g = 0.7154781358743567
+velm = 0.2
+g_max = 1.0
+g_min = 0.0
+t_w = 2.2475462324281956
+a_t = 1.2
+d_turb = 0.5
+q_nl = 0.08
+"#;
+
+fn calibrated() -> Unit {
+    itaipu_dynamics::unit_file::parse_unit(CALIBRATED, Path::new("calibrated.toml")).unwrap()
+}
+
+fn itaipu_event() -> Event {
+    Event::from_toml_file(&data("itaipu/event.toml")).unwrap()
+}
+
+/// A fresh folder under the system temp dir, removed on drop.
+struct Tmp(PathBuf);
+impl Tmp {
+    fn new(tag: &str) -> Tmp {
+        let p = std::env::temp_dir().join(format!("itaipu-dyr-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).unwrap();
+        Tmp(p)
+    }
+}
+impl Drop for Tmp {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// J = Σ ΔP² + ΔQ² over the fit window of a simulation (what `simulate` prints).
+fn j_of(unit: &Unit, ev: &Event) -> f64 {
+    let tr = simulate(unit, ev, &SimOptions::default()).unwrap();
+    let (p, q) = (tr.get("p_pu").unwrap(), tr.get("q_pu").unwrap());
+    let r = &ev.record;
+    (0..r.time_s.len())
+        .filter(|&k| ev.fit.contains(r.time_s[k]))
+        .map(|k| (p[k] - r.p_pu[k]).powi(2) + (q[k] - r.q_pu[k]).powi(2))
+        .sum()
+}
+
+/// The written files read back from disk, as `--unit F.dyr` reads them.
+fn read_back(out: &Path) -> Unit {
+    let b = DyrBases::from_file(&side_file(out)).unwrap();
+    read_dyr(out, Some((1, "1")), &b).unwrap().unit
+}
+
+fn check(u: &Unit, events: &[Event]) -> DyrWrite {
+    write_dyr_checked(
+        u,
+        1,
+        "1",
+        events,
+        &SimOptions::default(),
+        ROUND_TRIP_TOL_PU,
+        Path::new("out.dyr"),
+    )
+    .unwrap()
+}
+
+#[test]
+fn the_bundled_itaipu_unit_round_trips_exactly_on_the_bundled_event() {
+    let u = read_unit(&data("itaipu/unit.toml")).unwrap();
+    let ev = itaipu_event();
+    let t = Tmp::new("bundled");
+    let out = t.0.join("itaipu.dyr");
+    let r = write_dyr_file(&u, &out, std::slice::from_ref(&ev), &Default::default()).unwrap();
+    assert!(r.faithful() && r.lost.is_empty(), "{}", r.summary());
+    let c = &r.events[0];
+    assert_eq!((c.max_dp, c.max_dq), (0.0, 0.0), "{c}");
+    assert_eq!(c.j_written, Some(c.j_unit));
+    // The files on disk play back as the unit.
+    let back = read_back(&out);
+    let (a, b) = (
+        simulate(&u, &ev, &SimOptions::default()).unwrap(),
+        simulate(&back, &ev, &SimOptions::default()).unwrap(),
+    );
+    for col in ["p_pu", "q_pu"] {
+        assert_eq!(a.get(col).unwrap(), b.get(col).unwrap(), "{col}");
+    }
+}
+
+#[test]
+fn a_calibrated_unit_with_x_q_pp_apart_from_x_d_pp_is_refused_with_both_j_or_written_lossy() {
+    let u = calibrated();
+    let ev = itaipu_event();
+    let t = Tmp::new("calibrated");
+    let out = t.0.join("cal.dyr");
+    let e = write_dyr_file(&u, &out, std::slice::from_ref(&ev), &Default::default()).unwrap_err();
+    let DyrWriteError::Unfaithful { report, .. } = &e else {
+        panic!("{e}");
+    };
+    let c = &report.events[0];
+    let jw = c.j_written.unwrap();
+    // The fit's J and the J the .dyr gives, both quoted; P and Q far apart.
+    assert!((c.j_unit - 0.8732).abs() < 5e-4, "{c}");
+    assert!(jw > c.j_unit * 1.2, "{c}");
+    assert!(c.max_dp.max(c.max_dq) > 1e-2, "{c}");
+    let msg = e.to_string();
+    for want in [
+        format!("J = {:.4} for the unit", c.j_unit),
+        format!("J = {jw:.4} for the .dyr read back"),
+        "machine.x_q_pp = 0.9560276355831075, written 0.2044101216714163".to_string(),
+    ] {
+        assert!(msg.contains(&want), "{want}\nnot in: {msg}");
+    }
+    // X''q is the only loss (the rest of the unit, HYGOV and RaPId's saturation included, is
+    // written as it is).
+    assert_eq!(
+        report
+            .lost
+            .iter()
+            .map(|l| l.what.as_str())
+            .collect::<Vec<_>>(),
+        ["machine.x_q_pp"]
+    );
+    assert!(
+        !out.exists() && !side_file(&out).exists(),
+        "nothing written"
+    );
+
+    // Lossy on request: the J reported for the written model is what the file on disk gives.
+    let lossy = DyrWriteOptions {
+        lossy: true,
+        ..Default::default()
+    };
+    let r = write_dyr_file(&u, &out, std::slice::from_ref(&ev), &lossy).unwrap();
+    assert!(!r.faithful());
+    let j_disk = j_of(&read_back(&out), &ev);
+    assert!((j_disk - jw).abs() < 1e-12, "{j_disk} against {jw}");
+
+    // With X''q tied to X''d the same unit round-trips exactly.
+    let xd = u.get(u.param("machine.x_d_pp").unwrap());
+    let tied = u.with_params(&[("machine.x_q_pp", xd)]).unwrap();
+    let r = check(&tied, std::slice::from_ref(&ev));
+    assert!(r.faithful(), "{}", r.summary());
+    assert_eq!(r.events[0].max_dp.max(r.events[0].max_dq), 0.0);
+}
+
+#[test]
+fn what_a_dyr_cannot_hold_is_listed_and_costs_the_playback() {
+    let bundled = std::fs::read_to_string(data("itaipu/unit.toml")).unwrap();
+    let ev = itaipu_event();
+    let unit =
+        |text: &str| itaipu_dynamics::unit_file::parse_unit(text, Path::new("u.toml")).unwrap();
+    let hygov = calibrated()
+        .with_params(&[("machine.x_q_pp", 0.2044101216714163)])
+        .unwrap();
+    let cases: Vec<(Unit, &str)> = vec![
+        (
+            unit(&bundled.replace("e_max = 4.5", "e_max = 4.5\nv_ref_offset = 0.004")),
+            "exciter.v_ref_offset",
+        ),
+        (
+            unit(&bundled.replace(
+                "model = \"constant_pm\"",
+                "model = \"constant_pm\"\npm_offset = 0.003",
+            )),
+            "governor.pm_offset",
+        ),
+        (
+            hygov
+                .with_params(&[("governor.n_ref_offset", 0.002)])
+                .unwrap(),
+            "governor.n_ref_offset",
+        ),
+        (
+            unit(&bundled.replace(
+                "model = \"GENSAE\"",
+                "model = \"GENSAE\"\nswing = \"pm_is_torque\"",
+            )),
+            "machine option swing",
+        ),
+        (
+            unit(&format!(
+                "{bundled}\n[[block]]\nname = \"load\"\nmodel = \"terminal_load\"\np_load = 0.04\nq_load = 0.03\nn_p = 2.0\nn_q = 2.0\n"
+            )),
+            "block 'load'",
+        ),
+    ];
+    for (u, what) in cases {
+        // Given the event: the playback differs and the write is refused.
+        let r = check(&u, std::slice::from_ref(&ev));
+        assert!(!r.faithful(), "{what}: {}", r.summary());
+        let c = &r.events[0];
+        assert!(c.max_dp.max(c.max_dq) > ROUND_TRIP_TOL_PU, "{what}: {c}");
+        assert_eq!(
+            r.lost.iter().map(|l| l.what.as_str()).collect::<Vec<_>>(),
+            [what],
+            "{}",
+            r.summary()
+        );
+        // Without an event, the parameters alone refuse it.
+        let s = check(&u, &[]);
+        assert!(!s.faithful() && s.lost == r.lost, "{what}: {}", s.summary());
+    }
+    // constant_pm without offset is the absence of a governor record: nothing lost.
+    let r = check(&unit(&bundled), &[]);
+    assert!(r.faithful() && r.lost.is_empty(), "{}", r.summary());
+}
+
+#[test]
+fn write_time_plausibility_is_the_read_time_one_and_flags_flat_saturation() {
+    let t = Tmp::new("plausible");
+    let out = t.0.join("cal.dyr");
+    let xd = 0.2044101216714163;
+    let u = calibrated().with_params(&[("machine.x_q_pp", xd)]).unwrap();
+    let r = write_dyr_file(&u, &out, &[], &Default::default()).unwrap();
+    let sat: Vec<_> = r
+        .findings
+        .iter()
+        .filter(|f| f.kind == "saturation")
+        .collect();
+    assert_eq!(sat.len(), 1, "{:#?}", r.findings);
+    assert_eq!(
+        (sat[0].column.as_str(), sat[0].file.as_path()),
+        ("machine.s12", out.as_path())
+    );
+    assert!(
+        sat[0].message.starts_with("S(1.0) = 1 and S(1.2) = 1:")
+            && sat[0].message.contains("Se = 1 at every flux level"),
+        "{}",
+        sat[0].message
+    );
+    // Values far outside the library's ranges too (X'd = 1.51 against 0.25-0.40).
+    assert!(
+        r.findings
+            .iter()
+            .any(|f| f.kind == "parameter_range" && f.column == "machine.x_d_prime"),
+        "{:#?}",
+        r.findings
+    );
+    // The same findings as reading the written file gives.
+    assert_eq!(r.findings, check_unit(&read_back(&out), &out));
+    // A curve (0.1, 0.3) and "no saturation" written S(1.0) = 0 (ANDES' S(1.2) = 1) are fine.
+    for f in ["itaipu/unit.toml", "andes/unit_gensal.toml"] {
+        let u = read_unit(&data(f)).unwrap();
+        let r = check(&u, &[]);
+        assert!(
+            !r.findings.iter().any(|x| x.kind == "saturation"),
+            "{f}: {:#?}",
+            r.findings
+        );
+    }
+}
+
+#[test]
+fn existing_files_are_kept_unless_forced_and_both_files_or_neither_are_written() {
+    let u = read_unit(&data("itaipu/unit.toml")).unwrap();
+    let t = Tmp::new("force");
+    let out = t.0.join("u.dyr");
+    write_dyr_file(&u, &out, &[], &Default::default()).unwrap();
+    let e = write_dyr_file(&u, &out, &[], &Default::default()).unwrap_err();
+    assert!(
+        matches!(&e, DyrWriteError::Exists { path } if path == &out),
+        "{e}"
+    );
+    // The side file alone is enough to refuse.
+    std::fs::remove_file(&out).unwrap();
+    let e = write_dyr_file(&u, &out, &[], &Default::default()).unwrap_err();
+    assert!(
+        matches!(&e, DyrWriteError::Exists { path } if path == &side_file(&out)),
+        "{e}"
+    );
+    assert!(!out.exists());
+    std::fs::write(&out, "old").unwrap();
+    let force = DyrWriteOptions {
+        force: true,
+        ..Default::default()
+    };
+    write_dyr_file(&u, &out, &[], &force).unwrap();
+    assert!(std::fs::read_to_string(&out).unwrap().contains("'GENSAE'"));
+    // No temporary file left behind.
+    let mut names: Vec<String> = std::fs::read_dir(&t.0)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["u.bases.toml", "u.dyr"]);
 }

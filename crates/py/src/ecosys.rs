@@ -11,7 +11,8 @@ use pyo3::types::PyDict;
 use itaipu_dynamics::dyr::{self, DyrError, PartialBases};
 use itaipu_dynamics::pmu_import::{self, ImportError, ImportOptions};
 
-use crate::errors::{raise, EventError, UnitModelError};
+use crate::args::{event_sources, load_events};
+use crate::errors::{raise, EventError, Failure, UnitModelError};
 use crate::event::PyEvent;
 use crate::unit::PyUnit;
 
@@ -75,26 +76,92 @@ pub fn read_dyr(
 }
 
 /// Writes `unit` as .dyr records for `bus`, `id` to `path` and its bases to
-/// `<stem>.bases.toml` beside it. Returns what could not be written (blocks without a PSS/E
-/// record, X''q ≠ X''d, …) as a list of messages.
+/// `<stem>.bases.toml` beside it, only if the .dyr read back is the unit: played back on
+/// `events` (paths or Event objects, or a list) within 1e-6 pu of it, or, without events, with
+/// every parameter, option, wiring and block read back unchanged (the library's checked writer,
+/// the same call as `itaipu-calib dyr write`). Otherwise raises UnitModelError (kind 'lossy',
+/// quoting J of both and what is lost) unless `lossy=True`, which writes it with a UserWarning.
+/// An existing file is kept (UnitModelError, kind 'exists') unless `force=True`. Plausibility
+/// findings on what is written (parameters far outside the typical ranges, saturation data
+/// that is no curve) are UserWarnings. Returns a dict: `faithful`, `lost` (messages), `events`
+/// (per event: `event`, `j_unit`, `j_written`, `max_dp`, `max_dq`, `failure`), `warnings`.
 #[pyfunction]
-#[pyo3(signature = (unit, path, *, bus=1, id="1"))]
-pub fn write_dyr(
-    py: Python<'_>,
+#[pyo3(signature = (unit, path, *, bus=1, id="1", events=None, lossy=false, force=false))]
+#[allow(clippy::too_many_arguments)]
+pub fn write_dyr<'py>(
+    py: Python<'py>,
     unit: &PyUnit,
     path: PathBuf,
     bus: i64,
     id: &str,
-) -> PyResult<Vec<String>> {
-    let t = dyr::write_dyr(&unit.inner, bus, id);
-    let side = dyr::side_file(&path);
-    for (p, text) in [(&path, &t.dyr), (&side, &t.bases)] {
-        std::fs::write(p, text).map_err(|e| {
-            pyo3::exceptions::PyOSError::new_err(format!("cannot write {}: {e}", p.display()))
+    events: Option<&Bound<'py, PyAny>>,
+    lossy: bool,
+    force: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let sources = match events {
+        Some(e) => event_sources(e, "events")?,
+        None => vec![],
+    };
+    let opts = dyr::DyrWriteOptions {
+        bus,
+        id: id.to_string(),
+        lossy,
+        force,
+        ..Default::default()
+    };
+    let u = unit.inner.clone();
+    let r = py
+        .detach(|| {
+            let events = load_events(sources)?;
+            Ok::<_, Failure>(dyr::write_dyr_file(&u, &path, &events, &opts))
+        })
+        .map_err(|f| f.into_pyerr(py))?
+        .map_err(|e| match e {
+            dyr::DyrWriteError::Simulation { source, .. } => Failure::Sim(source).into_pyerr(py),
+            dyr::DyrWriteError::Io { .. } => pyo3::exceptions::PyOSError::new_err(e.to_string()),
+            e @ dyr::DyrWriteError::Unfaithful { .. } => raise::<UnitModelError>(
+                py,
+                format!("{e} (lossy=True writes it anyway)"),
+                Some(e.kind()),
+            ),
+            e => raise::<UnitModelError>(py, e.to_string(), Some(e.kind())),
         })?;
+    let mut warnings: Vec<String> = r.findings.iter().map(|f| f.to_string()).collect();
+    warnings.extend(r.notes.iter().cloned());
+    if !r.faithful() {
+        warnings.push(format!(
+            "lossy=True: written, but the .dyr read back is not the unit: {}",
+            r.summary()
+        ));
     }
-    let _ = py;
-    Ok(t.warnings)
+    for w in &warnings {
+        PyErr::warn(
+            py,
+            &py.get_type::<PyUserWarning>(),
+            &std::ffi::CString::new(w.as_str()).unwrap_or_default(),
+            1,
+        )?;
+    }
+    let d = PyDict::new(py);
+    d.set_item("faithful", r.faithful())?;
+    d.set_item(
+        "lost",
+        r.lost.iter().map(|l| l.to_string()).collect::<Vec<_>>(),
+    )?;
+    let evs = pyo3::types::PyList::empty(py);
+    for c in &r.events {
+        let e = PyDict::new(py);
+        e.set_item("event", &c.event)?;
+        e.set_item("j_unit", c.j_unit)?;
+        e.set_item("j_written", c.j_written)?;
+        e.set_item("max_dp", c.max_dp)?;
+        e.set_item("max_dq", c.max_dq)?;
+        e.set_item("failure", &c.failure)?;
+        evs.append(e)?;
+    }
+    d.set_item("events", evs)?;
+    d.set_item("warnings", warnings)?;
+    Ok(d)
 }
 
 /// Imports a PMU recording (C37.118-style CSV, or a COMTRADE .cfg with its .dat) as an Event,

@@ -161,9 +161,10 @@ pub(crate) fn load_event(py: Python<'_>, path: PathBuf) -> PyResult<PyEvent> {
 /// on every event, and on the unit's parameters): a list of findings, each a dict with
 /// `severity` ("error": the command line stops with exit 3; "warning"), `kind` (`time_gap`,
 /// `dropout`, `angle_radians`, `frequency`, `time_scale`, `absorbing_p`, `above_rating`,
-/// `absurd_value`, `spike`, `parameter_range`), `file`, `line` (CSV line, or None), `time_s`,
-/// `column`, `message` and `fix`. `unit` (optional) gives the rating the P and Q checks use and
-/// has its parameters checked against the library's ranges. Empty when nothing is implausible.
+/// `absurd_value`, `spike`, `parameter_range`, `saturation`), `file`, `line` (CSV line, or
+/// None), `time_s`, `column`, `message` and `fix`. `unit` (optional) gives the rating the P and
+/// Q checks use and has its parameters checked against the library's ranges (and its machine's
+/// saturation data: S(1.2) <= S(1.0) is no curve). Empty when nothing is implausible.
 /// Raises EventError or UnitModelError when a path given does not read.
 #[pyfunction]
 #[pyo3(signature = (event, unit = None))]

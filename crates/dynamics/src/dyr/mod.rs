@@ -35,9 +35,14 @@
 //! second model in the same role, parameters the model refuses) are [`DyrError`]s naming the
 //! file and the line.
 //!
+//! Writing is checked ([`write_dyr_file`], `round_trip.rs`): the records are read back and
+//! compared with the unit, parameter by parameter and, given events, by playing both back; a
+//! `.dyr` that is not the unit (X''q ≠ X''d, a set-point offset, an extension block, …) is
+//! refused with J of both unless a lossy write is asked for.
+//!
 //! Layout: `records.rs` holds the per-model CON tables, `bases.rs` the side file of bases,
-//! `read.rs` the record syntax and the reader, `write.rs` the writer; this file the errors and
-//! warnings they share.
+//! `read.rs` the record syntax and the reader, `write.rs` the writer, `round_trip.rs` the checked
+//! writer; this file the errors and warnings they share.
 
 use std::fmt;
 use std::path::PathBuf;
@@ -47,11 +52,16 @@ use crate::unit::UnitError;
 mod bases;
 mod read;
 mod records;
+mod round_trip;
 mod write;
 
 pub use bases::{resolve_bases, side_file, DyrBases, PartialBases};
 pub use read::{parse_dyr, parse_records, read_dyr, DyrUnit, RawRecord};
 pub use records::supported_models;
+pub use round_trip::{
+    write_dyr_checked, write_dyr_file, DyrWrite, DyrWriteError, DyrWriteOptions, EventCheck, Loss,
+    ROUND_TRIP_TOL_PU,
+};
 pub use write::{write_dyr, DyrText};
 
 /// A bad `.dyr`, side file or unit. Messages name the file and the line or field.

@@ -3,8 +3,8 @@
 use std::fmt::Write as _;
 
 use super::records::{dyr_model, IEEEST_INPUTS};
-use crate::registry::Role;
-use crate::unit::Unit;
+use crate::registry::{self, Role};
+use crate::unit::{Instance, Unit};
 
 /// A unit written as `.dyr` text and its side file, with what could not be written.
 #[derive(Debug, Clone)]
@@ -17,7 +17,10 @@ pub struct DyrText {
 
 /// Writes `unit` as `.dyr` records for bus `bus`, machine `id`, and the side file of bases.
 /// Blocks without a PSS/E record (extensions, `constant_pm`, which is the absence of a governor
-/// record) are left out, each named in `warnings` (except `constant_pm`).
+/// record) are left out, each named in `warnings` (except `constant_pm` without offset), as is
+/// every parameter the records cannot hold (X''q ≠ X''d, a set-point offset ≠ 0). The list is the
+/// writer's view; [`super::write_dyr_checked`] reads the text back and compares, which is the
+/// complete list.
 pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
     let mut dyr = String::new();
     let mut warnings = vec![];
@@ -33,6 +36,9 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
                     inst.name,
                     b.model()
                 ));
+            } else {
+                // No governor record holds P_m at P_m0: the same as constant_pm without offset.
+                not_held(inst, &[], "no governor record", &mut warnings);
             }
             continue;
         };
@@ -89,6 +95,24 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
                 }
             }
         }
+        // What the record has no CON for and the reader does not set from the bases reads
+        // back at the model's default (the nuisance set-point offsets, for instance).
+        let held: Vec<&str> = m
+            .cons
+            .iter()
+            .copied()
+            .chain(
+                ["r_a", "x_d_prime", "x_q_pp"]
+                    .into_iter()
+                    .filter(|_| m.role == Role::Machine),
+            )
+            .collect();
+        not_held(
+            inst,
+            &held,
+            &format!("PSS/E's {} record", m.name),
+            &mut warnings,
+        );
         for (o, v) in b.options() {
             if !(o == "swing" && v == "pm_over_speed") {
                 warnings.push(format!(
@@ -129,6 +153,29 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
         dyr,
         bases,
         warnings,
+    }
+}
+
+/// Warns about every parameter of `inst` outside `held` whose value is not the model's default
+/// (what the reader gives it): `where_` names what the unit is written as.
+fn not_held(inst: &Instance, held: &[&str], where_: &str, warnings: &mut Vec<String>) {
+    let b = &inst.block;
+    let Some(info) = registry::find(b.model()) else {
+        return;
+    };
+    let fresh = info.create();
+    let (ps, d) = (b.params(), fresh.params());
+    for (i, spec) in ps.specs().iter().enumerate() {
+        if held.contains(&spec.name) || ps.get(i) == d.get(i) {
+            continue;
+        }
+        warnings.push(format!(
+            "{}.{} = {} has no place in {where_}: not written (reads back as {})",
+            inst.name,
+            spec.name,
+            ps.get(i),
+            d.get(i)
+        ));
     }
 }
 
