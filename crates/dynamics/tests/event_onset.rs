@@ -326,3 +326,43 @@ fn bundled_practice_cases_and_itaipu() {
     );
     assert_eq!(imp.init, Window::new(0.0, 58.0 / 60.0));
 }
+
+#[test]
+fn import_writes_the_detected_onset_and_init_window_and_they_read_back() {
+    let opts = itaipu_dynamics::pmu_import::ImportOptions {
+        v_base_kv: Some(18.0),
+        ..itaipu_dynamics::pmu_import::ImportOptions::new(1000.0, 60.0)
+    };
+    let (imp, rep) =
+        itaipu_dynamics::pmu_import::import(&repo().join("data/itaipu/pmu/itaipu.cfg"), &opts)
+            .unwrap();
+    assert_eq!(rep.onset_s, imp.onset_s());
+    assert_eq!(rep.init_s, [imp.init.start_s, imp.init.end_s]);
+    let shown = rep.to_string();
+    assert!(
+        shown.contains("onset: 1.0167 s, init window [0, 0.9667] s"),
+        "{shown}"
+    );
+    let dir = TempDir::new("import_onset");
+    let out = dir.0.join("ev");
+    itaipu_dynamics::pmu_import::write_event_folder(&imp, &rep, &out).unwrap();
+    let text = std::fs::read_to_string(out.join("event.toml")).unwrap();
+    assert!(text.contains("# Detected by itaipu-calib import"), "{text}");
+    assert!(text.contains("To override: set"), "{text}");
+    assert!(!text.contains("end_s = 0.5\n"), "{text}");
+    let back = Event::from_toml_file(&out.join("event.toml")).unwrap();
+    assert_eq!(back.onset_s(), imp.onset_s());
+    assert_eq!(back.onset.source, OnsetSource::Given);
+    assert_eq!(back.init, imp.init);
+    assert_eq!(back.onset.detection.onset_s, imp.onset_s());
+
+    // An ambient record: onset_s = "none" and the default init window, read back the same.
+    let amb = event(Kind::Ambient, 1);
+    let out = dir.0.join("amb");
+    itaipu_dynamics::pmu_import::write_event_folder(&amb, &rep, &out).unwrap();
+    let text = std::fs::read_to_string(out.join("event.toml")).unwrap();
+    assert!(text.contains("onset_s = \"none\"\n"), "{text}");
+    let back = Event::from_toml_file(&out.join("event.toml")).unwrap();
+    assert_eq!(back.onset_s(), None);
+    assert_eq!(back.init, Window::new(0.0, 0.5));
+}
