@@ -1,6 +1,8 @@
 //! The onset detector ([`itaipu_dynamics::event::detect_onset`]) measured on the practice sets
 //! and the bundled Itaipu record: per case, the detected onset against the answer key's
-//! `event.t_event` in samples, false onsets on the ambient cases, misses.
+//! `event.t_event` in samples, false onsets on the ambient cases, misses; and the plausibility
+//! layer's `edge_dropout` warning, which must fire on no practice case and on the Itaipu record's
+//! erratic end.
 //!
 //! `cargo run --release -p itaipu-calib --example onset -- [ROOT ...]` (default: the two
 //! practice sets beside the checkout, `../shared/practice` and `../shared/practice2`). Each case
@@ -13,6 +15,8 @@ use std::path::{Path, PathBuf};
 
 use itaipu_calib::practice::{case_dirs, PracticeCase};
 use itaipu_dynamics::event::Event;
+
+use itaipu_dynamics::plausibility::check_event;
 
 struct Row {
     case: String,
@@ -49,6 +53,7 @@ fn main() {
         args.iter().map(PathBuf::from).collect()
     };
     let mut rows = vec![];
+    let mut edge = vec![];
     println!(
         "{:<5} {:<8} {:>8} {:>9} {:>8}  detector",
         "case", "event", "key s", "onset s", "err smp"
@@ -68,6 +73,12 @@ fn main() {
                 onset.map_or("none".into(), |t| format!("{t:.4}")),
                 err.map_or("-".into(), |e| format!("{e:+.2}")),
                 case.event.onset.detection.describe()
+            );
+            edge.extend(
+                check_event(&case.event, Some(case.unit.machine_mva))
+                    .into_iter()
+                    .filter(|f| f.kind == "edge_dropout")
+                    .map(|f| format!("{}: {f}", case.name)),
             );
             rows.push(Row {
                 case: case.name.clone(),
@@ -109,11 +120,20 @@ fn main() {
         false_onsets
     );
 
+    println!(
+        "edge_dropout on {} practice case(s){}",
+        edge.len(),
+        edge.iter().map(|e| format!("\n  {e}")).collect::<String>()
+    );
+
     // The bundled Itaipu record: the event file (explicit init, onset detected) and the
     // COMTRADE recording imported.
     let data = here.join("../../data/itaipu");
     let bundled = Event::from_toml_file(&data.join("event.toml")).expect("bundled Itaipu event");
     println!("\nItaipu, bundled CSV: {}", bundled.onset.describe());
+    for f in check_event(&bundled, Some(737.0)) {
+        println!("  {f}");
+    }
     let opts = itaipu_dynamics::pmu_import::ImportOptions {
         v_base_kv: Some(18.0),
         ..itaipu_dynamics::pmu_import::ImportOptions::new(1000.0, 60.0)

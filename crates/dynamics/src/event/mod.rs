@@ -135,6 +135,7 @@ pub use onset::{
     detect_onset, Crossing, OnsetChannel, OnsetDetection, ONSET_FALSE_ALARM, ONSET_LOCATE_SD,
     ONSET_MAX_WINDOW_S, ONSET_MIN_WINDOW, ONSET_REFERENCE_S,
 };
+pub(crate) use onset::{normal_upper_quantile, quantum, robust_sd};
 pub use window::{Window, TIME_TOL_S};
 
 use self::csv::{check_record_shape, validate_record, ColumnLabels};

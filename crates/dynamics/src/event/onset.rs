@@ -260,7 +260,7 @@ fn normal_upper_tail(z: f64) -> f64 {
 }
 
 /// The z with `1 − Φ(z) = p` (0 < p < 0.5), by bisection.
-fn normal_upper_quantile(p: f64) -> f64 {
+pub(crate) fn normal_upper_quantile(p: f64) -> f64 {
     let (mut lo, mut hi) = (0.0_f64, 40.0_f64);
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
@@ -287,7 +287,7 @@ fn median_of(v: &mut [f64]) -> f64 {
 
 /// 1.4826 × the median absolute deviation about the median: the standard deviation of
 /// Gaussian data, unmoved by a minority of outliers.
-fn robust_sd(v: &[f64]) -> f64 {
+pub(crate) fn robust_sd(v: &[f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
     }
@@ -299,7 +299,7 @@ fn robust_sd(v: &[f64]) -> f64 {
 
 /// The smallest non-zero step between consecutive samples (the quantum of a quantised channel;
 /// a tiny number for an unquantised one).
-fn quantum(x: &[f64]) -> f64 {
+pub(crate) fn quantum(x: &[f64]) -> f64 {
     let q = x
         .windows(2)
         .map(|w| (w[1] - w[0]).abs())
