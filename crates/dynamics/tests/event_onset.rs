@@ -325,6 +325,21 @@ fn bundled_practice_cases_and_itaipu() {
         imp.onset.describe()
     );
     assert_eq!(imp.init, Window::new(0.0, 58.0 / 60.0));
+    // And its C37.118-style CSV export.
+    let (c37, _) =
+        itaipu_dynamics::pmu_import::import(&repo().join("data/itaipu/pmu/itaipu_c37.csv"), &opts)
+            .unwrap();
+    assert!(
+        (c37.onset_s().unwrap() - t).abs() < 1e-6,
+        "{}",
+        c37.onset.describe()
+    );
+    // (Its time stamps are in µs.)
+    assert!(
+        (c37.init.end_s - imp.init.end_s).abs() < 1e-6,
+        "{}",
+        c37.init
+    );
 }
 
 #[test]
