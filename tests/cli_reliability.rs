@@ -143,7 +143,11 @@ fn force_replaces_the_whole_folder_and_the_manifest_matches() {
         ]),
         0
     );
-    assert_eq!(file_names(&sim), ["manifest.json", "traces.csv"]);
+    // warnings.json: the bundled record's end is a measurement drop-out (edge_dropout).
+    assert_eq!(
+        file_names(&sim),
+        ["manifest.json", "traces.csv", "warnings.json"]
+    );
     itaipu_calib_cli::output::verify(&sim).unwrap();
 }
 
@@ -366,9 +370,11 @@ fn the_rest_of_the_bad_input_table_through_the_cli() {
     itaipu_calib_cli::output::verify(&out).unwrap();
     let w: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("warnings.json")).unwrap()).unwrap();
-    assert_eq!(w[0]["kind"], "parameter_range");
-    assert_eq!(w[0]["column"], "machine.h");
-    assert!(w[0]["file"].as_str().unwrap().ends_with("h.toml"));
+    // After the record's own warning (its end is a measurement drop-out, edge_dropout).
+    assert_eq!(w[0]["kind"], "edge_dropout");
+    assert_eq!(w[1]["kind"], "parameter_range");
+    assert_eq!(w[1]["column"], "machine.h");
+    assert!(w[1]["file"].as_str().unwrap().ends_with("h.toml"));
 }
 
 /// A start value outside its bounds is no longer clamped in silence: the fit's report lists
@@ -405,9 +411,11 @@ fn a_clamped_start_is_reported() {
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let w = r["warnings"].as_array().unwrap();
-    // Only this one: the bundled record, unit and spec are plausible as given (the spec gives
+    // Only this one and the bundled record's measurement drop-out at its end (edge_dropout,
+    // a warning): the record, unit and spec are otherwise plausible as given (the spec gives
     // the starts of the parameters whose datasheet values lie outside RaPId's bounds).
-    assert_eq!(w.len(), 1, "{w:#?}");
+    assert_eq!(w.len(), 2, "{w:#?}");
+    assert!(w.iter().any(|x| x["kind"] == "edge_dropout"), "{w:#?}");
     let c = w
         .iter()
         .find(|x| x["kind"] == "start_clamped")

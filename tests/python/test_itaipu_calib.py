@@ -314,11 +314,15 @@ def test_frequency_mismatch_names_the_event(tmp_path):
 
 
 def test_check_finds_a_dropout_at_its_line_and_passes_the_bundled_record(tmp_path):
-    """ic.check runs the command line's plausibility layer (issue 13): nothing on the bundled
-    record and unit; a one-sample |V| = 0 is an error naming the CSV line, the column and a fix;
-    h = 1e308 in the unit a warning naming the parameter."""
-    assert ic.check(EVENT, UNIT) == []
-    assert ic.check(ic.load_event(EVENT), ic.load_unit(UNIT)) == []
+    """ic.check runs the command line's plausibility layer (issue 13): on the bundled record
+    and unit only the record's measurement drop-out at its end (issue 25, a warning from 4.4 s);
+    a one-sample |V| = 0 is an error naming the CSV line, the column and a fix; h = 1e308 in the
+    unit a warning naming the parameter."""
+    edge = [("warning", "edge_dropout", 266, "|V|")]
+    key = lambda fs: [(f["severity"], f["kind"], f["line"], f["column"]) for f in fs]
+    assert key(ic.check(EVENT, UNIT)) == edge
+    assert [(f["severity"], f["kind"]) for f in
+            ic.check(ic.load_event(EVENT), ic.load_unit(UNIT))] == [("warning", "edge_dropout")]
     lines = (DATA / "itaipu" / "itaipu_pmu_60sps.csv").read_text().splitlines()
     cells = lines[201].split(",")  # sample 200, line 202 of the file
     cells[1] = cells[2] = "0"
@@ -327,13 +331,12 @@ def test_check_finds_a_dropout_at_its_line_and_passes_the_bundled_record(tmp_pat
     (tmp_path / "e.toml").write_text(
         EVENT.read_text().replace("itaipu_pmu_60sps.csv", "e.csv"))
     findings = ic.check(tmp_path / "e.toml", UNIT)
-    assert [(f["severity"], f["kind"], f["line"], f["column"]) for f in findings] == [
-        ("error", "dropout", 202, "|V|")]
+    assert key(findings) == [("error", "dropout", 202, "|V|")] + edge
     assert findings[0]["file"].endswith("e.csv") and findings[0]["fix"]
     (tmp_path / "u.toml").write_text(UNIT.read_text().replace("h = 4.5 ", "h = 1e308 "))
     w = ic.check(EVENT, tmp_path / "u.toml")
     assert [(f["severity"], f["kind"], f["column"]) for f in w] == [
-        ("warning", "parameter_range", "machine.h")]
+        ("warning", "edge_dropout", "|V|"), ("warning", "parameter_range", "machine.h")]
     with pytest.raises(ic.EventError):
         ic.check(tmp_path / "missing.toml")
     with pytest.raises(TypeError):

@@ -65,10 +65,18 @@ fn find<'a>(f: &'a [Finding], kind: &str) -> &'a Finding {
 
 const ITAIPU_MVA: f64 = 737.0;
 
+/// The findings other than the bundled record's own: its erratic |V| after 4.4 s (the
+/// `edge_dropout` warning, see `the_bundled_record_ends_in_a_measurement_dropout`).
+fn others(f: Vec<Finding>) -> Vec<Finding> {
+    f.into_iter().filter(|x| x.kind != "edge_dropout").collect()
+}
+
 #[test]
 fn the_bundled_record_and_unit_are_plausible() {
     let e = Event::from_toml_file(&repo().join("data/itaipu/event.toml")).unwrap();
-    assert_eq!(check_event(&e, Some(ITAIPU_MVA)), vec![]);
+    let f = check_event(&e, Some(ITAIPU_MVA));
+    assert!(!has_errors(&f), "{f:#?}");
+    assert_eq!(others(f), vec![]);
     let u = read_unit(&repo().join("data/itaipu/unit.toml")).unwrap();
     assert_eq!(check_unit(&u, Path::new("unit.toml")), vec![]);
 }
@@ -105,8 +113,10 @@ fn a_single_sample_dropout_is_an_error_not_a_fault() {
     let f = check_event(&event(&t.0, &r, 1000.0), Some(ITAIPU_MVA));
     let d = find(&f, "dropout");
     assert_eq!((d.severity, d.line), (Severity::Error, Some(202)));
+    // Its two |V| steps, which Q does not follow either, are not chained to the record's end.
+    assert_eq!(find(&f, "edge_dropout").line, Some(266));
     // A dip that lasts (the real fault of the record) is no dropout.
-    assert!(check_event(&event(&t.0, &rows(), 1000.0), Some(ITAIPU_MVA)).is_empty());
+    assert!(others(check_event(&event(&t.0, &rows(), 1000.0), Some(ITAIPU_MVA))).is_empty());
 }
 
 /// Blank lines in the CSV (which the reader skips) do not shift the line a finding names, nor
@@ -285,4 +295,58 @@ fn parameters_far_outside_the_library_ranges_warn() {
         "{}",
         f[0].message
     );
+}
+
+/// Issue 25: the bundled record's last samples (its README: "after 4.25 s the voltage
+/// magnitude becomes erratic (0.72-1.01 pu) while P and Q stay smooth") are flagged as a
+/// measurement drop-out, a warning naming the span; a record that ends in a real fault (Q
+/// answers |V|) is not, and the start of a record is checked the same way.
+#[test]
+fn the_bundled_record_ends_in_a_measurement_dropout() {
+    let e = Event::from_toml_file(&repo().join("data/itaipu/event.toml")).unwrap();
+    for mva in [Some(ITAIPU_MVA), None] {
+        let f = check_event(&e, mva);
+        let d = find(&f, "edge_dropout");
+        assert_eq!(
+            (d.severity, d.column.as_str(), d.line),
+            (Severity::Warning, "|V|", Some(266)),
+            "{d}"
+        );
+        assert!((d.time_s.unwrap() - 4.4).abs() < 1e-6, "{d}");
+        assert!(d.message.contains("ends in a measurement drop-out"), "{d}");
+        assert!(d.message.contains("to 4.65 s (16 samples)"), "{d}");
+        assert!(d.fix.contains("before 4.4 s"), "{d}");
+        assert_eq!(f.iter().filter(|x| x.kind == "edge_dropout").count(), 1);
+    }
+    // Cut before the erratic part: nothing.
+    let t = Tmp::new("edge");
+    let r = rows();
+    let f = check_event(&event(&t.0, &r[..255], 1000.0), Some(ITAIPU_MVA));
+    assert_eq!(f, vec![]);
+    // The same record ending in the fault's first samples: |V| falls, Q answers: no drop-out.
+    let f = check_event(&event(&t.0, &r[..63], 1000.0), Some(ITAIPU_MVA));
+    assert!(f.iter().all(|x| x.kind != "edge_dropout"), "{f:#?}");
+    // |V| alone falling 0.1 pu in the last two samples (P, Q untouched): a drop-out.
+    let mut cut = r[..200].to_vec();
+    for x in &mut cut[198..] {
+        x[1] *= 0.9;
+        x[2] *= 0.9;
+    }
+    let f = check_event(&event(&t.0, &cut, 1000.0), Some(ITAIPU_MVA));
+    let d = find(&f, "edge_dropout");
+    assert!((d.time_s.unwrap() - cut[198][0]).abs() < 1e-9, "{d}");
+    // Reversed in time (the record starts in it): the start's mirror.
+    let t_end = r[r.len() - 1][0];
+    let mut rev: Vec<[f64; 5]> = r[60..].iter().rev().copied().collect();
+    for x in &mut rev {
+        x[0] = t_end - x[0];
+    }
+    let f = check_event(&event(&t.0, &rev, 1000.0), Some(ITAIPU_MVA));
+    let d = find(&f, "edge_dropout");
+    assert!(
+        d.message.contains("starts in a measurement drop-out"),
+        "{d}"
+    );
+    assert_eq!(d.time_s, Some(0.0), "{d}");
+    assert!(d.fix.contains("start [playback]"), "{d}");
 }

@@ -24,9 +24,10 @@ pub(super) fn pre_event_noise(event: &Event, y: &[f64]) -> f64 {
     s.max(1e-6)
 }
 
-/// The samples of `y` (a series at the event's sample times) before the event's onset.
+/// The samples of `y` (a series at the event's sample times) before the event's onset
+/// ([`onset_s`]: the event's own, or the end of the init window for ambient data).
 fn pre_event(event: &Event, y: &[f64]) -> Vec<f64> {
-    let (onset, _) = windows(event);
+    let onset = onset_s(event);
     event
         .record
         .time_s
@@ -75,7 +76,7 @@ pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Eve
         rec.v_mag_pu[k] += sv * rng.sample();
         rec.v_ang_rad[k] += sa * rng.sample();
     }
-    Event::from_record(
+    let mut s = Event::from_record(
         &format!("{} (surrogate)", event.name),
         rec,
         event.system_mva,
@@ -83,7 +84,10 @@ pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Eve
         Some(event.init),
         Some(event.fit),
     )
-    .map_err(|e| e.to_string())
+    .map_err(|e| e.to_string())?;
+    // The event's onset, not one detected again on the redrawn noise: the same windows.
+    s.onset = event.onset.clone();
+    Ok(s)
 }
 
 /// σ_P, σ_Q of the unit as given on `events`: the pre-event residual's standard deviation of

@@ -38,7 +38,10 @@ pub(super) fn split(
     let (mut fit, mut held) = (vec![], vec![]);
     for e in events {
         let d = data(e)?;
-        let t0 = disturbance_s(e).map_or(e.record.time_s[0], |a| a - DISTURBANCE_LEAD_S);
+        // Aligned on the event's onset (none, ambient data: from the record's start).
+        let t0 = e
+            .onset_s()
+            .map_or(e.record.time_s[0], |a| a - DISTURBANCE_LEAD_S);
         let even: Vec<bool> = e
             .record
             .time_s
@@ -83,26 +86,12 @@ pub(super) const SEGMENT_S: f64 = 3.0;
 /// fails less says nothing of structure.
 pub(super) const SEGMENT_OVERFIT: f64 = 2.0;
 
-/// How far before the disturbance the fitted block that holds it starts [s].
-pub(super) const DISTURBANCE_LEAD_S: f64 = 0.1;
-
-/// When the event's disturbance starts: the first sample after the init window whose |V|
-/// departs from the init window's mean by at least half the largest departure (`None` when
-/// the largest departure is within 1 % of |V|: no disturbance to speak of, ambient data).
+/// How far before the disturbance (the event's onset, [`Event::onset`]) the fitted block that
+/// holds it starts [s].
 ///
-/// The fit/held-out split aligns its blocks on it, so that the few samples of a fault dip —
-/// the ones that say most about the fast dynamics, and about what limits and saturation do —
-/// are fitted rather than left to be predicted by a re-fit that never saw them: with blocks
+/// The fit/held-out split aligns its blocks on the onset, so that the few samples of a fault
+/// dip (the ones that say most about the fast dynamics, and about what limits and saturation
+/// do) are fitted rather than left to be predicted by a re-fit that never saw them: with blocks
 /// counted from the start of the record, a 0.1 s dip falls in a held-out block as often as not.
-pub(super) fn disturbance_s(event: &Event) -> Option<f64> {
-    let r = &event.record;
-    let (n_pre, pre) = pre_event_v(event);
-    let after = || r.time_s.iter().zip(&r.v_mag_pu).skip(n_pre);
-    let max_dev = after().map(|(_, v)| (v - pre).abs()).fold(0.0, f64::max);
-    if !(max_dev > 0.01 * pre.abs()) {
-        return None;
-    }
-    after()
-        .find(|(_, v)| (*v - pre).abs() >= 0.5 * max_dev)
-        .map(|(t, _)| *t)
-}
+/// An event without an onset (ambient data) has its blocks counted from its first sample.
+pub(super) const DISTURBANCE_LEAD_S: f64 = 0.1;

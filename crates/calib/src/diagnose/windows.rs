@@ -13,12 +13,24 @@ pub(super) const DIP_S: f64 = 1.0;
 /// Width of the "recovery" window after the dip [s].
 pub(super) const RECOVERY_S: f64 = 4.0;
 
-/// The evidence windows of an event: pre-event up to the onset (the end of the event's init
-/// window), dip, recovery, tail.
-pub fn windows(event: &Event) -> (f64, Vec<(String, f64, f64)>) {
+/// The event's onset for the diagnosis [s]: the event's own ([`Event::onset`]: found in the
+/// data by the one detector every path uses, or given in the event file), clamped to the record.
+/// An event without an onset (ambient data: no disturbance) keeps the older reference: the end
+/// of its init window, so its "pre-event" segment is the init window and the windows after it
+/// are measured from there.
+pub(super) fn onset_s(event: &Event) -> f64 {
     let t = &event.record.time_s;
     let (t0, t1) = (t[0], *t.last().expect("events have samples"));
-    let onset = event.init.end_s.clamp(t0, t1);
+    event.onset_s().unwrap_or(event.init.end_s).clamp(t0, t1)
+}
+
+/// The evidence windows of an event: pre-event up to the onset ([`onset_s`]), dip, recovery,
+/// tail.
+pub fn windows(event: &Event) -> (f64, Vec<(String, f64, f64)>) {
+    let t = &event.record.time_s;
+    let t1 = *t.last().expect("events have samples");
+    let t0 = t[0];
+    let onset = onset_s(event);
     let w = vec![
         ("pre-event".to_string(), t0, onset),
         ("dip".to_string(), onset, (onset + DIP_S).min(t1)),
@@ -54,18 +66,24 @@ pub(super) fn regime(events: &[Event]) -> (f64, f64) {
     (dip, df)
 }
 
-/// The samples of the event's init window (at least one) and their mean |V|: the pre-event
-/// voltage against which dips and disturbances are measured.
+/// The pre-event samples, those before the onset ([`onset_s`]; at least one), and their mean
+/// |V|: the pre-event voltage against which dips and disturbances are measured.
 pub(super) fn pre_event_v(event: &Event) -> (usize, f64) {
     let r = &event.record;
-    let pre = r
-        .time_s
-        .iter()
-        .take_while(|&&t| t <= event.init.end_s)
-        .count()
-        .clamp(1, r.v_mag_pu.len());
+    let pre = pre_event_count(event);
     let v = &r.v_mag_pu[..pre];
     (pre, v.iter().sum::<f64>() / pre as f64)
+}
+
+/// Number of samples before the onset ([`onset_s`]), at least one.
+fn pre_event_count(event: &Event) -> usize {
+    let onset = onset_s(event);
+    let r = &event.record;
+    r.time_s
+        .iter()
+        .take_while(|&&t| t < onset)
+        .count()
+        .clamp(1, r.v_mag_pu.len())
 }
 
 /// Grid frequency deviation [Hz] from the record (`freq_hz` if present, else the derivative of

@@ -8,6 +8,7 @@
 //! csv = "itaipu_pmu_60sps.csv"         # path relative to the TOML file's folder (or absolute)
 //! system_mva = 1000.0                  # MVA base of p_pu and q_pu in the CSV
 //! nominal_hz = 60.0                    # nominal frequency of the PMU reference frame
+//! onset_s = 1.0167                     # optional: when the disturbance starts; default detected
 //! [playback]   # optional: trim the record used for playback; default = whole record
 //! start_s = 0.0
 //! end_s = 4.65
@@ -35,14 +36,29 @@
 //! * `playback` must lie inside the record and hold at least [`MIN_SAMPLES`] samples.
 //!   Default: the whole record.
 //! * `init` must lie inside the playback window and hold at least [`MIN_SAMPLES`] samples.
-//!   Default: starts at the playback start and lasts [`DEFAULT_INIT_S`] (0.5 s); if those
-//!   0.5 s hold fewer than [`DEFAULT_INIT_MIN_SAMPLES`] (10) samples (slow recordings) it is
-//!   extended to the first 10 samples. It never extends past the playback window. If only
-//!   `init.start_s` is given, the same rule is applied from that start.
+//!   Default: the steady pre-event part, from the playback start to [`ONSET_GUARD_SAMPLES`]
+//!   (3) samples before the event's onset (below), but at least [`MIN_SAMPLES`] samples. An
+//!   event without an onset (ambient data) keeps the older rule: [`DEFAULT_INIT_S`] (0.5 s) from
+//!   the playback start, extended to the first [`DEFAULT_INIT_MIN_SAMPLES`] (10) samples if those
+//!   0.5 s hold fewer (slow recordings), never past the playback window. If only `init.start_s`
+//!   is given, the same rule is applied from that start (the onset rule if the onset lies after
+//!   it).
 //! * `fit` must lie inside the playback window and hold at least [`MIN_SAMPLES`] samples.
 //!   Default: the playback window.
 //!
 //! A window with `end_s <= start_s` is an error naming `<window>.end_s`.
+//!
+//! # Onset
+//!
+//! Every event knows when its disturbance starts ([`Event::onset`]): the time of the first
+//! sample that departs from the pre-event course, found in the playback record by
+//! [`detect_onset`] (the rule and its justification are in the `onset` module's
+//! documentation), or `None` for ambient data. The same detector runs on every path (event TOML,
+//! [`Event::from_record`], the PMU import), so they all get the same value. The TOML key
+//! `onset_s` overrides it: a time in seconds inside the playback window (an error naming the
+//! file and the key otherwise), or `onset_s = "none"` for data without a disturbance. The
+//! default init window ends before it; the diagnosis takes its evidence windows, its noise and
+//! its fit/held-out split from it.
 //!
 //! # CSV format
 //!
@@ -101,22 +117,29 @@
 //! * `spec.rs`: the event TOML file and its parsing ([`Event::from_toml_file`]);
 //! * `csv.rs`: reading ([`read_csv`]) and writing ([`Event::write_csv`]) the measurement CSV, and
 //!   the validation shared by CSV and in-memory records;
-//! * `window.rs`: [`Window`] and the resolution of the playback, init and fit windows.
+//! * `window.rs`: [`Window`] and the resolution of the playback, init and fit windows;
+//! * `onset.rs`: [`detect_onset`], the disturbance's onset found in the data.
 
 use std::ops::Range;
 use std::path::PathBuf;
 
 mod csv;
 mod error;
+mod onset;
 mod spec;
 mod window;
 
 pub use self::csv::{format_g17, read_csv};
 pub use error::{EventError, Location};
+pub use onset::{
+    detect_onset, Crossing, OnsetChannel, OnsetDetection, ONSET_FALSE_ALARM, ONSET_LOCATE_SD,
+    ONSET_MAX_WINDOW_S, ONSET_MIN_WINDOW, ONSET_REFERENCE_S,
+};
+pub(crate) use onset::{normal_upper_quantile, quantum, robust_sd};
 pub use window::{Window, TIME_TOL_S};
 
 use self::csv::{check_record_shape, validate_record, ColumnLabels};
-use spec::{check_bases, WindowSpec};
+use spec::{check_bases, OnsetSpec, WindowSpec};
 use window::assemble;
 
 /// Minimum number of samples in the record, the playback window, the init window and the fit
@@ -128,6 +151,11 @@ pub const DEFAULT_INIT_S: f64 = 0.5;
 
 /// The default init window is extended to hold at least this many samples.
 pub const DEFAULT_INIT_MIN_SAMPLES: usize = 10;
+
+/// The default init window of an event with an onset ends this many samples before it: a PMU's
+/// phasor filter spreads an abrupt change over a sample or two, and the onset is the first
+/// sample found to depart, not necessarily the first touched.
+pub const ONSET_GUARD_SAMPLES: usize = 3;
 
 /// Accepted range of the median |V|, pu.
 pub const V_MEDIAN_RANGE_PU: (f64, f64) = (0.5, 1.5);
@@ -336,6 +364,43 @@ pub struct OperatingPoint {
     pub n_samples: usize,
 }
 
+/// Where an event's onset comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OnsetSource {
+    /// Found in the playback record by [`detect_onset`].
+    Detected,
+    /// Written by the user (`onset_s` in the event TOML).
+    Given,
+}
+
+/// When an event's disturbance starts, and why that time.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Onset {
+    /// Time of the first disturbed sample, s (on the record's time axis); `None`: no
+    /// disturbance (ambient data).
+    pub time_s: Option<f64>,
+    pub source: OnsetSource,
+    /// What the detector found on the playback record (also when the user gave the onset).
+    pub detection: OnsetDetection,
+}
+
+impl Onset {
+    /// One line for a report: the onset, where it comes from and the evidence.
+    pub fn describe(&self) -> String {
+        match self.source {
+            OnsetSource::Detected => format!("detected: {}", self.detection.describe()),
+            OnsetSource::Given => {
+                let given = match self.time_s {
+                    Some(t) => format!("onset {t} s given in the event file (onset_s)"),
+                    None => "no onset: onset_s = \"none\" in the event file".to_string(),
+                };
+                format!("{given}; the detector's: {}", self.detection.describe())
+            }
+        }
+    }
+}
+
 /// A measured event: the playback record plus its bases and windows.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Event {
@@ -357,6 +422,8 @@ pub struct Event {
     pub init: Window,
     /// Window over which a fit should compare simulation and measurement.
     pub fit: Window,
+    /// When the disturbance starts (see "Onset" in the module documentation).
+    pub onset: Onset,
     /// Samples inside the playback window.
     pub record: Record,
 }
@@ -365,8 +432,9 @@ impl Event {
     /// Builds an event from in-memory arrays (used by the Python API and for synthetic events)
     /// and validates it the same way as a file: equal vector lengths, finite values,
     /// non-negative |V|, strictly increasing time, at least [`MIN_SAMPLES`] samples, unit sanity
-    /// checks, bases, windows. The whole record is the playback window. `init` and `fit` default
-    /// as described in the module documentation. The angle is unwrapped (a no-op for an already
+    /// checks, bases, windows. The whole record is the playback window. The onset is detected
+    /// ([`detect_onset`]) as for a file; `init` and `fit` default as described in the module
+    /// documentation. The angle is unwrapped (a no-op for an already
     /// continuous angle) and shifted by a multiple of 2π so that it starts in `[-π, π]`.
     ///
     /// Errors name the source `<in-memory event 'NAME'>` and locate samples by 0-based index.
@@ -398,7 +466,14 @@ impl Event {
             WindowSpec::default(),
             init.map(WindowSpec::from).unwrap_or_default(),
             fit.map(WindowSpec::from).unwrap_or_default(),
+            OnsetSpec::Detect,
         )
+    }
+
+    /// The time of the disturbance's onset, s (`None`: ambient data). Shorthand for
+    /// `self.onset.time_s`.
+    pub fn onset_s(&self) -> Option<f64> {
+        self.onset.time_s
     }
 
     /// Indices (into `record`) of the samples in the init window.

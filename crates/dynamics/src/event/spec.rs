@@ -10,12 +10,13 @@ use super::csv::read_csv;
 use super::window::{assemble, Window};
 use super::{Event, EventError};
 
-const TOP_KEYS: [&str; 8] = [
+const TOP_KEYS: [&str; 9] = [
     "name",
     "description",
     "csv",
     "system_mva",
     "nominal_hz",
+    "onset_s",
     "playback",
     "init",
     "fit",
@@ -34,11 +35,30 @@ struct EventSpec {
     system_mva: f64,
     nominal_hz: f64,
     #[serde(default)]
+    onset_s: Option<OnsetValue>,
+    #[serde(default)]
     playback: Option<WindowSpec>,
     #[serde(default)]
     init: Option<WindowSpec>,
     #[serde(default)]
     fit: Option<WindowSpec>,
+}
+
+/// `onset_s` as written: a time or a word (only `"none"` is accepted).
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+enum OnsetValue {
+    Time(f64),
+    Word(String),
+}
+
+/// How an event gets its onset.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum OnsetSpec {
+    /// Found in the playback record.
+    Detect,
+    /// Given by the user: a time (s), or `None` for no disturbance.
+    Given(Option<f64>),
 }
 
 /// A window as written by the user; missing bounds take defaults.
@@ -163,6 +183,22 @@ impl Event {
             message: e.to_string().trim_end().to_string(),
         })?;
         check_bases(path, spec.system_mva, spec.nominal_hz)?;
+        let onset = match spec.onset_s {
+            None => OnsetSpec::Detect,
+            Some(OnsetValue::Time(t)) => OnsetSpec::Given(Some(t)),
+            Some(OnsetValue::Word(w)) if w.trim().eq_ignore_ascii_case("none") => {
+                OnsetSpec::Given(None)
+            }
+            Some(OnsetValue::Word(w)) => {
+                return Err(EventError::TomlValue {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "onset_s = {}: expected the onset's time in seconds (a number) or \"none\" for data without a disturbance",
+                        toml::Value::String(w)
+                    ),
+                })
+            }
+        };
 
         let folder = path.parent().unwrap_or_else(|| Path::new(""));
         let csv_path = folder.join(&spec.csv);
@@ -191,6 +227,7 @@ impl Event {
             spec.playback.unwrap_or_default(),
             spec.init.unwrap_or_default(),
             spec.fit.unwrap_or_default(),
+            onset,
         )
     }
 }

@@ -5,8 +5,12 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use super::spec::WindowSpec;
-use super::{Event, EventError, Record, DEFAULT_INIT_MIN_SAMPLES, DEFAULT_INIT_S, MIN_SAMPLES};
+use super::onset::detect_onset;
+use super::spec::{OnsetSpec, WindowSpec};
+use super::{
+    Event, EventError, Onset, OnsetSource, Record, DEFAULT_INIT_MIN_SAMPLES, DEFAULT_INIT_S,
+    MIN_SAMPLES, ONSET_GUARD_SAMPLES,
+};
 
 /// A closed time interval `[start_s, end_s]`, seconds on the record's time axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,6 +61,7 @@ pub(super) fn assemble(
     playback: WindowSpec,
     init: WindowSpec,
     fit: WindowSpec,
+    onset: OnsetSpec,
 ) -> Result<Event, EventError> {
     let record_span = full.span();
     let record_desc = if csv_path.as_os_str().is_empty() {
@@ -75,9 +80,44 @@ pub(super) fn assemble(
     let pb_win = pb.window;
     let pb_desc = format!("the playback window {pb_win}");
 
+    // Onset: the user's, checked against the playback window, or the detector's.
+    let detection = detect_onset(&record);
+    let onset = match onset {
+        OnsetSpec::Detect => Onset {
+            time_s: detection.onset_s,
+            source: OnsetSource::Detected,
+            detection,
+        },
+        OnsetSpec::Given(t) => {
+            if let Some(t) = t {
+                if !(t.is_finite()
+                    && t >= pb_win.start_s - TIME_TOL_S
+                    && t <= pb_win.end_s + TIME_TOL_S)
+                {
+                    return Err(EventError::InvalidValue {
+                        path: src.to_path_buf(),
+                        field: "onset_s".into(),
+                        value: t,
+                        message: format!(
+                            "the onset must be a time inside {pb_desc} (seconds on the record's time axis)"
+                        ),
+                    });
+                }
+            }
+            Onset {
+                time_s: t,
+                source: OnsetSource::Given,
+                detection,
+            }
+        }
+    };
+
     // Init.
     let init_start = init.start_s.unwrap_or(pb_win.start_s);
-    let init_default_end = default_init_end(&record, init_start, pb_win.end_s);
+    let init_default_end = match onset.time_s {
+        Some(t) if t > init_start => onset_init_end(&record, init_start, t),
+        _ => default_init_end(&record, init_start, pb_win.end_s),
+    };
     let iw = resolve(init, pb_win.start_s, init_default_end);
     check_window(src, "init", &iw, &pb_win, &pb_desc)?;
     check_count(
@@ -107,8 +147,22 @@ pub(super) fn assemble(
         playback: pb_win,
         init: iw.window,
         fit: fw.window,
+        onset,
         record,
     })
+}
+
+/// The default end of the init window starting at `start` for an event whose onset is at
+/// `onset` (> `start`): the sample [`ONSET_GUARD_SAMPLES`] before the onset's, but never fewer
+/// than [`MIN_SAMPLES`] samples from `start`.
+fn onset_init_end(rec: &Record, start: f64, onset: f64) -> f64 {
+    let first = rec.time_s.partition_point(|&t| t < start - TIME_TOL_S);
+    let at_onset = rec.time_s.partition_point(|&t| t < onset - TIME_TOL_S);
+    let end = at_onset
+        .saturating_sub(ONSET_GUARD_SAMPLES)
+        .max(first + MIN_SAMPLES - 1)
+        .min(rec.len().saturating_sub(1));
+    rec.time_s.get(end).copied().unwrap_or(onset)
 }
 
 /// The default end of the init window starting at `start`: `start + DEFAULT_INIT_S`, extended

@@ -32,6 +32,11 @@
 //! the unwrapped angle, P, Q and f, and when the new rate is lower, the mean of the samples
 //! within half an output interval (a boxcar against aliasing).
 //!
+//! **Onset and init window.** The event's onset is detected on the imported record (the one
+//! detector of [`crate::event::detect_onset`]) and, with the pre-event init window it implies
+//! (from the start to a few samples before it), reported and written into `event.toml` as
+//! explicit keys with a comment saying they were detected and how to override them.
+//!
 //! Layout: this file holds the options, the report, the conversion of assigned samples into the
 //! event ([`import`], [`write_event_folder`]) and the resampling; `names.rs` recognises and
 //! assigns the columns and channels by name; `time.rs` parses and formats time stamps.
@@ -39,7 +44,7 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use crate::event::{format_g17, unwrap_angles, Event, EventError, Record};
+use crate::event::{format_g17, unwrap_angles, Event, EventError, Record, ONSET_GUARD_SAMPLES};
 
 pub mod c37;
 pub mod comtrade;
@@ -182,6 +187,12 @@ pub struct ImportReport {
     pub gaps: Vec<Gap>,
     pub dropouts: Vec<Dropout>,
     pub warnings: Vec<String>,
+    /// The event's onset, s, as detected on the imported record (`None`: no disturbance found).
+    pub onset_s: Option<f64>,
+    /// Why: the detector's evidence, one line.
+    pub onset: String,
+    /// The init window it implies, `[start_s, end_s]`.
+    pub init_s: [f64; 2],
 }
 
 impl fmt::Display for ImportReport {
@@ -215,6 +226,18 @@ impl fmt::Display for ImportReport {
         }
         for w in &self.warnings {
             writeln!(f, "  warning: {w}")?;
+        }
+        match self.onset_s {
+            Some(t) => writeln!(
+                f,
+                "  onset: {t:.4} s, init window [{}, {:.4}] s (pre-event, ends {ONSET_GUARD_SAMPLES} samples before the onset); {}",
+                self.init_s[0], self.init_s[1], self.onset
+            )?,
+            None => writeln!(
+                f,
+                "  onset: none, init window [{}, {:.4}] s (the default); {}",
+                self.init_s[0], self.init_s[1], self.onset
+            )?,
         }
         Ok(())
     }
@@ -482,6 +505,9 @@ pub(crate) fn finish(
         gaps,
         dropouts,
         warnings,
+        onset_s: event.onset_s(),
+        onset: event.onset.detection.describe(),
+        init_s: [event.init.start_s, event.init.end_s],
     };
     Ok((event, report))
 }
@@ -558,7 +584,27 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<(Event, ImportReport)
     }
 }
 
-/// Writes an event folder: `event.toml`, `<name>.csv` (the canonical columns) and
+/// Words of `text` in lines of at most `width` characters (a longer word on a line of its own).
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines = vec![];
+    let mut line = String::new();
+    for word in text.split_whitespace() {
+        if !line.is_empty() && line.len() + 1 + word.len() > width {
+            lines.push(std::mem::take(&mut line));
+        }
+        if !line.is_empty() {
+            line.push(' ');
+        }
+        line.push_str(word);
+    }
+    if !line.is_empty() {
+        lines.push(line);
+    }
+    lines
+}
+
+/// Writes an event folder: `event.toml` (with the detected onset and the init window it
+/// implies, see the module documentation), `<name>.csv` (the canonical columns) and
 /// `import.json` (the report). Returns the paths written.
 pub fn write_event_folder(
     event: &Event,
@@ -590,16 +636,44 @@ pub fn write_event_folder(
             report.dropouts.len()
         ));
     }
-    let text = format!(
-        "name = {}\ndescription = {}\ncsv = {}\nsystem_mva = {}\nnominal_hz = {}\n\n[init]\nstart_s = {}\nend_s = {}\n",
+    let mut text = format!(
+        "name = {}\ndescription = {}\ncsv = {}\nsystem_mva = {}\nnominal_hz = {}\n\n",
         toml::Value::String(event.name.clone()),
         toml::Value::String(desc),
         toml::Value::String(csv_name),
         format_g17(event.system_mva),
         format_g17(event.nominal_hz),
+    );
+    let (what, onset) = match event.onset_s() {
+        Some(t) => (
+            format!(
+                "Detected by itaipu-calib import: the disturbance's onset (its first sample) and \
+                 the pre-event init window it implies (from the start to {ONSET_GUARD_SAMPLES} \
+                 samples before the onset)."
+            ),
+            format_g17(t),
+        ),
+        None => (
+            "Detected by itaipu-calib import: no disturbance (ambient data); the init window is \
+             the default, 0.5 s from the start."
+                .to_string(),
+            "\"none\"".to_string(),
+        ),
+    };
+    let comment = format!(
+        "{what} {}. To override: set onset_s to the time you read off the record (or \
+         onset_s = \"none\" for data without a disturbance) and edit [init] (or delete it: its \
+         default follows onset_s).",
+        event.onset.detection.describe()
+    );
+    for line in wrap(&comment, 98) {
+        text.push_str(&format!("# {line}\n"));
+    }
+    text.push_str(&format!(
+        "onset_s = {onset}\n\n[init]\nstart_s = {}\nend_s = {}\n",
         format_g17(event.init.start_s),
         format_g17(event.init.end_s),
-    );
+    ));
     std::fs::write(&toml_path, text).map_err(|e| io(&toml_path, e))?;
     let json_path = dir.join("import.json");
     let j = serde_json::to_string_pretty(report).expect("a report serialises") + "\n";
