@@ -224,6 +224,13 @@ pub trait Block: Send + Sync {
         None
     }
 
+    /// For an exciter: which of its parameters plays each role a diagnosis reasons about (gain,
+    /// field time constant, ceiling, …; [`crate::models::exciter::roles`]). Default: `None`
+    /// (not an exciter, or a model that declares nothing).
+    fn exciter_roles(&self) -> Option<crate::models::exciter::roles::ExciterRoles> {
+        None
+    }
+
     fn clone_box(&self) -> Box<dyn Block>;
 }
 

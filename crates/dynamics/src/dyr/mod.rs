@@ -14,6 +14,8 @@
 //! | GENROU | —         | T'd0 T''d0 T'q0 T''q0 H D Xd Xq X'd X'q X''d Xl S(1.0) S(1.2)           |
 //! | GENCLS | —         | H D                                                                    |
 //! | SEXS   | —         | TA/TB TB K TE EMIN EMAX                                                |
+//! | ST5B   | —         | TR TC1 TB1 TC2 TB2 KR VRMAX VRMIN T1 KC TUC1 TUB1 TUC2 TUB2 TOC1 TOB1 TOC2 TOB2 |
+//! | IEEET1 | —         | TR KA TA VRMAX VRMIN KE TE KF TF SWITCH E1 SE(E1) E2 SE(E2)            |
 //! | STAB3  | —         | Tt TX1 TX2 KX VLIM                                                     |
 //! | IEEEST | IC IB     | A1 A2 A3 A4 A5 A6 T1 T2 T3 T4 T5 T6 KS LSMAX LSMIN VCU VCL              |
 //! | HYGOV  | —         | R r Tr Tf Tg VELM GMAX GMIN TW At Dturb qNL                             |

@@ -74,6 +74,24 @@ static DYR_MODELS: &[DyrModel] = &[
         cons: &["ta_tb", "tb", "k", "te", "e_min", "e_max"],
     },
     DyrModel {
+        name: "ST5B",
+        role: Role::Exciter,
+        icons: &[],
+        cons: &[
+            "t_r", "t_c1", "t_b1", "t_c2", "t_b2", "k_r", "vr_max", "vr_min", "t_1", "k_c",
+            "t_uc1", "t_ub1", "t_uc2", "t_ub2", "t_oc1", "t_ob1", "t_oc2", "t_ob2",
+        ],
+    },
+    DyrModel {
+        name: "IEEET1",
+        role: Role::Exciter,
+        icons: &[],
+        cons: &[
+            "t_r", "k_a", "t_a", "vr_max", "vr_min", "k_e", "t_e", "k_f", "t_f", "switch", "e1",
+            "se1", "e2", "se2",
+        ],
+    },
+    DyrModel {
         name: "STAB3",
         role: Role::Pss,
         icons: &[],
