@@ -30,6 +30,14 @@
 //! lag). A lead-lag with `T_B = 0` is bypassed (its output is its input, limited); `T_R = 0`
 //! drops the transducer and `T_1 = 0` makes the bridge algebraic, as in PSS/E and OpenIPSL.
 //!
+//! **Moving bridge limits**, as OpenIPSL's `SimpleLagLimVar`: E_fd stays on `V_T·V_RMAX` while
+//! the bridge input `V_R − K_C·X_adI_fd` is above it (following V_T as it moves) and leaves it
+//! when the input falls below; the decision is taken at the output, the state clamped into the
+//! limits ([`NonWindup`]'s moving-limit modes). One case differs: when the ceiling falls onto an
+//! E_fd that is already decaying (bridge input below the ceiling), E_fd is held on the ceiling
+//! until the free state has decayed below it, where OpenIPSL restarts the state from the
+//! ceiling at once.
+//!
 //! **UEL/OEL inputs.** By default (`uel = "summing"`, `oel = "summing"`) `vuel` and `voel` are
 //! added to the voltage error as in SEXS (0 when not wired), which is what PSS/E's gates do when
 //! no limiter model drives them, and what the summing-point `oel` extension of this library
@@ -395,7 +403,10 @@ impl Block for St5b {
             g[1] = 1.0;
         } else {
             let (lo, hi) = self.limits(io);
-            let xe = self.limit.effective(x[EFD_STATE], lo, hi);
+            // The rate at the output (the state clamped into the limits): a free state left
+            // above a ceiling that fell below it is pinned as soon as the regulator pushes
+            // beyond the ceiling, as OpenIPSL's `SimpleLagLimVar` does.
+            let xe = clamp(self.limit.effective(x[EFD_STATE], lo, hi), lo, hi);
             let f = (self.bridge_input(x, io) - xe) * self.inv_t1;
             self.limit
                 .events_moving(x[EFD_STATE], f, lo, hi, &mut g[0..2]);
@@ -421,7 +432,9 @@ impl Block for St5b {
             let (lo, hi) = self.limits(io);
             let v = self.bridge_input(x, io);
             let mut limit = self.limit;
-            let mut xe = x[EFD_STATE];
+            // Decide at the output, the state clamped into the limits (see `events`): a free
+            // state above a fallen ceiling is clipped to it, and pinned if the regulator pushes.
+            let mut xe = clamp(x[EFD_STATE], lo, hi);
             let inv_t1 = self.inv_t1;
             changed |= limit.update_moving(&mut xe, |s| (v - s) * inv_t1, lo, hi);
             self.limit = limit;
