@@ -562,3 +562,55 @@ fn every_exciter_declares_its_roles() {
         );
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// The Mostar unit (RaPId's OpenIPSL model: GENSAL with X''q ≠ X''d and R_a > 0, ST5B, 50 Hz)
+
+#[test]
+fn the_mostar_gensal_st5b_unit_starts_in_exact_steady_state() {
+    let mut u = Unit::new("mostar", 30.0, 50.0);
+    let mut m = registry::find("GENSAL").unwrap().create();
+    for (k, v) in [
+        ("h", 2.137),
+        ("d", 0.0),
+        ("x_d", 1.183),
+        ("x_q", 0.62),
+        ("x_d_prime", 0.371),
+        ("x_d_pp", 0.215),
+        ("x_q_pp", 0.241),
+        ("x_l", 0.1),
+        ("t_d0_prime", 3.77),
+        ("t_d0_pp", 0.0552),
+        ("t_q0_pp", 0.0823),
+        ("s10", 0.1),
+        ("s12", 0.4),
+        ("r_a", 0.017637 / (10.5 * 10.5 / 30.0)),
+    ] {
+        let i = m.params().index_of(k).unwrap();
+        m.params_mut().set(i, v);
+    }
+    u.add("machine", m, &[]).unwrap();
+    let mut e = registry::find("ST5B").unwrap().create();
+    for (k, v) in [
+        ("t_r", 0.025),
+        ("t_c1", 1.071137),
+        ("t_b1", 10.7561),
+        ("t_c2", 3.414283),
+        ("t_b2", 1.701033),
+        ("k_r", 358.6086),
+        ("vr_max", 10.0),
+        ("vr_min", -10.0),
+        ("t_1", 0.004361481),
+        ("k_c", 0.3),
+    ] {
+        let i = e.params().index_of(k).unwrap();
+        e.params_mut().set(i, v);
+    }
+    u.add("exciter", e, &[]).unwrap();
+    u.finish().unwrap();
+    // RaPId's operating point: P 5.19486 MW, Q 0.07332 pu on 30 MVA, |V| 0.9705 pu.
+    let p = op(5.19486 / 30.0, 0.07332, 0.9705, 0.0, 50.0, 50.0);
+    let ((d, ds), (s, ss)) = steady(&mut u, &p);
+    assert!(d < 1e-10, "|d{ds}/dt| = {d:e}");
+    assert!(s < 1e-9, "signal {ss} drifts by {s:e} over 10 s");
+}
