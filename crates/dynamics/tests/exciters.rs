@@ -614,3 +614,32 @@ fn the_mostar_gensal_st5b_unit_starts_in_exact_steady_state() {
     assert!(d < 1e-10, "|d{ds}/dt| = {d:e}");
     assert!(s < 1e-9, "signal {ss} drifts by {s:e} over 10 s");
 }
+
+#[test]
+fn a_user_diagram_declares_its_exciter_roles() {
+    let sexs = include_str!("../../../data/diagrams/sexs.toml");
+    let with_roles = format!(
+        "{sexs}\n[exciter_roles]\ngain = \"k\"\nfield_time_constant = \"te\"\nceiling = \"e_max\"\n\
+         floor = \"e_min\"\nv_ref_offset = \"v_ref_offset\"\n\
+         transient_gain_reduction = {{ ratio = \"ta_tb\", lag = \"tb\" }}\n\
+         supply_ceiling = {{ none = \"constant limits\" }}\n"
+    );
+    let table: toml::Table = toml::from_str(&with_roles).unwrap();
+    let d = itaipu_dynamics::diagram::from_table(&table).unwrap();
+    let b: &dyn itaipu_dynamics::block::Block = &d;
+    let r = b.exciter_roles().expect("declared");
+    r.check(b.params()).unwrap();
+    assert_eq!(r.gain.name(), Some("k"));
+    assert_eq!(r.ceiling.name(), Some("e_max"));
+    assert_eq!(r.transient_gain_reduction.names(), Some(("ta_tb", "tb")));
+    assert_eq!(r.supply_ceiling.reason(), Some("constant limits"));
+    assert!(r.commutation.reason().unwrap().contains("not declared"));
+    // The same SEXS diagram without the table declares nothing.
+    let plain = itaipu_dynamics::diagram::from_table(&toml::from_str(sexs).unwrap()).unwrap();
+    assert!(itaipu_dynamics::block::Block::exciter_roles(&plain).is_none());
+    // A role naming an undeclared parameter is a definition error naming the field.
+    let bad: toml::Table =
+        toml::from_str(&format!("{sexs}\n[exciter_roles]\ngain = \"k_a\"\n")).unwrap();
+    let e = itaipu_dynamics::diagram::from_table(&bad).unwrap_err();
+    assert_eq!(e.field, "exciter_roles.gain", "{e:?}");
+}
