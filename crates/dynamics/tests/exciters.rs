@@ -50,7 +50,9 @@ fn operating_points(f_n: f64) -> Vec<(&'static str, InitPoint)> {
     ]
 }
 
-/// A unit `machine` + `exciter` (+ IEEEST on speed + HYGOV) at `f_n`, exciter parameters set.
+/// A unit `machine` + `exciter` (+ IEEEST on speed + HYGOV) at `f_n`, exciter parameters set;
+/// with a gate option, limiter signals parked far away drive `vuel`, `voel` unless the option
+/// list also holds `("limiters", "none")`.
 fn build(
     machine: &str,
     exciter: &str,
@@ -69,7 +71,7 @@ fn build(
             .unwrap_or_else(|| panic!("{exciter} has no {k}"));
         e.params_mut().set(i, *v);
     }
-    for (k, v) in options {
+    for (k, v) in options.iter().filter(|(k, _)| *k != "limiters") {
         e.set_option(k, v).unwrap();
     }
     u.add("exciter", e, &[]).unwrap();
@@ -77,7 +79,7 @@ fn build(
         .unwrap();
     u.add("governor", registry::find("HYGOV").unwrap().create(), &[])
         .unwrap();
-    if options.iter().any(|(_, m)| *m == "gate") {
+    if options.iter().any(|(_, m)| *m == "gate") && !options.contains(&("limiters", "none")) {
         // Gate inputs must be driven: limiter signals parked far outside the operating range.
         let limits = Source::new(
             vec![
@@ -213,6 +215,11 @@ fn variants(machine: &str, exciter: &str, f_n: f64, op: &InitPoint) -> Vec<Varia
                     set: vec![],
                     options: vec![("uel", "gate"), ("oel", "gate")],
                 },
+                Variant {
+                    label: "UEL and OEL gates, inputs undriven (inactive)".into(),
+                    set: vec![],
+                    options: vec![("uel", "gate"), ("oel", "gate"), ("limiters", "none")],
+                },
             ];
             // With K_C = 0 the supply ceiling V_T·V_RMAX binds before V_R ≤ V_RMAX only when V_T < 1.
             if vt0 < 1.0 {
@@ -285,14 +292,23 @@ fn new_exciters_start_in_exact_steady_state() {
             }
         }
     }
-    // ST5B: 5 variants (6 where V_t < 1: light load, +0.02 %); IEEET1: 6.
-    assert_eq!(checked, 3 * (6 * 5 + 2) + 3 * 6 * 6);
+    // ST5B: 6 variants (7 where V_t < 1: light load, +0.02 %); IEEET1: 6.
+    assert_eq!(checked, 3 * (6 * 6 + 2) + 3 * 6 * 6);
 }
 
 // ---------------------------------------------------------------------------------------------
 // Operating points an exciter cannot hold
 
 fn init_error(exciter: &str, set: &[(&str, f64)], options: &[(&str, &str)]) -> String {
+    init_error_with(exciter, set, options, None)
+}
+
+fn init_error_with(
+    exciter: &str,
+    set: &[(&str, f64)],
+    options: &[(&str, &str)],
+    limiters: Option<Source>,
+) -> String {
     let p = operating_points(50.0)[2].1; // light load, V_t = 0.97
     let mut u = Unit::new("exc-test", 30.0, 50.0);
     u.add("machine", registry::find("GENSAL").unwrap().create(), &[])
@@ -306,6 +322,9 @@ fn init_error(exciter: &str, set: &[(&str, f64)], options: &[(&str, &str)]) -> S
         e.set_option(k, v).unwrap();
     }
     u.add("exciter", e, &[]).unwrap();
+    if let Some(l) = limiters {
+        u.add("limiters", Box::new(l), &[]).unwrap();
+    }
     u.finish().unwrap();
     let err = u.initialise(&p).unwrap_err();
     assert_eq!(err.kind(), "init", "{err}");
@@ -332,8 +351,9 @@ fn an_operating_point_outside_the_exciter_limits_is_an_init_error_not_a_clip() {
         &[],
     );
     assert!(e.contains("V_T·VRMIN"), "{e}");
-    // An undriven OEL gate reads 0 and selects itself.
-    let e = init_error("ST5B", &[], &[("oel", "gate")]);
+    // An OEL signal at 0 on the LV gate is below the regulator error: the gate selects it.
+    let oel0 = Source::new(vec![("voel", Series::constant(0.0))], None);
+    let e = init_error_with("ST5B", &[], &[("oel", "gate")], Some(oel0));
     assert!(e.contains("OEL gate"), "{e}");
     // IEEET1: V_R0 = (K_E + S_E) E_fd0 above VRMAX.
     let e = init_error(

@@ -43,8 +43,9 @@
 //! no limiter model drives them, and what the summing-point `oel` extension of this library
 //! expects. With the option `uel = "gate"` (`oel = "gate"`) the signal enters through PSS/E's
 //! HV (LV) gate and, while the gate selects it, the regulator output comes from the alternate
-//! UEL (OEL) lead-lag pair (whose states integrate all along, fed by the same `u`). A gate input
-//! must then be driven: unwired it reads 0 and the gate would act on it.
+//! UEL (OEL) lead-lag pair (whose states integrate all along, fed by the same `u`). A gate whose
+//! input no block drives stays inactive, as in PSS/E without a limiter model
+//! ([`Block::set_undriven_inputs`]).
 //!
 //! **Initialisation** (exact, from E_fd0 and X_adI_fd0): `V_R0 = E_fd0 + K_C·X_adI_fd0`, every
 //! lead-lag state `= V_R0/K_R`, `V_m0 = E_comp0`, `e_fd = E_fd0`, and
@@ -150,6 +151,9 @@ pub struct St5b {
     /// `uel = "gate"`, `oel = "gate"`.
     uel_gate: bool,
     oel_gate: bool,
+    /// The unit drives nothing into `vuel` / `voel` (a gate on it stays inactive).
+    uel_undriven: bool,
+    oel_undriven: bool,
     v_ref: f64,
     transducer: Lag,
     /// main (0, 1), UEL (2, 3), OEL (4, 5).
@@ -186,14 +190,24 @@ impl St5b {
         self.inv_t1 = if p.t_1 < ZERO_T { 0.0 } else { 1.0 / p.t_1 };
     }
 
+    /// Is the UEL (OEL) gate in use: the option set and its input driven?
+    #[inline(always)]
+    fn gates(&self) -> (bool, bool) {
+        (
+            self.uel_gate && !self.uel_undriven,
+            self.oel_gate && !self.oel_undriven,
+        )
+    }
+
     /// The lead-lag input `u` and the path the gates select.
     #[inline(always)]
     fn gated_input(&self, x: &[f64], io: &Io) -> (f64, Path) {
         let v_m = self.transducer.output(x[0], io.get(port::V_TERM));
         let v_e = self.v_ref + self.p.v_ref_offset - v_m;
         let (v_uel, v_oel) = (io.get(port::VUEL), io.get(port::VOEL));
+        let (uel_gate, oel_gate) = self.gates();
         let mut path = Path::Main;
-        let v_h = if self.uel_gate {
+        let v_h = if uel_gate {
             if v_uel > v_e {
                 path = Path::Uel;
                 v_uel
@@ -203,7 +217,7 @@ impl St5b {
         } else {
             v_e + v_uel
         };
-        let v_l = if self.oel_gate {
+        let v_l = if oel_gate {
             if v_oel < v_h {
                 path = Path::Oel;
                 v_oel
@@ -249,10 +263,11 @@ impl St5b {
     /// Which pairs integrate: the main one always, an alternate one only with its gate.
     #[inline(always)]
     fn active(&self, pair: usize) -> bool {
+        let (uel_gate, oel_gate) = self.gates();
         match pair {
             0 => true,
-            1 => self.uel_gate,
-            _ => self.oel_gate,
+            1 => uel_gate,
+            _ => oel_gate,
         }
     }
 }
@@ -323,7 +338,8 @@ impl Block for St5b {
         // Backwards through the summing points and gates.
         let v_l = u0 - io.get(port::VS);
         let v_oel = io.get(port::VOEL);
-        let v_h = if self.oel_gate {
+        let (uel_gate, oel_gate) = self.gates();
+        let v_h = if oel_gate {
             if v_oel < v_l {
                 return Err(ModelError::Init(format!(
                     "ST5B: the OEL gate selects V_OEL = {v_oel:.4} at t = 0 (below the regulator error {v_l:.4}): no steady state on the voltage set point"
@@ -334,7 +350,7 @@ impl Block for St5b {
             v_l - v_oel
         };
         let v_uel = io.get(port::VUEL);
-        let v_e = if self.uel_gate {
+        let v_e = if uel_gate {
             if v_uel > v_h {
                 return Err(ModelError::Init(format!(
                     "ST5B: the UEL gate selects V_UEL = {v_uel:.4} at t = 0 (above the regulator error {v_h:.4}): no steady state on the voltage set point"
@@ -441,6 +457,11 @@ impl Block for St5b {
             x[EFD_STATE] = xe;
         }
         changed
+    }
+
+    fn set_undriven_inputs(&mut self, ports: &[usize]) {
+        self.uel_undriven = ports.contains(&port::VUEL);
+        self.oel_undriven = ports.contains(&port::VOEL);
     }
 
     fn set_option(&mut self, key: &str, value: &str) -> Result<(), ModelError> {
