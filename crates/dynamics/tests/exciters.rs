@@ -79,7 +79,10 @@ fn build(
         .unwrap();
     u.add("governor", registry::find("HYGOV").unwrap().create(), &[])
         .unwrap();
-    if options.iter().any(|(_, m)| *m == "gate") && !options.contains(&("limiters", "none")) {
+    let gated = options
+        .iter()
+        .any(|(k, m)| *m == "gate" || (*k == "uel" && *m != "1"));
+    if gated && !options.contains(&("limiters", "none")) {
         // Gate inputs must be driven: limiter signals parked far outside the operating range.
         let limits = Source::new(
             vec![
@@ -230,6 +233,69 @@ fn variants(machine: &str, exciter: &str, f_n: f64, op: &InitPoint) -> Vec<Varia
             }
             v
         }
+        "ESST1A" => {
+            let (k_c, i_lr, k_lr) = (0.2, 0.8 * ifd0, 2.0);
+            // V_A0 = E_fd0 + K_LR (X_adI_fd0 − I_LR) with the limiter active at t = 0.
+            let va0 = efd0 + k_lr * (ifd0 - i_lr);
+            vec![
+                variant("typical", &[]),
+                variant(
+                    "PSS/E example (rate feedback, second lead-lag)",
+                    &[
+                        ("t_r", 0.1),
+                        ("vi_max", 0.3),
+                        ("vi_min", -0.3),
+                        ("t_c", 2.0),
+                        ("t_b", 10.0),
+                        ("t_c1", 0.08),
+                        ("t_b1", 0.083),
+                        ("k_a", 300.0),
+                        ("t_a", 0.1),
+                        ("va_max", 7.0),
+                        ("va_min", -7.0),
+                        ("vr_max", 5.2),
+                        ("vr_min", -5.2),
+                        ("k_c", 0.38),
+                        ("k_f", 0.05),
+                        ("t_f", 1.0),
+                    ],
+                ),
+                variant(
+                    "zero time constants (T_R, T_B, T_B1, T_A = 0)",
+                    &[("t_r", 0.0), ("t_b", 0.0), ("t_b1", 0.0), ("t_a", 0.0)],
+                ),
+                variant(
+                    "field current limiter active at t = 0",
+                    &[("k_lr", k_lr), ("i_lr", i_lr), ("va_max", va0 + 1.0)],
+                ),
+                variant(
+                    "E_fd0 a hair under the K_C-reduced supply ceiling",
+                    &[
+                        ("k_c", k_c),
+                        ("vr_max", (efd0 + k_c * ifd0) / vt0 * (1.0 + 1e-6)),
+                    ],
+                ),
+                variant(
+                    "V_A0 a hair under VAMAX",
+                    &[("va_max", efd0 * (1.0 + 1e-6)), ("k_lr", 0.0)],
+                ),
+                Variant {
+                    label: "UEL = 2, VOS = 2, OEL gate, limiter inputs undriven".into(),
+                    set: vec![],
+                    options: vec![
+                        ("uel", "2"),
+                        ("vos", "2"),
+                        ("oel", "gate"),
+                        ("limiters", "none"),
+                    ],
+                },
+                Variant {
+                    label: "UEL = 3, OEL gate, limiter signals far away".into(),
+                    set: vec![],
+                    options: vec![("uel", "3"), ("oel", "gate")],
+                },
+            ]
+        }
         "IEEET1" => {
             let p = registry::find("IEEET1").unwrap().create();
             let get = |n: &str| p.params().get(p.params().index_of(n).unwrap());
@@ -278,7 +344,7 @@ fn sat_times_e(e1: f64, se1: f64, e2: f64, se2: f64, e: f64) -> f64 {
 #[test]
 fn new_exciters_start_in_exact_steady_state() {
     let mut checked = 0;
-    for exciter in ["ST5B", "IEEET1"] {
+    for exciter in ["ST5B", "IEEET1", "ESST1A"] {
         for (machine, f_n) in [("GENSAL", 50.0), ("GENSAE", 60.0), ("GENROU", 50.0)] {
             for (at, p) in operating_points(f_n) {
                 for v in variants(machine, exciter, f_n, &p) {
@@ -292,8 +358,8 @@ fn new_exciters_start_in_exact_steady_state() {
             }
         }
     }
-    // ST5B: 6 variants (7 where V_t < 1: light load, +0.02 %); IEEET1: 6.
-    assert_eq!(checked, 3 * (6 * 6 + 2) + 3 * 6 * 6);
+    // ST5B: 6 variants (7 where V_t < 1: light load, +0.02 %); IEEET1: 6; ESST1A: 8.
+    assert_eq!(checked, 3 * (6 * 6 + 2) + 3 * 6 * 6 + 3 * 6 * 8);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -355,6 +421,21 @@ fn an_operating_point_outside_the_exciter_limits_is_an_init_error_not_a_clip() {
     let oel0 = Source::new(vec![("voel", Series::constant(0.0))], None);
     let e = init_error_with("ST5B", &[], &[("oel", "gate")], Some(oel0));
     assert!(e.contains("OEL gate"), "{e}");
+    // ESST1A: E_fd0 above V_T·V_RMAX − K_C·X_adI_fd; V_A0 above VAMAX; V_A0/K_A above VIMAX.
+    let e = init_error(
+        "ESST1A",
+        &[("k_c", 0.2), ("vr_max", (efd0 + 0.1 * ifd0) / vt0)],
+        &[],
+    );
+    assert!(e.contains("ESST1A") && e.contains("KC·X_adI_fd"), "{e}");
+    let e = init_error("ESST1A", &[("va_max", 0.99 * efd0), ("k_lr", 0.0)], &[]);
+    assert!(e.contains("VAMAX"), "{e}");
+    let e = init_error(
+        "ESST1A",
+        &[("k_a", 2.0), ("vi_max", 0.4 * efd0), ("va_max", 9.0)],
+        &[],
+    );
+    assert!(e.contains("VIMAX"), "{e}");
     // IEEET1: V_R0 = (K_E + S_E) E_fd0 above VRMAX.
     let e = init_error(
         "IEEET1",
@@ -437,7 +518,7 @@ fn ieeet1_vrmax_zero_takes_the_regulator_output_that_holds_e2() {
 
 #[test]
 fn dyr_read_write_read_keeps_every_parameter_of_the_new_exciters() {
-    for exciter in ["ST5B", "IEEET1"] {
+    for exciter in ["ST5B", "IEEET1", "ESST1A"] {
         let mut u = Unit::new("rt", 30.0, 50.0);
         for (k, (role, model)) in [("machine", "GENSAL"), ("exciter", exciter)]
             .iter()
@@ -453,6 +534,11 @@ fn dyr_read_write_read_keeps_every_parameter_of_the_new_exciters() {
                 let v = b.params().get(i) * (1.0 + 0.0137 * (((i + k) % 5) as f64 - 2.0))
                     + 0.001 * (i as f64 + 1.0);
                 b.params_mut().set(i, v);
+            }
+            if *model == "ESST1A" {
+                // The ICONs, off their defaults.
+                b.set_option("uel", "3").unwrap();
+                b.set_option("vos", "2").unwrap();
             }
             if *model == "GENSAL" {
                 let xd = b.params().index_of("x_d_pp").unwrap();
@@ -474,6 +560,8 @@ fn dyr_read_write_read_keeps_every_parameter_of_the_new_exciters() {
             u.params().into_iter().map(|(p, _, v)| (p, v)).collect()
         };
         assert_eq!(params(&d.unit), params(&u), "{exciter}\n{}", w.dyr);
+        let opts = |u: &Unit| u.block("exciter").unwrap().options();
+        assert_eq!(opts(&d.unit), opts(&u), "{exciter} options\n{}", w.dyr);
         assert_eq!(write_dyr(&d.unit, 12, "M1").dyr, w.dyr);
     }
 }
@@ -486,6 +574,8 @@ fn a_pss_e_record_reads_in_pss_e_con_order() {
  5 'ST5B' 1 0.0 0.8 6.0 0.08 0.01 200.0 5.0 -4.0 0.001 0.004 2.0 10.0 0.1 0.05 0.1 2.0 0.08 0.08 /
  6 'GENSAL' 1 5.0 0.07 0.09 4.28 0.0 1.84 1.75 0.41 0.2 0.12 0.11 0.39 /
  6 'IEEET1' 1 0.02 200.0 0.001 2.0 -2.0 0.1 0.55 0.06 1.0 0.0 2.85 0.3 3.8 0.6 /
+ 7 'GENSAL' 1 5.0 0.07 0.09 4.28 0.0 1.84 1.75 0.41 0.2 0.12 0.11 0.39 /
+ 7 'ESST1A' 1 1 2 0.1 0.3 -0.3 2.0 10.0 0.08 0.083 300.0 0.1 7.0 -7.0 5.2 -5.2 0.38 1.0 1.0 1.0 0.0 /
 ";
     let bases = DyrBases {
         mbase: 100.0,
@@ -522,6 +612,25 @@ fn a_pss_e_record_reads_in_pss_e_con_order() {
     ] {
         assert_eq!(get(6, name), want, "IEEET1 {name}");
     }
+    for (name, want) in [
+        ("exciter.t_r", 0.1),
+        ("exciter.vi_min", -0.3),
+        ("exciter.t_b1", 0.083),
+        ("exciter.k_a", 300.0),
+        ("exciter.va_min", -7.0),
+        ("exciter.vr_max", 5.2),
+        ("exciter.k_c", 0.38),
+        ("exciter.k_lr", 1.0),
+        ("exciter.i_lr", 0.0),
+    ] {
+        assert_eq!(get(7, name), want, "ESST1A {name}");
+    }
+    let d = parse_dyr(text, Path::new("ex.dyr"), Some((7, "1")), &bases).unwrap();
+    assert_eq!(
+        d.unit.block("exciter").unwrap().options(),
+        vec![("vos", "2".to_string())],
+        "UEL = 1 (default), VOS = 2"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
