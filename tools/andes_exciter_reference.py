@@ -39,8 +39,19 @@ IEEET1 = dict(TR=0.02, KA=50.0, TA=0.05, VRMAX=3.0, VRMIN=-3.0, KE=1.0, TE=0.5, 
 IEEET1_OURS = dict(t_r=0.02, k_a=50.0, t_a=0.05, vr_max=3.0, vr_min=-3.0, k_e=1.0, t_e=0.5,
                    k_f=0.05, t_f=1.0, switch=0.0, e1=2.85, se1=0.3, e2=3.8, se2=0.6)
 
+# ESST1A: the voltage-error limit VIMAX, the regulator limit VAMAX, the supply ceiling
+# V_t VRMAX - K_C XadIfd (0.6 x 4 - 0.1 x 2.2 in the dip) and the field current limiter (I_LR
+# below the field current reached in the dip) all act; rate feedback on.
+ESST1A = dict(TR=0.02, VIMAX=0.1, VIMIN=-0.1, TC=1.0, TB=10.0, TC1=0.0, TB1=0.0, KA=200.0,
+              TA=0.02, VAMAX=3.0, VAMIN=-3.0, VRMAX=4.0, VRMIN=-4.0, KC=0.1, KF=0.02, TF=1.0,
+              KLR=2.0, ILR=1.8, UELc=1, VOSc=1)
+ESST1A_OURS = dict(t_r=0.02, vi_max=0.1, vi_min=-0.1, t_c=1.0, t_b=10.0, t_c1=0.0, t_b1=0.0,
+                   k_a=200.0, t_a=0.02, va_max=3.0, va_min=-3.0, vr_max=4.0, vr_min=-4.0,
+                   k_c=0.1, k_f=0.02, t_f=1.0, k_lr=2.0, i_lr=1.8)
+
 CASES = {
     "ieeet1": dict(model="IEEET1", andes=IEEET1, ours=IEEET1_OURS, vr="LA_y"),
+    "esst1a": dict(model="ESST1A", andes=ESST1A, ours=ESST1A_OURS, vr="LA_y"),
 }
 
 UNIT_HEAD = """name = "andes-smib-unit-gensal-{case}"
