@@ -106,7 +106,7 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
                 .icons
                 .iter()
                 .any(|i| icon_option(m.name, i).map(|x| x.0) == Some(o));
-            if !(o == "swing" && v == "pm_over_speed") && !is_icon {
+            if !(is_icon || o == "swing" && v == "pm_over_speed") {
                 warnings.push(format!(
                     "{} option {o} = {v} has no PSS/E form: not written",
                     inst.name

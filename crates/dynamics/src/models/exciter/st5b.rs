@@ -388,11 +388,11 @@ impl Block for St5b {
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
         dx[0] = self.transducer.derivative(x[0], io.get(port::V_TERM));
         let (u, y1, path) = self.chain(x, io);
-        for pair in 0..3 {
+        for (pair, &y1p) in y1.iter().enumerate() {
             let (a, b) = (LL + 2 * pair, LL + 2 * pair + 1);
             if self.active(pair) {
                 dx[a] = self.ll[2 * pair].derivative(x[a], u);
-                dx[b] = self.ll[2 * pair + 1].derivative(x[b], y1[pair]);
+                dx[b] = self.ll[2 * pair + 1].derivative(x[b], y1p);
             } else {
                 dx[a] = 0.0;
                 dx[b] = 0.0;
