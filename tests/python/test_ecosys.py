@@ -47,11 +47,11 @@ def test_a_dyr_that_is_not_the_unit_is_refused_unless_lossy(tmp_path):
 
 def test_unsupported_records_warn_and_bad_ones_raise(tmp_path):
     f = tmp_path / "x.dyr"
-    f.write_text((ITAIPU / "unit.dyr").read_text() + "1 'ESST1A' 1 1 2 3 /\n")
+    f.write_text((ITAIPU / "unit.dyr").read_text() + "1 'ESAC1A' 1 1 2 3 /\n")
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
         ic.read_dyr(f, bases=ITAIPU / "unit.bases.toml")
-    assert any("line 5: model ESST1A" in str(x.message) for x in w)
+    assert any("line 5: model ESAC1A" in str(x.message) for x in w)
     f.write_text("1 'GENCLS' 1 4.5\n")
     with pytest.raises(ic.UnitModelError) as e:
         ic.read_dyr(f, mbase=100.0, nominal_hz=60.0, zx=0.3)

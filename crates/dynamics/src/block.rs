@@ -205,6 +205,12 @@ pub trait Block: Send + Sync {
         (0.0, 0.0)
     }
 
+    /// Called when the unit is assembled ([`crate::unit::Unit::finish`]) with the indices of
+    /// this block's optional input ports that no block drives (they read 0). A block whose input
+    /// enters through an HV/LV gate uses it to leave the gate inactive, as PSS/E does when no
+    /// limiter model is attached. Default: ignored.
+    fn set_undriven_inputs(&mut self, _ports: &[usize]) {}
+
     /// Sets the nominal frequency [Hz] (machines use ω_b = 2π f_n). Default: ignored.
     fn set_nominal_frequency(&mut self, _hz: f64) {}
 
@@ -221,6 +227,13 @@ pub trait Block: Send + Sync {
     /// The block as a user-defined diagram, when it is one (written back with its definition,
     /// drawn by `itaipu-calib diagram`). Default: `None`.
     fn diagram(&self) -> Option<&crate::diagram::Diagram> {
+        None
+    }
+
+    /// For an exciter: which of its parameters plays each role a diagnosis reasons about (gain,
+    /// field time constant, ceiling, …; [`crate::models::exciter::roles`]). Default: `None`
+    /// (not an exciter, or a model that declares nothing).
+    fn exciter_roles(&self) -> Option<crate::models::exciter::roles::ExciterRoles> {
         None
     }
 

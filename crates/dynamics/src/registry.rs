@@ -1,7 +1,7 @@
 //! The catalogue of block models by name, as written in unit files (`model = "GENSAE"`).
 
 use crate::block::Block;
-use crate::models::exciter::sexs::Sexs;
+use crate::models::exciter::{esst1a::Esst1a, ieeet1::Ieeet1, sexs::Sexs, st5b::St5b};
 use crate::models::extensions::{
     oel::Oel, pmu_measurement::PmuMeasurement, sexs_bus_fed::SexsBusFed,
     speed_deadband::SpeedDeadband, terminal_load::TerminalLoad, two_mass_shaft::TwoMassShaft,
@@ -81,6 +81,24 @@ pub static MODELS: &[ModelInfo] = &[
         role: Role::Exciter,
         summary: "SEXS with a bus-fed ceiling V_t·VRMAX − KC·X_adI_fd (extension, models.md §12.3)",
         make: || Box::new(SexsBusFed::default()),
+    },
+    ModelInfo {
+        name: "ST5B",
+        role: Role::Exciter,
+        summary: "IEEE 421.5-2005 ST5B static exciter: bus-fed bridge, K_C commutation drop, UEL/OEL gates",
+        make: || Box::new(St5b::default()),
+    },
+    ModelInfo {
+        name: "IEEET1",
+        role: Role::Exciter,
+        summary: "IEEE type 1 DC exciter with rate feedback and quadratic saturation",
+        make: || Box::new(Ieeet1::default()),
+    },
+    ModelInfo {
+        name: "ESST1A",
+        role: Role::Exciter,
+        summary: "IEEE 421.5-2005 ST1A static exciter: bus-fed ceiling with K_C, field current limiter, UEL/VOS input codes",
+        make: || Box::new(Esst1a::default()),
     },
     ModelInfo { name: "STAB3", role: Role::Pss, summary: "power-input stabiliser (PSS/E STAB3)", make: || Box::new(Stab3::default()) },
     ModelInfo { name: "IEEEST", role: Role::Pss, summary: "IEEE 1981 stabiliser", make: || Box::new(Ieeest::default()) },

@@ -321,6 +321,21 @@ impl Unit {
                 }
             }
         }
+        // Tell each block which of its optional inputs nothing drives (they read 0).
+        for inst in &mut self.instances {
+            let undriven: Vec<usize> = (0..inst.map.len())
+                .filter(|&k| {
+                    let (port, s) = (&inst.block.ports()[k], inst.map[k]);
+                    port.dir == Dir::In
+                        && port.optional
+                        && s != self.sig_v
+                        && s != self.sig_theta
+                        && writer[s].is_none()
+                        && giver[s].is_none()
+                })
+                .collect();
+            inst.block.set_undriven_inputs(&undriven);
+        }
         let n = self.instances.len();
         let edges = |feedthrough_only: bool, providers: &Vec<Option<usize>>| {
             let mut deps: Vec<Vec<usize>> = vec![vec![]; n];

@@ -272,7 +272,7 @@ fn malformed_records_are_errors_naming_file_and_line() {
 fn unsupported_records_are_warnings_naming_the_line_and_the_unit_is_built_without_them() {
     let text = "\
 1 'GENSAE' 1 7 0.05 0.1 4.5 0 0.95 0.65 0.3 0.22 0.15 0.1 0.3 /
-1 'ESST1A' 1 1 1 0 0.01 0 0 1 1 100 0.1 /
+1 'ESAC1A' 1 1 1 0 0.01 0 0 1 1 100 0.1 /
 1 'USRMDL' 1 'MYGOV' 501 0 0 3 0 0 1 2 3 /
 1 'SEXS' 1 0.2 10 100 0.05 0 4.5 /
 ";
@@ -285,7 +285,7 @@ fn unsupported_records_are_warnings_naming_the_line_and_the_unit_is_built_withou
     let w: Vec<String> = d.warnings.iter().map(|w| w.to_string()).collect();
     assert!(
         w.iter()
-            .any(|m| m.starts_with("u.dyr line 2: model ESST1A (bus 1, id '1') is not supported")),
+            .any(|m| m.starts_with("u.dyr line 2: model ESAC1A (bus 1, id '1') is not supported")),
         "{w:?}"
     );
     assert!(

@@ -12,7 +12,7 @@ use itaipu_dynamics::dyr::{self, DyrError, PartialBases};
 use itaipu_dynamics::pmu_import::{self, ImportError, ImportOptions};
 
 use crate::args::{event_sources, load_events};
-use crate::errors::{raise, EventError, Failure, UnitModelError};
+use crate::errors::{raise, EventError, Failure, IntoPyErr, UnitModelError};
 use crate::event::PyEvent;
 use crate::unit::PyUnit;
 
@@ -117,7 +117,7 @@ pub fn write_dyr<'py>(
         })
         .map_err(|f| f.into_pyerr(py))?
         .map_err(|e| match e {
-            dyr::DyrWriteError::Simulation { source, .. } => Failure::Sim(source).into_pyerr(py),
+            dyr::DyrWriteError::Simulation { source, .. } => Failure::from(source).into_pyerr(py),
             dyr::DyrWriteError::Io { .. } => pyo3::exceptions::PyOSError::new_err(e.to_string()),
             e @ dyr::DyrWriteError::Unfaithful { .. } => raise::<UnitModelError>(
                 py,

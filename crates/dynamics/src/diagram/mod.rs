@@ -37,6 +37,13 @@
 //! # …
 //! ```
 //!
+//! An exciter diagram may declare which of its parameters plays each exciter role (gain, field
+//! time constant, ceiling, …) in an optional `[exciter_roles]` table, e.g. `gain = "k"`,
+//! `transient_gain_reduction = { ratio = "ta_tb", lag = "tb" }`, `supply_ceiling = { none =
+//! "constant limits" }` ([`crate::models::exciter::roles::ExciterRoles::from_toml`]); the block
+//! then answers [`Block::exciter_roles`](crate::block::Block::exciter_roles) like a built-in
+//! exciter. A role naming an undeclared parameter is a definition error.
+//!
 //! Primitives and their equations: [`prim`]. A field is a number or an expression of the
 //! parameters ([`expr`]). Parameters are addressed `exciter.k` by the calibration spec and
 //! everything else, like any model's.

@@ -36,10 +36,19 @@ fn as_f64(v: &toml::Value) -> Option<f64> {
 /// Parses and checks a diagram definition. Errors name the field (`block 'x' (lag).t`, …).
 pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
     for key in t.keys() {
-        if !["title", "inputs", "outputs", "params", "block"].contains(&key.as_str()) {
+        if ![
+            "title",
+            "inputs",
+            "outputs",
+            "params",
+            "block",
+            "exciter_roles",
+        ]
+        .contains(&key.as_str())
+        {
             return Err(derr(
                 key.as_str(),
-                "unknown key (expected title, inputs, outputs, [params], [[block]])",
+                "unknown key (expected title, inputs, outputs, [params], [[block]], [exciter_roles])",
             ));
         }
     }
@@ -50,9 +59,27 @@ pub fn parse_definition(t: &toml::Table) -> Result<DiagramDef, DefError> {
     };
 
     let params = parse_params(t)?;
+    exciter_roles(t, &params.names)?;
     let inputs = parse_inputs(t)?;
     let nodes = parse_blocks(t, &params.names)?;
     graph::wire(t, title, params, inputs, nodes)
+}
+
+/// The optional `[exciter_roles]` table: which declared parameter plays each exciter role
+/// ([`crate::models::exciter::roles::ExciterRoles::from_toml`]); `None` when absent.
+pub(super) fn exciter_roles(
+    t: &toml::Table,
+    params: &[String],
+) -> Result<Option<crate::models::exciter::roles::ExciterRoles>, DefError> {
+    let Some(v) = t.get("exciter_roles") else {
+        return Ok(None);
+    };
+    let tab = v
+        .as_table()
+        .ok_or_else(|| derr("exciter_roles", "must be a table of role = parameter"))?;
+    crate::models::exciter::roles::ExciterRoles::from_toml(tab, params)
+        .map(Some)
+        .map_err(|(field, msg)| derr(field, msg))
 }
 
 /// The `[params]` table.

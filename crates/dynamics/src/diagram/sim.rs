@@ -271,4 +271,12 @@ impl Block for Diagram {
     fn diagram(&self) -> Option<&Diagram> {
         Some(self)
     }
+
+    /// The definition's `[exciter_roles]` table (checked when the diagram was loaded).
+    fn exciter_roles(&self) -> Option<crate::models::exciter::roles::ExciterRoles> {
+        let names: Vec<String> = self.def.specs.iter().map(|s| s.name.to_string()).collect();
+        super::parse::exciter_roles(&self.def.source, &names)
+            .ok()
+            .flatten()
+    }
 }

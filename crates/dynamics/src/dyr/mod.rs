@@ -14,6 +14,9 @@
 //! | GENROU | —         | T'd0 T''d0 T'q0 T''q0 H D Xd Xq X'd X'q X''d Xl S(1.0) S(1.2)           |
 //! | GENCLS | —         | H D                                                                    |
 //! | SEXS   | —         | TA/TB TB K TE EMIN EMAX                                                |
+//! | ST5B   | —         | TR TC1 TB1 TC2 TB2 KR VRMAX VRMIN T1 KC TUC1 TUB1 TUC2 TUB2 TOC1 TOB1 TOC2 TOB2 |
+//! | IEEET1 | —         | TR KA TA VRMAX VRMIN KE TE KF TF SWITCH E1 SE(E1) E2 SE(E2)            |
+//! | ESST1A | UEL VOS   | TR VIMAX VIMIN TC TB TC1 TB1 KA TA VAMAX VAMIN VRMAX VRMIN KC KF TF KLR ILR |
 //! | STAB3  | —         | Tt TX1 TX2 KX VLIM                                                     |
 //! | IEEEST | IC IB     | A1 A2 A3 A4 A5 A6 T1 T2 T3 T4 T5 T6 KS LSMAX LSMIN VCU VCL              |
 //! | HYGOV  | —         | R r Tr Tf Tg VELM GMAX GMIN TW At Dturb qNL                             |
@@ -23,6 +26,9 @@
 //! R: the armature resistance R_a on MBASE, 0 if not given, with a warning) and `zx` (ZSORCE X:
 //! GENCLS's X'd; for the other machines PSS/E's X'', checked against the record's X''d).
 //! PSS/E has a single X'': GENSAE and GENSAL read it into both X''d and X''q.
+//!
+//! ESST1A's ICONs UEL (where V_UEL enters: 1 summed at the error, 2 or 3 an HV gate) and VOS
+//! (where V_S enters: 1 at the error, 2 after the regulator) are the block's options `uel`, `vos`.
 //!
 //! IEEEST's input code IC selects the signal its input port is wired to: 1 rotor speed
 //! deviation (`speed`), 3 electrical power (`pe`), 5 terminal voltage (`v_term`); the other codes

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use super::records::{alias_of, dyr_model, supported_models, DyrModel, IEEEST_INPUTS};
+use super::records::{alias_of, dyr_model, icon_option, supported_models, DyrModel, IEEEST_INPUTS};
 use super::{DyrBases, DyrError, DyrWarning};
 use crate::block::Block;
 use crate::registry::{self, Role};
@@ -400,6 +400,13 @@ fn build(
             .index_of(con)
             .expect("CON names are canonical parameter names");
         block.params_mut().set(idx, v);
+    }
+    for (k, icon) in m.icons.iter().enumerate() {
+        if let Some((opt, _)) = icon_option(m.name, icon) {
+            block
+                .set_option(opt, &icons[k].to_string())
+                .map_err(|e| err(r.data[k].1, format!("ICON {icon}: {e}")))?;
+        }
     }
     let mut set = |name: &str, v: f64| {
         let idx = block.params().index_of(name).expect("canonical parameter");

@@ -74,6 +74,33 @@ static DYR_MODELS: &[DyrModel] = &[
         cons: &["ta_tb", "tb", "k", "te", "e_min", "e_max"],
     },
     DyrModel {
+        name: "ST5B",
+        role: Role::Exciter,
+        icons: &[],
+        cons: &[
+            "t_r", "t_c1", "t_b1", "t_c2", "t_b2", "k_r", "vr_max", "vr_min", "t_1", "k_c",
+            "t_uc1", "t_ub1", "t_uc2", "t_ub2", "t_oc1", "t_ob1", "t_oc2", "t_ob2",
+        ],
+    },
+    DyrModel {
+        name: "IEEET1",
+        role: Role::Exciter,
+        icons: &[],
+        cons: &[
+            "t_r", "k_a", "t_a", "vr_max", "vr_min", "k_e", "t_e", "k_f", "t_f", "switch", "e1",
+            "se1", "e2", "se2",
+        ],
+    },
+    DyrModel {
+        name: "ESST1A",
+        role: Role::Exciter,
+        icons: &["UEL", "VOS"],
+        cons: &[
+            "t_r", "vi_max", "vi_min", "t_c", "t_b", "t_c1", "t_b1", "k_a", "t_a", "va_max",
+            "va_min", "vr_max", "vr_min", "k_c", "k_f", "t_f", "k_lr", "i_lr",
+        ],
+    },
+    DyrModel {
         name: "STAB3",
         role: Role::Pss,
         icons: &[],
@@ -105,6 +132,19 @@ pub(super) const IEEEST_INPUTS: &[(i64, &str, &str)] = &[
     (3, "pe", "generator electrical power on MBASE"),
     (5, "v_term", "bus voltage"),
 ];
+
+/// ICONs that are block options, as `(model, ICON, option key, value when the block does not
+/// list the option)`: the reader sets the option to the ICON's integer, the writer writes it back.
+pub(super) const ICON_OPTIONS: &[(&str, &str, &str, &str)] =
+    &[("ESST1A", "UEL", "uel", "1"), ("ESST1A", "VOS", "vos", "1")];
+
+/// The option an ICON of `model` sets, with its default value.
+pub(super) fn icon_option(model: &str, icon: &str) -> Option<(&'static str, &'static str)> {
+    ICON_OPTIONS
+        .iter()
+        .find(|(m, i, _, _)| *m == model && *i == icon)
+        .map(|(_, _, o, d)| (*o, *d))
+}
 
 pub(super) fn dyr_model(name: &str) -> Option<&'static DyrModel> {
     DYR_MODELS

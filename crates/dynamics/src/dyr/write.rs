@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use super::records::{dyr_model, IEEEST_INPUTS};
+use super::records::{dyr_model, icon_option, IEEEST_INPUTS};
 use crate::registry::{self, Role};
 use crate::unit::{Instance, Unit};
 
@@ -66,6 +66,18 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
                 }
             }
             vals.push("0".into());
+        } else {
+            // ICONs that are block options (ESST1A's UEL and VOS codes).
+            let opts = b.options();
+            for icon in m.icons {
+                let (opt, default) = icon_option(m.name, icon).expect("ICON mapped to an option");
+                let v = opts
+                    .iter()
+                    .find(|(k, _)| *k == opt)
+                    .map(|(_, v)| v.as_str())
+                    .unwrap_or(default);
+                vals.push(v.to_string());
+            }
         }
         for (p, s) in &rew {
             if !(m.name == "IEEEST" && p == "u") {
@@ -114,7 +126,11 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
             &mut warnings,
         );
         for (o, v) in b.options() {
-            if !(o == "swing" && v == "pm_over_speed") {
+            let is_icon = m
+                .icons
+                .iter()
+                .any(|i| icon_option(m.name, i).map(|x| x.0) == Some(o));
+            if !(is_icon || o == "swing" && v == "pm_over_speed") {
                 warnings.push(format!(
                     "{} option {o} = {v} has no PSS/E form: not written",
                     inst.name

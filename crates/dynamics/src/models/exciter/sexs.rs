@@ -20,6 +20,7 @@
 //! terminal voltage and the field current, `models.md` §12.3).
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
+use crate::models::exciter::roles::{ExciterRoles, LeadLagRole, ParamRole};
 use crate::models::limiter::NonWindup;
 use crate::params::ParamSet;
 use crate::{block_common, param_set};
@@ -97,6 +98,26 @@ pub trait SexsVariant:
     fn limits(&self, io: &Io) -> (f64, f64);
     /// How the limits read in an error message, e.g. `[E_MIN, E_MAX] = [0, 4]`.
     fn describe_limits(&self, io: &Io) -> String;
+    /// Which parameter plays each exciter role ([`Block::exciter_roles`]).
+    fn roles() -> ExciterRoles;
+}
+
+/// The roles every SEXS variant shares: `K`, `T_E`, `T_A/T_B` with `T_B`, the offset; the limits
+/// are the variant's.
+pub fn sexs_roles(model: &str) -> ExciterRoles {
+    let mut r = ExciterRoles::none(&format!("not applicable to {model}"));
+    r.gain = ParamRole::param("k");
+    r.field_time_constant = ParamRole::param("te");
+    r.v_ref_offset = ParamRole::param("v_ref_offset");
+    r.transient_gain_reduction = LeadLagRole::RatioLag {
+        ratio: "ta_tb".into(),
+        lag: "tb".into(),
+    };
+    let no_regulator_limit =
+        format!("{model} has no regulator limit: its limits act on the exciter state E_fd");
+    r.regulator_ceiling = ParamRole::none(&no_regulator_limit);
+    r.regulator_floor = ParamRole::none(no_regulator_limit);
+    r
 }
 
 impl SexsVariant for SexsParams {
@@ -122,6 +143,16 @@ impl SexsVariant for SexsParams {
     }
     fn describe_limits(&self, _io: &Io) -> String {
         format!("[E_MIN, E_MAX] = [{}, {}]", self.e_min, self.e_max)
+    }
+    fn roles() -> ExciterRoles {
+        let mut r = sexs_roles("SEXS");
+        r.ceiling = ParamRole::param("e_max");
+        r.floor = ParamRole::param("e_min");
+        let constant = "SEXS's limits are constant, not fed from the terminal voltage";
+        r.supply_ceiling = ParamRole::none(constant);
+        r.supply_floor = ParamRole::none(constant);
+        r.commutation = ParamRole::none("SEXS has no rectifier commutation term K_C");
+        r
     }
 }
 
@@ -177,6 +208,9 @@ impl<V: SexsVariant> Block for SexsModel<V> {
 
     fn model(&self) -> &'static str {
         V::MODEL
+    }
+    fn exciter_roles(&self) -> Option<ExciterRoles> {
+        Some(V::roles())
     }
     fn ports(&self) -> &'static [Port] {
         V::PORTS
@@ -275,5 +309,32 @@ impl<V: SexsVariant> Block for SexsModel<V> {
             let f = self.exciter_rate(&gains, x, io, x[1]);
             self.limit.update(&mut x[1], f, lo, hi)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::exciter::roles::LeadLagRole;
+
+    #[test]
+    fn roles_name_sexs_parameters() {
+        let b = Sexs::default();
+        let r = b.exciter_roles().unwrap();
+        r.check(b.params()).unwrap();
+        assert_eq!(r.gain.name(), Some("k"));
+        assert_eq!(r.field_time_constant.name(), Some("te"));
+        assert_eq!(r.ceiling.name(), Some("e_max"));
+        assert_eq!(r.floor.name(), Some("e_min"));
+        assert_eq!(r.v_ref_offset.name(), Some("v_ref_offset"));
+        assert_eq!(
+            r.transient_gain_reduction,
+            LeadLagRole::RatioLag {
+                ratio: "ta_tb".into(),
+                lag: "tb".into()
+            }
+        );
+        assert!(r.supply_ceiling.reason().unwrap().contains("constant"));
+        assert!(r.regulator_ceiling.name().is_none());
     }
 }

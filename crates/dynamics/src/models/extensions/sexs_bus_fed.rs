@@ -26,7 +26,10 @@
 //! limits that are never reached.
 
 use crate::block::{guard, Io, ModelError, Port, PortInit};
-use crate::models::exciter::sexs::{port, SexsGains, SexsModel, SexsVariant, PORTS as SEXS_PORTS};
+use crate::models::exciter::roles::{ExciterRoles, ParamRole};
+use crate::models::exciter::sexs::{
+    port, sexs_roles, SexsGains, SexsModel, SexsVariant, PORTS as SEXS_PORTS,
+};
 use crate::param_set;
 
 param_set! {
@@ -93,7 +96,41 @@ impl SexsVariant for SexsBusFedParams {
             io.get(XADIFD)
         )
     }
+    fn roles() -> ExciterRoles {
+        let mut r = sexs_roles("SEXS_bus_fed");
+        r.ceiling = ParamRole::none(
+            "SEXS_bus_fed's ceiling is V_t·VRMAX − KC·X_adI_fd, not one parameter (see supply_ceiling)",
+        );
+        r.floor = ParamRole::none(
+            "SEXS_bus_fed's floor is V_t·VRMIN, not one parameter (see supply_floor)",
+        );
+        r.supply_ceiling = ParamRole::param("vr_max");
+        r.supply_floor = ParamRole::param("vr_min");
+        r.commutation = ParamRole::param("k_c");
+        r
+    }
 }
 
 /// The bus-fed SEXS block.
 pub type SexsBusFed = SexsModel<SexsBusFedParams>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::block::Block;
+
+    #[test]
+    fn roles_name_the_supply_fed_limits() {
+        let b = SexsBusFed::default();
+        let r = b.exciter_roles().unwrap();
+        r.check(b.params()).unwrap();
+        assert_eq!(r.gain.name(), Some("k"));
+        assert_eq!(r.field_time_constant.name(), Some("te"));
+        assert!(r.ceiling.name().is_none() && r.floor.name().is_none());
+        assert!(r.ceiling.reason().unwrap().contains("V_t·VRMAX"));
+        assert_eq!(r.supply_ceiling.name(), Some("vr_max"));
+        assert_eq!(r.supply_floor.name(), Some("vr_min"));
+        assert_eq!(r.commutation.name(), Some("k_c"));
+        assert_eq!(r.transient_gain_reduction.names(), Some(("ta_tb", "tb")));
+    }
+}

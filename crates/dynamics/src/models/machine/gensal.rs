@@ -14,6 +14,16 @@
 //!
 //! Initialisation (§4.3): `δ0 = arg(V + (R_a + jXq) I)` (exact for any X''q), then the states in
 //! closed form and `E_fd0 = (1 + Se(E'_q0)) E'_q0 + (Xd − X'd) i_d0`.
+//!
+//! **X''q.** As in OpenIPSL's GENSAL (`Xppq`) and `models.md` §4, X''q is a parameter of its own:
+//! the stator equations use X''d on the d-axis and X''q on the q-axis (subtransient saliency,
+//! solved exactly in dq, §1.2) and the q-axis circuit is `T''q0 dE''_d/dt = −E''_d + (Xq − X''q)
+//! i_q`. PSS/E's GENSAL record has a single X'' for both axes: a `.dyr` record sets X''q = X''d,
+//! and writing a unit with X''q ≠ X''d as `.dyr` warns that X''q is lost. RaPId's Mostar unit
+//! (OpenIPSL GENSAL with X''d = 0.215, X''q = 0.241 and R_a = 0.017637 Ω/(10.5² kV²/30 MVA) =
+//! 0.0048 pu) therefore runs here as in OpenIPSL; in PSS/E the same record would give
+//! X''q = 0.215. R_a enters the stator equations and `P_m0 = P0 + R_a |I|²`; the steady start is
+//! exact for any X''q and R_a (`tests/steady_state.rs`).
 
 use super::saturation::QuadraticSaturation;
 use super::{

@@ -1,0 +1,261 @@
+//! Small linear blocks shared by the exciter models, with PSS/E's and OpenIPSL's handling of
+//! zero time constants (`models.md` §8).
+//!
+//! A time constant counts as zero when it is below [`ZERO_T`] (OpenIPSL compares with the
+//! machine epsilon): a lag with `T = 0` passes its input, a lead-lag with `T_B = 0` is bypassed
+//! (PSS/E's convention: the lead `T_C` is then ignored). A tiny positive time constant is
+//! integrated as given (and makes the system stiff).
+
+use crate::models::limiter::{clamp, NonWindup};
+
+/// Below this a time constant is zero [s].
+pub const ZERO_T: f64 = f64::EPSILON;
+
+/// `1/(1 + sT)` with state `x`: `T dx/dt = u − x`, `y = x`; `T = 0`: `y = u`, state held.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Lag {
+    inv_t: f64,
+    bypass: bool,
+}
+
+impl Lag {
+    pub fn new(t: f64) -> Self {
+        let bypass = t < ZERO_T;
+        Self {
+            inv_t: if bypass { 0.0 } else { 1.0 / t },
+            bypass,
+        }
+    }
+    #[inline(always)]
+    pub fn output(&self, x: f64, u: f64) -> f64 {
+        if self.bypass {
+            u
+        } else {
+            x
+        }
+    }
+    #[inline(always)]
+    pub fn derivative(&self, x: f64, u: f64) -> f64 {
+        (u - x) * self.inv_t
+    }
+}
+
+/// `(1 + sT_C)/(1 + sT_B)` with state `x`: `T_B dx/dt = u − x`, `y = x + (T_C/T_B)(u − x)`;
+/// `T_B = 0`: bypassed, `y = u`, state held. Steady state: `x = u`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LeadLag {
+    ratio: f64,
+    inv_tb: f64,
+    bypass: bool,
+}
+
+impl LeadLag {
+    pub fn new(tc: f64, tb: f64) -> Self {
+        let bypass = tb < ZERO_T;
+        Self {
+            ratio: if bypass { 1.0 } else { tc / tb },
+            inv_tb: if bypass { 0.0 } else { 1.0 / tb },
+            bypass,
+        }
+    }
+    #[inline(always)]
+    pub fn output(&self, x: f64, u: f64) -> f64 {
+        if self.bypass {
+            u
+        } else {
+            x + self.ratio * (u - x)
+        }
+    }
+    #[inline(always)]
+    pub fn derivative(&self, x: f64, u: f64) -> f64 {
+        (u - x) * self.inv_tb
+    }
+}
+
+/// A lead-lag with a non-windup limit on its output, as OpenIPSL's `LeadLagLim`:
+///
+/// ```text
+/// w = x + (T_C/T_B)(u − x),   y = clamp(w, lo, hi)
+/// T_C dx/dt = y − x            (= (u − x)/T_B while w is inside the limits)
+/// ```
+///
+/// While the output is limited the state is driven toward the limit with time constant `T_C`
+/// (it evolves as if the input were reduced to just hold the output on the limit), so it never
+/// winds up beyond it; the right-hand side is continuous, the output has a kink at the limit.
+/// `T_C = 0` (a pure lag): the non-windup lag of [`NonWindup`], the state frozen on the limit
+/// while pushing outwards, with event-located modes. `T_B = 0`: bypassed, `y = clamp(u)`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LeadLagLim {
+    ll: LeadLag,
+    inv_tc: f64,
+    lo: f64,
+    hi: f64,
+    /// Modes of the `T_C = 0` form.
+    limit: NonWindup,
+    pure_lag: bool,
+}
+
+impl LeadLagLim {
+    pub fn new(tc: f64, tb: f64, lo: f64, hi: f64) -> Self {
+        let ll = LeadLag::new(tc, tb);
+        let pure_lag = !ll.bypass && tc < ZERO_T;
+        Self {
+            ll,
+            inv_tc: if tc < ZERO_T { 0.0 } else { 1.0 / tc },
+            lo,
+            hi,
+            limit: NonWindup::default(),
+            pure_lag,
+        }
+    }
+    #[inline(always)]
+    pub fn output(&self, x: f64, u: f64) -> f64 {
+        if self.pure_lag {
+            match self.limit.mode {
+                crate::models::limiter::LimitMode::AtMax => self.hi,
+                crate::models::limiter::LimitMode::AtMin => self.lo,
+                crate::models::limiter::LimitMode::Free => clamp(x, self.lo, self.hi),
+            }
+        } else {
+            clamp(self.ll.output(x, u), self.lo, self.hi)
+        }
+    }
+    #[inline(always)]
+    pub fn derivative(&self, x: f64, u: f64) -> f64 {
+        if self.ll.bypass {
+            0.0
+        } else if self.pure_lag {
+            self.limit.derivative(self.ll.derivative(x, u))
+        } else {
+            (clamp(self.ll.output(x, u), self.lo, self.hi) - x) * self.inv_tc
+        }
+    }
+    /// Two event functions (constant 1 unless `T_C = 0`).
+    #[inline]
+    pub fn events(&self, x: f64, u: f64, g: &mut [f64]) {
+        if self.pure_lag {
+            self.limit
+                .events(x, self.ll.derivative(x, u), self.lo, self.hi, g);
+        } else {
+            g[0] = 1.0;
+            g[1] = 1.0;
+        }
+    }
+    /// Mode update of the `T_C = 0` form (may pin `x` on a limit).
+    pub fn update(&mut self, x: &mut f64, u: f64) -> bool {
+        if self.pure_lag {
+            let f = self.ll.derivative(*x, u);
+            self.limit.update(x, f, self.lo, self.hi)
+        } else {
+            false
+        }
+    }
+    /// Back to the free mode (at initialisation).
+    pub fn reset(&mut self) {
+        self.limit = NonWindup::default();
+    }
+}
+
+/// PSS/E's quadratic exciter saturation (`SE` in OpenIPSL, `ExcQuadSat` in ANDES): the
+/// saturation factor `S_E(E) = B (E − A)²/E` for `E > A`, else 0, through the two points
+/// `S_E(E_1) = SE_1`, `S_E(E_2) = SE_2`:
+///
+/// ```text
+/// a = sqrt(SE_1 E_1 / (SE_2 E_2)),   A = E_2 − (E_1 − E_2)/(a − 1),   B = SE_2 E_2 (a − 1)²/(E_1 − E_2)²
+/// ```
+///
+/// `SE_1 = 0` or `SE_2 = 0` (or `E_1 = E_2`) switches saturation off, as in OpenIPSL.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct QuadraticExciterSaturation {
+    a: f64,
+    b: f64,
+}
+
+impl QuadraticExciterSaturation {
+    /// Fits the curve; an error (the offending pair of parameter names and a message) when the
+    /// two points admit no such curve (`SE_1 E_1 = SE_2 E_2 ≠ 0`, or negative data).
+    pub fn new(e1: f64, se1: f64, e2: f64, se2: f64) -> Result<Self, (&'static str, String)> {
+        for (n, v) in [("e1", e1), ("se1", se1), ("e2", e2), ("se2", se2)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err((n, format!("must be finite and >= 0 (got {v})")));
+            }
+        }
+        if se1 == 0.0 || se2 == 0.0 || e1 == e2 {
+            return Ok(Self { a: 0.0, b: 0.0 });
+        }
+        let r = (se1 * e1 / (se2 * e2)).sqrt();
+        if (r - 1.0).abs() < 1e-12 {
+            return Err((
+                "se2",
+                format!(
+                    "SE(E1)·E1 = SE(E2)·E2 = {:.6}: no quadratic saturation curve passes through both points",
+                    se1 * e1
+                ),
+            ));
+        }
+        let a = e2 - (e1 - e2) / (r - 1.0);
+        let b = se2 * e2 * (r - 1.0).powi(2) / (e1 - e2).powi(2);
+        Ok(Self { a, b })
+    }
+    /// `S_E(E)·E = B (E − A)²` for `E > max(A, 0)`, else 0: the saturation term the exciter
+    /// subtracts.
+    #[inline(always)]
+    pub fn times_e(&self, e: f64) -> f64 {
+        if self.b == 0.0 || e <= 0.0 || e <= self.a {
+            0.0
+        } else {
+            self.b * (e - self.a) * (e - self.a)
+        }
+    }
+    /// The saturation factor `S_E(E)`.
+    pub fn factor(&self, e: f64) -> f64 {
+        if e <= 0.0 {
+            0.0
+        } else {
+            self.times_e(e) / e
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn zero_time_constants_pass_the_input() {
+        let lag = Lag::new(0.0);
+        assert_eq!(lag.output(0.3, 0.7), 0.7);
+        let ll = LeadLag::new(2.0, 0.0);
+        assert_eq!((ll.output(0.3, 0.7), ll.derivative(0.3, 0.7)), (0.7, 0.0));
+        let lim = LeadLagLim::new(2.0, 0.0, -1.0, 0.5);
+        assert_eq!(lim.output(0.3, 0.7), 0.5);
+        // T_C = 0: a lag, y = x.
+        let ll = LeadLag::new(0.0, 2.0);
+        assert_eq!(ll.output(0.3, 0.7), 0.3);
+        assert!((ll.derivative(0.3, 0.7) - 0.2).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_quadratic_saturation_passes_through_its_two_points() {
+        let s = QuadraticExciterSaturation::new(2.85, 0.3, 3.8, 0.6).unwrap();
+        assert!((s.factor(2.85) - 0.3).abs() < 1e-12);
+        assert!((s.factor(3.8) - 0.6).abs() < 1e-12);
+        assert_eq!(s.factor(0.5), 0.0);
+        let off = QuadraticExciterSaturation::new(2.85, 0.0, 3.8, 0.6).unwrap();
+        assert_eq!(off.times_e(5.0), 0.0);
+        assert!(QuadraticExciterSaturation::new(2.0, 0.5, 1.0, 1.0).is_err());
+    }
+
+    #[test]
+    fn a_limited_lead_lag_drives_its_state_to_the_limit_with_t_c() {
+        let b = LeadLagLim::new(1.0, 4.0, -1.0, 1.0);
+        // Free: (u − x)/T_B.
+        assert!((b.derivative(0.0, 0.8) - 0.2).abs() < 1e-15);
+        assert!((b.output(0.0, 0.8) - 0.2).abs() < 1e-15);
+        // w = 0.5 + 0.25·(9.5) = 2.875 > 1: y = 1, dx/dt = (1 − 0.5)/T_C.
+        assert_eq!(b.output(0.5, 10.0), 1.0);
+        assert!((b.derivative(0.5, 10.0) - 0.5).abs() < 1e-15);
+        // On the limit with x = hi the state stays (no windup).
+        assert_eq!(b.derivative(1.0, 10.0), 0.0);
+    }
+}
