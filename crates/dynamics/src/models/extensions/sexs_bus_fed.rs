@@ -9,7 +9,7 @@
 //! v_err = V_ref + ΔV_ref − E_comp + V_S + V_UEL + V_OEL
 //! T_B dx_ll/dt = v_err − x_ll,     y_ll = (T_A/T_B) v_err + (1 − T_A/T_B) x_ll
 //! T_E dx_e/dt  = K y_ll − x_e      (non-windup in [E_fd,min(t), E_fd,max(t)])
-//! E_fd,max(t) = V_t(t)·V_RMAX − K_C·X_adI_fd(t),    E_fd,min(t) = V_t(t)·V_RMIN
+//! E_fd,max(t) = V_t(t)·V_RMAX − K_C·X_adI_fd(t),    E_fd,min(t) = min(V_t(t)·V_RMIN, E_fd,max(t))
 //! E_fd = clamp(x_e, E_fd,min, E_fd,max)
 //! ```
 //!
@@ -80,10 +80,15 @@ impl SexsVariant for SexsBusFedParams {
         guard::non_negative("k_c", self.k_c)?;
         guard::greater("vr_max", self.vr_max, "vr_min", self.vr_min)
     }
+    /// `(E_fd,min, E_fd,max)`, never upside down: in a deep dip with a high field current the
+    /// commutation drop can take the ceiling `V_t·V_RMAX − K_C·X_adI_fd` below the floor
+    /// `V_t·V_RMIN`; the bridge then delivers the ceiling (the drop acts whatever the firing
+    /// angle, so no angle reaches the floor), i.e. the floor follows the ceiling down.
     #[inline(always)]
     fn limits(&self, io: &Io) -> (f64, f64) {
         let v = io.get(V_SUPPLY);
-        (v * self.vr_min, v * self.vr_max - self.k_c * io.get(XADIFD))
+        let hi = v * self.vr_max - self.k_c * io.get(XADIFD);
+        ((v * self.vr_min).min(hi), hi)
     }
     fn describe_limits(&self, io: &Io) -> String {
         let (lo, hi) = self.limits(io);
