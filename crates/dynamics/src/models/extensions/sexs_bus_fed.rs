@@ -102,3 +102,47 @@ impl SexsVariant for SexsBusFedParams {
 
 /// The bus-fed SEXS block.
 pub type SexsBusFed = SexsModel<SexsBusFedParams>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::block::Block;
+
+    /// An integrator's trial stage may hand the block non-finite signals (a diverging
+    /// candidate); the limits are then NaN, and the block must answer with numbers or NaN for
+    /// the integrator to reject the step, never panic (`f64::clamp` panics on a NaN limit).
+    #[test]
+    fn non_finite_supply_or_field_current_does_not_panic() {
+        let mut b = SexsBusFed::new(SexsBusFedParams::default());
+        let map: Vec<usize> = (0..PORTS.len()).collect();
+        for (v, i) in [
+            (f64::NAN, 2.0),
+            (1.0, f64::NAN),
+            (f64::INFINITY, 2.0),
+            (1.0, f64::INFINITY),
+            (0.2, 1e3), // a ceiling far below the floor
+        ] {
+            let mut bus = vec![0.0; PORTS.len()];
+            bus[port::V_TERM] = 1.0;
+            bus[V_SUPPLY] = v;
+            bus[XADIFD] = i;
+            let mut x = [0.02, 2.0];
+            let mut dx = [0.0; 2];
+            let mut g = [0.0; 2];
+            b.outputs(0.0, &x, &mut Io::new(&mut bus, &map));
+            let efd = bus[port::EFD];
+            let io = Io::new(&mut bus, &map);
+            b.derivatives(0.0, &x, &io, &mut dx);
+            b.events(&x, &io, &mut g);
+            b.update_modes(&mut x, &io);
+            let (lo, hi) = b.p.limits(&io);
+            assert!(
+                !(lo > hi),
+                "limits upside down: [{lo}, {hi}] (V_t {v}, X_adI_fd {i})"
+            );
+            if hi.is_finite() {
+                assert!(efd <= hi, "E_fd {efd} above the ceiling {hi}");
+            }
+        }
+    }
+}
