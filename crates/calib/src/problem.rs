@@ -99,7 +99,8 @@ impl FreeParam {
             lo,
             hi,
             log,
-            start: start.clamp(lo, hi),
+            // `resolve` checks the bounds first; unchecked ones leave the start as given.
+            start: crate::bounds::clamp_into(start, lo, hi),
             unit,
             prior: None,
         }
@@ -116,11 +117,11 @@ impl FreeParam {
         } else {
             self.lo + (self.hi - self.lo) * u
         };
-        x.clamp(self.lo, self.hi)
+        crate::bounds::clamp_into(x, self.lo, self.hi)
     }
     /// Box coordinate of physical value `x`.
     pub fn to_unit(&self, x: f64) -> f64 {
-        let x = x.clamp(self.lo, self.hi);
+        let x = crate::bounds::clamp_into(x, self.lo, self.hi);
         if self.log {
             (x / self.lo).ln() / (self.hi / self.lo).ln()
         } else {
