@@ -48,6 +48,7 @@ pub fn fit_with(
     if events.is_empty() {
         return Err(FitError::Setup("no event to fit".into()));
     }
+    opts.check()?;
     for s in &opts.stages {
         if !STAGES.contains(&s.as_str()) {
             return Err(FitError::Setup(format!(
