@@ -16,7 +16,7 @@
 //! which has no bounds, works on `z ∈ ℝ` with `u = 1/(1 + e^{−z})`.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use itaipu_dynamics::event::{Event, Window, MIN_SAMPLES};
 use itaipu_dynamics::integrate::{Dopri5Options, Method};
@@ -590,7 +590,11 @@ impl Problem {
 
     fn record_failure(&self, x: &[f64], msg: String) {
         self.failures.fetch_add(1, Ordering::Relaxed);
-        let mut log = self.failure_log.lock().expect("failure log");
+        // A poisoned lock (a panic elsewhere while holding it) still holds the log.
+        let mut log = self
+            .failure_log
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
         if log.len() < FAILURE_LOG {
             let at: Vec<String> = self
                 .free
@@ -612,7 +616,11 @@ impl Problem {
     }
     /// The first failure messages in sorted order (the order threads ran in does not show).
     pub fn failure_messages(&self) -> Vec<String> {
-        let mut v = self.failure_log.lock().expect("failure log").clone();
+        let mut v = self
+            .failure_log
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone();
         v.sort();
         v.truncate(FAILURES_SHOWN);
         v
