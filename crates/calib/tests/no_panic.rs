@@ -206,7 +206,7 @@ fn event_request(d: &mut Draw) -> SynthRequest {
         SynthKind::Ambient,
     ]);
     let hides = if d.chance(0.3) {
-        vec![HideSpec::parse(*d.pick(HIDES)).expect("a valid hide")]
+        vec![HideSpec::parse(d.pick::<&str>(HIDES)).expect("a valid hide")]
     } else {
         vec![]
     };
