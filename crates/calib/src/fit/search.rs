@@ -49,8 +49,11 @@ pub(crate) fn search(
             give_up_iterations: SWARM_GIVE_UP_ITERATIONS,
             ..Default::default()
         };
-        // A start the box cannot place (a NaN value in the unit) is left out of the swarm,
-        // which refuses it with a panic; its candidates are drawn in the box as usual.
+        // `pso::minimize` panics on invalid options or start: at least one particle is
+        // checked where a fit or a diagnosis starts (`FitOptions::check`, `diagnose`), the
+        // start has one coordinate per free parameter, and a start the box cannot place (a
+        // NaN value in the unit) is left out of the swarm, whose candidates are drawn in the
+        // box as usual.
         let u0 = Some(problem.to_unit(&start)).filter(|u| u.iter().all(|v| v.is_finite()));
         let res = pso::minimize(
             |u: &[f64]| problem.cost(&problem.from_unit(u), &sim),
