@@ -60,10 +60,11 @@ impl FreeBound {
         }
     }
 
-    /// The same bound starting at `start` clamped into `[min, max]`.
+    /// The same bound starting at `start` clamped into `[min, max]` (not clamped when the
+    /// bounds are not a range, which [`FreeBound::check`] reports wherever the bound is used).
     pub fn starting_at(self, start: f64) -> Self {
         Self {
-            start: Some(start.clamp(self.min, self.max)),
+            start: Some(clamp_into(start, self.min, self.max)),
             ..self
         }
     }
@@ -74,7 +75,7 @@ impl FreeBound {
         match unit.param(&self.param) {
             Ok(r) => self.clone().starting_at(unit.get(r)),
             Err(_) => Self {
-                start: self.start.map(|v| v.clamp(self.min, self.max)),
+                start: self.start.map(|v| clamp_into(v, self.min, self.max)),
                 ..self.clone()
             },
         }
@@ -122,9 +123,9 @@ impl FreeBound {
     }
 
     /// The start in a unit where the parameter's value is `value`: the given start or the
-    /// value, clamped into the bounds.
+    /// value, clamped into the bounds (as [`FreeBound::starting_at`]).
     pub fn start_from(&self, value: f64) -> f64 {
-        self.start.unwrap_or(value).clamp(self.min, self.max)
+        clamp_into(self.start.unwrap_or(value), self.min, self.max)
     }
 
     /// Checks the bounds alone: `min < max` (NaN fails it), both finite.
@@ -143,6 +144,17 @@ impl FreeBound {
             ));
         }
         Ok(())
+    }
+}
+
+/// `v` clamped into `[min, max]`, or `v` itself when `[min, max]` is not a range (`min > max`
+/// or a NaN bound, where `f64::clamp` panics): such a bound never resolves
+/// ([`FreeBound::check`], [`resolve`]), and the error names it.
+pub(crate) fn clamp_into(v: f64, min: f64, max: f64) -> f64 {
+    if min <= max {
+        v.clamp(min, max)
+    } else {
+        v
     }
 }
 

@@ -17,6 +17,7 @@ use itaipu_dynamics::integrate::Method;
 use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::unit::Unit;
 use rayon::prelude::*;
+use std::sync::PoisonError;
 
 use crate::problem::{sum_of_squares, Problem};
 
@@ -73,7 +74,8 @@ impl<'a> LocalProblem<'a> {
     /// Objective at `z`.
     pub fn cost_z(&self, z: &[f64]) -> f64 {
         let c = self.problem.cost(&self.problem.from_z(z), &self.sim);
-        let mut best = self.best.lock().expect("best point");
+        // A poisoned lock (a panic elsewhere while holding it) still holds a best point.
+        let mut best = self.best.lock().unwrap_or_else(PoisonError::into_inner);
         let better = c < best.0
             || (c == best.0 && z.partial_cmp(best.1.as_slice()) == Some(std::cmp::Ordering::Less));
         if better {
@@ -84,7 +86,10 @@ impl<'a> LocalProblem<'a> {
 
     /// Best `(cost, z)` evaluated so far.
     pub fn best(&self) -> (f64, Vec<f64>) {
-        self.best.lock().expect("best point").clone()
+        self.best
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
     }
 
     /// Central-difference gradient at `z` (2n evaluations in parallel). Where one side of a

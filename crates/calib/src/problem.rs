@@ -16,7 +16,7 @@
 //! which has no bounds, works on `z ∈ ℝ` with `u = 1/(1 + e^{−z})`.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use itaipu_dynamics::event::{Event, Window, MIN_SAMPLES};
 use itaipu_dynamics::integrate::{Dopri5Options, Method};
@@ -99,7 +99,8 @@ impl FreeParam {
             lo,
             hi,
             log,
-            start: start.clamp(lo, hi),
+            // `resolve` checks the bounds first; unchecked ones leave the start as given.
+            start: crate::bounds::clamp_into(start, lo, hi),
             unit,
             prior: None,
         }
@@ -116,11 +117,11 @@ impl FreeParam {
         } else {
             self.lo + (self.hi - self.lo) * u
         };
-        x.clamp(self.lo, self.hi)
+        crate::bounds::clamp_into(x, self.lo, self.hi)
     }
     /// Box coordinate of physical value `x`.
     pub fn to_unit(&self, x: f64) -> f64 {
-        let x = x.clamp(self.lo, self.hi);
+        let x = crate::bounds::clamp_into(x, self.lo, self.hi);
         if self.log {
             (x / self.lo).ln() / (self.hi / self.lo).ln()
         } else {
@@ -595,7 +596,11 @@ impl Problem {
 
     fn record_failure(&self, x: &[f64], msg: String) {
         self.failures.fetch_add(1, Ordering::Relaxed);
-        let mut log = self.failure_log.lock().expect("failure log");
+        // A poisoned lock (a panic elsewhere while holding it) still holds the log.
+        let mut log = self
+            .failure_log
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
         if log.len() < FAILURE_LOG {
             let at: Vec<String> = self
                 .free
@@ -617,7 +622,11 @@ impl Problem {
     }
     /// The first failure messages in sorted order (the order threads ran in does not show).
     pub fn failure_messages(&self) -> Vec<String> {
-        let mut v = self.failure_log.lock().expect("failure log").clone();
+        let mut v = self
+            .failure_log
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone();
         v.sort();
         v.truncate(FAILURES_SHOWN);
         v

@@ -156,22 +156,29 @@ fn fit_and_diagnose(name: &str) -> (itaipu_calib::diagnose::Diagnosis, String) {
 }
 
 #[test]
-fn a_terminal_load_the_calibration_absorbed_is_named_by_its_held_out_segments() {
+fn a_terminal_load_the_calibration_absorbed_is_named_on_held_out_data() {
     // p02: a constant-impedance load at the terminals acts in the 0.11 s dip. The calibration
-    // absorbed it by bending the governor and X_d; the extension gains on the fitted blocks but
-    // the interleaved held-out blocks cannot confirm it (the dip is in a fitted block), and the
-    // held-out 3 s segments (the recovery) do.
+    // absorbed it by bending the governor and X_d; the extension gains on the fitted blocks, and
+    // data the re-fit did not see confirm it: the interleaved held-out blocks (aligned on the
+    // record's onset, so that the dip is fitted and its recovery held out), or else the
+    // held-out 3 s segments.
     let (report, hidden) = fit_and_diagnose("p02");
     assert_eq!(hidden, "terminal_load");
     assert_eq!(report.verdict.cause, hidden, "{}", report.verdict.statement);
     let c = &report.candidates[0];
     assert_eq!(c.cause, "terminal_load");
     let g = c.gains.as_ref().unwrap();
+    let opts = itaipu_calib::diagnose::DiagnoseOptions::default();
+    let blocks = g.held_drop >= opts.min_held_drop;
+    let segments = g.held_drop_segments.is_some_and(|d| d >= 0.01);
     assert!(
-        g.held_drop < 0.0,
-        "the interleaved blocks alone confirm it: {g:?}"
+        blocks || segments,
+        "named without held-out confirmation: {g:?}"
     );
-    assert!(c.note.contains("segments"), "{}", c.note);
+    assert!(
+        g.fit_drop >= opts.min_fit_drop && g.delta_bic > opts.bic_threshold,
+        "{g:?}"
+    );
 }
 
 #[test]

@@ -606,6 +606,63 @@ fn bus_fed_ceiling_clips_efd_in_a_dip_where_the_constant_ceiling_does_not() {
     assert!(max_b < max_c - 0.1);
 }
 
+/// Issue 25: in a deep dip with a high field current the commutation drop takes the bus-fed
+/// ceiling `V_t·V_RMAX − K_C·X_adI_fd` below the floor `V_t·V_RMIN` (here a floor just under
+/// E_fd0, as a diagnosis's search may try). The simulation used to panic there (`f64::clamp`
+/// with min > max, from `diagnose` through Python); the bridge delivers the ceiling.
+#[test]
+fn a_bus_fed_ceiling_below_its_floor_in_a_deep_dip_gives_the_ceiling() {
+    let profile = VoltageProfile {
+        duration_s: 3.0,
+        rate_hz: 240.0,
+        dip_start_s: 1.0,
+        dip_duration_s: 0.2,
+        dip_v: 0.3,
+        angle_step: 0.0,
+        swing_amp: 0.0,
+        freq_dev_hz: 0.0,
+        ..VoltageProfile::default()
+    };
+    let ev = event(&profile);
+    let base = sim(BASE, &ev, &SimOptions::default());
+    let (efd0, i0, v0) = (
+        col(&base, "efd")[0],
+        col(&base, "xadifd")[0],
+        col(&base, "v_term")[0],
+    );
+    // Feasible at the operating point: floor 0.1 below E_fd0, ceiling 0.1 above it.
+    let k_c = 0.2;
+    let vr_min = (efd0 - 0.1) / v0;
+    let vr_max = (efd0 + 0.1 + k_c * i0) / v0;
+    let tr = sim(
+        &bus_fed_text(vr_min, vr_max, k_c),
+        &ev,
+        &SimOptions::default(),
+    );
+    let (efd, v, i) = (col(&tr, "efd"), col(&tr, "v_term"), col(&tr, "xadifd"));
+    let mut crossed = 0;
+    for k in 0..efd.len() {
+        let (floor, ceiling) = (v[k] * vr_min, v[k] * vr_max - k_c * i[k]);
+        assert!(
+            efd[k] <= ceiling + 1e-9,
+            "E_fd {} above the ceiling {ceiling} at sample {k}",
+            efd[k]
+        );
+        if ceiling < floor {
+            crossed += 1;
+            assert!(
+                (efd[k] - ceiling).abs() < 1e-9,
+                "ceiling {ceiling} below the floor {floor}: E_fd {} must be the ceiling",
+                efd[k]
+            );
+        }
+    }
+    assert!(
+        crossed >= 5,
+        "the dip must take the ceiling below the floor ({crossed} samples)"
+    );
+}
+
 /// `pmu_measurement`: neutral by default; otherwise skew, phase and ratio as documented.
 #[test]
 fn pmu_measurement_applies_skew_phase_and_ratio() {

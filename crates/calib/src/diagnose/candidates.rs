@@ -57,6 +57,7 @@ impl Candidates<'_> {
         let baselines = &mut self.baselines;
         // A catalog cause (its evidence rules and signature), or a user cause (none).
         let cause = catalog::cause(id);
+        // `diagnose_run` refused every id that is neither the catalog's nor a user cause's.
         let (title, extension) = user_cause::describe(id, &opts.user_causes).expect("checked");
         let t0 = Instant::now();
         let mut rep = CandidateReport {

@@ -301,9 +301,18 @@ pub(crate) fn declared(unit: &Unit, path: &str, start: f64) -> Result<FreeBound,
 }
 
 /// `param` free within `[min, max]` computed by the cause (from the operating point, the
-/// evidence or the PMU rate), starting at `start` (clamped).
-pub(crate) fn fb(param: &str, min: f64, max: f64, start: f64) -> FreeBound {
-    FreeBound::new(param, min, max).starting_at(start)
+/// evidence or the PMU rate), starting at `start` (clamped). A range that is empty, upside down
+/// or not finite (an operating point that leaves the search no room, a NaN from a unit that
+/// does not initialise) is never built: the cause is not applicable, and the note says why.
+pub(crate) fn fb(param: &str, min: f64, max: f64, start: f64) -> Result<FreeBound, CauseError> {
+    let b = FreeBound::new(param, min, max);
+    b.check().map_err(|e| {
+        CauseError::not_applicable(format!(
+            "no search range for {param} at this operating point: {}",
+            e.problem
+        ))
+    })?;
+    Ok(b.starting_at(start))
 }
 
 pub(crate) fn scanned(b: FreeBound, points: usize) -> FreeBound {
@@ -347,14 +356,16 @@ pub fn nuisance(unit: &Unit) -> Vec<FreeBound> {
 
 /// Frees the positive parameter `path` of `u` within `[v/factor, v·factor]` around its value
 /// `v`, clipped to the model's declared range (a calibrated value may sit on the bound of the
-/// calibration that bent it, so the band is wide). `None` if it does not exist or is not > 0.
+/// calibration that bent it, so the band is wide). `None` if it does not exist, is not > 0, or
+/// leaves no band (an infinite value, a factor of 1 or less): it is then not freed.
 pub(crate) fn around(u: &Unit, path: &str, factor: f64) -> Option<FreeBound> {
     let (_, spec, v) = u.params().into_iter().find(|(p, _, _)| p == path)?;
-    (v > 0.0).then(|| {
-        let lo = (v / factor).max(spec.range.0).min(v);
-        let hi = (v * factor).min(spec.range.1).max(v);
-        fb(path, lo, hi, v)
-    })
+    if !(v > 0.0) {
+        return None;
+    }
+    let lo = (v / factor).max(spec.range.0).min(v);
+    let hi = (v * factor).min(spec.range.1).max(v);
+    fb(path, lo, hi, v).ok()
 }
 
 /// The calibrated parameters a calibration without a field-side cause (an exciter limit, an
@@ -569,4 +580,58 @@ pub(crate) fn hidden_unit<'a>(
         set(&mut u, to, v)?;
     }
     Ok(u)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::trial::base_unit;
+
+    fn ctx(efd0: f64, rate_hz: f64) -> Context {
+        Context {
+            efd0: Some(efd0),
+            xadifd0: Some(2.0),
+            rate_hz,
+            ..Default::default()
+        }
+    }
+
+    fn not_applicable(cause: &str, c: &Context) -> String {
+        match extend(cause, &base_unit(), c) {
+            Err(CauseError::NotApplicable(why)) => why,
+            Err(e) => panic!("{cause}: {e:?}"),
+            Ok(x) => panic!(
+                "{cause}: built with {:?}",
+                x.free()
+                    .map(|b| (&b.param, b.min, b.max))
+                    .collect::<Vec<_>>()
+            ),
+        }
+    }
+
+    /// Issue 25: a range a cause computes from the operating point that leaves no room (an
+    /// E_fd0 below the floor's range, a NaN E_fd0 from a unit that does not initialise, a PMU
+    /// rate whose Nyquist frequency is below the shaft band) is never built as a bound with
+    /// min >= max (`f64::clamp` panicked on some): the cause is not applicable, naming the
+    /// parameter. An ordinary operating point builds proper bounds.
+    #[test]
+    fn a_range_with_no_room_makes_the_cause_not_applicable() {
+        let why = not_applicable("exciter_limit", &ctx(f64::NAN, 60.0));
+        assert!(why.contains("exciter.e_max"), "{why}");
+        let why = not_applicable("exciter_limit", &ctx(-3.0, 60.0));
+        assert!(why.contains("exciter.e_min"), "{why}");
+        let why = not_applicable("torsional_mode", &ctx(2.0, 4.0));
+        assert!(why.contains("shaft.f_torsion_hz"), "{why}");
+        for cause in ["exciter_limit", "torsional_mode", "measurement_skew", "oel"] {
+            for v in 0..extend_all(cause, &base_unit(), &ctx(2.0, 60.0))
+                .unwrap()
+                .len()
+            {
+                let x = extend_variant(cause, &base_unit(), &ctx(2.0, 60.0), v).unwrap();
+                for b in x.free() {
+                    assert!(b.check().is_ok(), "{cause} ({v}): {b:?}");
+                }
+            }
+        }
+    }
 }

@@ -413,6 +413,11 @@ fn diagnose_run(
         }
     }
     check_refit(unit, &opts.refit)?;
+    if opts.particles == 0 && opts.pso_iterations > 0 {
+        return Err(DiagnoseError::Setup(
+            "particles must be at least 1 (or pso_iterations 0)".into(),
+        ));
+    }
     if !(opts.block_s > 0.0) {
         return Err(DiagnoseError::Setup(format!(
             "block length must be > 0 s (got {})",

@@ -39,9 +39,12 @@ pub fn context(unit: &Unit, event: &Event) -> Result<Context, DiagnoseError> {
 pub(super) fn context_from(traces: &Traces, event: &Event) -> Context {
     let t = &event.record.time_s;
     Context {
-        efd0: traces.get("efd").map(|c| c[0]),
-        xadifd0: traces.get("xadifd").map(|c| c[0]),
-        rate_hz: (t.len() - 1) as f64 / (t[t.len() - 1] - t[0]),
+        efd0: traces.get("efd").and_then(|c| c.first().copied()),
+        xadifd0: traces.get("xadifd").and_then(|c| c.first().copied()),
+        rate_hz: match (t.first(), t.last()) {
+            (Some(a), Some(b)) if b > a => (t.len() - 1) as f64 / (b - a),
+            _ => 0.0,
+        },
         ..Default::default()
     }
 }
@@ -130,6 +133,7 @@ pub(super) fn catalog_context(
     before: &[(String, Traces)],
     evidence_before: &[EventEvidence],
 ) -> Context {
+    // `diagnose` refuses an empty event list, and `before` holds every event's traces.
     let mut ctx = context_from(&before[0].1, &events[0]);
     ctx.mode_hint_hz = mode_hint(evidence_before, ctx.rate_hz);
     ctx.shaft_resonance = evidence_before

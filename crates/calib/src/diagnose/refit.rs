@@ -3,7 +3,7 @@
 //! its χ² on the fitted and held-out samples; the standard errors of the named cause; the
 //! `refit` bounds of calibrated parameters freed again.
 
-use crate::bounds::{datasheet_prior, BoundError, PriorSource};
+use crate::bounds::{clamp_into, datasheet_prior, BoundError, PriorSource};
 use crate::evidence;
 use crate::fit::{search, FitOptions, Progress};
 use crate::problem::{
@@ -444,7 +444,9 @@ pub fn calibrated_set(
                 param,
                 min: f.min,
                 max: f.max,
-                start: Some(calibrated.get(r).clamp(f.min, f.max)),
+                // A spec built in code may hold an upside-down bound (a parsed one cannot):
+                // kept as it is, `diagnose` refuses it by name (`check_refit`).
+                start: Some(clamp_into(calibrated.get(r), f.min, f.max)),
                 spread: None,
                 scan: 0,
                 polish_only: true,

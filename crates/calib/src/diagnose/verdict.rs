@@ -85,8 +85,7 @@ pub(super) fn undecided(
             gains: None,
             where_,
         }
-    } else {
-        let w = top.expect("windows exist");
+    } else if let Some(w) = top {
         let mode = s
             .modes
             .iter()
@@ -116,6 +115,20 @@ pub(super) fn undecided(
             key_parameters: vec![],
             gains: None,
             where_,
+        }
+    } else {
+        // No window (a record too short to cut into any): the residual as a whole.
+        Verdict {
+            cause: "unexplained".into(),
+            title: format!("unexplained residual at {}", s.signal),
+            statement: format!(
+                "Unexplained residual at {} on {event}: RMS {:.2} × the pre-event residual σ, \
+                 Ljung-Box p = {:.2}. No catalog extension explains it significantly.{best_try}",
+                s.signal, over, s.whiteness.p_value
+            ),
+            key_parameters: vec![],
+            gains: None,
+            where_: None,
         }
     }
 }
@@ -163,15 +176,22 @@ pub(super) fn decide(
             s(b).total_cmp(&s(a))
         })
     });
-    let named = reports.iter().find(|r| r.significant).cloned();
+    // A significant candidate has its re-fit and its gains (`Candidates::score` returns them
+    // with every report it scores); one without them could not be named, and is not.
+    let named = reports
+        .iter()
+        .find(|r| r.significant)
+        .cloned()
+        .and_then(|rep| {
+            let g = rep.gains.clone()?;
+            let refit = refits.remove(&rep.cause)?;
+            Some((rep, g, refit))
+        });
     let mut extended_unit = None;
     let mut after = vec![];
     let mut evidence_after = vec![];
     let verdict = match named {
-        Some(mut rep) => {
-            let (r, bounds, ties) = refits
-                .remove(&rep.cause)
-                .expect("a significant candidate was re-fitted");
+        Some((mut rep, g, (r, bounds, ties))) => {
             // Uncertainty of the re-fitted parameters (all samples, with the priors).
             if let Some(se) = std_errors(&r.unit, &bounds, &ties, &r.values, events, weights) {
                 for (p, e) in rep.parameters.iter_mut().zip(se) {
@@ -198,10 +218,6 @@ pub(super) fn decide(
                     .iter()
                     .map(|(p, v)| (p.clone(), *v, "-".to_string())),
             );
-            let g = rep
-                .gains
-                .clone()
-                .expect("significant candidates have gains");
             let params: Vec<String> = key
                 .iter()
                 .map(|(p, v, u)| {
@@ -274,5 +290,36 @@ pub(super) fn decide(
         extended_unit,
         after,
         evidence_after,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::evidence::{analyse, EvidenceOptions};
+
+    /// A residual far above the noise whose evidence has no window (the windows are the
+    /// caller's; none may fit a short record) is `unexplained` as a whole: it used to be an
+    /// `expect("windows exist")`.
+    #[test]
+    fn an_unexplained_residual_without_windows_gives_a_verdict() {
+        let t: Vec<f64> = (0..200).map(|k| k as f64 / 60.0).collect();
+        let r: Vec<f64> = t.iter().map(|x| 0.05 * (3.0 * x).sin()).collect();
+        let s = analyse("Q", &t, &r, &r, &[], &EvidenceOptions::default());
+        assert!(s.windows.is_empty());
+        let ev = [EventEvidence {
+            event: "e".into(),
+            onset_s: 1.0,
+            signals: vec![s],
+            p_peak: None,
+        }];
+        let v = undecided(&ev, &[], &DiagnoseOptions::default(), 0.002, 0.002);
+        assert_eq!(v.cause, "unexplained");
+        assert!(
+            v.statement.contains("Unexplained residual at Q on e"),
+            "{}",
+            v.statement
+        );
+        assert!(v.where_.is_none());
     }
 }

@@ -1,6 +1,6 @@
 //! Modes of a residual (frequency, damping, amplitude, phase) by the matrix pencil method.
 
-use nalgebra::{Complex, DMatrix, DVector};
+use nalgebra::{Complex, DMatrix, DVector, Schur, SVD};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
@@ -31,6 +31,12 @@ pub(super) const NOISE_EDGE: f64 = 3.0;
 /// A real mode with `|s| · N dt` below this is a constant (bias) and gets `ζ = 0`.
 pub(super) const CONSTANT_MODE: f64 = 1e-6;
 
+/// Iteration cap of a decomposition of a matrix with `dim` columns: generous (the QR sweeps of
+/// a well-posed matrix take a few per singular value), reached only on pathological input.
+fn max_niter(dim: usize) -> usize {
+    1000 + 200 * dim
+}
+
 /// Modes of `y_k ≈ Σ_i R_i z_i^k` (`z_i = e^{s_i dt}`), by the matrix pencil method
 /// (Hua and Sarkar 1990; Sarkar and Pereira 1995).
 ///
@@ -60,13 +66,23 @@ pub(super) const CONSTANT_MODE: f64 = 1e-6;
 /// low-energy modes are noise; read the dominant ones.
 pub fn matrix_pencil(y: &[f64], dt: f64, max_order: usize) -> Vec<Mode> {
     let n = y.len();
-    if n < 6 || max_order == 0 || !(dt > 0.0) || y.iter().all(|v| *v == 0.0) {
+    // Non-finite samples: nalgebra's decompositions never converge on them (they spin).
+    if n < 6
+        || max_order == 0
+        || !(dt > 0.0)
+        || y.iter().all(|v| *v == 0.0)
+        || !y.iter().all(|v| v.is_finite())
+    {
         return Vec::new();
     }
     let l = (n / 3).clamp(2, MAX_PENCIL);
     let rows = n - l;
     let hankel = DMatrix::from_fn(rows, l + 1, |j, m| y[j + m]);
-    let svd = hankel.svd(false, true);
+    // Every decomposition with an iteration cap (nalgebra's `svd`, `pseudo_inverse` and
+    // `complex_eigenvalues` have none): only pathological input reaches it, and has no modes.
+    let Some(svd) = SVD::try_new(hankel, false, true, f64::EPSILON, max_niter(l + 1)) else {
+        return Vec::new();
+    };
     let Some(v_t) = svd.v_t else {
         return Vec::new();
     };
@@ -89,11 +105,16 @@ pub fn matrix_pencil(y: &[f64], dt: f64, max_order: usize) -> Vec<Mode> {
     let vp = v_t.rows(0, m).transpose();
     let v1 = vp.rows(0, l).into_owned();
     let v2 = vp.rows(1, l).into_owned();
-    let Ok(v1_pinv) = v1.pseudo_inverse(1e-12) else {
+    let Some(Ok(v1_pinv)) =
+        SVD::try_new(v1, true, true, f64::EPSILON, max_niter(m)).map(|d| d.pseudo_inverse(1e-12))
+    else {
         return Vec::new();
     };
     let a = v1_pinv * v2;
-    let z: Vec<Complex<f64>> = a.complex_eigenvalues().iter().copied().collect();
+    let Some(schur) = Schur::try_new(a, f64::EPSILON, max_niter(m)) else {
+        return Vec::new();
+    };
+    let z: Vec<Complex<f64>> = schur.complex_eigenvalues().iter().copied().collect();
 
     // Least-squares residues on the column-scaled Vandermonde matrix.
     let mut vand = DMatrix::<Complex<f64>>::zeros(n, m);
@@ -113,8 +134,14 @@ pub fn matrix_pencil(y: &[f64], dt: f64, max_order: usize) -> Vec<Mode> {
         let s = scale[i];
         vand.column_mut(i).iter_mut().for_each(|c| *c /= s);
     }
+    // A pole far outside the unit circle overflows its column (z^k beyond f64): no residues.
+    if !vand.iter().all(|c| c.re.is_finite() && c.im.is_finite()) {
+        return Vec::new();
+    }
     let b = DVector::from_iterator(n, y.iter().map(|v| Complex::new(*v, 0.0)));
-    let Ok(sol) = vand.clone().svd(true, true).solve(&b, 1e-12) else {
+    let Some(Ok(sol)) =
+        SVD::try_new(vand, true, true, f64::EPSILON, max_niter(m)).map(|d| d.solve(&b, 1e-12))
+    else {
         return Vec::new();
     };
     let resid: Vec<Complex<f64>> = (0..m).map(|i| sol[i] / scale[i]).collect();
@@ -184,4 +211,22 @@ pub fn matrix_pencil(y: &[f64], dt: f64, max_order: usize) -> Vec<Mode> {
             md
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A residual with a NaN or an infinite sample (a simulation that ran away between two
+    /// checks) has no modes; the decompositions must neither panic nor spin on it.
+    #[test]
+    fn non_finite_samples_give_no_mode() {
+        let dt = 1.0 / 60.0;
+        let mut y: Vec<f64> = (0..300).map(|k| (0.3 * k as f64).sin()).collect();
+        assert!(!matrix_pencil(&y, dt, 10).is_empty());
+        for bad in [f64::NAN, f64::INFINITY] {
+            y[100] = bad;
+            assert!(matrix_pencil(&y, dt, 10).is_empty(), "{bad}");
+        }
+    }
 }

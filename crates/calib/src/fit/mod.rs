@@ -82,6 +82,17 @@ pub struct FitOptions {
 }
 
 impl FitOptions {
+    /// Checks what the swarm cannot run with: a swarm of no particle (the spec parser and the
+    /// front ends refuse fewer than 2; a program may set anything).
+    pub fn check(&self) -> Result<(), FitError> {
+        if self.particles == 0 && self.pso_iterations > 0 {
+            return Err(FitError::Setup(
+                "particles must be at least 1 (or pso_iterations 0)".into(),
+            ));
+        }
+        Ok(())
+    }
+
     /// Options from a spec, running every stage it lists.
     pub fn from_spec(spec: &CalibSpec) -> Self {
         Self {
@@ -219,7 +230,13 @@ pub fn fitness(
             error,
         },
     )?;
-    let (p, q) = (tr.get("p_pu").unwrap(), tr.get("q_pu").unwrap());
+    // Every simulation records p_pu and q_pu (`simulate_prepared`'s fixed columns).
+    let (Some(p), Some(q)) = (tr.get("p_pu"), tr.get("q_pu")) else {
+        return Err(ProblemError::Diverged {
+            event: event.name.clone(),
+            t: f64::NAN,
+        });
+    };
     let s = data.window_sums(p, q);
     let nn = s.n.max(1) as f64;
     Ok((

@@ -6,6 +6,7 @@ use std::time::Instant;
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::unit::Unit;
 
+use crate::bounds::clamp_into;
 use crate::problem::FreeParam;
 use crate::spec::{CalibSpec, StageSpec, Strategy, STAGES};
 
@@ -47,6 +48,7 @@ pub fn fit_with(
     if events.is_empty() {
         return Err(FitError::Setup("no event to fit".into()));
     }
+    opts.check()?;
     for s in &opts.stages {
         if !STAGES.contains(&s.as_str()) {
             return Err(FitError::Setup(format!(
@@ -151,7 +153,7 @@ pub fn fit_with(
         let free: Vec<FreeParam> = free
             .into_iter()
             .map(|f| FreeParam {
-                start: full.get(f.r).clamp(f.lo, f.hi),
+                start: clamp_into(full.get(f.r), f.lo, f.hi),
                 ..f
             })
             .collect();
@@ -159,7 +161,7 @@ pub fn fit_with(
         // case the staged result lies in another, worse basin.
         let datasheet: Vec<f64> = free
             .iter()
-            .map(|f| f.prior.map_or(f.start, |p| p.center).clamp(f.lo, f.hi))
+            .map(|f| clamp_into(f.prior.map_or(f.start, |p| p.center), f.lo, f.hi))
             .collect();
         let (rep, out, best) = passes.run("joint", "joint", full, &free, &joint, &[datasheet])?;
         for (f, v) in free.iter().zip(&best) {

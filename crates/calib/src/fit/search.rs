@@ -49,11 +49,16 @@ pub(crate) fn search(
             give_up_iterations: SWARM_GIVE_UP_ITERATIONS,
             ..Default::default()
         };
-        let u0 = problem.to_unit(&start);
+        // `pso::minimize` panics on invalid options or start: at least one particle is
+        // checked where a fit or a diagnosis starts (`FitOptions::check`, `diagnose`), the
+        // start has one coordinate per free parameter, and a start the box cannot place (a
+        // NaN value in the unit) is left out of the swarm, whose candidates are drawn in the
+        // box as usual.
+        let u0 = Some(problem.to_unit(&start)).filter(|u| u.iter().all(|v| v.is_finite()));
         let res = pso::minimize(
             |u: &[f64]| problem.cost(&problem.from_unit(u), &sim),
             n,
-            Some(&u0),
+            u0.as_deref(),
             &pso_opts,
             |i, best| progress.iteration(i as u64, best),
         );
@@ -156,4 +161,48 @@ pub(crate) fn jacobian(problem: &Problem, x: &[f64]) -> Option<Vec<Vec<f64>>> {
             .map(|k| cols.iter().map(|c| c[k]).collect())
             .collect(),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::trial::base_unit;
+    use crate::problem::{EventData, FreeParam};
+    use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
+
+    /// A free parameter whose start is NaN (a unit holding a NaN value) does not reach the
+    /// swarm's start point, which panics on it: the search runs from the box.
+    #[test]
+    fn a_nan_start_does_not_reach_the_swarm() {
+        let unit = base_unit();
+        let profile = VoltageProfile {
+            duration_s: 2.0,
+            ..VoltageProfile::default()
+        };
+        let ev = synthesize(
+            "dip",
+            &unit,
+            &profile,
+            1000.0,
+            &PmuNoise::typical(1),
+            &Default::default(),
+        )
+        .unwrap();
+        let r = unit.param("machine.h").unwrap();
+        let f = FreeParam {
+            start: f64::NAN,
+            ..FreeParam::new("machine.h".into(), r, 2.0, 8.0, 4.5, "s")
+        };
+        let data = vec![EventData::new(&ev, None, None).unwrap()];
+        let problem = Problem::new(unit, vec![f], data, (1.0, 1.0));
+        let opts = FitOptions {
+            particles: 3,
+            pso_iterations: 2,
+            lbfgs_iterations: 1,
+            ..quick_options(&["gen"], 1)
+        };
+        let (best, _) = search(&problem, &opts, "gen", &Silent, true, &[]);
+        assert_eq!(best.len(), 1);
+        assert!((2.0..=8.0).contains(&best[0]), "{best:?}");
+    }
 }

@@ -79,7 +79,9 @@ impl NonWindup {
         match self.mode {
             LimitMode::AtMax => *x = hi,
             LimitMode::AtMin => *x = lo,
-            LimitMode::Free => *x = x.clamp(lo, hi),
+            // `clamp` below, not `f64::clamp`: a trial stage of the integrator may hand in
+            // limits computed from non-finite signals (NaN), which must not panic.
+            LimitMode::Free => *x = clamp(*x, lo, hi),
         }
         (self.mode, *x) != old
     }
@@ -157,7 +159,8 @@ impl NonWindup {
     }
 }
 
-/// Clamp that tolerates `lo > hi` by returning `lo` (never panics).
+/// Clamp that never panics: `lo > hi` gives `hi` for `v > hi`, else `lo` for `v < lo`; a NaN
+/// limit is ignored (comparisons with NaN are false) and a NaN `v` stays NaN.
 #[inline(always)]
 pub fn clamp(v: f64, lo: f64, hi: f64) -> f64 {
     if v > hi {

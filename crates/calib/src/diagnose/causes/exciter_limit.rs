@@ -57,8 +57,8 @@ impl Cause for ExciterLimit {
         let hi = emax.max(efd0 + 3.0).max(2.0 * efd0);
         // The ceiling's range comes from the field voltage at the operating point (computed here).
         x.extension_free = vec![
-            scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi)), 24),
-            fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05)),
+            scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi))?, 24),
+            fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05))?,
         ];
         // The AVR gain and time constant, X'_d and H: a calibration without the right limit
         // bends them to make up for it. T'_d0 stays as given: on the ceiling the field flux
@@ -94,16 +94,15 @@ impl Cause for ExciterLimit {
             return Ok(());
         }
         // The supply-fed ceiling: SEXS with the same gains, its limits per pu of V_t.
-        let exc = roles
-            .exciter
-            .as_deref()
-            .expect("extend checked the exciter");
+        // `extend` returned Ok: the unit has an exciter and E_fd0 is known.
+        let (Some(exc), Some(efd0)) = (roles.exciter.as_deref(), ctx.efd0) else {
+            return Err(CauseError::build("no exciter or no E_fd0"));
+        };
         if model_of(&x.unit, exc) != "SEXS" {
             return Err(CauseError::not_applicable(
                 "a supply-fed ceiling is built for SEXS only",
             ));
         }
-        let efd0 = ctx.efd0.expect("extend checked E_fd0");
         let i0 = ctx.xadifd0.filter(|i| *i > 0.0).ok_or_else(|| {
             CauseError::build("the field current at the operating point is unknown")
         })?;
@@ -131,9 +130,9 @@ impl Cause for ExciterLimit {
         let block = new_block("SEXS_bus_fed", &values)?;
         x.unit.put(exc, block, &[]).map_err(CauseError::build)?;
         x.extension_free = vec![
-            scanned(fb(&format!("{exc}.vr_max"), lo, hi, emax + k_c * i0), 24),
-            fb(&format!("{exc}.k_c"), 0.0, 0.2, k_c),
-            fb(&format!("{exc}.vr_min"), vr_min, efd0 - 0.05, vr_min),
+            scanned(fb(&format!("{exc}.vr_max"), lo, hi, emax + k_c * i0)?, 24),
+            fb(&format!("{exc}.k_c"), 0.0, 0.2, k_c)?,
+            fb(&format!("{exc}.vr_min"), vr_min, efd0 - 0.05, vr_min)?,
         ];
         x.description = "exciter ceiling fed from the terminals, V_t·V_RMAX − K_C·X_adI_fd, and \
                          floor V_t·V_RMIN freed (with the AVR gain)"

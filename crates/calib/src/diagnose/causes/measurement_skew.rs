@@ -48,7 +48,7 @@ impl Cause for MeasurementSkew {
         // The delay's range comes from the PMU rate (up to 3 samples; computed here).
         let rate = ctx.rate_hz.max(1.0);
         x.extension_free = vec![scanned(
-            fb("measurement.pq_delay_s", 0.0, 3.0 / rate, 0.5 / rate),
+            fb("measurement.pq_delay_s", 0.0, 3.0 / rate, 0.5 / rate)?,
             13,
         )];
         Ok(())

@@ -94,7 +94,7 @@ impl Cause for Oel {
         // acts (a lower pickup with a larger capacity acts as late), and off that valley the
         // objective is flat (the limiter never acts) or far worse (it acts at the wrong time).
         x.extension_free = vec![
-            scanned(fb("oel.ifd_rated", 0.6 * i0, 1.6 * i0, i0), 12),
+            scanned(fb("oel.ifd_rated", 0.6 * i0, 1.6 * i0, i0)?, 12),
             scanned(declared(&x.unit, "oel.a_max", 0.3)?, 8),
             declared(&x.unit, "oel.k_i", 0.03)?,
         ];

@@ -64,7 +64,7 @@ impl Cause for PssState {
         let d = format!("{m}.d");
         if let Ok(v) = value(&x.unit, &d) {
             // Computed from the unit's value: up to 3 pu more damping than it has.
-            x.interacting_free.push(fb(&d, 0.0, v.max(0.0) + 3.0, v));
+            x.interacting_free.push(fb(&d, 0.0, v.max(0.0) + 3.0, v)?);
         }
         Ok(())
     }

@@ -86,11 +86,11 @@ impl Cause for TorsionalMode {
         // The frequency band comes from the resonance and the PMU rate, the turbine's share of
         // H from the unit's H (computed here); the damping ratio's range is declared.
         x.extension_free = vec![
-            scanned(fb("shaft.f_torsion_hz", f_min, f_max, f_start), 48),
+            scanned(fb("shaft.f_torsion_hz", f_min, f_max, f_start)?, 48),
             declared(&x.unit, "shaft.zeta", 0.05)?,
-            fb("shaft.h_turbine", 0.02 * h, 0.6 * h, h_t),
+            fb("shaft.h_turbine", 0.02 * h, 0.6 * h, h_t)?,
         ];
-        x.interacting_free = vec![fb(&h_path, 0.4 * h, 1.05 * h, h - h_t)];
+        x.interacting_free = vec![fb(&h_path, 0.4 * h, 1.05 * h, h - h_t)?];
         x.ties = vec![(h_path, "shaft.h_generator".into())];
         Ok(())
     }

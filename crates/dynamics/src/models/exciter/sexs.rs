@@ -21,7 +21,7 @@
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::exciter::roles::{ExciterRoles, LeadLagRole, ParamRole};
-use crate::models::limiter::NonWindup;
+use crate::models::limiter::{clamp, NonWindup};
 use crate::params::ParamSet;
 use crate::{block_common, param_set};
 
@@ -259,7 +259,9 @@ impl<V: SexsVariant> Block for SexsModel<V> {
         } else {
             x[1]
         };
-        io.set(port::EFD, x_e.clamp(lo, hi));
+        // Never panics (unlike `f64::clamp`): a trial stage of the integrator may compute the
+        // moving limits from non-finite signals; the step is then rejected, not the process.
+        io.set(port::EFD, clamp(x_e, lo, hi));
     }
 
     #[inline]

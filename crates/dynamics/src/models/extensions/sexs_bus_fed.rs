@@ -9,7 +9,7 @@
 //! v_err = V_ref + ΔV_ref − E_comp + V_S + V_UEL + V_OEL
 //! T_B dx_ll/dt = v_err − x_ll,     y_ll = (T_A/T_B) v_err + (1 − T_A/T_B) x_ll
 //! T_E dx_e/dt  = K y_ll − x_e      (non-windup in [E_fd,min(t), E_fd,max(t)])
-//! E_fd,max(t) = V_t(t)·V_RMAX − K_C·X_adI_fd(t),    E_fd,min(t) = V_t(t)·V_RMIN
+//! E_fd,max(t) = V_t(t)·V_RMAX − K_C·X_adI_fd(t),    E_fd,min(t) = min(V_t(t)·V_RMIN, E_fd,max(t))
 //! E_fd = clamp(x_e, E_fd,min, E_fd,max)
 //! ```
 //!
@@ -83,10 +83,15 @@ impl SexsVariant for SexsBusFedParams {
         guard::non_negative("k_c", self.k_c)?;
         guard::greater("vr_max", self.vr_max, "vr_min", self.vr_min)
     }
+    /// `(E_fd,min, E_fd,max)`, never upside down: in a deep dip with a high field current the
+    /// commutation drop can take the ceiling `V_t·V_RMAX − K_C·X_adI_fd` below the floor
+    /// `V_t·V_RMIN`; the bridge then delivers the ceiling (the drop acts whatever the firing
+    /// angle, so no angle reaches the floor), i.e. the floor follows the ceiling down.
     #[inline(always)]
     fn limits(&self, io: &Io) -> (f64, f64) {
         let v = io.get(V_SUPPLY);
-        (v * self.vr_min, v * self.vr_max - self.k_c * io.get(XADIFD))
+        let hi = v * self.vr_max - self.k_c * io.get(XADIFD);
+        ((v * self.vr_min).min(hi), hi)
     }
     fn describe_limits(&self, io: &Io) -> String {
         let (lo, hi) = self.limits(io);
@@ -132,5 +137,43 @@ mod tests {
         assert_eq!(r.supply_floor.name(), Some("vr_min"));
         assert_eq!(r.commutation.name(), Some("k_c"));
         assert_eq!(r.transient_gain_reduction.names(), Some(("ta_tb", "tb")));
+    }
+
+    /// An integrator's trial stage may hand the block non-finite signals (a diverging
+    /// candidate); the limits are then NaN, and the block must answer with numbers or NaN for
+    /// the integrator to reject the step, never panic (`f64::clamp` panics on a NaN limit).
+    #[test]
+    fn non_finite_supply_or_field_current_does_not_panic() {
+        let mut b = SexsBusFed::new(SexsBusFedParams::default());
+        let map: Vec<usize> = (0..PORTS.len()).collect();
+        for (v, i) in [
+            (f64::NAN, 2.0),
+            (1.0, f64::NAN),
+            (f64::INFINITY, 2.0),
+            (1.0, f64::INFINITY),
+            (0.2, 1e3), // a ceiling far below the floor
+        ] {
+            let mut bus = vec![0.0; PORTS.len()];
+            bus[port::V_TERM] = 1.0;
+            bus[V_SUPPLY] = v;
+            bus[XADIFD] = i;
+            let mut x = [0.02, 2.0];
+            let mut dx = [0.0; 2];
+            let mut g = [0.0; 2];
+            b.outputs(0.0, &x, &mut Io::new(&mut bus, &map));
+            let efd = bus[port::EFD];
+            let io = Io::new(&mut bus, &map);
+            b.derivatives(0.0, &x, &io, &mut dx);
+            b.events(&x, &io, &mut g);
+            b.update_modes(&mut x, &io);
+            let (lo, hi) = b.p.limits(&io);
+            assert!(
+                !(lo > hi),
+                "limits upside down: [{lo}, {hi}] (V_t {v}, X_adI_fd {i})"
+            );
+            if hi.is_finite() {
+                assert!(efd <= hi, "E_fd {efd} above the ceiling {hi}");
+            }
+        }
     }
 }

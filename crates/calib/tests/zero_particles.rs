@@ -1,0 +1,64 @@
+//! Issue 25: a swarm of no particle, which a program may ask for (the spec parser, the command
+//! line and Python refuse fewer than 2), is a setup error of `fit` and `diagnose`; it was a
+//! panic inside the swarm ("invalid PSO options").
+
+use std::path::Path;
+
+use itaipu_calib::diagnose::trial::base_unit;
+use itaipu_calib::diagnose::{diagnose, DiagnoseError, DiagnoseOptions};
+use itaipu_calib::fit::{fit, FitError, FitOptions, Silent};
+use itaipu_calib::spec::CalibSpec;
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
+
+fn event() -> Event {
+    let profile = VoltageProfile {
+        duration_s: 3.0,
+        ..VoltageProfile::default()
+    };
+    synthesize(
+        "dip",
+        &base_unit(),
+        &profile,
+        1000.0,
+        &PmuNoise::typical(1),
+        &Default::default(),
+    )
+    .unwrap()
+}
+
+#[test]
+fn no_particle_is_a_setup_error_of_fit_and_diagnose() {
+    let unit = base_unit();
+    let ev = event();
+    let text = "[calibration]\n[[calibration.stage]]\nname = \"gen\"\n\
+                free = [ { param = \"machine.h\", min = 2.0, max = 8.0 } ]\n";
+    let spec = CalibSpec::parse(text, Path::new("spec.toml")).unwrap();
+    let opts = FitOptions {
+        particles: 0,
+        pso_iterations: 2,
+        lbfgs_iterations: 1,
+        ..FitOptions::from_spec(&spec)
+    };
+    match fit(&unit, &spec, std::slice::from_ref(&ev), &[], &opts, &Silent) {
+        Err(FitError::Setup(msg)) => assert!(msg.contains("particles"), "{msg}"),
+        other => panic!("{:?}", other.map(|r| r.unit.name)),
+    }
+    // Without a swarm, no particle is needed.
+    let opts = FitOptions {
+        pso_iterations: 0,
+        ..opts
+    };
+    assert!(fit(&unit, &spec, std::slice::from_ref(&ev), &[], &opts, &Silent).is_ok());
+
+    let opts = DiagnoseOptions {
+        causes: vec!["terminal_load".into()],
+        particles: 0,
+        ..Default::default()
+    };
+    match diagnose(&unit, std::slice::from_ref(&ev), &[], &opts, &Silent) {
+        Err(DiagnoseError::Setup(msg)) => assert!(msg.contains("particles"), "{msg}"),
+        Err(e) => panic!("{e:?}"),
+        Ok(_) => panic!("diagnosed with no particle"),
+    }
+}
