@@ -459,7 +459,7 @@ fn run_time_failures_point_at_the_data() {
     let err = itaipu_calib_cli::explain_sim_error(e, &event, &bad);
     assert_eq!(err.code, 5);
     assert!(
-        err.msg.contains("init window [0, 0.95] s") && err.msg.contains("on the machine's 737 MVA"),
+        err.msg.contains("init window [0, 0.9666") && err.msg.contains("on the machine's 737 MVA"),
         "{}",
         err.msg
     );

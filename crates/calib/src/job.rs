@@ -28,8 +28,8 @@ use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
 use crate::bounds::FreeBound;
 use crate::diagnose::{self, DiagnoseOptions, DiagnoseResult, Diagnosis};
 use crate::fit::{fit_with, FitControl, FitOptions, FitReport, Progress, StageOutput};
+use crate::noise::{noise_floor, NoiseFloor};
 use crate::output::write_synced;
-use crate::problem::EventData;
 use crate::request::{DiagnoseRequest, FitRequest};
 use crate::spec::CalibSpec;
 use crate::Error;
@@ -153,40 +153,55 @@ pub fn explain(e: SimError, event: &Event, unit: &Unit) -> Error {
 // Noise
 // -------------------------------------------------------------------------------------------
 
-/// The noise of one event's measured P and Q, as every report shows it.
+/// The noise floor of one event's P and Q for a unit ([`crate::noise::noise_floor`]), as every
+/// report shows it.
 #[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct NoiseRow {
     pub event: String,
     pub held_out: bool,
-    /// Samples in the event's fit window.
-    pub samples: usize,
     pub sigma_p: f64,
     pub sigma_q: f64,
+    /// Samples each estimate was taken over, and how (pre-event residual, differences,
+    /// quantisation floor).
+    pub p: NoiseFloor,
+    pub q: NoiseFloor,
 }
 
-/// Per event (fitted, then held out) the robust noise standard deviations of the measured P and
-/// Q over the event's fit window (second differences: [`crate::problem::noise_variance`]).
-pub fn noise_rows(events: &[Event], held_out: &[Event]) -> Vec<NoiseRow> {
+/// Per event (fitted, then held out) the noise floors of P and Q for `unit` (one playback of
+/// each event); an event the unit does not simulate on is left out.
+pub fn noise_rows(unit: &Unit, events: &[Event], held_out: &[Event]) -> Vec<NoiseRow> {
     events
         .iter()
         .map(|e| (e, false))
         .chain(held_out.iter().map(|e| (e, true)))
-        .map(|(e, h)| {
-            let (samples, vp, vq) = EventData::new(e, None, None)
-                .map(|d| {
-                    let (vp, vq) = d.noise_variances();
-                    (d.n_window(), vp, vq)
-                })
-                .unwrap_or((0, f64::NAN, f64::NAN));
-            NoiseRow {
+        .filter_map(|(e, h)| {
+            let (_, tr) = crate::fit::fitness(unit, e, h).ok()?;
+            let p = noise_floor(e, tr.get("p_pu")?, &e.record.p_pu);
+            let q = noise_floor(e, tr.get("q_pu")?, &e.record.q_pu);
+            Some(NoiseRow {
                 event: e.name.clone(),
                 held_out: h,
-                samples,
-                sigma_p: vp.sqrt(),
-                sigma_q: vq.sqrt(),
-            }
+                sigma_p: p.sigma,
+                sigma_q: q.sigma,
+                p,
+                q,
+            })
         })
         .collect()
+}
+
+/// Fills every stage's fit statistics from its fitness and the noise floors `noise`.
+pub fn fill_statistics(stages: &mut [crate::fit::StageReport], noise: &[NoiseRow]) {
+    let sigma = |ev: &str| {
+        noise
+            .iter()
+            .find(|n| n.event == ev)
+            .map(|n| (n.sigma_p, n.sigma_q))
+    };
+    for st in stages {
+        st.statistics =
+            crate::fit::FitStatistics::of_fitness(&st.fitness, st.parameters.len(), sigma);
+    }
 }
 
 // -------------------------------------------------------------------------------------------
@@ -352,13 +367,36 @@ pub fn run_fit(
         opts.seed
     );
     let calibrated_set = diagnose::calibrated_set(&inputs.spec, &opts.stages, &inputs.unit, &unit);
+    let noise = noise_rows(&unit, &inputs.events, &inputs.held_out);
+    let mut fit = result.report;
+    fill_statistics(&mut fit.stages, &noise);
+    // Stages an interrupted run finished: their statistics with the same noise floors.
+    let resumed_reports: Vec<serde_json::Value> = resumed
+        .1
+        .into_iter()
+        .map(|mut v| {
+            let fitness: Vec<crate::fit::EventFitness> =
+                serde_json::from_value(v["fitness"].clone()).unwrap_or_default();
+            let k = v["parameters"].as_array().map_or(0, Vec::len);
+            let stats = crate::fit::FitStatistics::of_fitness(&fitness, k, |ev| {
+                noise
+                    .iter()
+                    .find(|n| n.event == ev)
+                    .map(|n| (n.sigma_p, n.sigma_q))
+            });
+            if let Ok(s) = serde_json::to_value(stats) {
+                v["statistics"] = s;
+            }
+            v
+        })
+        .collect();
     Ok(FitRun {
         report: FitSummary {
-            fit: result.report,
+            fit,
             warnings,
-            noise: noise_rows(&inputs.events, &inputs.held_out),
+            noise,
             resumed_stages: resumed.0,
-            resumed_reports: resumed.1,
+            resumed_reports,
         },
         unit,
         datasheet: inputs.unit.clone(),

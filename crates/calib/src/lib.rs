@@ -20,6 +20,7 @@
 //!   reports, output files.
 //! * [`error`]: [`Error`], the one error type every error of the crate and the engine converts
 //!   into, with its [`error::ErrorClass`] for the front ends.
+//! * [`noise`]: the noise floor of a channel, one definition for every report and the diagnosis.
 //! * [`output`]: output folders that are never half-written (staging, manifest, partial).
 //! * [`diagnose`]: residual evidence, the catalog of causes with their model extensions,
 //!   re-fits and gains, and the verdict.
@@ -36,6 +37,7 @@ pub mod fit;
 pub mod identify;
 pub mod job;
 pub mod local;
+pub mod noise;
 pub mod output;
 pub mod practice;
 pub mod problem;

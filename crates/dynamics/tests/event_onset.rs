@@ -306,11 +306,12 @@ fn bundled_practice_cases_and_itaipu() {
         );
     }
     // Itaipu: the fault's first sample is 1.0167 s (|V| and the angle move there, P and Q one
-    // sample later); the bundled event file's explicit init window [0, 0.95] s is kept.
+    // sample later); the bundled event file gives no init window: it is the pre-event part the
+    // onset implies, from the start to 3 samples before it, as for the import below.
     let ev = Event::from_toml_file(&repo().join("data/itaipu/event.toml")).unwrap();
     let t = ev.onset_s().unwrap();
     assert!((t - 61.0 / 60.0).abs() < 1e-6, "{}", ev.onset.describe());
-    assert_eq!(ev.init, Window::new(0.0, 0.95));
+    assert_eq!(ev.init, Window::new(0.0, 58.0 / 60.0));
     // The COMTRADE recording of the same record, imported: the same onset.
     let opts = itaipu_dynamics::pmu_import::ImportOptions {
         v_base_kv: Some(18.0),

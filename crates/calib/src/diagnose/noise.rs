@@ -10,20 +10,6 @@ use itaipu_dynamics::unit::Unit;
 
 use super::*;
 
-/// Noise σ of a residual series: its standard deviation over the pre-event segment, where a
-/// right model is in steady state (the difference-based floor of the whole record when the
-/// pre-event is too short). Taken on the residual rather than the measurement, it also holds the
-/// noise of the played-back voltage propagated through the model, white or not.
-pub(super) fn pre_event_noise(event: &Event, y: &[f64]) -> f64 {
-    let pre = pre_event(event, y);
-    let s = if pre.len() >= 10 {
-        std_dev(&pre)
-    } else {
-        evidence::noise_floor(y)
-    };
-    s.max(1e-6)
-}
-
 /// The samples of `y` (a series at the event's sample times) before the event's onset
 /// ([`onset_s`]: the event's own, or the end of the init window for ambient data).
 fn pre_event(event: &Event, y: &[f64]) -> Vec<f64> {
@@ -36,13 +22,6 @@ fn pre_event(event: &Event, y: &[f64]) -> Vec<f64> {
         .filter(|(t, _)| **t < onset)
         .map(|(_, v)| *v)
         .collect()
-}
-
-/// Standard deviation about the mean.
-pub(super) fn std_dev(y: &[f64]) -> f64 {
-    let n = y.len().max(1) as f64;
-    let m = y.iter().sum::<f64>() / n;
-    (y.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt()
 }
 
 /// A surrogate of `event`: P and Q simulated by the reference (`traces`) on the measured input,
@@ -90,37 +69,26 @@ pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Eve
     Ok(s)
 }
 
-/// σ_P, σ_Q of the unit as given on `events`: the pre-event residual's standard deviation of
-/// each event ([`pre_event_noise`]), pooled over the events by their number of samples.
+/// σ_P, σ_Q of the unit as given on `events`: each event's noise floor
+/// ([`crate::noise::noise_floor`]: the pre-event residual's standard deviation, the one
+/// definition every report shows), pooled over the events by their number of samples.
 pub(super) fn sigma_pq(unit: &Unit, events: &[Event]) -> Result<(f64, f64), DiagnoseError> {
-    let mut given = vec![];
+    let (mut fp, mut fq) = (vec![], vec![]);
     for e in events {
         let (_, tr) =
             fitness(unit, e, false).map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
-        given.push(tr);
+        let n = e.record.time_s.len();
+        for (sim, meas, out) in [
+            ("p_pu", &e.record.p_pu, &mut fp),
+            ("q_pu", &e.record.q_pu, &mut fq),
+        ] {
+            let s = tr.get(sim).ok_or_else(|| DiagnoseError::Simulation {
+                event: e.name.clone(),
+                msg: format!("no simulated {sim}"),
+                error: None,
+            })?;
+            out.push((crate::noise::noise_floor(e, s, meas).sigma, n));
+        }
     }
-    let n_all: f64 = events.iter().map(|e| e.record.time_s.len() as f64).sum();
-    let residual = |k: usize, sim: &str, meas: &[f64]| -> Vec<f64> {
-        given[k]
-            .get(sim)
-            .map(|s| s.iter().zip(meas).map(|(a, b)| a - b).collect())
-            .unwrap_or_default()
-    };
-    let sigma = |sim: &str, pick: fn(&Event) -> &[f64]| {
-        let v: Vec<f64> = events
-            .iter()
-            .enumerate()
-            .map(|(k, e)| pre_event_noise(e, &residual(k, sim, pick(e))))
-            .collect();
-        (events
-            .iter()
-            .zip(&v)
-            .map(|(e, s)| s * s * e.record.time_s.len() as f64)
-            .sum::<f64>()
-            / n_all)
-            .sqrt()
-    };
-    let sigma_p = sigma("p_pu", |e| &e.record.p_pu);
-    let sigma_q = sigma("q_pu", |e| &e.record.q_pu);
-    Ok((sigma_p, sigma_q))
+    Ok((crate::noise::pooled(&fp), crate::noise::pooled(&fq)))
 }

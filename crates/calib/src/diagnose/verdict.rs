@@ -28,8 +28,11 @@ pub(super) fn undecided(
     sigma_p: f64,
     sigma_q: f64,
 ) -> Verdict {
-    // The signal with the largest residual RMS relative to its noise σ.
-    let ratio = |s: &SignalEvidence| s.rms / if s.signal == "P" { sigma_p } else { sigma_q };
+    // The signal with the largest residual RMS relative to its noise floor (the evidence's
+    // `rms_over_noise`: the event's own floor, [`crate::noise::noise_floor`], as the report
+    // shows it).
+    let ratio = |s: &SignalEvidence| s.rms_over_noise;
+    let _ = (sigma_p, sigma_q);
     let mut worst: Option<(&str, &SignalEvidence)> = None;
     for e in ev {
         for s in e
@@ -89,7 +92,7 @@ pub(super) fn undecided(
         let mode = s
             .modes
             .iter()
-            .filter(|m| m.freq_hz > 0.1)
+            .filter(|m| m.is_finding())
             .max_by(|a, b| a.energy_share.total_cmp(&b.energy_share))
             .map(|m| {
                 format!(

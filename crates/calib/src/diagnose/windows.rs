@@ -123,6 +123,11 @@ pub fn event_evidence(event: &Event, traces: &Traces) -> EventEvidence {
     let mut add = |name: &str, sim: Option<Vec<f64>>, meas: &[f64]| {
         if let Some(s) = sim {
             let res: Vec<f64> = s.iter().zip(meas).map(|(a, b)| a - b).collect();
+            // The channel's noise floor: the library's one definition.
+            let opts = EvidenceOptions {
+                noise_sigma: Some(crate::noise::noise_floor(event, &s, meas).sigma),
+                ..opts.clone()
+            };
             signals.push(evidence::analyse(
                 name, &r.time_s, &res, meas, &inputs, &opts,
             ));

@@ -68,8 +68,13 @@ pub struct SignalEvidence {
 pub struct EvidenceOptions {
     /// `(label, start_s, end_s)` windows; they need not partition the record.
     pub windows: Vec<(String, f64, f64)>,
-    /// `(start_s, end_s)` of a quiet segment (e.g. pre-event) for the noise floor.
+    /// `(start_s, end_s)` of a quiet segment (e.g. pre-event) for the noise floor, when
+    /// `noise_sigma` is not given.
     pub noise_window: (f64, f64),
+    /// The channel's noise floor σ, when the caller has it ([`crate::noise::noise_floor`], the
+    /// one definition the diagnosis uses): `rms_over_noise` is then `rms/σ`. `None`: the
+    /// difference-based floor of the measured signal over `noise_window`.
+    pub noise_sigma: Option<f64>,
     /// Lags for the autocorrelation and Ljung-Box test (default 20).
     pub acf_lags: usize,
     /// Largest |lag| (samples) for the cross-correlation (default 30).
@@ -85,6 +90,7 @@ impl Default for EvidenceOptions {
         Self {
             windows: Vec::new(),
             noise_window: (f64::NEG_INFINITY, f64::INFINITY),
+            noise_sigma: None,
             acf_lags: 20,
             max_xcorr_lag: 30,
             pencil_order: 10,
@@ -155,10 +161,10 @@ pub fn analyse(
         .filter(|(&tk, _)| tk >= na - eps && tk <= nb + eps)
         .map(|(_, &m)| m)
         .collect();
-    let noise_floor_rms = if quiet.len() >= 3 {
-        noise_floor(&quiet)
-    } else {
-        noise_floor(measured)
+    let noise_floor_rms = match opts.noise_sigma {
+        Some(s) => s,
+        None if quiet.len() >= 3 => noise_floor(&quiet),
+        None => noise_floor(measured),
     };
     let rms_over_noise = if noise_floor_rms > 0.0 {
         rms / noise_floor_rms

@@ -20,6 +20,26 @@ pub struct Mode {
     pub energy_share: f64,
 }
 
+/// Damping ratios a mode of a residual of a recorded, stable event can plausibly have: a
+/// growing oscillation (ζ well below 0) or a non-oscillatory term fitted as a mode (|ζ| near 1)
+/// is an artefact of the fit, not a finding.
+pub const PLAUSIBLE_ZETA: (f64, f64) = (-0.05, 0.95);
+
+/// Lowest frequency of a mode shown as a finding [Hz]: below, a slow drift of the residual.
+pub const FINDING_MIN_HZ: f64 = 0.1;
+
+impl Mode {
+    /// Whether the mode is a finding (an oscillation above [`FINDING_MIN_HZ`] with a
+    /// plausible damping, [`PLAUSIBLE_ZETA`]): the one rule by which every report shows modes
+    /// and the verdict cites them.
+    pub fn is_finding(&self) -> bool {
+        self.freq_hz.is_finite()
+            && self.freq_hz > FINDING_MIN_HZ
+            && self.damping_ratio > PLAUSIBLE_ZETA.0
+            && self.damping_ratio < PLAUSIBLE_ZETA.1
+    }
+}
+
 /// Largest pencil parameter used: the Hankel matrix has at most `MAX_PENCIL + 1` columns,
 /// which bounds the SVD cost on long records.
 pub(super) const MAX_PENCIL: usize = 400;

@@ -69,12 +69,12 @@ pub struct ParamReport {
     pub log_scaled: bool,
 }
 
-/// Goodness of fit of a stage at its optimum, as lmfit reports it: `n` data points (the
-/// residual terms of the fitted signals over the fitted events' windows), `k` free parameters,
-/// `χ² = Σ (Δ/σ)²` with σ each event's measured noise ([`crate::job::NoiseRow`]), the reduced
-/// `χ²/(n − k)`, and `AIC = n ln(χ²/n) + 2k`, `BIC = n ln(χ²/n) + k ln n`. A reduced χ² near 1
-/// is a fit at the measurement noise; on a PMU playback about 1.5-2 is the floor (the voltage
-/// noise played back drives the model too).
+/// Goodness of fit of a stage at its optimum, as lmfit reports it: `n` data points (the P and Q
+/// residuals over the fitted events' windows: the samples of RaPId's J), `k` free parameters,
+/// `χ² = Σ (ΔP/σ_P)² + (ΔQ/σ_Q)²` with σ each event's noise floor ([`crate::noise`], the
+/// calibrated unit's, as the report's noise table), the reduced `χ²/(n − k)`, and
+/// `AIC = n ln(χ²/n) + 2k`, `BIC = n ln(χ²/n) + k ln n`. A reduced χ² near 1 is a fit at the
+/// noise floor.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FitStatistics {
     pub n_data: usize,
@@ -86,6 +86,40 @@ pub struct FitStatistics {
 }
 
 impl FitStatistics {
+    /// Not known yet (`k` free parameters): filled once the noise floors are.
+    pub fn unknown(k: usize) -> Self {
+        Self {
+            n_data: 0,
+            n_free: k,
+            chi2: f64::NAN,
+            reduced_chi2: f64::NAN,
+            aic: f64::NAN,
+            bic: f64::NAN,
+        }
+    }
+
+    /// A stage's statistics from its P+Q fitness on the fitted events (`fitness`, held-out rows
+    /// left out) and each event's noise floors `sigma(event) -> (σ_P, σ_Q)`.
+    pub fn of_fitness(
+        fitness: &[EventFitness],
+        k: usize,
+        sigma: impl Fn(&str) -> Option<(f64, f64)>,
+    ) -> Self {
+        let (mut chi2, mut n) = (0.0, 0usize);
+        for f in fitness.iter().filter(|f| !f.held_out) {
+            let Some((sp, sq)) = sigma(&f.event) else {
+                return Self::unknown(k);
+            };
+            let m = f.samples as f64;
+            chi2 += m * (f.rms_p / sp).powi(2) + m * (f.rms_q / sq).powi(2);
+            n += 2 * f.samples;
+        }
+        if n == 0 {
+            return Self::unknown(k);
+        }
+        Self::new(chi2, n, k)
+    }
+
     /// From `chi2` over `n` terms with `k` free parameters.
     pub fn new(chi2: f64, n: usize, k: usize) -> Self {
         let nf = n as f64;
@@ -265,13 +299,13 @@ impl FitReport {
             );
             let _ = writeln!(
                 out,
-                "  {:<22} {:>11} {:>11} {:>8}  {:<15} {:>10} {:>21}",
+                "  {:<22} {:>11} {:>11} {:>9}  {:<22} {:>10} {:>21}",
                 "parameter", "value", "std err", "rel err", "flag", "start", "bounds"
             );
             for p in &s.parameters {
                 let _ = writeln!(
                     out,
-                    "  {:<22} {:>11} {:>11} {:>8}  {:<15} {:>10} {:>10}-{:<10}",
+                    "  {:<22} {:>11} {:>11} {:>9}  {:<22} {:>10} {:>10}-{:<10}",
                     p.param,
                     sig(p.result),
                     sig(p.std_error),

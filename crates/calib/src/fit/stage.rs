@@ -296,8 +296,8 @@ pub(super) fn run_stage(
             }
         })
         .collect();
-    let statistics = stage_statistics(&problem, &best, &acc)
-        .map_err(|m| stage_err(name, format!("the calibrated unit does not simulate: {m}")))?;
+    // Filled by the job once the noise floors are known ([`crate::job::run_fit`]).
+    let statistics = FitStatistics::unknown(problem.dim());
     let with = |d: Determination| -> Vec<String> {
         parameters
             .iter()
@@ -402,34 +402,6 @@ pub fn check_spec(unit: &Unit, spec: &CalibSpec, stages: &[String]) -> Result<()
         }
     }
     Ok(())
-}
-
-/// lmfit's goodness-of-fit statistics of `problem` at `x` ([`FitStatistics`]): the residuals of
-/// the fitted signals (those with a non-zero weight) over every event's window, each in units
-/// of its event's measured noise σ ([`EventData::noise_variances`]: the one noise the reports
-/// show).
-fn stage_statistics(
-    problem: &Problem,
-    x: &[f64],
-    sim: &itaipu_dynamics::simulate::SimOptions,
-) -> Result<FitStatistics, crate::problem::ProblemError> {
-    let pq = problem.simulate(x, sim)?;
-    let (wp, wq) = problem.weights;
-    let (mut chi2, mut n) = (0.0, 0usize);
-    for (ev, (p, q)) in problem.events.iter().zip(&pq) {
-        let (vp, vq) = ev.noise_variances();
-        for (_, dp, dq) in ev.window_residuals(p, q) {
-            if wp > 0.0 {
-                chi2 += dp * dp / vp.max(f64::MIN_POSITIVE);
-                n += 1;
-            }
-            if wq > 0.0 {
-                chi2 += dq * dq / vq.max(f64::MIN_POSITIVE);
-                n += 1;
-            }
-        }
-    }
-    Ok(FitStatistics::new(chi2, n, problem.dim()))
 }
 
 /// The pairs of `problem`'s parameters whose estimates correlate above [`CORRELATION_REPORT`]

@@ -12,17 +12,12 @@ use super::{chi2, escape, num, pct, Cell, Page, Provenance, Tone};
 /// noisy samples, not a location).
 pub const MIN_WINDOW_SAMPLES: usize = 5;
 
-/// Damping ratios a mode of a residual of a recorded, stable event can plausibly have: a
-/// growing oscillation (ζ well below 0) or a non-oscillatory term fitted as a mode (|ζ| near 1)
-/// is an artefact of the fit, not a finding.
-pub const PLAUSIBLE_ZETA: (f64, f64) = (-0.05, 0.95);
+pub use itaipu_calib::evidence::PLAUSIBLE_ZETA;
 
-/// Whether a fitted mode is shown as a finding.
+/// Whether a fitted mode is shown as a finding: the library's rule ([`Mode::is_finding`]),
+/// which the verdict cites modes by too.
 pub fn plausible(m: &Mode) -> bool {
-    m.freq_hz > 0.1
-        && m.damping_ratio > PLAUSIBLE_ZETA.0
-        && m.damping_ratio < PLAUSIBLE_ZETA.1
-        && m.freq_hz.is_finite()
+    m.is_finding()
 }
 
 /// The window (of at least [`MIN_WINDOW_SAMPLES`] samples) holding the largest share of the

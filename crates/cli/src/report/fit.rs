@@ -10,7 +10,7 @@
 use serde_json::Value;
 
 use super::svg as plot;
-use super::{escape, num, other_channels, residual, token, Cell, Page, Provenance, Tone};
+use super::{escape, num, other_channels, pct, residual, token, Cell, Page, Provenance, Tone};
 use itaipu_dynamics::simulate::Traces;
 
 /// The traces of one event for the plots: the unit as given and the calibrated unit.
@@ -81,7 +81,7 @@ pub fn flags(report: &Value) -> Vec<String> {
                 out.push(format!("{stage}: {} at a bound", s(&p["param"])));
             }
         }
-        for u in st["unidentified"].as_array().into_iter().flatten() {
+        for u in st["not_determined"].as_array().into_iter().flatten() {
             out.push(format!("{stage}: {} not determined by the data", s(u)));
         }
         for pair in st["correlated_pairs"].as_array().into_iter().flatten() {
@@ -252,24 +252,26 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
     page.h2("parameters", "Parameters");
     for (i, st) in stages.iter().enumerate() {
         page.h3(&format!("Stage {}", s(&st["stage"])));
-        let unidentified: Vec<&str> = st["unidentified"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .map(s)
-            .collect();
-        let weak: Vec<&str> = st["weakly_determined"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .map(s)
-            .collect();
-        let paired: Vec<&str> = st["correlated_pairs"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .flat_map(|p| [s(&p[0]), s(&p[1])])
-            .collect();
+        let sp = |x: &str| format!("/stages/{i}/statistics/{x}");
+        page.table(
+            &format!("stats-{}", token(s(&st["stage"]))),
+            &[
+                "data points",
+                "free parameters",
+                "χ²",
+                "reduced χ²",
+                "AIC",
+                "BIC",
+            ],
+            &[vec![
+                cell(report, &sp("n_data"), |v| format!("{v:.0}")),
+                cell(report, &sp("n_free"), |v| format!("{v:.0}")),
+                cell(report, &sp("chi2"), num),
+                cell(report, &sp("reduced_chi2"), fmt4),
+                cell(report, &sp("aic"), |v| format!("{v:.1}")),
+                cell(report, &sp("bic"), |v| format!("{v:.1}")),
+            ]],
+        );
         let rows: Vec<Vec<Cell>> = st["parameters"]
             .as_array()
             .into_iter()
@@ -278,28 +280,21 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
             .map(|(j, p)| {
                 let ptr = |x: &str| format!("/stages/{i}/parameters/{j}/{x}");
                 let name = s(&p["param"]);
-                let mut fl = vec![];
+                // The library's flag (determined / weak / not determined), as the text report.
+                let mut fl = vec![s(&p["determination"]).replace('_', " ")];
                 if p["at_bound"].as_bool() == Some(true) {
-                    fl.push("at bound");
-                }
-                if unidentified.contains(&name) || p["std_error"].is_null() {
-                    fl.push("not identifiable");
-                }
-                if paired.contains(&name) {
-                    fl.push("correlated");
-                }
-                if weak.contains(&name) {
-                    fl.push("weakly determined");
+                    fl.push("at bound".into());
                 }
                 vec![
                     Cell::Html(format!("<code>{}</code>", e(name))),
                     Cell::text(s(&p["unit"])),
+                    cell(report, &ptr("result"), num),
+                    cell(report, &ptr("std_error"), num),
+                    cell(report, &ptr("relative_error"), pct),
+                    Cell::Html(format!("<span class=\"flag\">{}</span>", e(&fl.join(", ")))),
                     cell(report, &ptr("start"), num),
                     cell(report, &ptr("min"), num),
                     cell(report, &ptr("max"), num),
-                    cell(report, &ptr("result"), num),
-                    cell(report, &ptr("std_error"), num),
-                    Cell::Html(format!("<span class=\"flag\">{}</span>", fl.join(", "))),
                 ]
             })
             .collect();
@@ -308,25 +303,36 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
             &[
                 "parameter",
                 "unit",
+                "value",
+                "std error",
+                "rel. error",
+                "flag",
                 "start",
                 "min",
                 "max",
-                "result",
-                "std error",
-                "flags",
             ],
             &rows,
         );
-        for pair in st["correlated_pairs"].as_array().into_iter().flatten() {
+        let corr: Vec<String> = st["correlations"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|pair| format!("C({}, {}) = {:+.3}", s(&pair[0]), s(&pair[1]), f(&pair[2])))
+            .collect();
+        if !corr.is_empty() {
             page.note(&format!(
-                "Not separately identifiable: {} and {} (correlation {:+.3}).",
-                s(&pair[0]),
-                s(&pair[1]),
-                f(&pair[2])
+                "Correlations above {} (at {} or more not separately identifiable): {}.",
+                itaipu_calib::fit::CORRELATION_REPORT,
+                itaipu_calib::fit::CORRELATION_LIMIT,
+                corr.join("; ")
             ));
         }
     }
-    page.note("Standard errors from the Fisher approximation at the optimum; \"not determined\" where the data do not determine the parameter. Weakly determined: relative standard error above 1 %.");
+    page.note(&format!(
+        "Standard errors from the Fisher approximation at the optimum. Determined: relative standard error at most {:.0} %; weak: up to {:.0} %; not determined: above, infinite (the data do not move the residuals along it) or at a bound. χ² in units of each event's measured noise (the noise table); AIC and BIC as lmfit reports them.",
+        100.0 * itaipu_calib::fit::DETERMINED_LIMIT,
+        100.0 * itaipu_calib::fit::NOT_DETERMINED_LIMIT
+    ));
 
     // Plots.
     page.h2("plots", "Measured and simulated");

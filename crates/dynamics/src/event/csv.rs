@@ -14,11 +14,12 @@ use super::{
 
 impl Event {
     /// Writes the playback record as a canonical CSV: header
-    /// `time_s,v_re_pu,v_im_pu,p_pu,q_pu` followed by `freq_hz`, `efd_pu`, `ifd_pu` for the
+    /// `time_s,v_mag_pu,v_ang_rad,p_pu,q_pu` followed by `freq_hz`, `efd_pu`, `ifd_pu` for the
     /// optional channels present. Numbers are written with 17 significant digits (like C's
-    /// `%.17g`), which reproduces every `f64` exactly when read back. The real and imaginary
-    /// parts are computed from |V| and the angle, so reading the file back gives |V| and the
-    /// angle to within rounding (~1e-16 relative).
+    /// `%.17g`), which reproduces every `f64` exactly when read back; the voltage is written as
+    /// the record holds it (|V| and the unwrapped angle in radians), so reading the file back
+    /// gives the record bit for bit: an event written and read plays back exactly as the event in
+    /// memory (an import, a synthetic event).
     pub fn write_csv(&self, path: &Path) -> Result<(), EventError> {
         let io_err = |source| EventError::Io {
             path: path.to_path_buf(),
@@ -28,12 +29,10 @@ impl Event {
         let file = fs::File::create(path).map_err(io_err)?;
         let mut w = BufWriter::new(file);
         let rec = &self.record;
-        let re = rec.v_re_pu();
-        let im = rec.v_im_pu();
         let mut cols: Vec<(&str, &[f64])> = vec![
             ("time_s", &rec.time_s),
-            ("v_re_pu", &re),
-            ("v_im_pu", &im),
+            ("v_mag_pu", &rec.v_mag_pu),
+            ("v_ang_rad", &rec.v_ang_rad),
             ("p_pu", &rec.p_pu),
             ("q_pu", &rec.q_pu),
         ];
@@ -363,25 +362,52 @@ pub fn read_csv(path: &Path, nominal_hz: f64) -> Result<Record, EventError> {
             return Err(missing(req, "(required)"));
         }
     }
-    let (re, im, mag, ang) = (
+    let (re, im, mag_deg, ang_deg, mag_rad, ang_rad) = (
         idx("v_re_pu"),
         idx("v_im_pu"),
         idx("v_pu"),
         idx("angle_deg"),
+        idx("v_mag_pu"),
+        idx("v_ang_rad"),
     );
     let rectangular = re.is_some() || im.is_some();
-    let polar = mag.is_some() || ang.is_some();
-    if rectangular && polar {
+    let polar_deg = mag_deg.is_some() || ang_deg.is_some();
+    let polar_rad = mag_rad.is_some() || ang_rad.is_some();
+    if [rectangular, polar_deg, polar_rad]
+        .iter()
+        .filter(|f| **f)
+        .count()
+        > 1
+    {
         return Err(EventError::ConflictingColumns {
             path: path.to_path_buf(),
-            message: "both voltage forms are present (v_re_pu/v_im_pu and v_pu/angle_deg); \
-                      give exactly one of them"
+            message: "more than one voltage form is present (v_re_pu/v_im_pu, v_pu/angle_deg, \
+                      v_mag_pu/v_ang_rad); give exactly one of them"
                 .into(),
         });
     }
-    const VOLTAGE_HINT: &str =
-        "(the voltage is given either as v_re_pu and v_im_pu, or as v_pu and angle_deg)";
-    let (va, vb, labels) = if polar {
+    const VOLTAGE_HINT: &str = "(the voltage is given as v_re_pu and v_im_pu, as v_pu and \
+                                angle_deg, or as v_mag_pu and v_ang_rad)";
+    let polar = polar_deg || polar_rad;
+    let (mag, ang) = if polar_rad {
+        (mag_rad, ang_rad)
+    } else {
+        (mag_deg, ang_deg)
+    };
+    let (va, vb, labels) = if polar_rad {
+        match (mag, ang) {
+            (Some(a), Some(b)) => (
+                a,
+                b,
+                ColumnLabels {
+                    voltage: "v_mag_pu",
+                    magnitude: "v_mag_pu",
+                },
+            ),
+            (None, _) => return Err(missing("v_mag_pu", VOLTAGE_HINT)),
+            (_, None) => return Err(missing("v_ang_rad", VOLTAGE_HINT)),
+        }
+    } else if polar {
         match (mag, ang) {
             (Some(a), Some(b)) => (
                 a,
@@ -478,7 +504,9 @@ pub fn read_csv(path: &Path, nominal_hz: f64) -> Result<Record, EventError> {
         lines.push(line);
     }
 
-    let (v_mag_pu, raw_ang): (Vec<f64>, Vec<f64>) = if polar {
+    let (v_mag_pu, raw_ang): (Vec<f64>, Vec<f64>) = if polar_rad {
+        (va_v, vb_v)
+    } else if polar {
         (va_v, vb_v.iter().map(|d| d.to_radians()).collect())
     } else {
         (

@@ -167,12 +167,14 @@ pub const PQ_LIMIT_PU: f64 = 20.0;
 pub const FREQ_TOLERANCE: f64 = 0.10;
 
 /// Columns accepted in an event CSV, in canonical order.
-pub const ACCEPTED_COLUMNS: [&str; 10] = [
+pub const ACCEPTED_COLUMNS: [&str; 12] = [
     "time_s",
     "v_re_pu",
     "v_im_pu",
     "v_pu",
     "angle_deg",
+    "v_mag_pu",
+    "v_ang_rad",
     "p_pu",
     "q_pu",
     "freq_hz",
@@ -321,6 +323,48 @@ impl Record {
             }
         }
     }
+}
+
+/// How far a time stamp may lie from the reporting grid and still be taken as on it [s]: a time
+/// stamp written to the microsecond (or with more digits) is within 0.5 µs of the instant it
+/// stands for.
+pub const SNAP_TOL_S: f64 = 1e-6;
+
+/// A PMU reports at whole multiples of its reporting period (IEEE C37.118: a whole-number rate,
+/// the fraction of second counted in its time base). When the mean interval of `time` is within
+/// 1e-4 of a whole-number rate R and every time stamp lies within [`SNAP_TOL_S`] of a multiple of
+/// 1/R (measured from 0), the time stamps are set to those multiples: the rounding of written
+/// time stamps (`0.01666666667`, `1.016667`) is not the PMU's, and every path to the same
+/// record (a CSV, a COMTRADE file, an array) then plays back the same instants. Returns R when
+/// it changed anything. Irregular time bases (a trending recorder's) are left as they are.
+pub fn snap_to_rate(time: &mut [f64]) -> Option<f64> {
+    let n = time.len();
+    if n < 3 {
+        return None;
+    }
+    let dt = (time[n - 1] - time[0]) / (n - 1) as f64;
+    if !(dt > 0.0) {
+        return None;
+    }
+    let rate = (1.0 / dt).round();
+    if !(rate >= 1.0) || ((1.0 / dt) - rate).abs() > 1e-4 * rate {
+        return None;
+    }
+    let grid = |t: f64| (t * rate).round() / rate;
+    if !time.iter().all(|t| (t - grid(*t)).abs() <= SNAP_TOL_S) {
+        return None;
+    }
+    // Consecutive samples on distinct grid points (no duplicate after snapping).
+    if time.windows(2).any(|w| grid(w[1]) <= grid(w[0])) {
+        return None;
+    }
+    if time.iter().all(|t| *t == grid(*t)) {
+        return None;
+    }
+    for t in time.iter_mut() {
+        *t = grid(*t);
+    }
+    Some(rate)
 }
 
 /// Removes 2π jumps from a sequence of angles (rad): every step between consecutive samples is

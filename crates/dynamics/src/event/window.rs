@@ -63,6 +63,9 @@ pub(super) fn assemble(
     fit: WindowSpec,
     onset: OnsetSpec,
 ) -> Result<Event, EventError> {
+    // Time stamps on a PMU's reporting grid, as written, are the grid's instants.
+    let mut full = full;
+    super::snap_to_rate(&mut full.time_s);
     let record_span = full.span();
     let record_desc = if csv_path.as_os_str().is_empty() {
         format!("the record {record_span}")

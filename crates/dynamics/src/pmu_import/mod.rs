@@ -453,7 +453,16 @@ pub(crate) fn finish(
     for d in &mut dropouts {
         d.time_s -= t0;
     }
-    let time: Vec<f64> = kept.iter().map(|k| k.0 - t0).collect();
+    let mut time: Vec<f64> = kept.iter().map(|k| k.0 - t0).collect();
+    if opts.rate_hz.is_none() {
+        if let Some(rate) = crate::event::snap_to_rate(&mut time) {
+            warnings.push(format!(
+                "time stamps lie on the {rate} samples/s reporting grid to within {} µs \
+                 (their written resolution): taken as exact multiples of 1/{rate} s",
+                crate::event::SNAP_TOL_S * 1e6
+            ));
+        }
+    }
     let vmag: Vec<f64> = kept.iter().map(|k| k.1).collect();
     let ang = unwrap_angles(&kept.iter().map(|k| k.2).collect::<Vec<_>>());
     let p: Vec<f64> = kept.iter().map(|k| k.3).collect();
