@@ -20,6 +20,8 @@ run one after another in this process, with the same rows.
 
 * Each job runs :func:`itaipu_calib.fit` and, if asked, :func:`itaipu_calib.diagnose` of the
   calibrated unit (``fit=`` the fit, so the whole calibrated set is re-freed) in the worker.
+  Every decision is the library's: the stage names (:func:`itaipu_calib.stages`), the search
+  settings left None (:func:`itaipu_calib.defaults`, or the calibration spec's) and the reports.
 * A job that fails (a bad file, a unit that cannot initialise, a worker that died) is a row
   with ``status == "failed"``, the step it failed in, the error's type, ``kind`` and message on
   one line; the other jobs go on.
@@ -45,7 +47,8 @@ import os
 import socket
 import time
 import uuid
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import InitVar, dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tuple, Union
 
@@ -54,8 +57,6 @@ from . import _core
 __all__ = ["COLUMNS", "FleetResult", "Job", "jobs_from_csv", "run_fleet", "run_job"]
 
 _PathLike = Union[str, "os.PathLike[str]"]
-
-_STAGES = ("gen", "avr", "pss", "tg")
 
 #: The columns of a row, in order (see :func:`run_job`).
 COLUMNS: Tuple[str, ...] = (
@@ -87,6 +88,51 @@ COLUMNS: Tuple[str, ...] = (
 # The files a job writes into its folder, in the order they are renamed into place; row.json,
 # last, marks the folder complete.
 _OUT_FILES = ("calibrated.toml", "report.json", "diagnosis.json", "extended.toml", "row.json")
+
+
+def _stage_names() -> Tuple[str, ...]:
+    """The library's stage names, in the order they run, then ``all``
+    (:func:`itaipu_calib.stages`; asked each time: it is cheap)."""
+    return tuple(_core.stages())
+
+
+def _stage_choices() -> str:
+    names = _stage_names()
+    return ", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else ", ".join(names)
+
+
+def _stages(value: Any, what: str) -> Tuple[str, ...]:
+    """The stages named in ``value`` (a string or a list of names), checked against the
+    library's list; ``()`` when none is named. ValueError naming the first unknown one."""
+    names = _names(value, what)
+    bad = [n for n in names if n not in _stage_names()]
+    if bad:
+        raise ValueError(f"{what}: unknown stage {bad[0]!r} ({_stage_choices()})")
+    return names
+
+
+def _stage_text(names: Tuple[str, ...]) -> str:
+    """``all``, or the named stages comma-separated in the order they run."""
+    if "all" in names:
+        return "all"
+    return ",".join(s for s in _stage_names() if s in names)
+
+
+def _renamed(old: str, new: str, old_value: Any, new_value: Any, where: str,
+             stacklevel: int) -> Any:
+    """The value of an option given under its old name (a DeprecationWarning, as the module's
+    functions give) or its new one; TypeError when both are given."""
+    if old_value is None:
+        return new_value
+    if new_value is not None:
+        raise TypeError(f"{where}{new} and {old} (its old name) were both given: give {new} only")
+    warnings.warn(
+        f"{old} is deprecated: it is now {new} (it caps the local method, Levenberg-Marquardt "
+        "or L-BFGS)",
+        DeprecationWarning,
+        stacklevel=stacklevel + 1,
+    )
+    return old_value
 
 
 def _paths(value: Any, what: str) -> Tuple[str, ...]:
@@ -134,13 +180,19 @@ class Job:
 
     ``unit``, ``events``, ``held_out``, ``calib`` and ``out`` are paths (``events`` and
     ``held_out`` a path or a list of paths), stored as strings; they are read in the worker, so
-    on a cluster they must be visible there. ``stages``, ``seed``, ``particles``,
-    ``pso_iterations``, ``lbfgs_iterations`` and ``polish`` are :func:`itaipu_calib.fit`'s
-    (None: the calibration spec's). ``diagnose=True`` diagnoses the calibrated unit after the
-    fit (``causes``: the causes to try, default the whole catalog; ``diagnose_particles``,
-    ``diagnose_pso_iterations``, ``diagnose_lbfgs_iterations``: the re-fits' settings, None:
-    :func:`itaipu_calib.diagnose`'s defaults; the seed is ``seed``, or 1). ``out``: a folder
-    for the job's files; ``overwrite=True`` lets them replace existing ones.
+    on a cluster they must be visible there. ``stages`` (names of :func:`itaipu_calib.stages`),
+    ``seed``, ``particles``, ``pso_iterations``, ``local_iterations`` and ``polish`` are
+    :func:`itaipu_calib.fit`'s; None leaves the choice to the library (the calibration spec's,
+    else ``itaipu_calib.defaults()["fit"]``; ``polish``: the final joint pass).
+    ``diagnose=True`` diagnoses the calibrated unit after the fit (``causes``: the causes to
+    try, default the whole catalog; ``seed`` and ``diagnose_particles``,
+    ``diagnose_pso_iterations``, ``diagnose_local_iterations``: the re-fits' settings, None:
+    ``itaipu_calib.defaults()["diagnose"]``). ``out``: a folder for the job's files;
+    ``overwrite=True`` lets them replace existing ones.
+
+    ``lbfgs_iterations`` and ``diagnose_lbfgs_iterations`` are the old names of
+    ``local_iterations`` and ``diagnose_local_iterations``: still accepted, with a
+    DeprecationWarning.
     """
 
     name: str
@@ -152,22 +204,33 @@ class Job:
     seed: Optional[int] = None
     particles: Optional[int] = None
     pso_iterations: Optional[int] = None
-    lbfgs_iterations: Optional[int] = None
-    polish: bool = True
+    local_iterations: Optional[int] = None
+    polish: Optional[bool] = None
     diagnose: bool = False
     causes: Optional[Tuple[str, ...]] = None
     diagnose_particles: Optional[int] = None
     diagnose_pso_iterations: Optional[int] = None
-    diagnose_lbfgs_iterations: Optional[int] = None
+    diagnose_local_iterations: Optional[int] = None
     out: Optional[str] = None
     overwrite: bool = False
+    # The old names (deprecated): not fields, folded into the new ones.
+    lbfgs_iterations: InitVar[Optional[int]] = None
+    diagnose_lbfgs_iterations: InitVar[Optional[int]] = None
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, lbfgs_iterations: Optional[int],
+                      diagnose_lbfgs_iterations: Optional[int]) -> None:
         def put(name: str, value: Any) -> None:
             object.__setattr__(self, name, value)
 
         if not isinstance(self.name, str) or not self.name.strip():
             raise ValueError(f"Job.name must be a non-empty string (got {self.name!r})")
+        # stacklevel 3: the warning points at the Job(...) call (through __init__).
+        put("local_iterations", _renamed("lbfgs_iterations", "local_iterations",
+                                         lbfgs_iterations, self.local_iterations,
+                                         f"Job {self.name}: ", 3))
+        put("diagnose_local_iterations", _renamed(
+            "diagnose_lbfgs_iterations", "diagnose_local_iterations", diagnose_lbfgs_iterations,
+            self.diagnose_local_iterations, f"Job {self.name}: ", 3))
         if not isinstance(self.unit, (str, os.PathLike)):
             raise TypeError(f"Job {self.name}: unit must be a path (got {self.unit!r})")
         put("unit", os.fspath(self.unit))
@@ -181,28 +244,43 @@ class Job:
                 if not isinstance(v, (str, os.PathLike)):
                     raise TypeError(f"Job {self.name}: {key} must be a path or None (got {v!r})")
                 put(key, os.fspath(v))
-        stages = _names(self.stages, f"Job {self.name}: stages")
-        bad = [s for s in stages if s != "all" and s not in _STAGES]
-        if bad or not stages:
-            raise ValueError(
-                f"Job {self.name}: stages: unknown stage {bad[0]!r} (gen, avr, pss, tg or all)"
-                if bad
-                else f"Job {self.name}: stages is empty"
-            )
-        put("stages", "all" if "all" in stages else ",".join(s for s in _STAGES if s in stages))
+        stages = _stages(self.stages, f"Job {self.name}: stages")
+        if not stages:
+            raise ValueError(f"Job {self.name}: stages is empty")
+        put("stages", _stage_text(stages))
         _check_int(self.seed, f"Job {self.name}: seed", 0)
         _check_int(self.particles, f"Job {self.name}: particles", 2)
         _check_int(self.diagnose_particles, f"Job {self.name}: diagnose_particles", 2)
-        for key in ("pso_iterations", "lbfgs_iterations", "diagnose_pso_iterations",
-                    "diagnose_lbfgs_iterations"):
+        for key in ("pso_iterations", "local_iterations", "diagnose_pso_iterations",
+                    "diagnose_local_iterations"):
             _check_int(getattr(self, key), f"Job {self.name}: {key}", 0)
-        for key in ("polish", "diagnose", "overwrite"):
+        if self.polish is not None and not isinstance(self.polish, bool):
+            raise TypeError(f"Job {self.name}: polish must be True, False or None")
+        for key in ("diagnose", "overwrite"):
             if not isinstance(getattr(self, key), bool):
                 raise TypeError(f"Job {self.name}: {key} must be True or False")
         if self.causes is not None:
             put("causes", _names(self.causes, f"Job {self.name}: causes") or None)
             if not self.diagnose:
                 raise ValueError(f"Job {self.name}: causes given but diagnose is False")
+
+
+def _old_name(old: str, new: str) -> property:
+    def get(self: Job) -> Optional[int]:
+        warnings.warn(f"Job.{old} is deprecated: it is now Job.{new}", DeprecationWarning,
+                      stacklevel=2)
+        value: Optional[int] = getattr(self, new)
+        return value
+
+    return property(get, doc=f"The old name of :attr:`{new}` (deprecated).")
+
+
+# Reading an old name gives the new field, with a warning (the InitVars' defaults are already
+# in __init__).
+for _old, _new in (("lbfgs_iterations", "local_iterations"),
+                   ("diagnose_lbfgs_iterations", "diagnose_local_iterations")):
+    setattr(Job, _old, _old_name(_old, _new))
+del _old, _new
 
 
 def _one_line(e: BaseException) -> str:
@@ -353,6 +431,9 @@ def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
     try:
         out = _check_out(job) if job.out is not None else None
         step = "fit"
+        fit_kw: Dict[str, Any] = {}
+        if job.polish is not None:
+            fit_kw["polish"] = job.polish
         fit = _core.fit(
             list(job.events),
             job.unit,
@@ -361,32 +442,25 @@ def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
             seed=job.seed,
             particles=job.particles,
             pso_iterations=job.pso_iterations,
-            lbfgs_iterations=job.lbfgs_iterations,
-            polish=job.polish,
+            local_iterations=job.local_iterations,
             held_out=list(job.held_out),
             threads=threads,
+            **fit_kw,
         )
         _fill_fit(row, fit)
         diagnosis = None
         if job.diagnose:
             step = "diagnose"
-            kw: Dict[str, Any] = {}
-            for key, value in (
-                ("particles", job.diagnose_particles),
-                ("pso_iterations", job.diagnose_pso_iterations),
-                ("lbfgs_iterations", job.diagnose_lbfgs_iterations),
-            ):
-                if value is not None:
-                    kw[key] = value
             diagnosis = _core.diagnose(
                 list(job.events),
-                fit.unit,
-                list(job.held_out) or None,
+                held_out=list(job.held_out) or None,
                 causes=list(job.causes) if job.causes else None,
-                seed=1 if job.seed is None else job.seed,
+                seed=job.seed,
+                particles=job.diagnose_particles,
+                pso_iterations=job.diagnose_pso_iterations,
+                local_iterations=job.diagnose_local_iterations,
                 threads=threads,
                 fit=fit,
-                **kw,
             )
             _fill_diagnosis(row, diagnosis)
         if out is not None:
@@ -577,7 +651,9 @@ def run_fleet(
 
 _REQUIRED = ("name", "unit", "events")
 _OPTIONAL = ("held_out", "calib", "stages", "seed", "diagnose", "particles", "pso_iterations",
-             "lbfgs_iterations", "out")
+             "local_iterations", "out")
+# Old column names still read (a DeprecationWarning): {old: new}.
+_RENAMED = {"lbfgs_iterations": "local_iterations"}
 _NO = ("", "no", "false", "0", "n")
 _YES = ("yes", "true", "1", "y", "all")
 
@@ -589,8 +665,9 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
     separated by ``;``) are required; ``held_out`` (paths separated by ``;``), ``calib``,
     ``stages`` (e.g. ``gen+avr`` or ``all``; default all), ``seed``, ``diagnose`` (empty or
     ``no``: no diagnosis; ``yes``: the whole catalog; or cause ids separated by ``;``),
-    ``particles``, ``pso_iterations``, ``lbfgs_iterations`` and ``out`` (a folder for the job's
-    files) are optional; an empty cell is the default. Paths are relative to the table's
+    ``particles``, ``pso_iterations``, ``local_iterations`` (old name ``lbfgs_iterations``:
+    still read, with a DeprecationWarning) and ``out`` (a folder for the job's files) are
+    optional; an empty cell leaves the choice to the library. Paths are relative to the table's
     folder. Blank lines and lines starting with ``#`` are skipped. ``overwrite`` is given to
     every job.
 
@@ -613,6 +690,7 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
     jobs: List[Job] = []
     names: Dict[str, int] = {}
     header: Optional[List[str]] = None
+    label: Dict[str, str] = {}  # a column's name in the table (an old name, renamed)
     with open(path, newline="", encoding="utf-8-sig") as f:
         reader = csv.reader(f)
         last = 0
@@ -623,6 +701,15 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
                 continue
             if header is None:
                 header = [c.lower() for c in cells]
+                for old, new in _RENAMED.items():
+                    if old in header:
+                        if new in header:
+                            raise fail(line, old, f"the old name of column {new}, which is "
+                                       "there too: keep one")
+                        warnings.warn(f"{path}: column {old} is deprecated: it is now {new}",
+                                      DeprecationWarning, stacklevel=2)
+                        header[header.index(old)] = new
+                        label[new] = old
                 for c in header:
                     if c not in _REQUIRED + _OPTIONAL:
                         raise fail(line, c or "(empty)", "unknown column (columns: "
@@ -644,9 +731,9 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
                 try:
                     n = int(text)
                 except ValueError:
-                    raise fail(line, col, f"not an integer: {text!r}") from None
+                    raise fail(line, label.get(col, col), f"not an integer: {text!r}") from None
                 if n < minimum:
-                    raise fail(line, col, f"must be at least {minimum} (got {n})")
+                    raise fail(line, label.get(col, col), f"must be at least {minimum} (got {n})")
                 return n
 
             def listed(col: str) -> List[str]:
@@ -663,10 +750,10 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
             events = listed("events")
             if not events:
                 raise fail(line, "events", "no event (paths separated by ';')")
-            stages = _names(row.get("stages", ""), "stages") or ("all",)
-            bad = [s for s in stages if s != "all" and s not in _STAGES]
-            if bad:
-                raise fail(line, "stages", f"unknown stage {bad[0]!r} (gen, avr, pss, tg or all)")
+            try:
+                stages = _stages(row.get("stages", ""), "stages") or ("all",)
+            except ValueError as e:
+                raise fail(line, "stages", str(e).split(": ", 1)[1]) from None
             diag_text = row.get("diagnose", "")
             causes: Optional[List[str]] = None
             if diag_text.lower() in _NO:
@@ -688,11 +775,11 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
                 events=tuple(resolve(e) for e in events),
                 held_out=tuple(resolve(e) for e in listed("held_out")),
                 calib=resolve(row["calib"]) if row.get("calib") else None,
-                stages=",".join(stages),
+                stages=_stage_text(stages),
                 seed=integer("seed", 0),
                 particles=integer("particles", 2),
                 pso_iterations=integer("pso_iterations", 0),
-                lbfgs_iterations=integer("lbfgs_iterations", 0),
+                local_iterations=integer("local_iterations", 0),
                 diagnose=diagnose,
                 causes=tuple(causes) if causes else None,
                 out=resolve(row["out"]) if row.get("out") else None,

@@ -1,6 +1,7 @@
 """itaipu_calib.fleet (issue 14): many (unit, events) jobs on a local Dask cluster of two worker
 processes, one task per job; rows in the jobs' order, failures per job, the same numbers as a
-direct fit, the in-process path, job tables, output folders."""
+direct fit, the in-process path, job tables, the library's stage list and defaults, output
+folders."""
 
 import json
 import operator
@@ -11,12 +12,15 @@ import subprocess
 import sys
 import threading
 import time
+import types
+import warnings
 from pathlib import Path
 
 import pytest
 
 import itaipu_calib as ic
 from itaipu_calib import _core
+import itaipu_calib.fleet as fleet_mod
 from itaipu_calib.fleet import COLUMNS, FleetResult, Job, jobs_from_csv, run_fleet, run_job
 
 distributed = pytest.importorskip("distributed")  # installed by scripts/test.sh
@@ -27,8 +31,8 @@ DATA = ROOT / "data"
 TRUTH = DATA / "synthetic" / "unit_gensae_sexs_stab3_hygov.toml"
 CALIB = DATA / "itaipu" / "calibration.toml"
 # Small and quick: a generator-stage fit of a 4 s, 30 samples/s event takes well under a second.
-QUICK = dict(particles=4, pso_iterations=2, lbfgs_iterations=2, polish=False)
-DQUICK = dict(diagnose_particles=8, diagnose_pso_iterations=4, diagnose_lbfgs_iterations=3)
+QUICK = dict(particles=4, pso_iterations=2, local_iterations=2, polish=False)
+DQUICK = dict(diagnose_particles=8, diagnose_pso_iterations=4, diagnose_local_iterations=3)
 
 
 def _cores():
@@ -247,7 +251,7 @@ def test_a_dead_worker_is_a_failed_row(cluster, files):
     row says KilledWorker (the cluster fixture allows no retry), the other job is ok."""
     pids = cluster.run(os.getpid)  # {worker address: pid}
     long = Job("crash", files["nominal"], [files["ev1"]], calib=CALIB, stages="gen", seed=1,
-               particles=40, pso_iterations=400, lbfgs_iterations=50)
+               particles=40, pso_iterations=400, local_iterations=50)
     good = Job("good", files["nominal"], [files["ev1"]], calib=CALIB, stages="gen", seed=7, **QUICK)
     killed = []
 
@@ -361,13 +365,114 @@ def test_jobs_are_plain_picklable_data(files):
         run_fleet([{"name": "a"}])
 
 
+def test_stages_are_the_library_s(monkeypatch):
+    names = ic.stages()
+    assert names[-1] == "all"
+    for name in names:
+        assert Job("a", "u.toml", "e.toml", stages=name).stages == name
+    with pytest.raises(ValueError) as e:
+        Job("a", "u.toml", "e.toml", stages="gen,exciter")
+    assert str(e.value).endswith(
+        "unknown stage 'exciter' (" + ", ".join(names[:-1]) + " or " + names[-1] + ")")
+    # A stage the library adds is known to the fleet, in the library's order.
+    monkeypatch.setattr(_core, "stages", lambda: ["gen", "avr", "pss", "tg", "hydro", "all"])
+    assert Job("a", "u.toml", "e.toml", stages="hydro+gen").stages == "gen,hydro"
+    monkeypatch.undo()
+    with pytest.raises(ValueError, match="unknown stage 'hydro'"):
+        Job("a", "u.toml", "e.toml", stages="hydro")
+
+
+class _Stop(Exception):
+    pass
+
+
+def _spy(monkeypatch, name, calls, stop):
+    """fleet's _core with ``name`` recording its keyword arguments (and raising _Stop if
+    ``stop``, before any work)."""
+    real = getattr(_core, name)
+
+    def spy(*args, **kwargs):
+        calls[name] = kwargs
+        if stop:
+            raise _Stop(name)
+        return real(*args, **kwargs)
+
+    proxy = fleet_mod._core
+    if not isinstance(proxy, types.SimpleNamespace):
+        proxy = types.SimpleNamespace(**{k: getattr(_core, k) for k in dir(_core)
+                                         if not k.startswith("__")})
+        monkeypatch.setattr(fleet_mod, "_core", proxy)
+    setattr(proxy, name, spy)
+
+
+def test_unset_settings_are_left_to_the_library(files, monkeypatch):
+    """None is passed on (the library's defaults: the spec's, or ic.defaults()), never a value
+    of the fleet's own; the fit's polish only when given."""
+    calls = {}
+    _spy(monkeypatch, "fit", calls, stop=True)
+    row = run_job(Job("d", TRUTH, [files["ev3"]], calib=CALIB))
+    assert row["status"] == "failed" and row["step"] == "fit" and row["error_type"] == "_Stop"
+    kw = calls["fit"]
+    assert "polish" not in kw and "lbfgs_iterations" not in kw
+    assert {k: kw[k] for k in ("seed", "particles", "pso_iterations", "local_iterations")} == dict.fromkeys(
+        ("seed", "particles", "pso_iterations", "local_iterations"))
+    _spy(monkeypatch, "fit", calls, stop=False)
+    _spy(monkeypatch, "diagnose", calls, stop=True)
+    row = run_job(Job("d", TRUTH, [files["ev3"]], calib=CALIB, stages="gen", diagnose=True,
+                      causes=["measurement_skew"], **QUICK), threads=1)
+    assert row["status"] == "failed" and row["step"] == "diagnose" and row["j_fit"] > 0
+    assert calls["fit"]["polish"] is False and calls["fit"]["local_iterations"] == 2
+    kw = calls["diagnose"]
+    assert {k: kw[k] for k in ("seed", "particles", "pso_iterations", "local_iterations")} == dict.fromkeys(
+        ("seed", "particles", "pso_iterations", "local_iterations"))
+    assert "lbfgs_iterations" not in kw and kw.get("unit") is None
+    assert isinstance(kw["fit"], ic.FitResult) and kw["causes"] == ["measurement_skew"]
+
+
+def test_old_option_names_still_work_with_a_warning(tmp_path):
+    with pytest.warns(DeprecationWarning) as rec:
+        j = Job("a", "u.toml", "e.toml", lbfgs_iterations=3, diagnose=True,
+                diagnose_lbfgs_iterations=4)
+    assert [str(w.message) for w in rec] == [
+        "lbfgs_iterations is deprecated: it is now local_iterations (it caps the local method, "
+        "Levenberg-Marquardt or L-BFGS)",
+        "diagnose_lbfgs_iterations is deprecated: it is now diagnose_local_iterations (it caps "
+        "the local method, Levenberg-Marquardt or L-BFGS)",
+    ]
+    assert {w.filename for w in rec} == {__file__}  # the warning points at the Job(...) call
+    assert j == Job("a", "u.toml", "e.toml", local_iterations=3, diagnose=True,
+                    diagnose_local_iterations=4)
+    assert pickle.loads(pickle.dumps(j)) == j
+    with pytest.warns(DeprecationWarning, match="Job.lbfgs_iterations is deprecated"):
+        assert j.lbfgs_iterations == 3
+    with pytest.warns(DeprecationWarning, match="Job.diagnose_lbfgs_iterations is deprecated"):
+        assert j.diagnose_lbfgs_iterations == 4
+    with pytest.raises(TypeError, match="local_iterations and lbfgs_iterations .its old name. were both given"):
+        Job("a", "u.toml", "e.toml", local_iterations=2, lbfgs_iterations=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the new names: no warning
+        assert Job("a", "u.toml", "e.toml", local_iterations=3).local_iterations == 3
+    # The job table's old column name.
+    table = tmp_path / "old.csv"
+    table.write_text("name,unit,events,lbfgs_iterations\na,u.toml,e.toml,5\n")
+    with pytest.warns(DeprecationWarning, match="column lbfgs_iterations is deprecated: it is now local_iterations"):
+        (old,) = jobs_from_csv(table)
+    assert old.local_iterations == 5
+    table.write_text("name,unit,events,lbfgs_iterations\na,u.toml,e.toml,x\n")
+    with pytest.warns(DeprecationWarning), pytest.raises(ValueError, match="line 2, column lbfgs_iterations: not an integer"):
+        jobs_from_csv(table)
+    table.write_text("name,unit,events,lbfgs_iterations,local_iterations\na,u.toml,e.toml,5,5\n")
+    with pytest.raises(ValueError, match="line 1, column lbfgs_iterations: the old name of column local_iterations"):
+        jobs_from_csv(table)
+
+
 def test_jobs_from_csv_resolves_relative_paths(files, tmp_path):
     table = tmp_path / "tables" / "fleet.csv"
     table.parent.mkdir()
     ev1, ev2 = (os.path.relpath(files[k], table.parent) for k in ("ev1", "ev2"))
     unit = os.path.relpath(files["nominal"], table.parent)
     table.write_text(
-        "name,unit,events,held_out,calib,stages,seed,diagnose,particles,pso_iterations,lbfgs_iterations,out\n"
+        "name,unit,events,held_out,calib,stages,seed,diagnose,particles,pso_iterations,local_iterations,out\n"
         "# a comment line\n"
         f"u1,{unit},{ev1};{ev2},,{CALIB},gen,7,,4,2,2,out/u1\n"
         "\n"
@@ -380,7 +485,7 @@ def test_jobs_from_csv_resolves_relative_paths(files, tmp_path):
     assert Path(u1.unit) == (table.parent / unit) and Path(u1.unit).resolve() == files["nominal"].resolve()
     assert [Path(e).resolve() for e in u1.events] == [files["ev1"].resolve(), files["ev2"].resolve()]
     assert u1.calib == str(CALIB) and u1.stages == "gen" and u1.seed == 7 and u1.particles == 4
-    assert (u1.pso_iterations, u1.lbfgs_iterations) == (2, 2)
+    assert (u1.pso_iterations, u1.local_iterations) == (2, 2)
     assert Path(u1.out) == table.parent / "out" / "u1" and not u1.diagnose
     assert [Path(e).resolve() for e in u2.held_out] == [files["ev1"].resolve()]
     assert u2.stages == "gen,avr" and u2.seed is None and u2.calib is None and u2.out is None
@@ -389,7 +494,7 @@ def test_jobs_from_csv_resolves_relative_paths(files, tmp_path):
     # The jobs run: u1 in process gives the numbers of the same Job written by hand.
     row = run_job(Job(**{**u1.__dict__, "out": None}), threads=1)
     direct = ic.fit([files["ev1"], files["ev2"]], files["nominal"], calib=CALIB, stages="gen", seed=7,
-                    particles=4, pso_iterations=2, lbfgs_iterations=2)
+                    particles=4, pso_iterations=2, local_iterations=2)
     assert row["status"] == "ok" and row["n_events"] == 2
     assert row["j_fit"] == pytest.approx(direct.fitness[-1][1], rel=1e-12)
 
