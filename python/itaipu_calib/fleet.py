@@ -21,17 +21,30 @@ run one after another in this process, with the same rows.
 * Each job runs :func:`itaipu_calib.fit` and, if asked, :func:`itaipu_calib.diagnose` of the
   calibrated unit (``fit=`` the fit, so the whole calibrated set is re-freed) in the worker.
   Every decision is the library's: the stage names (:func:`itaipu_calib.stages`), the search
-  settings left None (:func:`itaipu_calib.defaults`, or the calibration spec's) and the reports.
+  settings left None (:func:`itaipu_calib.defaults`, or the calibration spec's), the reports
+  and the files written.
 * A job that fails (a bad file, a unit that cannot initialise, a worker that died) is a row
   with ``status == "failed"``, the step it failed in, the error's type, ``kind`` and message on
   one line; the other jobs go on.
 * Each job's Rust worker pool is sized so that the jobs do not oversubscribe the cores
   (``threads_per_job``; by default, with a client, the cores of each host shared among the
   Dask worker threads on it). The numbers do not depend on it: same seed, same J.
-* ``Job.out`` writes the job's results into a folder (``calibrated.toml``, ``report.json``,
-  ``diagnosis.json``, ``extended.toml`` when a cause is named, and ``row.json`` last): each
-  file through a temporary name then a rename, never over an existing file unless
-  ``overwrite=True``. A job's folder is complete if and only if it holds ``row.json``.
+* ``Job.out`` is a folder for the job's results, written by the library's writers, after the
+  work::
+
+      out/fit/        FitResult.write: what ``itaipu-calib fit --out`` writes (report.json,
+                      calibrated.toml, datasheet.toml, calibration.toml, a folder per stage,
+                      manifest.json last), without plots or HTML
+      out/diagnose/   Diagnosis.write, when diagnosed: what ``itaipu-calib diagnose --out``
+                      writes (diagnosis.json, extended.toml when a cause is named,
+                      warnings.json, manifest.json last), without plots or HTML
+      out/row.json    the job's row, last (a temporary name, then a rename)
+
+  The job's folder is complete if and only if it holds ``row.json``; each sub-folder is
+  complete if and only if it holds its ``manifest.json`` (each comes through a temporary folder
+  renamed into place). Without ``overwrite`` a job whose folder already holds any of them fails
+  before the work and replaces nothing; with ``overwrite=True`` ``row.json`` goes first, then
+  the sub-folders are replaced whole (only folders of ours: the library's rule).
 
 Dask (``pip install dask distributed`` or ``'itaipu-calib[fleet]'``) is needed only by the
 client; this module imports without it.
@@ -44,6 +57,7 @@ import importlib
 import json
 import math
 import os
+import shutil
 import socket
 import time
 import uuid
@@ -57,6 +71,7 @@ from . import _core
 __all__ = ["COLUMNS", "FleetResult", "Job", "jobs_from_csv", "run_fleet", "run_job"]
 
 _PathLike = Union[str, "os.PathLike[str]"]
+_Row = Dict[str, Any]
 
 #: The columns of a row, in order (see :func:`run_job`).
 COLUMNS: Tuple[str, ...] = (
@@ -85,9 +100,11 @@ COLUMNS: Tuple[str, ...] = (
     "wall_s",
 )
 
-# The files a job writes into its folder, in the order they are renamed into place; row.json,
-# last, marks the folder complete.
-_OUT_FILES = ("calibrated.toml", "report.json", "diagnosis.json", "extended.toml", "row.json")
+# A job's folder: the fit's folder (FitResult.write), the diagnosis' (Diagnosis.write), and the
+# row, written last: the job's folder is complete if and only if it holds row.json.
+_FIT_DIR = "fit"
+_DIAGNOSE_DIR = "diagnose"
+_ROW_FILE = "row.json"
 
 
 def _stage_names() -> Tuple[str, ...]:
@@ -187,8 +204,9 @@ class Job:
     ``diagnose=True`` diagnoses the calibrated unit after the fit (``causes``: the causes to
     try, default the whole catalog; ``seed`` and ``diagnose_particles``,
     ``diagnose_pso_iterations``, ``diagnose_local_iterations``: the re-fits' settings, None:
-    ``itaipu_calib.defaults()["diagnose"]``). ``out``: a folder for the job's files;
-    ``overwrite=True`` lets them replace existing ones.
+    ``itaipu_calib.defaults()["diagnose"]``). ``out``: a folder for the job's files
+    (``fit/``, ``diagnose/``, ``row.json``: see :mod:`itaipu_calib.fleet`); ``overwrite=True``
+    lets them replace an earlier run's.
 
     ``lbfgs_iterations`` and ``diagnose_lbfgs_iterations`` are the old names of
     ``local_iterations`` and ``diagnose_local_iterations``: still accepted, with a
@@ -339,18 +357,27 @@ def _json(value: Any) -> str:
 
 
 def _check_out(job: Job) -> Path:
-    """Creates the job's folder, checks that it is writable and, without ``overwrite``, that
-    none of the job's files exists, before any computation."""
+    """Creates the job's folder and checks, before any computation, that it is writable and
+    that the job may write its files there: without ``overwrite``, none of them exists (an
+    empty folder is no result); with it, each sub-folder to replace is one of ours (the
+    library's rule, as ``fit --out --force``)."""
     assert job.out is not None
     out = Path(job.out)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"{out} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
-    if not job.overwrite:
-        for name in _OUT_FILES:
-            if (out / name).exists():
+    for name in (_ROW_FILE, _FIT_DIR, _DIAGNOSE_DIR):
+        p = out / name
+        if not job.overwrite:
+            if p.exists() and not (p.is_dir() and not any(p.iterdir())):
                 raise FileExistsError(
-                    f"{out / name} exists: not overwritten (Job(..., overwrite=True) replaces "
-                    "it, or give the job another out folder)"
+                    f"{p} exists: not overwritten (Job(..., overwrite=True) replaces the job's "
+                    "files, or give the job another out folder)"
                 )
+        elif name != _ROW_FILE:
+            _core._check_out(p, True)
+        elif p.is_dir():
+            raise FileExistsError(f"{p} is a folder: not replaced")
     probe = out / f".fleet-probe-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     probe.write_text("")
     probe.unlink()
@@ -374,34 +401,40 @@ def _commit(tmp: Path, final: Path, overwrite: bool) -> None:
     tmp.unlink()
 
 
-def _write_out(out: Path, files: Dict[str, str], overwrite: bool) -> None:
-    """Writes ``files`` (name -> text) into ``out``: every file first under a temporary name,
-    then renamed into place in order, ``row.json`` last. Files of an earlier run that this run
-    does not write are removed when overwriting."""
-    tag = f"partial-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-    tmps: List[Tuple[Path, Path]] = []
+def _write_row(out: Path, row: _Row, overwrite: bool) -> None:
+    """Writes ``row.json`` through a temporary name then a rename (the job's folder is then
+    complete); no temporary file is left, whatever happens."""
+    tmp = out / f".{_ROW_FILE}.partial-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     try:
-        for name, text in files.items():
-            tmp = out / f".{name}.{tag}"
-            with open(tmp, "w", encoding="utf-8", newline="\n") as f:
-                f.write(text)
-                f.flush()
-                os.fsync(f.fileno())
-            tmps.append((tmp, out / name))
-        if overwrite:
-            # The folder is incomplete from here until row.json is back.
-            for name in ("row.json",) + tuple(n for n in _OUT_FILES if n not in files):
-                if (out / name).exists():
-                    (out / name).unlink()
-        for tmp, final in tmps:
-            _commit(tmp, final, overwrite)
+        with open(tmp, "w", encoding="utf-8", newline="\n") as f:
+            f.write(_json(row))
+            f.flush()
+            os.fsync(f.fileno())
+        _commit(tmp, out / _ROW_FILE, overwrite)
     finally:
-        for tmp, _ in tmps:
-            if tmp.exists():
-                tmp.unlink()
+        if tmp.exists():
+            tmp.unlink()
 
 
-def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
+def _write_out(out: Path, job: Job, fit: _core.FitResult, diagnosis: Optional[_core.Diagnosis],
+               row: _Row) -> None:
+    """Writes the job's folder after the work: ``fit/`` and ``diagnose/`` by the library's
+    writers (each through a temporary folder renamed into place, manifest.json last), then
+    ``row.json``. With ``overwrite``, the earlier ``row.json`` goes first (the folder is
+    incomplete until the new one is in), and an earlier ``diagnose/`` that this job does not
+    write is removed."""
+    if job.overwrite and (out / _ROW_FILE).exists():
+        (out / _ROW_FILE).unlink()
+    fit.write(out / _FIT_DIR, overwrite=job.overwrite)
+    if diagnosis is not None:
+        diagnosis.write(out / _DIAGNOSE_DIR, overwrite=job.overwrite)
+    elif job.overwrite and (out / _DIAGNOSE_DIR).exists():
+        _core._check_out(out / _DIAGNOSE_DIR, True)  # ours (checked before the work too)
+        shutil.rmtree(out / _DIAGNOSE_DIR)
+    _write_row(out, row, job.overwrite)
+
+
+def run_job(job: Job, *, threads: Optional[int] = None) -> _Row:
     """Runs one job in this process and returns its row (a dict with the keys of
     :data:`COLUMNS`). It never raises for a failing job (only for KeyboardInterrupt).
 
@@ -421,7 +454,8 @@ def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
       ``host``, ``pid``, ``wall_s``.
 
     ``threads``: the worker threads of the fit and the diagnosis (None: all cores, or
-    ``RAYON_NUM_THREADS``).
+    ``RAYON_NUM_THREADS``). With ``job.out``, the folder is checked before the work and written
+    after it (see :mod:`itaipu_calib.fleet`); a job that fails writes no ``row.json``.
     """
     t0 = time.perf_counter()
     row = _empty_row(job)
@@ -468,13 +502,7 @@ def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
             row["out"] = str(out)
             row["status"] = "ok"
             row["wall_s"] = time.perf_counter() - t0
-            files = {"calibrated.toml": fit.unit.to_toml(), "report.json": _json(fit.report)}
-            if diagnosis is not None:
-                files["diagnosis.json"] = diagnosis.to_json()
-                if diagnosis.extended_unit_toml is not None:
-                    files["extended.toml"] = diagnosis.extended_unit_toml
-            files["row.json"] = _json(row)
-            _write_out(out, files, job.overwrite)
+            _write_out(out, job, fit, diagnosis, row)
         row["status"] = "ok"
     except Exception as e:
         if row["status"] == "ok":  # failed while writing
@@ -576,7 +604,7 @@ def run_fleet(
     client: Any = None,
     *,
     threads_per_job: Optional[int] = None,
-    on_row: Optional[Callable[[Dict[str, Any]], None]] = None,
+    on_row: Optional[Callable[[_Row], None]] = None,
 ) -> FleetResult:
     """Runs every job and returns their rows, in the jobs' order.
 
@@ -622,7 +650,7 @@ def run_fleet(
         for i, job in enumerate(jobs)
     ]
     index = {f.key: i for i, f in enumerate(futures)}
-    slots: List[Optional[Dict[str, Any]]] = [None] * len(jobs)
+    slots: List[Optional[_Row]] = [None] * len(jobs)
     try:
         for fut in as_completed(futures):
             i = index[fut.key]
