@@ -45,6 +45,8 @@ run one after another in this process, with the same rows.
   renamed into place). Without ``overwrite`` a job whose folder already holds any of them fails
   before the work and replaces nothing; with ``overwrite=True`` ``row.json`` goes first, then
   the sub-folders are replaced whole (only folders of ours: the library's rule).
+* :func:`run_fleet` shows its progress on stderr (jobs done / total, failures so far, elapsed
+  time) when stderr is a terminal, or as asked by ``progress=``.
 
 Dask (``pip install dask distributed`` or ``'itaipu-calib[fleet]'``) is needed only by the
 client; this module imports without it.
@@ -59,12 +61,14 @@ import math
 import os
 import shutil
 import socket
+import sys
+import threading
 import time
 import uuid
 import warnings
 from dataclasses import InitVar, dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, TextIO, Tuple, Union
 
 from . import _core
 
@@ -599,12 +603,122 @@ def _run_task(job: Job, threads: Optional[int], by_host: Dict[str, int]) -> Dict
     return run_job(job, threads=threads)
 
 
+def _clock(seconds: float) -> str:
+    """Elapsed time as m:ss or h:mm:ss."""
+    s = int(max(0.0, seconds))
+    h, rest = divmod(s, 3600)
+    m, s = divmod(rest, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+def _is_terminal(stream: Any) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # no isatty, or closed
+        return False
+
+
+class _Progress:
+    """A fleet's progress on a stream (stderr): jobs done / total, failures so far, elapsed
+    time, and the last job finished. On a terminal one line, rewritten in place and refreshed
+    every second (the clock runs while a long job does); elsewhere one line per finished job."""
+
+    def __init__(self, total: int, stream: TextIO) -> None:
+        self.total = total
+        self.stream = stream
+        self.live = _is_terminal(stream)
+        self.done = 0
+        self.failed = 0
+        self.last: Optional[_Row] = None
+        self.t0 = time.monotonic()
+        self._width = 0
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._ticker: Optional[threading.Thread] = None
+        if self.live:
+            self._show()
+            self._ticker = threading.Thread(target=self._tick, name="itaipu-fleet-progress",
+                                            daemon=True)
+            self._ticker.start()
+
+    def line(self) -> str:
+        text = (f"fleet: {self.done}/{self.total} jobs done, {self.failed} failed, "
+                f"{_clock(time.monotonic() - self.t0)} elapsed")
+        r = self.last
+        if r is not None:
+            text += f"; last: {r.get('job')} {r.get('status')}"
+            if r.get("status") != "ok":
+                text += f" ({r.get('error_type')} in {r.get('step')})"
+        return text
+
+    def _show(self) -> None:
+        text = self.line()
+        try:
+            if self.live:
+                self.stream.write("\r" + text + " " * max(0, self._width - len(text)))
+                self._width = len(text)
+            else:
+                self.stream.write(text + "\n")
+            self.stream.flush()
+        except (OSError, ValueError):  # a closed or broken stream: no progress, the fleet goes on
+            pass
+
+    def _tick(self) -> None:
+        while not self._stop.wait(1.0):
+            with self._lock:
+                self._show()
+
+    def __call__(self, row: _Row) -> None:
+        with self._lock:
+            self.done += 1
+            if row.get("status") != "ok":
+                self.failed += 1
+            self.last = row
+            self._show()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._ticker is not None:
+            self._ticker.join()
+        if self.live:
+            try:
+                self.stream.write("\n")
+                self.stream.flush()
+            except (OSError, ValueError):
+                pass
+
+
+_ProgressArg = Union[bool, None, Callable[[_Row], Any]]
+
+
+def _progress_sinks(progress: _ProgressArg, on_row: Optional[Callable[[_Row], Any]],
+                    total: int) -> Tuple[List[Callable[[_Row], Any]], Optional[_Progress]]:
+    """What receives each finished row: the progress display on stderr (``progress`` True, or
+    None with stderr a terminal), a callable given as ``progress``, and ``on_row``."""
+    sinks: List[Callable[[_Row], Any]] = []
+    display: Optional[_Progress] = None
+    if progress is None:
+        progress = _is_terminal(sys.stderr)
+    if progress is True:
+        display = _Progress(total, sys.stderr)
+        sinks.append(display)
+    elif progress is not False:
+        if not callable(progress):
+            raise TypeError("progress must be True, False, None (True when stderr is a "
+                            f"terminal) or a callable taking a row (got {progress!r})")
+        sinks.append(progress)
+    if on_row is not None:
+        sinks.append(on_row)
+    return sinks, display
+
+
 def run_fleet(
     jobs: Iterable[Job],
     client: Any = None,
     *,
     threads_per_job: Optional[int] = None,
-    on_row: Optional[Callable[[_Row], None]] = None,
+    progress: _ProgressArg = None,
+    on_row: Optional[Callable[[_Row], Any]] = None,
 ) -> FleetResult:
     """Runs every job and returns their rows, in the jobs' order.
 
@@ -617,8 +731,13 @@ def run_fleet(
     ``threads_per_job``: the Rust worker threads of each job. Default: with a client, each
     host's cores divided among the Dask worker threads on it (so that 2 workers of 1 thread on
     2 cores run 1 thread each); without, all cores. The numbers do not depend on it.
-    ``on_row(row)`` is called as each job's row arrives (in completion order), e.g. to show
-    progress. KeyboardInterrupt cancels the jobs not yet finished.
+
+    ``progress``: True shows the progress on stderr (jobs done / total, failures so far,
+    elapsed time, the last job finished: one line rewritten in place on a terminal, refreshed
+    every second, else one line per job); False shows nothing; None (the default) is True when
+    stderr is a terminal. A callable is called with each job's row as it finishes instead
+    (in completion order), as is ``on_row`` in any case. KeyboardInterrupt cancels the jobs
+    not yet finished.
     """
     jobs = list(jobs)
     for j in jobs:
@@ -630,16 +749,29 @@ def run_fleet(
             raise ValueError(f"two jobs are called {j.name!r} (jobs {seen[j.name]} and {i})")
         seen[j.name] = i
     _check_int(threads_per_job, "threads_per_job", 1)
+    sinks, display = _progress_sinks(progress, on_row, len(jobs))
 
-    if client is None:
-        rows = []
-        for job in jobs:
-            row = run_job(job, threads=threads_per_job)
-            if on_row is not None:
-                on_row(row)
-            rows.append(row)
-        return FleetResult(rows)
+    def finished(row: _Row) -> None:
+        for sink in sinks:
+            sink(row)
 
+    try:
+        if client is None:
+            rows = []
+            for job in jobs:
+                row = run_job(job, threads=threads_per_job)
+                rows.append(row)
+                finished(row)
+            return FleetResult(rows)
+        return _run_on_client(jobs, client, threads_per_job, finished)
+    finally:
+        if display is not None:
+            display.close()
+
+
+def _run_on_client(jobs: List[Job], client: Any, threads_per_job: Optional[int],
+                   finished: Callable[[_Row], None]) -> FleetResult:
+    """:func:`run_fleet` on a Dask client: one task per job."""
     from distributed import as_completed  # a client means distributed is installed
 
     by_host = _threads_by_host(client) if threads_per_job is None else {}
@@ -664,8 +796,7 @@ def run_fleet(
                 row = _failed_row(jobs[i], e, "worker")
             slots[i] = row
             fut.release()
-            if on_row is not None:
-                on_row(row)
+            finished(row)
     finally:
         pending = [f for f in futures if not f.done()]
         if pending:

@@ -1,9 +1,10 @@
 """itaipu_calib.fleet (issues 14, 25): many (unit, events) jobs on a local Dask cluster of two
 worker processes, one task per job; rows in the jobs' order, failures per job, the same numbers
 as a direct fit and diagnosis, the in-process path, job tables, the library's stage list and
-defaults, output folders written by the library's writers."""
+defaults, output folders written by the library's writers, progress."""
 
 import hashlib
+import io
 import json
 import operator
 import os
@@ -154,8 +155,14 @@ def cluster():
 
 
 @pytest.fixture(scope="module")
-def fleet(cluster, jobs):
-    return run_fleet(jobs, cluster)
+def finished_rows():
+    """The rows the fleet's progress callable received, in completion order."""
+    return []
+
+
+@pytest.fixture(scope="module")
+def fleet(cluster, jobs, finished_rows):
+    return run_fleet(jobs, cluster, progress=finished_rows.append)
 
 
 # --- the distributed run --------------------------------------------------------------------
@@ -527,7 +534,7 @@ def test_a_one_job_fleet_is_the_direct_fit_and_diagnosis(tmp_path):
               out=tmp_path / "itaipu")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ic.ItaipuWarning)  # the record's end drop-out
-        res = run_fleet([job], threads_per_job=2)
+        res = run_fleet([job], threads_per_job=2, progress=False)
         r = ic.fit(ITAIPU_EVENT, ITAIPU_UNIT, calib=CALIB, stages="all", seed=3, particles=6,
                    pso_iterations=3, local_iterations=3, threads=1)
         d = ic.diagnose(ITAIPU_EVENT, fit=r, causes=causes, seed=3, particles=8, pso_iterations=4,
@@ -559,6 +566,97 @@ def test_a_one_job_fleet_is_the_direct_fit_and_diagnosis(tmp_path):
     cli = json.loads((tmp_path / "cli" / "diagnosis.json").read_text())
     _same(diagnosis["verdict"], cli["verdict"])
     _same(diagnosis["candidates"], cli["candidates"])
+
+
+# --- progress -------------------------------------------------------------------------------
+
+LINE = r"fleet: (\d+)/(\d+) jobs done, (\d+) failed, \d+:\d\d elapsed"
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def _two_jobs(files):
+    return [Job("p1", files["nominal"], [files["ev1"]], calib=CALIB, stages="gen", seed=7, **QUICK),
+            Job("p-missing", files["dir"] / "units" / "nope.toml", [files["ev1"]])]
+
+
+def test_progress_on_stderr_one_line_per_job(files, capsys):
+    res = run_fleet(_two_jobs(files), progress=True)
+    assert [r["status"] for r in res.rows] == ["ok", "failed"]
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    lines = captured.err.splitlines()
+    assert len(lines) == 2, lines
+    assert re.fullmatch(LINE.replace(r"(\d+)/(\d+)", "1/2").replace(r"(\d+) failed", "0 failed")
+                        + "; last: p1 ok", lines[0]), lines[0]
+    assert re.fullmatch(LINE.replace(r"(\d+)/(\d+)", "2/2").replace(r"(\d+) failed", "1 failed")
+                        + r"; last: p-missing failed \(UnitModelError in fit\)", lines[1]), lines[1]
+
+
+def test_progress_by_default_only_on_a_terminal(files, monkeypatch):
+    jobs = _two_jobs(files)
+    tty = _Terminal()
+    monkeypatch.setattr(sys, "stderr", tty)
+    run_fleet(jobs)  # progress=None: stderr is a terminal
+    text = tty.getvalue()
+    # One line, rewritten in place, ended once.
+    assert text.startswith("\rfleet: 0/2 jobs done, 0 failed, 0:00 elapsed") and text.endswith("\n")
+    assert text.count("\n") == 1
+    states = [re.match(LINE, t).groups() for t in text.rstrip("\n").split("\r")[1:]]
+    assert states[0] == ("0", "2", "0") and states[-1] == ("2", "2", "1")
+    assert ("1", "2", "0") in states
+    assert text.rstrip().endswith("last: p-missing failed (UnitModelError in fit)")
+    # Not a terminal: nothing. A terminal with progress=False: nothing.
+    plain = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", plain)
+    run_fleet(jobs)
+    assert plain.getvalue() == ""
+    tty = _Terminal()
+    monkeypatch.setattr(sys, "stderr", tty)
+    run_fleet(jobs, progress=False)
+    assert tty.getvalue() == ""
+
+
+def test_progress_clock_runs_during_a_long_job(monkeypatch):
+    """On a terminal the line is refreshed every second while a job runs."""
+    def slow_job(job, *, threads=None):
+        time.sleep(2.5)
+        row = dict.fromkeys(COLUMNS)
+        row.update(job=job.name, status="ok")
+        return row
+
+    monkeypatch.setattr(fleet_mod, "run_job", slow_job)
+    tty = _Terminal()
+    monkeypatch.setattr(sys, "stderr", tty)
+    run_fleet([Job("slow", "u.toml", "e.toml")])
+    shown = [t.rstrip() for t in tty.getvalue().rstrip("\n").split("\r")[1:]]
+    # Refreshed while the job ran (the clock past 0:00), then the job's line.
+    assert any(re.fullmatch(r"fleet: 0/1 jobs done, 0 failed, 0:0[1-9] elapsed", t)
+               for t in shown), shown
+    assert re.fullmatch(r"fleet: 1/1 jobs done, 0 failed, 0:0[2-9] elapsed; last: slow ok",
+                        shown[-1]), shown
+
+
+def test_progress_callable_and_on_row_get_each_row(files):
+    seen, also = [], []
+    res = run_fleet(_two_jobs(files), progress=seen.append, on_row=also.append)
+    assert seen == also == res.rows
+    with pytest.raises(TypeError, match="progress must be"):
+        run_fleet([], progress="yes")
+
+
+def test_progress_on_the_dask_path(fleet, finished_rows, cluster, files, capsys):
+    # The fixture's callable got each row once, as it finished.
+    assert sorted(r["job"] for r in finished_rows) == sorted(r["job"] for r in fleet.rows)
+    for r in finished_rows:
+        assert r == fleet[r["job"]]
+    res = run_fleet(_two_jobs(files), cluster, progress=True)
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("fleet:")]
+    assert [re.match(LINE, ln).groups() for ln in lines][-1] == ("2", "2", "1")
+    assert len(lines) == 2 and [r["job"] for r in res.rows] == ["p1", "p-missing"]
 
 
 # --- jobs ------------------------------------------------------------------------------------
