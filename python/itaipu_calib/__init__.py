@@ -148,6 +148,10 @@ job that failed, without stopping the others)::
     result = run_fleet(jobs_from_csv("fleet.csv"), client)   # client: dask.distributed.Client
     result.to_pandas(), result.failed
 
+A job's folder (``Job(..., out=...)``) holds ``fit/`` and ``diagnose/``, written by
+:meth:`FitResult.write` and :meth:`Diagnosis.write`, then ``row.json``; :func:`run_fleet` shows
+its progress on stderr when it is a terminal (``progress=``).
+
 Errors
 ------
 Every error is an :class:`ItaipuError`; its message is exactly the message of the Rust library

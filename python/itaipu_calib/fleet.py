@@ -20,16 +20,33 @@ run one after another in this process, with the same rows.
 
 * Each job runs :func:`itaipu_calib.fit` and, if asked, :func:`itaipu_calib.diagnose` of the
   calibrated unit (``fit=`` the fit, so the whole calibrated set is re-freed) in the worker.
+  Every decision is the library's: the stage names (:func:`itaipu_calib.stages`), the search
+  settings left None (:func:`itaipu_calib.defaults`, or the calibration spec's), the reports
+  and the files written.
 * A job that fails (a bad file, a unit that cannot initialise, a worker that died) is a row
   with ``status == "failed"``, the step it failed in, the error's type, ``kind`` and message on
   one line; the other jobs go on.
 * Each job's Rust worker pool is sized so that the jobs do not oversubscribe the cores
   (``threads_per_job``; by default, with a client, the cores of each host shared among the
   Dask worker threads on it). The numbers do not depend on it: same seed, same J.
-* ``Job.out`` writes the job's results into a folder (``calibrated.toml``, ``report.json``,
-  ``diagnosis.json``, ``extended.toml`` when a cause is named, and ``row.json`` last): each
-  file through a temporary name then a rename, never over an existing file unless
-  ``overwrite=True``. A job's folder is complete if and only if it holds ``row.json``.
+* ``Job.out`` is a folder for the job's results, written by the library's writers, after the
+  work::
+
+      out/fit/        FitResult.write: what ``itaipu-calib fit --out`` writes (report.json,
+                      calibrated.toml, datasheet.toml, calibration.toml, a folder per stage,
+                      manifest.json last), without plots or HTML
+      out/diagnose/   Diagnosis.write, when diagnosed: what ``itaipu-calib diagnose --out``
+                      writes (diagnosis.json, extended.toml when a cause is named,
+                      warnings.json, manifest.json last), without plots or HTML
+      out/row.json    the job's row, last (a temporary name, then a rename)
+
+  The job's folder is complete if and only if it holds ``row.json``; each sub-folder is
+  complete if and only if it holds its ``manifest.json`` (each comes through a temporary folder
+  renamed into place). Without ``overwrite`` a job whose folder already holds any of them fails
+  before the work and replaces nothing; with ``overwrite=True`` ``row.json`` goes first, then
+  the sub-folders are replaced whole (only folders of ours: the library's rule).
+* :func:`run_fleet` shows its progress on stderr (jobs done / total, failures so far, elapsed
+  time) when stderr is a terminal, or as asked by ``progress=``.
 
 Dask (``pip install dask distributed`` or ``'itaipu-calib[fleet]'``) is needed only by the
 client; this module imports without it.
@@ -42,20 +59,23 @@ import importlib
 import json
 import math
 import os
+import shutil
 import socket
+import sys
+import threading
 import time
 import uuid
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import InitVar, dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, TextIO, Tuple, Union
 
 from . import _core
 
 __all__ = ["COLUMNS", "FleetResult", "Job", "jobs_from_csv", "run_fleet", "run_job"]
 
 _PathLike = Union[str, "os.PathLike[str]"]
-
-_STAGES = ("gen", "avr", "pss", "tg")
+_Row = Dict[str, Any]
 
 #: The columns of a row, in order (see :func:`run_job`).
 COLUMNS: Tuple[str, ...] = (
@@ -84,9 +104,56 @@ COLUMNS: Tuple[str, ...] = (
     "wall_s",
 )
 
-# The files a job writes into its folder, in the order they are renamed into place; row.json,
-# last, marks the folder complete.
-_OUT_FILES = ("calibrated.toml", "report.json", "diagnosis.json", "extended.toml", "row.json")
+# A job's folder: the fit's folder (FitResult.write), the diagnosis' (Diagnosis.write), and the
+# row, written last: the job's folder is complete if and only if it holds row.json.
+_FIT_DIR = "fit"
+_DIAGNOSE_DIR = "diagnose"
+_ROW_FILE = "row.json"
+
+
+def _stage_names() -> Tuple[str, ...]:
+    """The library's stage names, in the order they run, then ``all``
+    (:func:`itaipu_calib.stages`; asked each time: it is cheap)."""
+    return tuple(_core.stages())
+
+
+def _stage_choices() -> str:
+    names = _stage_names()
+    return ", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else ", ".join(names)
+
+
+def _stages(value: Any, what: str) -> Tuple[str, ...]:
+    """The stages named in ``value`` (a string or a list of names), checked against the
+    library's list; ``()`` when none is named. ValueError naming the first unknown one."""
+    names = _names(value, what)
+    bad = [n for n in names if n not in _stage_names()]
+    if bad:
+        raise ValueError(f"{what}: unknown stage {bad[0]!r} ({_stage_choices()})")
+    return names
+
+
+def _stage_text(names: Tuple[str, ...]) -> str:
+    """``all``, or the named stages comma-separated in the order they run."""
+    if "all" in names:
+        return "all"
+    return ",".join(s for s in _stage_names() if s in names)
+
+
+def _renamed(old: str, new: str, old_value: Any, new_value: Any, where: str,
+             stacklevel: int) -> Any:
+    """The value of an option given under its old name (a DeprecationWarning, as the module's
+    functions give) or its new one; TypeError when both are given."""
+    if old_value is None:
+        return new_value
+    if new_value is not None:
+        raise TypeError(f"{where}{new} and {old} (its old name) were both given: give {new} only")
+    warnings.warn(
+        f"{old} is deprecated: it is now {new} (it caps the local method, Levenberg-Marquardt "
+        "or L-BFGS)",
+        DeprecationWarning,
+        stacklevel=stacklevel + 1,
+    )
+    return old_value
 
 
 def _paths(value: Any, what: str) -> Tuple[str, ...]:
@@ -134,13 +201,20 @@ class Job:
 
     ``unit``, ``events``, ``held_out``, ``calib`` and ``out`` are paths (``events`` and
     ``held_out`` a path or a list of paths), stored as strings; they are read in the worker, so
-    on a cluster they must be visible there. ``stages``, ``seed``, ``particles``,
-    ``pso_iterations``, ``lbfgs_iterations`` and ``polish`` are :func:`itaipu_calib.fit`'s
-    (None: the calibration spec's). ``diagnose=True`` diagnoses the calibrated unit after the
-    fit (``causes``: the causes to try, default the whole catalog; ``diagnose_particles``,
-    ``diagnose_pso_iterations``, ``diagnose_lbfgs_iterations``: the re-fits' settings, None:
-    :func:`itaipu_calib.diagnose`'s defaults; the seed is ``seed``, or 1). ``out``: a folder
-    for the job's files; ``overwrite=True`` lets them replace existing ones.
+    on a cluster they must be visible there. ``stages`` (names of :func:`itaipu_calib.stages`),
+    ``seed``, ``particles``, ``pso_iterations``, ``local_iterations`` and ``polish`` are
+    :func:`itaipu_calib.fit`'s; None leaves the choice to the library (the calibration spec's,
+    else ``itaipu_calib.defaults()["fit"]``; ``polish``: the final joint pass).
+    ``diagnose=True`` diagnoses the calibrated unit after the fit (``causes``: the causes to
+    try, default the whole catalog; ``seed`` and ``diagnose_particles``,
+    ``diagnose_pso_iterations``, ``diagnose_local_iterations``: the re-fits' settings, None:
+    ``itaipu_calib.defaults()["diagnose"]``). ``out``: a folder for the job's files
+    (``fit/``, ``diagnose/``, ``row.json``: see :mod:`itaipu_calib.fleet`); ``overwrite=True``
+    lets them replace an earlier run's.
+
+    ``lbfgs_iterations`` and ``diagnose_lbfgs_iterations`` are the old names of
+    ``local_iterations`` and ``diagnose_local_iterations``: still accepted, with a
+    DeprecationWarning.
     """
 
     name: str
@@ -152,22 +226,33 @@ class Job:
     seed: Optional[int] = None
     particles: Optional[int] = None
     pso_iterations: Optional[int] = None
-    lbfgs_iterations: Optional[int] = None
-    polish: bool = True
+    local_iterations: Optional[int] = None
+    polish: Optional[bool] = None
     diagnose: bool = False
     causes: Optional[Tuple[str, ...]] = None
     diagnose_particles: Optional[int] = None
     diagnose_pso_iterations: Optional[int] = None
-    diagnose_lbfgs_iterations: Optional[int] = None
+    diagnose_local_iterations: Optional[int] = None
     out: Optional[str] = None
     overwrite: bool = False
+    # The old names (deprecated): not fields, folded into the new ones.
+    lbfgs_iterations: InitVar[Optional[int]] = None
+    diagnose_lbfgs_iterations: InitVar[Optional[int]] = None
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, lbfgs_iterations: Optional[int],
+                      diagnose_lbfgs_iterations: Optional[int]) -> None:
         def put(name: str, value: Any) -> None:
             object.__setattr__(self, name, value)
 
         if not isinstance(self.name, str) or not self.name.strip():
             raise ValueError(f"Job.name must be a non-empty string (got {self.name!r})")
+        # stacklevel 3: the warning points at the Job(...) call (through __init__).
+        put("local_iterations", _renamed("lbfgs_iterations", "local_iterations",
+                                         lbfgs_iterations, self.local_iterations,
+                                         f"Job {self.name}: ", 3))
+        put("diagnose_local_iterations", _renamed(
+            "diagnose_lbfgs_iterations", "diagnose_local_iterations", diagnose_lbfgs_iterations,
+            self.diagnose_local_iterations, f"Job {self.name}: ", 3))
         if not isinstance(self.unit, (str, os.PathLike)):
             raise TypeError(f"Job {self.name}: unit must be a path (got {self.unit!r})")
         put("unit", os.fspath(self.unit))
@@ -181,28 +266,43 @@ class Job:
                 if not isinstance(v, (str, os.PathLike)):
                     raise TypeError(f"Job {self.name}: {key} must be a path or None (got {v!r})")
                 put(key, os.fspath(v))
-        stages = _names(self.stages, f"Job {self.name}: stages")
-        bad = [s for s in stages if s != "all" and s not in _STAGES]
-        if bad or not stages:
-            raise ValueError(
-                f"Job {self.name}: stages: unknown stage {bad[0]!r} (gen, avr, pss, tg or all)"
-                if bad
-                else f"Job {self.name}: stages is empty"
-            )
-        put("stages", "all" if "all" in stages else ",".join(s for s in _STAGES if s in stages))
+        stages = _stages(self.stages, f"Job {self.name}: stages")
+        if not stages:
+            raise ValueError(f"Job {self.name}: stages is empty")
+        put("stages", _stage_text(stages))
         _check_int(self.seed, f"Job {self.name}: seed", 0)
         _check_int(self.particles, f"Job {self.name}: particles", 2)
         _check_int(self.diagnose_particles, f"Job {self.name}: diagnose_particles", 2)
-        for key in ("pso_iterations", "lbfgs_iterations", "diagnose_pso_iterations",
-                    "diagnose_lbfgs_iterations"):
+        for key in ("pso_iterations", "local_iterations", "diagnose_pso_iterations",
+                    "diagnose_local_iterations"):
             _check_int(getattr(self, key), f"Job {self.name}: {key}", 0)
-        for key in ("polish", "diagnose", "overwrite"):
+        if self.polish is not None and not isinstance(self.polish, bool):
+            raise TypeError(f"Job {self.name}: polish must be True, False or None")
+        for key in ("diagnose", "overwrite"):
             if not isinstance(getattr(self, key), bool):
                 raise TypeError(f"Job {self.name}: {key} must be True or False")
         if self.causes is not None:
             put("causes", _names(self.causes, f"Job {self.name}: causes") or None)
             if not self.diagnose:
                 raise ValueError(f"Job {self.name}: causes given but diagnose is False")
+
+
+def _old_name(old: str, new: str) -> property:
+    def get(self: Job) -> Optional[int]:
+        warnings.warn(f"Job.{old} is deprecated: it is now Job.{new}", DeprecationWarning,
+                      stacklevel=2)
+        value: Optional[int] = getattr(self, new)
+        return value
+
+    return property(get, doc=f"The old name of :attr:`{new}` (deprecated).")
+
+
+# Reading an old name gives the new field, with a warning (the InitVars' defaults are already
+# in __init__).
+for _old, _new in (("lbfgs_iterations", "local_iterations"),
+                   ("diagnose_lbfgs_iterations", "diagnose_local_iterations")):
+    setattr(Job, _old, _old_name(_old, _new))
+del _old, _new
 
 
 def _one_line(e: BaseException) -> str:
@@ -261,18 +361,27 @@ def _json(value: Any) -> str:
 
 
 def _check_out(job: Job) -> Path:
-    """Creates the job's folder, checks that it is writable and, without ``overwrite``, that
-    none of the job's files exists, before any computation."""
+    """Creates the job's folder and checks, before any computation, that it is writable and
+    that the job may write its files there: without ``overwrite``, none of them exists (an
+    empty folder is no result); with it, each sub-folder to replace is one of ours (the
+    library's rule, as ``fit --out --force``)."""
     assert job.out is not None
     out = Path(job.out)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"{out} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
-    if not job.overwrite:
-        for name in _OUT_FILES:
-            if (out / name).exists():
+    for name in (_ROW_FILE, _FIT_DIR, _DIAGNOSE_DIR):
+        p = out / name
+        if not job.overwrite:
+            if p.exists() and not (p.is_dir() and not any(p.iterdir())):
                 raise FileExistsError(
-                    f"{out / name} exists: not overwritten (Job(..., overwrite=True) replaces "
-                    "it, or give the job another out folder)"
+                    f"{p} exists: not overwritten (Job(..., overwrite=True) replaces the job's "
+                    "files, or give the job another out folder)"
                 )
+        elif name != _ROW_FILE:
+            _core._check_out(p, True)
+        elif p.is_dir():
+            raise FileExistsError(f"{p} is a folder: not replaced")
     probe = out / f".fleet-probe-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     probe.write_text("")
     probe.unlink()
@@ -296,34 +405,40 @@ def _commit(tmp: Path, final: Path, overwrite: bool) -> None:
     tmp.unlink()
 
 
-def _write_out(out: Path, files: Dict[str, str], overwrite: bool) -> None:
-    """Writes ``files`` (name -> text) into ``out``: every file first under a temporary name,
-    then renamed into place in order, ``row.json`` last. Files of an earlier run that this run
-    does not write are removed when overwriting."""
-    tag = f"partial-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-    tmps: List[Tuple[Path, Path]] = []
+def _write_row(out: Path, row: _Row, overwrite: bool) -> None:
+    """Writes ``row.json`` through a temporary name then a rename (the job's folder is then
+    complete); no temporary file is left, whatever happens."""
+    tmp = out / f".{_ROW_FILE}.partial-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     try:
-        for name, text in files.items():
-            tmp = out / f".{name}.{tag}"
-            with open(tmp, "w", encoding="utf-8", newline="\n") as f:
-                f.write(text)
-                f.flush()
-                os.fsync(f.fileno())
-            tmps.append((tmp, out / name))
-        if overwrite:
-            # The folder is incomplete from here until row.json is back.
-            for name in ("row.json",) + tuple(n for n in _OUT_FILES if n not in files):
-                if (out / name).exists():
-                    (out / name).unlink()
-        for tmp, final in tmps:
-            _commit(tmp, final, overwrite)
+        with open(tmp, "w", encoding="utf-8", newline="\n") as f:
+            f.write(_json(row))
+            f.flush()
+            os.fsync(f.fileno())
+        _commit(tmp, out / _ROW_FILE, overwrite)
     finally:
-        for tmp, _ in tmps:
-            if tmp.exists():
-                tmp.unlink()
+        if tmp.exists():
+            tmp.unlink()
 
 
-def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
+def _write_out(out: Path, job: Job, fit: _core.FitResult, diagnosis: Optional[_core.Diagnosis],
+               row: _Row) -> None:
+    """Writes the job's folder after the work: ``fit/`` and ``diagnose/`` by the library's
+    writers (each through a temporary folder renamed into place, manifest.json last), then
+    ``row.json``. With ``overwrite``, the earlier ``row.json`` goes first (the folder is
+    incomplete until the new one is in), and an earlier ``diagnose/`` that this job does not
+    write is removed."""
+    if job.overwrite and (out / _ROW_FILE).exists():
+        (out / _ROW_FILE).unlink()
+    fit.write(out / _FIT_DIR, overwrite=job.overwrite)
+    if diagnosis is not None:
+        diagnosis.write(out / _DIAGNOSE_DIR, overwrite=job.overwrite)
+    elif job.overwrite and (out / _DIAGNOSE_DIR).exists():
+        _core._check_out(out / _DIAGNOSE_DIR, True)  # ours (checked before the work too)
+        shutil.rmtree(out / _DIAGNOSE_DIR)
+    _write_row(out, row, job.overwrite)
+
+
+def run_job(job: Job, *, threads: Optional[int] = None) -> _Row:
     """Runs one job in this process and returns its row (a dict with the keys of
     :data:`COLUMNS`). It never raises for a failing job (only for KeyboardInterrupt).
 
@@ -343,7 +458,8 @@ def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
       ``host``, ``pid``, ``wall_s``.
 
     ``threads``: the worker threads of the fit and the diagnosis (None: all cores, or
-    ``RAYON_NUM_THREADS``).
+    ``RAYON_NUM_THREADS``). With ``job.out``, the folder is checked before the work and written
+    after it (see :mod:`itaipu_calib.fleet`); a job that fails writes no ``row.json``.
     """
     t0 = time.perf_counter()
     row = _empty_row(job)
@@ -353,6 +469,9 @@ def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
     try:
         out = _check_out(job) if job.out is not None else None
         step = "fit"
+        fit_kw: Dict[str, Any] = {}
+        if job.polish is not None:
+            fit_kw["polish"] = job.polish
         fit = _core.fit(
             list(job.events),
             job.unit,
@@ -361,32 +480,25 @@ def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
             seed=job.seed,
             particles=job.particles,
             pso_iterations=job.pso_iterations,
-            lbfgs_iterations=job.lbfgs_iterations,
-            polish=job.polish,
+            local_iterations=job.local_iterations,
             held_out=list(job.held_out),
             threads=threads,
+            **fit_kw,
         )
         _fill_fit(row, fit)
         diagnosis = None
         if job.diagnose:
             step = "diagnose"
-            kw: Dict[str, Any] = {}
-            for key, value in (
-                ("particles", job.diagnose_particles),
-                ("pso_iterations", job.diagnose_pso_iterations),
-                ("lbfgs_iterations", job.diagnose_lbfgs_iterations),
-            ):
-                if value is not None:
-                    kw[key] = value
             diagnosis = _core.diagnose(
                 list(job.events),
-                fit.unit,
-                list(job.held_out) or None,
+                held_out=list(job.held_out) or None,
                 causes=list(job.causes) if job.causes else None,
-                seed=1 if job.seed is None else job.seed,
+                seed=job.seed,
+                particles=job.diagnose_particles,
+                pso_iterations=job.diagnose_pso_iterations,
+                local_iterations=job.diagnose_local_iterations,
                 threads=threads,
                 fit=fit,
-                **kw,
             )
             _fill_diagnosis(row, diagnosis)
         if out is not None:
@@ -394,13 +506,7 @@ def run_job(job: Job, *, threads: Optional[int] = None) -> Dict[str, Any]:
             row["out"] = str(out)
             row["status"] = "ok"
             row["wall_s"] = time.perf_counter() - t0
-            files = {"calibrated.toml": fit.unit.to_toml(), "report.json": _json(fit.report)}
-            if diagnosis is not None:
-                files["diagnosis.json"] = diagnosis.to_json()
-                if diagnosis.extended_unit_toml is not None:
-                    files["extended.toml"] = diagnosis.extended_unit_toml
-            files["row.json"] = _json(row)
-            _write_out(out, files, job.overwrite)
+            _write_out(out, job, fit, diagnosis, row)
         row["status"] = "ok"
     except Exception as e:
         if row["status"] == "ok":  # failed while writing
@@ -497,12 +603,122 @@ def _run_task(job: Job, threads: Optional[int], by_host: Dict[str, int]) -> Dict
     return run_job(job, threads=threads)
 
 
+def _clock(seconds: float) -> str:
+    """Elapsed time as m:ss or h:mm:ss."""
+    s = int(max(0.0, seconds))
+    h, rest = divmod(s, 3600)
+    m, s = divmod(rest, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+def _is_terminal(stream: Any) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # no isatty, or closed
+        return False
+
+
+class _Progress:
+    """A fleet's progress on a stream (stderr): jobs done / total, failures so far, elapsed
+    time, and the last job finished. On a terminal one line, rewritten in place and refreshed
+    every second (the clock runs while a long job does); elsewhere one line per finished job."""
+
+    def __init__(self, total: int, stream: TextIO) -> None:
+        self.total = total
+        self.stream = stream
+        self.live = _is_terminal(stream)
+        self.done = 0
+        self.failed = 0
+        self.last: Optional[_Row] = None
+        self.t0 = time.monotonic()
+        self._width = 0
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._ticker: Optional[threading.Thread] = None
+        if self.live:
+            self._show()
+            self._ticker = threading.Thread(target=self._tick, name="itaipu-fleet-progress",
+                                            daemon=True)
+            self._ticker.start()
+
+    def line(self) -> str:
+        text = (f"fleet: {self.done}/{self.total} jobs done, {self.failed} failed, "
+                f"{_clock(time.monotonic() - self.t0)} elapsed")
+        r = self.last
+        if r is not None:
+            text += f"; last: {r.get('job')} {r.get('status')}"
+            if r.get("status") != "ok":
+                text += f" ({r.get('error_type')} in {r.get('step')})"
+        return text
+
+    def _show(self) -> None:
+        text = self.line()
+        try:
+            if self.live:
+                self.stream.write("\r" + text + " " * max(0, self._width - len(text)))
+                self._width = len(text)
+            else:
+                self.stream.write(text + "\n")
+            self.stream.flush()
+        except (OSError, ValueError):  # a closed or broken stream: no progress, the fleet goes on
+            pass
+
+    def _tick(self) -> None:
+        while not self._stop.wait(1.0):
+            with self._lock:
+                self._show()
+
+    def __call__(self, row: _Row) -> None:
+        with self._lock:
+            self.done += 1
+            if row.get("status") != "ok":
+                self.failed += 1
+            self.last = row
+            self._show()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._ticker is not None:
+            self._ticker.join()
+        if self.live:
+            try:
+                self.stream.write("\n")
+                self.stream.flush()
+            except (OSError, ValueError):
+                pass
+
+
+_ProgressArg = Union[bool, None, Callable[[_Row], Any]]
+
+
+def _progress_sinks(progress: _ProgressArg, on_row: Optional[Callable[[_Row], Any]],
+                    total: int) -> Tuple[List[Callable[[_Row], Any]], Optional[_Progress]]:
+    """What receives each finished row: the progress display on stderr (``progress`` True, or
+    None with stderr a terminal), a callable given as ``progress``, and ``on_row``."""
+    sinks: List[Callable[[_Row], Any]] = []
+    display: Optional[_Progress] = None
+    if progress is None:
+        progress = _is_terminal(sys.stderr)
+    if progress is True:
+        display = _Progress(total, sys.stderr)
+        sinks.append(display)
+    elif progress is not False:
+        if not callable(progress):
+            raise TypeError("progress must be True, False, None (True when stderr is a "
+                            f"terminal) or a callable taking a row (got {progress!r})")
+        sinks.append(progress)
+    if on_row is not None:
+        sinks.append(on_row)
+    return sinks, display
+
+
 def run_fleet(
     jobs: Iterable[Job],
     client: Any = None,
     *,
     threads_per_job: Optional[int] = None,
-    on_row: Optional[Callable[[Dict[str, Any]], None]] = None,
+    progress: _ProgressArg = None,
+    on_row: Optional[Callable[[_Row], Any]] = None,
 ) -> FleetResult:
     """Runs every job and returns their rows, in the jobs' order.
 
@@ -515,8 +731,13 @@ def run_fleet(
     ``threads_per_job``: the Rust worker threads of each job. Default: with a client, each
     host's cores divided among the Dask worker threads on it (so that 2 workers of 1 thread on
     2 cores run 1 thread each); without, all cores. The numbers do not depend on it.
-    ``on_row(row)`` is called as each job's row arrives (in completion order), e.g. to show
-    progress. KeyboardInterrupt cancels the jobs not yet finished.
+
+    ``progress``: True shows the progress on stderr (jobs done / total, failures so far,
+    elapsed time, the last job finished: one line rewritten in place on a terminal, refreshed
+    every second, else one line per job); False shows nothing; None (the default) is True when
+    stderr is a terminal. A callable is called with each job's row as it finishes instead
+    (in completion order), as is ``on_row`` in any case. KeyboardInterrupt cancels the jobs
+    not yet finished.
     """
     jobs = list(jobs)
     for j in jobs:
@@ -528,16 +749,29 @@ def run_fleet(
             raise ValueError(f"two jobs are called {j.name!r} (jobs {seen[j.name]} and {i})")
         seen[j.name] = i
     _check_int(threads_per_job, "threads_per_job", 1)
+    sinks, display = _progress_sinks(progress, on_row, len(jobs))
 
-    if client is None:
-        rows = []
-        for job in jobs:
-            row = run_job(job, threads=threads_per_job)
-            if on_row is not None:
-                on_row(row)
-            rows.append(row)
-        return FleetResult(rows)
+    def finished(row: _Row) -> None:
+        for sink in sinks:
+            sink(row)
 
+    try:
+        if client is None:
+            rows = []
+            for job in jobs:
+                row = run_job(job, threads=threads_per_job)
+                rows.append(row)
+                finished(row)
+            return FleetResult(rows)
+        return _run_on_client(jobs, client, threads_per_job, finished)
+    finally:
+        if display is not None:
+            display.close()
+
+
+def _run_on_client(jobs: List[Job], client: Any, threads_per_job: Optional[int],
+                   finished: Callable[[_Row], None]) -> FleetResult:
+    """:func:`run_fleet` on a Dask client: one task per job."""
     from distributed import as_completed  # a client means distributed is installed
 
     by_host = _threads_by_host(client) if threads_per_job is None else {}
@@ -548,7 +782,7 @@ def run_fleet(
         for i, job in enumerate(jobs)
     ]
     index = {f.key: i for i, f in enumerate(futures)}
-    slots: List[Optional[Dict[str, Any]]] = [None] * len(jobs)
+    slots: List[Optional[_Row]] = [None] * len(jobs)
     try:
         for fut in as_completed(futures):
             i = index[fut.key]
@@ -562,8 +796,7 @@ def run_fleet(
                 row = _failed_row(jobs[i], e, "worker")
             slots[i] = row
             fut.release()
-            if on_row is not None:
-                on_row(row)
+            finished(row)
     finally:
         pending = [f for f in futures if not f.done()]
         if pending:
@@ -577,7 +810,9 @@ def run_fleet(
 
 _REQUIRED = ("name", "unit", "events")
 _OPTIONAL = ("held_out", "calib", "stages", "seed", "diagnose", "particles", "pso_iterations",
-             "lbfgs_iterations", "out")
+             "local_iterations", "out")
+# Old column names still read (a DeprecationWarning): {old: new}.
+_RENAMED = {"lbfgs_iterations": "local_iterations"}
 _NO = ("", "no", "false", "0", "n")
 _YES = ("yes", "true", "1", "y", "all")
 
@@ -589,8 +824,9 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
     separated by ``;``) are required; ``held_out`` (paths separated by ``;``), ``calib``,
     ``stages`` (e.g. ``gen+avr`` or ``all``; default all), ``seed``, ``diagnose`` (empty or
     ``no``: no diagnosis; ``yes``: the whole catalog; or cause ids separated by ``;``),
-    ``particles``, ``pso_iterations``, ``lbfgs_iterations`` and ``out`` (a folder for the job's
-    files) are optional; an empty cell is the default. Paths are relative to the table's
+    ``particles``, ``pso_iterations``, ``local_iterations`` (old name ``lbfgs_iterations``:
+    still read, with a DeprecationWarning) and ``out`` (a folder for the job's files) are
+    optional; an empty cell leaves the choice to the library. Paths are relative to the table's
     folder. Blank lines and lines starting with ``#`` are skipped. ``overwrite`` is given to
     every job.
 
@@ -613,6 +849,7 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
     jobs: List[Job] = []
     names: Dict[str, int] = {}
     header: Optional[List[str]] = None
+    label: Dict[str, str] = {}  # a column's name in the table (an old name, renamed)
     with open(path, newline="", encoding="utf-8-sig") as f:
         reader = csv.reader(f)
         last = 0
@@ -623,6 +860,15 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
                 continue
             if header is None:
                 header = [c.lower() for c in cells]
+                for old, new in _RENAMED.items():
+                    if old in header:
+                        if new in header:
+                            raise fail(line, old, f"the old name of column {new}, which is "
+                                       "there too: keep one")
+                        warnings.warn(f"{path}: column {old} is deprecated: it is now {new}",
+                                      DeprecationWarning, stacklevel=2)
+                        header[header.index(old)] = new
+                        label[new] = old
                 for c in header:
                     if c not in _REQUIRED + _OPTIONAL:
                         raise fail(line, c or "(empty)", "unknown column (columns: "
@@ -644,9 +890,9 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
                 try:
                     n = int(text)
                 except ValueError:
-                    raise fail(line, col, f"not an integer: {text!r}") from None
+                    raise fail(line, label.get(col, col), f"not an integer: {text!r}") from None
                 if n < minimum:
-                    raise fail(line, col, f"must be at least {minimum} (got {n})")
+                    raise fail(line, label.get(col, col), f"must be at least {minimum} (got {n})")
                 return n
 
             def listed(col: str) -> List[str]:
@@ -663,10 +909,10 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
             events = listed("events")
             if not events:
                 raise fail(line, "events", "no event (paths separated by ';')")
-            stages = _names(row.get("stages", ""), "stages") or ("all",)
-            bad = [s for s in stages if s != "all" and s not in _STAGES]
-            if bad:
-                raise fail(line, "stages", f"unknown stage {bad[0]!r} (gen, avr, pss, tg or all)")
+            try:
+                stages = _stages(row.get("stages", ""), "stages") or ("all",)
+            except ValueError as e:
+                raise fail(line, "stages", str(e).split(": ", 1)[1]) from None
             diag_text = row.get("diagnose", "")
             causes: Optional[List[str]] = None
             if diag_text.lower() in _NO:
@@ -688,11 +934,11 @@ def jobs_from_csv(path: _PathLike, *, overwrite: bool = False) -> List[Job]:
                 events=tuple(resolve(e) for e in events),
                 held_out=tuple(resolve(e) for e in listed("held_out")),
                 calib=resolve(row["calib"]) if row.get("calib") else None,
-                stages=",".join(stages),
+                stages=_stage_text(stages),
                 seed=integer("seed", 0),
                 particles=integer("particles", 2),
                 pso_iterations=integer("pso_iterations", 0),
-                lbfgs_iterations=integer("lbfgs_iterations", 0),
+                local_iterations=integer("local_iterations", 0),
                 diagnose=diagnose,
                 causes=tuple(causes) if causes else None,
                 out=resolve(row["out"]) if row.get("out") else None,

@@ -81,3 +81,15 @@ pub(crate) fn defaults<'py>(py: Python<'py>) -> PyResult<Bound<'py, pyo3::types:
 pub(crate) fn stages() -> Vec<&'static str> {
     itaipu_calib::request::Stage::NAMES.to_vec()
 }
+
+/// The library's check of an output folder before a run (`output::check_out`, what `fit --out`
+/// and `FitResult.write` check): returns None when `out` may be written (absent, empty, or,
+/// with `overwrite`, a folder of ours, which a writer then replaces whole); raises
+/// OutputError otherwise. For `itaipu_calib.fleet`, which checks a job's folders before the
+/// job's work.
+#[pyfunction]
+#[pyo3(name = "_check_out", signature = (out, overwrite = false))]
+pub(crate) fn check_out(py: Python<'_>, out: std::path::PathBuf, overwrite: bool) -> PyResult<()> {
+    use crate::errors::IntoPyErr;
+    itaipu_calib::output::check_out(Some(&out), overwrite).map_err(|e| e.into_pyerr(py))
+}
