@@ -537,7 +537,24 @@ pub fn read_fit_folder(dir: &Path) -> Result<FitFolder, Error> {
     let spec = CalibSpec::from_file(&spec_path)?;
     let datasheet_path = dir.join("datasheet.toml");
     let datasheet = load_unit(&datasheet_path)?.unit;
-    let stages: Vec<String> = spec.stages.iter().map(|s| s.name.clone()).collect();
+    // The stages the fit ran (its report's), not every stage the spec lists: a fit of gen and
+    // avr re-frees what those stages freed, as the same fit's `FitRun::calibrated_set` does.
+    let ran: Option<Vec<String>> = std::fs::read_to_string(dir.join("report.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|r| {
+            r["stages"].as_array().map(|a| {
+                a.iter()
+                    .filter_map(|s| s["stage"].as_str().map(String::from))
+                    .collect()
+            })
+        });
+    let stages: Vec<String> = spec
+        .stages
+        .iter()
+        .map(|s| s.name.clone())
+        .filter(|n| ran.as_ref().is_none_or(|r| r.contains(n)))
+        .collect();
     let calibrated_set = diagnose::calibrated_set(&spec, &stages, &datasheet, &unit);
     Ok(FitFolder {
         unit,

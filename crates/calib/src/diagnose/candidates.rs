@@ -195,12 +195,15 @@ impl Candidates<'_> {
         // extension's search may have found a better set-point than the baseline's own): the
         // baseline is the best over the same parameters, so no gain comes from optimisation luck.
         // Only for a gain that could pass: a better baseline only lowers it.
+        // Kept for this cause alone: the shared cache holds each baseline as its own search
+        // found it, so that a cause's gain does not depend on which causes were tried before it.
         let b = &baselines[&key];
         let could_pass = passes(
             b.chi2_fit - r.chi2_fit,
             b.chi2_held - r.chi2_held,
             &b.clone_scores(),
         );
+        let mut base_again: Option<Refit> = None;
         if !base_bounds.is_empty() && could_pass {
             if let Some(b2) = baseline_from(
                 &env,
@@ -210,11 +213,14 @@ impl Candidates<'_> {
                 &format!("{id} baseline again"),
             ) {
                 if b2.chi2_fit < baselines[&key].chi2_fit {
-                    baselines.insert(key.clone(), b2);
+                    base_again = Some(b2);
                 }
             }
         }
-        let base = baselines[&key].clone_scores();
+        let (base, base_rms_pq) = {
+            let b: &Refit = base_again.as_ref().unwrap_or(&baselines[&key]);
+            (b.clone_scores(), b.rms_pq)
+        };
         let raw_fit = base.chi2_fit - r.chi2_fit;
         let raw_held = base.chi2_held - r.chi2_held;
         let bic = |d_fit: f64| bic(d_fit, base.vif);
@@ -247,7 +253,6 @@ impl Candidates<'_> {
                         if let Some(b2) = baseline_from(&env_null, unit, &base_bounds, &r0, &format!("{id} null baseline again")) {
                             if b2.chi2_fit < b0.chi2_fit {
                                 b0 = b2.clone_scores();
-                                baselines.insert(nkey.clone(), b2);
                             }
                         }
                     }
@@ -265,8 +270,8 @@ impl Candidates<'_> {
                 _ => rep.note = "the surrogate (noise-only) re-fit failed: the gain is not corrected for noise fitting".into(),
             }
         }
-        let base = &baselines[&key];
-        let ((rms_p_base, rms_q_base), (rms_p_ext, rms_q_ext)) = (base.rms_pq, r.rms_pq);
+        let base_ref: &Refit = base_again.as_ref().unwrap_or(&baselines[&key]);
+        let ((rms_p_base, rms_q_base), (rms_p_ext, rms_q_ext)) = (base_rms_pq, r.rms_pq);
         let (net_fit, net_held) = (raw_fit - null_fit, raw_held - null_held);
         let gains = Gains {
             chi2_fit_base: base.chi2_fit,
@@ -307,7 +312,7 @@ impl Candidates<'_> {
                 rep.note = format!("named by the evidence: {why}");
             }
         }
-        rep.distortion = distortion(&opts.refit, &base.unit, &r.unit);
+        rep.distortion = distortion(&opts.refit, &base_ref.unit, &r.unit);
         let free = resolve(&ext.unit, &bounds).unwrap_or_default();
         rep.parameters = free
             .iter()
@@ -335,7 +340,7 @@ impl Candidates<'_> {
             if rep.significant { ", significant" } else { "" }
         ));
         rep.gains = Some(gains);
-        rep.simulations += r.simulations + base.simulations;
+        rep.simulations += r.simulations + base_ref.simulations;
         rep.failed_candidates = r.failures;
         rep.wall_s = t0.elapsed().as_secs_f64();
         (rep, Some((r, bounds, ext.ties)))

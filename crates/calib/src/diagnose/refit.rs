@@ -32,9 +32,12 @@ pub(super) const MAX_JOINT_SCAN: usize = 240;
 
 /// Identifies a set of free parameters (for re-using a baseline re-fit).
 pub(super) fn bounds_key(bounds: &[FreeBound]) -> String {
+    // Everything of a bound that changes its re-fit (its range, start, scan, prior and polish
+    // role): two causes share a cached baseline only when they would have searched it alike,
+    // so that a cause's numbers do not depend on which cause was tried first.
     bounds
         .iter()
-        .map(|b| format!("{}[{},{}]", b.param, b.min, b.max))
+        .map(|b| format!("{b:?}"))
         .collect::<Vec<_>>()
         .join(";")
 }
