@@ -22,7 +22,7 @@ EVENT = DATA / "itaipu" / "event.toml"
 UNIT = DATA / "itaipu" / "unit.toml"
 CALIB = DATA / "itaipu" / "calibration.toml"
 N_SAMPLES = 280
-QUICK = dict(particles=6, pso_iterations=3, lbfgs_iterations=2)
+QUICK = dict(particles=6, pso_iterations=3, local_iterations=2)
 
 
 @pytest.fixture(scope="module")
@@ -217,7 +217,7 @@ def test_ctrl_c_stops_a_fit_promptly():
         with pytest.raises(KeyboardInterrupt):
             # Tens of seconds uninterrupted.
             ic.fit(EVENT, UNIT, calib=CALIB, stages="gen,avr,pss", particles=40,
-                   pso_iterations=400, lbfgs_iterations=100)
+                   pso_iterations=400, local_iterations=100)
     finally:
         timer.cancel()
         signal.signal(signal.SIGINT, previous)

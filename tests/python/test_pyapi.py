@@ -24,8 +24,8 @@ EVENT = DATA / "itaipu" / "event.toml"
 UNIT = DATA / "itaipu" / "unit.toml"
 CALIB = DATA / "itaipu" / "calibration.toml"
 TRUTH = DATA / "synthetic" / "unit_gensae_sexs_stab3_hygov.toml"
-QUICK = dict(particles=6, pso_iterations=3, lbfgs_iterations=2)
-DQUICK = dict(particles=8, pso_iterations=4, lbfgs_iterations=3)
+QUICK = dict(particles=6, pso_iterations=3, local_iterations=2)
+DQUICK = dict(particles=8, pso_iterations=4, local_iterations=3)
 
 
 @pytest.fixture(scope="module")
@@ -248,7 +248,7 @@ def test_ctrl_c_stops_a_diagnosis_within_a_second(small_event):
     try:
         with pytest.raises(KeyboardInterrupt):
             # Minutes uninterrupted: the whole catalog, a large budget.
-            ic.diagnose(small_event, TRUTH, particles=40, pso_iterations=300, lbfgs_iterations=100)
+            ic.diagnose(small_event, TRUTH, particles=40, pso_iterations=300, local_iterations=100)
     finally:
         timer.cancel()
     elapsed = time.perf_counter() - t0
@@ -279,7 +279,7 @@ def test_an_interrupted_fit_keeps_its_finished_stages():
     # the interrupt lands between the end of `gen` and the end of the fit. (1 s after gen at 40
     # iterations was too little there; 16 particles left 1.2 s once the searches' integrators
     # were loosened, and the interrupt then came after the fit: 48 particles leave 3.3 s.)
-    opts = dict(calib=CALIB, stages="gen,avr,pss", seed=1, particles=48, pso_iterations=150, lbfgs_iterations=10)
+    opts = dict(calib=CALIB, stages="gen,avr,pss", seed=1, particles=48, pso_iterations=150, local_iterations=10)
     t0 = time.perf_counter()
     full = ic.fit(EVENT, UNIT, **opts)
     total = time.perf_counter() - t0
