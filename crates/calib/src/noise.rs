@@ -166,20 +166,21 @@ mod tests {
         // A channel that sits on one level but for a few toggles: the pre-event standard
         // deviation is far below what a quantiser adds; the floor is q/√12.
         let q = 0.0014;
-        let mut y = vec![0.6234; 120];
-        for k in (0..120).step_by(9) {
+        let n = 300;
+        let mut y = vec![0.6234; n];
+        for k in (0..n).step_by(25) {
             y[k] += q;
         }
-        let t: Vec<f64> = (0..120).map(|k| k as f64 / 60.0).collect();
+        let t: Vec<f64> = (0..n).map(|k| k as f64 / 60.0).collect();
         let rec = itaipu_dynamics::event::Record::from_rectangular(
             t,
-            &[1.0; 120],
-            &[0.0; 120],
+            &vec![1.0; n],
+            &vec![0.0; n],
             y.clone(),
-            vec![0.0; 120],
+            vec![0.0; n],
         );
         let ev = Event::from_record("q", rec, 100.0, 60.0, None, None).unwrap();
-        let sim = vec![0.6234; 120];
+        let sim = vec![0.6234; n];
         let f = noise_floor(&ev, &sim, &y);
         assert_eq!(f.method, NoiseMethod::Quantum);
         assert!((f.sigma - q / 12f64.sqrt()).abs() < 1e-12);

@@ -408,3 +408,89 @@ fn a_causes_gains_do_not_depend_on_the_order_the_causes_are_tried() {
     }
     assert_eq!(a.verdict.cause, b.verdict.cause);
 }
+
+/// Any exciter in the diagnosis (issue 27): on units with SEXS, ST5B, IEEET1 and ESST1A (the
+/// registry's typical values on the base machine), every cause of the catalog either builds its
+/// extension, which starts in steady state with every free parameter resolving in its bounds, or
+/// says why it does not apply; the exciter-side causes reach the exciter through the roles its
+/// model declares, so each exciter takes part in `exciter_limit`. A short diagnosis of the whole
+/// catalog then runs on each unit without an error.
+#[test]
+fn the_whole_catalog_runs_on_units_with_any_exciter() {
+    use itaipu_dynamics::simulate::{simulate, SimOptions};
+    use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
+    for model in ["SEXS", "ST5B", "IEEET1", "ESST1A"] {
+        let mut unit = base_unit();
+        let block = itaipu_dynamics::registry::find(model).unwrap().create();
+        unit.put("exciter", block, &[])
+            .unwrap_or_else(|e| panic!("{model}: {e}"));
+        let profile = VoltageProfile::preset(EventKind::FaultDip, 8.0, 30.0, 3);
+        let ev = synthesize(
+            model,
+            &unit,
+            &profile,
+            unit.machine_mva,
+            &PmuNoise::typical(3),
+            &SimOptions::default(),
+        )
+        .unwrap_or_else(|e| panic!("{model}: {e}"));
+        let ctx = itaipu_calib::diagnose::context(&unit, &ev).unwrap();
+        let mut applied = vec![];
+        for c in catalog::CAUSES {
+            let id = c.info().id;
+            match catalog::extend_all(id, &unit, &ctx) {
+                Ok(all) => {
+                    for ext in &all {
+                        let tr = simulate(&ext.unit, &ev, &SimOptions::default())
+                            .unwrap_or_else(|e| panic!("{model} {id}: {e}"));
+                        let q = tr.get("q_pu").unwrap();
+                        assert!(
+                            (q[10] - q[0]).abs() < 5e-3,
+                            "{model} {id}: Q drifts {} -> {} before the event",
+                            q[0],
+                            q[10]
+                        );
+                        for f in ext.free() {
+                            ext.unit
+                                .param(&f.param)
+                                .unwrap_or_else(|e| panic!("{model} {id}: {e}"));
+                            assert!(
+                                f.min < f.max && f.start.is_some_and(|s| s >= f.min && s <= f.max),
+                                "{model} {id}: bounds of {}",
+                                f.param
+                            );
+                        }
+                    }
+                    applied.push(id);
+                }
+                Err(catalog::CauseError::NotApplicable(why)) => {
+                    assert!(!why.trim().is_empty(), "{model} {id}: no reason given");
+                    println!("{model} {id}: not applicable: {why}");
+                }
+                Err(e) => panic!("{model} {id}: {e}"),
+            }
+        }
+        println!("{model}: {applied:?}");
+        assert!(
+            applied.contains(&"exciter_limit"),
+            "{model}: exciter_limit does not apply"
+        );
+        // The field-side causes re-free the exciter's gain by its role.
+        let gain = catalog::exciter_roles(&unit, "exciter").gain;
+        let gain = format!("exciter.{}", gain.name().unwrap());
+        let sat = catalog::extend_all("saturation", &unit, &ctx).unwrap();
+        assert!(
+            sat[0].free().any(|f| f.param == gain),
+            "{model}: saturation does not re-free {gain}"
+        );
+        let opts = DiagnoseOptions {
+            particles: 4,
+            pso_iterations: 2,
+            lbfgs_iterations: 2,
+            ..Default::default()
+        };
+        let d = diagnose(&unit, std::slice::from_ref(&ev), &[], &opts, &Silent)
+            .unwrap_or_else(|e| panic!("{model}: {e}"));
+        assert_eq!(d.report.candidates.len(), catalog::CAUSES.len());
+    }
+}

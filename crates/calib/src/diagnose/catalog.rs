@@ -7,6 +7,7 @@
 //! and [`hide`] builds the same extension with chosen values, so that `synth` can hide a cause
 //! in the truth of a synthetic event.
 
+use itaipu_dynamics::models::exciter::roles::{ExciterRoles, ParamRole};
 use std::collections::BTreeMap;
 
 use itaipu_dynamics::block::Block;
@@ -368,22 +369,67 @@ pub(crate) fn around(u: &Unit, path: &str, factor: f64) -> Option<FreeBound> {
     fb(path, lo, hi, v).ok()
 }
 
+/// The roles the exciter block `exc` of `u` declares ([`ExciterRoles`]: its model's, or a
+/// user diagram's `[exciter_roles]` table): the parameters a cause reasons about by role
+/// (gain, field time constant, ceiling, ...), never by one model's names. A block that declares
+/// none makes every role not applicable, with the reason.
+pub fn exciter_roles(u: &Unit, exc: &str) -> ExciterRoles {
+    match u.block(exc) {
+        Some(b) => b.exciter_roles().unwrap_or_else(|| {
+            ExciterRoles::none(&format!(
+                "the exciter model {} declares no exciter roles",
+                b.model()
+            ))
+        }),
+        None => ExciterRoles::none("the unit has no exciter"),
+    }
+}
+
+/// `{exc}.{parameter}` of `role`, or the role's reason as a "not applicable" error (`what`
+/// names the role in it, e.g. "a ceiling").
+pub(crate) fn role_path(
+    u: &Unit,
+    exc: &str,
+    role: &ParamRole,
+    what: &str,
+) -> Result<String, CauseError> {
+    match role {
+        ParamRole::Param(p) => Ok(format!("{exc}.{p}")),
+        ParamRole::NotApplicable(why) => Err(CauseError::not_applicable(format!(
+            "exciter {} has no {what}: {why}",
+            model_of(u, exc)
+        ))),
+    }
+}
+
+/// The exciter's gain and field time constant by role, each freed within `factor` of its value
+/// ([`around`]) where the exciter has it: what a calibration without a field-side cause bends.
+pub(crate) fn exciter_gain_and_time_constant(u: &Unit, exc: &str, factor: f64) -> Vec<FreeBound> {
+    let r = exciter_roles(u, exc);
+    [&r.gain, &r.field_time_constant]
+        .into_iter()
+        .filter_map(|role| role.name().map(|p| format!("{exc}.{p}")))
+        .filter_map(|p| around(u, &p, factor))
+        .collect()
+}
+
 /// The calibrated parameters a calibration without a field-side cause (an exciter limit, an
-/// OEL, a saturation curve) bends to make up for it: the AVR gain K_A and exciter time constant
-/// T_E within ×3 (a bent value may sit on its calibration's bound), X'_d and H within ×1.6.
-/// T'_d0 stays as given (see `trial::NOMINAL_OFFSETS`).
+/// OEL, a saturation curve) bends to make up for it: the exciter's gain and field time constant
+/// (by role: SEXS's K and T_E, ST5B's K_R and T_1, ...) within ×3 (a bent value may sit on its
+/// calibration's bound), X'_d and H within ×1.6. T'_d0 stays as given (see
+/// `trial::NOMINAL_OFFSETS`).
 pub(crate) fn field_side(u: &Unit, exciter: Option<&str>, machine: &str) -> Vec<FreeBound> {
-    let avr = exciter.into_iter().flat_map(|x| {
+    let avr = exciter
+        .into_iter()
+        .flat_map(|x| exciter_gain_and_time_constant(u, x, 3.0));
+    avr.chain(
         [
-            around(u, &format!("{x}.k"), 3.0),
-            around(u, &format!("{x}.te"), 3.0),
+            around(u, &format!("{machine}.x_d_prime"), 1.6),
+            around(u, &format!("{machine}.h"), 1.6),
         ]
-    });
-    avr.chain([
-        around(u, &format!("{machine}.x_d_prime"), 1.6),
-        around(u, &format!("{machine}.h"), 1.6),
-    ])
-    .flatten()
+        .into_iter()
+        .flatten(),
+    )
     .collect()
 }
 

@@ -5,8 +5,8 @@ use itaipu_dynamics::registry;
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    add_block, around, declared, model_of, new_block, rewire, scanned, value, Cause, CauseError,
-    CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH, GOVERNOR_DF_HZ,
+    add_block, around, declared, exciter_roles, model_of, new_block, rewire, scanned, value, Cause,
+    CauseError, CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH, GOVERNOR_DF_HZ,
 };
 use super::super::EventEvidence;
 
@@ -78,8 +78,11 @@ impl Cause for Governor {
         x.interacting_free
             .extend(around(&x.unit, &format!("{m}.x_d_prime"), 1.6));
         if let Some(exc) = &roles.exciter {
-            x.interacting_free
-                .extend(around(&x.unit, &format!("{exc}.k"), 3.0));
+            let gain = exciter_roles(&x.unit, exc).gain;
+            if let Some(k) = gain.name() {
+                x.interacting_free
+                    .extend(around(&x.unit, &format!("{exc}.{k}"), 3.0));
+            }
         }
         if ctx.sustained_df_hz.is_none_or(|df| df > GOVERNOR_DF_HZ) {
             x.search_factor = DEEP_SEARCH;

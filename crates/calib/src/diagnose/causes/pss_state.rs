@@ -5,8 +5,8 @@ use itaipu_dynamics::registry;
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    add_block, around, declared, fb, model_of, value, Cause, CauseError, CauseInfo, Context,
-    Extension, Roles, Scenario, DEEP_SEARCH,
+    add_block, around, declared, exciter_gain_and_time_constant, fb, model_of, value, Cause,
+    CauseError, CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH,
 };
 use super::super::EventEvidence;
 
@@ -52,9 +52,9 @@ impl Cause for PssState {
         // dynamics to make up for it: they move with the PSS's state (a longer search).
         x.search_factor = DEEP_SEARCH;
         let m = &roles.machine;
+        x.interacting_free
+            .extend(exciter_gain_and_time_constant(&x.unit, exc, 3.0));
         for (p, factor) in [
-            (format!("{exc}.k"), 3.0),
-            (format!("{exc}.te"), 3.0),
             (format!("{m}.h"), 1.6),
             (format!("{m}.x_d_prime"), 2.5),
             (format!("{m}.t_d0_prime"), 1.6),
