@@ -367,6 +367,17 @@ pub fn run_fit(
         opts.seed
     );
     let calibrated_set = diagnose::calibrated_set(&inputs.spec, &opts.stages, &inputs.unit, &unit);
+    // The calibrated unit's own plausibility: a value far outside its typical range, a machine
+    // pressed against the order of its reactances or time constants.
+    let mut warnings = warnings;
+    warnings.extend(
+        itaipu_dynamics::plausibility::check_unit(&unit, Path::new("calibrated.toml"))
+            .into_iter()
+            .map(|mut f| {
+                f.message = format!("the calibrated unit: {}", f.message);
+                f
+            }),
+    );
     let noise = noise_rows(&unit, &inputs.events, &inputs.held_out);
     let mut fit = result.report;
     fill_statistics(&mut fit.stages, &noise);

@@ -678,6 +678,79 @@ pub fn check_unit(unit: &Unit, file: &Path) -> Vec<Finding> {
         }
     }
     out.extend(check_saturation(unit, file));
+    out.extend(check_relations(unit, file));
+    out
+}
+
+/// How close to 1 the ratio of two parameters a machine model requires in order (`X'_d < X_d`,
+/// …) may come before it is reported as pressed against the relation: within 1 %. The model
+/// refuses equality, so a fit that wants to cross the relation stops just short of it, as one
+/// that wants to cross a bound stops on it; the values are then held by the relation, not by the
+/// data.
+pub const RELATION_MARGIN: f64 = 0.01;
+
+/// The order relations of a machine's parameters (`smaller`, `larger`, what the pair is) that
+/// [`check_relations`] checks, where the unit's machine has both.
+const RELATIONS: &[(&str, &str, &str)] = &[
+    (
+        "x_d_prime",
+        "x_d",
+        "the field winding no longer separates the transient from the synchronous reactance",
+    ),
+    (
+        "x_d_pp",
+        "x_d_prime",
+        "the damper winding no longer separates the subtransient from the transient reactance",
+    ),
+    (
+        "t_d0_pp",
+        "t_d0_prime",
+        "the subtransient and transient time constants are no longer separate dynamics",
+    ),
+    (
+        "x_q_pp",
+        "x_q",
+        "the q-axis damper no longer separates the subtransient from the synchronous reactance",
+    ),
+];
+
+/// Warns about a machine whose ordered parameters (`X_d > X'_d > X''_d`, `T'_d0 > T''_d0`,
+/// `X_q > X''_q`) come within [`RELATION_MARGIN`] of equality: a degenerate machine (typically a
+/// calibrated one whose data or bounds do not pin it).
+pub fn check_relations(unit: &Unit, file: &Path) -> Vec<Finding> {
+    let mut out = vec![];
+    let params = unit.params();
+    let get = |path: &str| params.iter().find(|(p, _, _)| p == path).map(|t| t.2);
+    for inst in unit.instances() {
+        let m = &inst.name;
+        for (small, large, what) in RELATIONS {
+            let (ps, pl) = (format!("{m}.{small}"), format!("{m}.{large}"));
+            let (Some(a), Some(b)) = (get(&ps), get(&pl)) else {
+                continue;
+            };
+            if b > 0.0 && a / b > 1.0 - RELATION_MARGIN {
+                out.push(Finding {
+                    severity: Severity::Warning,
+                    kind: "degenerate_relation",
+                    file: file.to_path_buf(),
+                    line: None,
+                    time_s: None,
+                    column: ps.clone(),
+                    message: format!(
+                        "{ps} = {} is within {:.0} % of {pl} = {} (the model requires {ps} < \
+                         {pl}): {what}; the value is held by the relation, not by the data",
+                        short(a),
+                        100.0 * RELATION_MARGIN,
+                        short(b)
+                    ),
+                    fix: "narrow the bounds of the pair, fix one of them, or give the fit a \
+                          datasheet prior (calibration.prior) so that the data's silence does not \
+                          push the machine onto the relation"
+                        .into(),
+                });
+            }
+        }
+    }
     out
 }
 
