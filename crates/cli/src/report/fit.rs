@@ -10,7 +10,7 @@
 use serde_json::Value;
 
 use super::svg as plot;
-use super::{escape, num, other_channels, pct, residual, token, Cell, Page, Provenance, Tone};
+use super::{escape, num, other_channels, residual, token, Cell, Page, Provenance, Tone};
 use itaipu_dynamics::simulate::Traces;
 
 /// The traces of one event for the plots: the unit as given and the calibrated unit.
@@ -290,7 +290,13 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
                     Cell::text(s(&p["unit"])),
                     cell(report, &ptr("result"), num),
                     cell(report, &ptr("std_error"), num),
-                    cell(report, &ptr("relative_error"), pct),
+                    match report.pointer(&ptr("relative_error")) {
+                        Some(Value::Number(n)) => Cell::json_pct(
+                            n.as_f64().unwrap_or(f64::NAN),
+                            ptr("relative_error"),
+                        ),
+                        _ => Cell::text("-"),
+                    },
                     Cell::Html(format!("<span class=\"flag\">{}</span>", e(&fl.join(", ")))),
                     cell(report, &ptr("start"), num),
                     cell(report, &ptr("min"), num),
@@ -305,7 +311,7 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
                 "unit",
                 "value",
                 "std error",
-                "rel. error",
+                "rel. error [%]",
                 "flag",
                 "start",
                 "min",
