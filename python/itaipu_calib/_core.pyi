@@ -218,6 +218,7 @@ def simulate(
     rtol: float = 1e-6,
     atol: float = 1e-7,
     step: float = 0.001,
+    mode: str = "phasor",
 ) -> Traces: ...
 def fit(
     events: _Events,

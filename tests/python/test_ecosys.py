@@ -65,10 +65,11 @@ def test_a_comtrade_recording_imports_to_the_bundled_event(tmp_path):
     ev, rep = ic.import_pmu(ITAIPU / "pmu" / "itaipu.cfg", 1000.0, 60.0, v_base_kv=18.0, out=tmp_path / "ev")
     ref = ic.load_event(ITAIPU / "event.toml")
     assert len(ev) == len(ref) == 280
-    assert rep["format"] == "COMTRADE 1999 ASCII" and rep["gaps"] == [] and rep["dropouts"] == []
-    # 16-bit codes: |V| within 1e-4 pu, P within 2e-3 pu of the original.
-    assert abs(ev.v_mag_pu - ref.v_mag_pu).max() < 1e-4
-    assert abs(ev.p_pu - ref.p_pu).max() < 2e-3
+    assert rep["format"] == "COMTRADE 2013 BINARY32" and rep["gaps"] == [] and rep["dropouts"] == []
+    # 32-bit codes with a multiplier of ~6e-9 kV (kA, MW): the export is lossless to far below
+    # any PMU's resolution, |V| and P within 1e-7 pu of the original.
+    assert abs(ev.v_mag_pu - ref.v_mag_pu).max() < 1e-7
+    assert abs(ev.p_pu - ref.p_pu).max() < 1e-7
     assert (tmp_path / "ev" / "event.toml").is_file()
     with pytest.raises(ValueError, match="v_base_kv"):
         ic.import_pmu(ITAIPU / "pmu" / "itaipu.cfg", 1000.0, 60.0)

@@ -73,8 +73,12 @@ impl ErrorClass {
     /// The class of an engine simulation error.
     pub fn of_sim(e: &SimError) -> Self {
         match e {
-            SimError::Init(_) | SimError::Frequency { .. } => ErrorClass::Init,
-            SimError::Solve(_) => ErrorClass::Simulation,
+            SimError::Init(_) | SimError::Frequency { .. } | SimError::ModeInit { .. } => {
+                ErrorClass::Init
+            }
+            SimError::Solve(_) | SimError::ModeSolve { .. } => ErrorClass::Simulation,
+            SimError::NoAngle { .. } | SimError::MissingChannel { .. } => ErrorClass::EventData,
+            SimError::ModeSetup { .. } => ErrorClass::UnitModel,
         }
     }
 
@@ -204,6 +208,8 @@ impl Error {
                 // A fit that cannot run as asked (no event, a stage the spec lacks, a resume
                 // that does not match).
                 FitError::Setup(_) => C::Calibration,
+                // The events lack what a stage plays back or compares.
+                FitError::Event(_) => C::EventData,
                 FitError::Start(p) => C::of_problem(p),
                 FitError::Stage { .. } => C::Calibration,
                 FitError::Interrupted { .. } => C::Interrupted,

@@ -132,7 +132,8 @@ pub fn explain(e: SimError, event: &Event, unit: &Unit) -> Error {
             | SolveError::StepUnderflow { t, .. }
             | SolveError::TooManySteps { t, .. }
             | SolveError::EventLoop { t },
-        ) => Some(*t),
+        )
+        | SimError::ModeSolve { t, .. } => Some(*t),
         _ => None,
     };
     let detail = match (&e, t) {
@@ -198,7 +199,8 @@ pub fn fill_statistics(stages: &mut [crate::fit::StageReport], noise: &[NoiseRow
             .find(|n| n.event == ev)
             .map(|n| (n.sigma_p, n.sigma_q))
     };
-    for st in stages {
+    // A stage of a playback mode compares other channels: its statistics are its own.
+    for st in stages.iter_mut().filter(|st| st.statistics.n_data == 0) {
         st.statistics =
             crate::fit::FitStatistics::of_fitness(&st.fitness, st.parameters.len(), sigma);
     }
@@ -267,6 +269,10 @@ pub struct FitSummary {
     /// names and their reports as that run wrote them.
     pub resumed_stages: Vec<String>,
     pub resumed_reports: Vec<serde_json::Value>,
+    /// What each event declares beyond its samples ([`Event::declaration_notes`]: channels
+    /// without an angle, a non-uniform time base kept as recorded, set-point steps), per event
+    /// with notes; `report.json` `event_notes` when any.
+    pub event_notes: Vec<(String, Vec<String>)>,
 }
 
 impl FitSummary {
@@ -286,13 +292,27 @@ impl FitSummary {
         }
         v["warnings"] = serde_json::to_value(&self.warnings).map_err(err)?;
         v["noise"] = serde_json::to_value(&self.noise).map_err(err)?;
+        if !self.event_notes.is_empty() {
+            let notes: serde_json::Map<String, serde_json::Value> = self
+                .event_notes
+                .iter()
+                .map(|(e, n)| (e.clone(), serde_json::json!(n)))
+                .collect();
+            v["event_notes"] = serde_json::Value::Object(notes);
+        }
         Ok(v)
     }
 
     /// The report as text (what `itaipu-calib fit` prints and `FitResult.report()` returns):
     /// the stages with their fit statistics and parameters, then the warnings.
     pub fn to_text(&self) -> String {
-        let mut out = self.fit.to_text();
+        let mut out = String::new();
+        for (e, notes) in &self.event_notes {
+            for n in notes {
+                out.push_str(&format!("event {e}: {n}\n"));
+            }
+        }
+        out.push_str(&self.fit.to_text());
         if !self.warnings.is_empty() {
             out.push_str(&format!("\n{} warning(s):\n", self.warnings.len()));
             for w in &self.warnings {
@@ -324,6 +344,16 @@ pub fn prepare_fit(
 ) -> Result<(FitOptions, Vec<Finding>), Error> {
     let mut opts = FitOptions::from_spec(&inputs.spec);
     request.apply(&mut opts)?;
+    // Every event holds what the stages play back and compare (file, channel and spec field
+    // named), before the plausibility layer and anything written.
+    crate::fit::check_events(
+        &inputs.spec,
+        inputs.spec_path.as_deref(),
+        &opts.stages,
+        opts.polish && opts.stages.len() > 1,
+        &inputs.events,
+        &inputs.held_out,
+    )?;
     let all: Vec<&Event> = inputs.events.iter().chain(&inputs.held_out).collect();
     let mut warnings = check_inputs(&all, &inputs.unit, inputs.unit_path.as_deref())?;
     let spec_file = inputs
@@ -408,6 +438,13 @@ pub fn run_fit(
             noise,
             resumed_stages: resumed.0,
             resumed_reports,
+            event_notes: inputs
+                .events
+                .iter()
+                .chain(&inputs.held_out)
+                .map(|e| (e.name.clone(), e.declaration_notes()))
+                .filter(|(_, n)| !n.is_empty())
+                .collect(),
         },
         unit,
         datasheet: inputs.unit.clone(),

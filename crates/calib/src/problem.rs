@@ -18,13 +18,14 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
-use itaipu_dynamics::event::{Event, Window, MIN_SAMPLES};
+use itaipu_dynamics::event::{Channel, Event, Window, MIN_SAMPLES};
 use itaipu_dynamics::integrate::{Dopri5Options, Method};
+use itaipu_dynamics::mode::{simulate_mode, ModeOutputs};
 use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
 use itaipu_dynamics::unit::{ParamRef, Unit};
 use rayon::prelude::*;
 
-use crate::spec::{Objective, Weights};
+use crate::spec::{Compare, Objective, Weights};
 
 /// A free parameter.
 #[derive(Debug, Clone, PartialEq)]
@@ -162,6 +163,11 @@ pub struct EventData {
     /// Samples inside the fit window ([`Window::contains`]: the event module's one time
     /// tolerance).
     pub in_window: Vec<bool>,
+    /// Measured |V|, and E_fd and X_adI_fd when recorded (low-passed as P and Q), compared by
+    /// stages with channels ([`crate::spec::Compare`]).
+    pub v_meas: Vec<f64>,
+    pub efd_meas: Option<Vec<f64>>,
+    pub ifd_meas: Option<Vec<f64>>,
 }
 
 /// Sums of squared residuals over an event's window ([`EventData::window_sums`]).
@@ -239,14 +245,20 @@ impl EventData {
             });
         }
         let (mut p, mut q) = (r.p_pu.clone(), r.q_pu.clone());
+        let mut v = r.v_mag_pu.clone();
+        let (mut efd, mut ifd) = (r.efd_pu.clone(), r.ifd_pu.clone());
         if let Some(fc) = lowpass_hz {
             let filter_err = |e: crate::filter::FilterError| ProblemError::Filter {
                 event: event.name.clone(),
                 msg: e.to_string(),
             };
             let fs = crate::filter::sample_rate(&r.time_s).map_err(filter_err)?;
-            p = crate::filter::lowpass_zero_phase(&p, fs, fc).map_err(filter_err)?;
-            q = crate::filter::lowpass_zero_phase(&q, fs, fc).map_err(filter_err)?;
+            let lp = |y: &[f64]| crate::filter::lowpass_zero_phase(y, fs, fc).map_err(filter_err);
+            p = lp(&p)?;
+            q = lp(&q)?;
+            v = lp(&v)?;
+            efd = efd.as_deref().map(lp).transpose()?;
+            ifd = ifd.as_deref().map(lp).transpose()?;
         }
         Ok(Self {
             name: event.name.clone(),
@@ -254,7 +266,68 @@ impl EventData {
             p_meas: p,
             q_meas: q,
             in_window,
+            v_meas: v,
+            efd_meas: efd,
+            ifd_meas: ifd,
         })
+    }
+
+    /// The measured series of channel `c` as compared (`None`: not recorded, or not a
+    /// comparable channel).
+    pub fn measured(&self, c: Channel) -> Option<&[f64]> {
+        match c {
+            Channel::P => Some(&self.p_meas),
+            Channel::Q => Some(&self.q_meas),
+            Channel::V => Some(&self.v_meas),
+            Channel::Efd => self.efd_meas.as_deref(),
+            Channel::Ifd => self.ifd_meas.as_deref(),
+            Channel::Angle | Channel::Freq => None,
+        }
+    }
+
+    /// Robust noise variance of the measured channel `c` over the window ([`noise_variance`]),
+    /// floored at the variance of its rounding (`q²/12`, `q` the smallest step between
+    /// samples: a smoothed, rounded record's second differences are mostly 0); 0 when not
+    /// recorded.
+    pub fn channel_noise_variance(&self, c: Channel) -> f64 {
+        self.measured(c).map_or(0.0, |y| {
+            let w: Vec<f64> = y
+                .iter()
+                .zip(&self.in_window)
+                .filter(|(_, w)| **w)
+                .map(|(v, _)| *v)
+                .collect();
+            let q = w
+                .windows(2)
+                .map(|p| (p[1] - p[0]).abs())
+                .filter(|d| *d > 0.0)
+                .fold(f64::INFINITY, f64::min);
+            let floor = if q.is_finite() { q * q / 12.0 } else { 0.0 };
+            noise_variance(&w).max(floor)
+        })
+    }
+
+    /// Per compared channel, `(channel, Σ Δ², samples)` of simulated outputs `out` over the
+    /// window (NaN sums for a channel the record lacks).
+    pub fn channel_sums(
+        &self,
+        out: &ModeOutputs,
+        channels: &[Channel],
+    ) -> Vec<(Channel, f64, usize)> {
+        channels
+            .iter()
+            .map(|&c| {
+                let (Some(sim), Some(meas)) = (out.channel(c), self.measured(c)) else {
+                    return (c, f64::NAN, 0);
+                };
+                let (mut sum, mut n) = (0.0, 0);
+                for k in (0..sim.len()).filter(|&k| self.in_window[k]) {
+                    sum += (sim[k] - meas[k]).powi(2);
+                    n += 1;
+                }
+                (c, sum, n)
+            })
+            .collect()
     }
 
     /// The window's samples `k` with the residuals `(k, P_k − P_meas,k, Q_k − Q_meas,k)` of a
@@ -388,6 +461,9 @@ pub struct Problem {
     /// Set from outside (an interrupt) to make every later evaluation fail at once, without
     /// simulating: the search then runs out in moments and the caller discards its result.
     pub cancel: Option<Arc<AtomicBool>>,
+    /// A stage with a playback mode or channels: the residuals are `√w_c Δc` over the compared
+    /// channels in that mode ([`Problem::residuals`]); `None`: the phasor P and Q of `weights`.
+    pub compare: Option<Compare>,
     evaluations: AtomicUsize,
     failures: AtomicUsize,
     failure_log: Mutex<Vec<String>>,
@@ -415,6 +491,7 @@ impl Problem {
             ties: Vec::new(),
             prior_weight: 0.0,
             cancel: None,
+            compare: None,
             evaluations: AtomicUsize::new(0),
             failures: AtomicUsize::new(0),
             failure_log: Mutex::new(Vec::new()),
@@ -478,13 +555,87 @@ impl Problem {
     /// Weighted residual vector `[√w_p ΔP, √w_q ΔQ]` over every event's window samples
     /// (only the signals with a non-zero weight), then the priors' residuals
     /// ([`Problem::prior_residuals`]).
+    ///
+    /// With [`Problem::compare`] the residuals are `√w_c (c_sim − c_meas)` per window sample and
+    /// compared channel (in channel order within a sample) in that playback mode, then the
+    /// priors'.
     pub fn residuals(&self, x: &[f64], sim: &SimOptions) -> Result<Vec<f64>, ProblemError> {
+        if self.compare.is_some() {
+            let outs = self.simulate_outputs(x, sim)?;
+            return self.residuals_from_outputs(x, &outs);
+        }
         let pq = self.simulate(x, sim)?;
         self.residuals_from(x, &pq)
     }
 
-    /// The simulated P and Q of every event at physical values `x` (the record's samples).
+    /// Every event simulated in the stage's playback mode ([`Problem::compare`]; the phasor
+    /// playback without) at physical values `x`: all the channels at the record's samples.
+    pub fn simulate_outputs(
+        &self,
+        x: &[f64],
+        sim: &SimOptions,
+    ) -> Result<Vec<ModeOutputs>, ProblemError> {
+        if self.cancelled() {
+            return Err(ProblemError::Interrupted);
+        }
+        let mode = self.compare.as_ref().map(|c| c.mode).unwrap_or_default();
+        let unit = self.unit_at(x);
+        self.events
+            .iter()
+            .map(|ev| {
+                simulate_mode(&unit, &ev.prepared, mode, sim).map_err(|error| {
+                    ProblemError::Simulation {
+                        event: ev.name.clone(),
+                        error,
+                    }
+                })
+            })
+            .collect()
+    }
+
+    /// The residuals of [`Problem::compare`]'s channels from the events' simulated outputs.
+    pub fn residuals_from_outputs(
+        &self,
+        x: &[f64],
+        outs: &[ModeOutputs],
+    ) -> Result<Vec<f64>, ProblemError> {
+        let Some(cmp) = &self.compare else {
+            let pq: Vec<SimulatedPq> = outs.iter().map(|o| (o.p.clone(), o.q.clone())).collect();
+            return self.residuals_from(x, &pq);
+        };
+        let mut r = Vec::new();
+        for (ev, out) in self.events.iter().zip(outs) {
+            let series: Vec<(f64, &[f64], &[f64])> = cmp
+                .weights
+                .iter()
+                .filter_map(|&(c, w)| Some((w.sqrt(), out.channel(c)?, ev.measured(c)?)))
+                .collect();
+            for k in (0..ev.in_window.len()).filter(|&k| ev.in_window[k]) {
+                for &(sw, sim, meas) in &series {
+                    if !(sim[k].abs() < DIVERGED_PU) {
+                        return Err(ProblemError::Diverged {
+                            event: ev.name.clone(),
+                            t: ev.prepared.input.time_s[k],
+                        });
+                    }
+                    r.push(sw * (sim[k] - meas[k]));
+                }
+            }
+        }
+        r.extend(self.prior_residuals(x));
+        Ok(r)
+    }
+
+    /// The simulated P and Q of every event at physical values `x` (the record's samples; in
+    /// the stage's playback mode with [`Problem::compare`]).
     pub fn simulate(&self, x: &[f64], sim: &SimOptions) -> Result<Vec<SimulatedPq>, ProblemError> {
+        if self.compare.is_some() {
+            return Ok(self
+                .simulate_outputs(x, sim)?
+                .into_iter()
+                .map(|o| (o.p, o.q))
+                .collect());
+        }
         if self.cancelled() {
             return Err(ProblemError::Interrupted);
         }
@@ -531,6 +682,16 @@ impl Problem {
     /// Variance of one weighted residual of the measured events: the mean over the signals
     /// with a non-zero weight of `w · σ²`, σ² from [`noise_variance`] over each event's window.
     pub fn measured_noise_variance(&self) -> f64 {
+        if let Some(cmp) = &self.compare {
+            let (mut sum, mut n) = (0.0, 0usize);
+            for ev in &self.events {
+                for &(c, w) in &cmp.weights {
+                    sum += w * ev.channel_noise_variance(c);
+                    n += 1;
+                }
+            }
+            return if n == 0 { 0.0 } else { sum / n as f64 };
+        }
         let (wp, wq) = self.weights;
         let (mut sum, mut n) = (0.0, 0usize);
         for ev in &self.events {

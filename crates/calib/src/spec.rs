@@ -29,7 +29,28 @@
 //! [calibration.stage.replace.governor]   # optional: a block put into the unit from this stage on
 //! model = "HYGOV"
 //! r_perm = 0.05                  # …every parameter, as in a unit file
+//!
+//! [[calibration.stage]]          # a stage on a record without an angle names its playback mode
+//! name = "avr"
+//! mode = "exciter_alone"         # phasor (default) | exciter_alone | machine_from_efd | closed_loop
+//! channels = { efd = 1.0 }       # compared channels and weights; default: the mode's, weight 1
+//! free = [ … ]
+//!
+//! [calibration.joint]            # optional: how the joint pass plays the record back
+//! mode = "closed_loop"
+//! channels = { v = 1.0, q = 1.0, efd = 1.0 }
+//! free = [ { param = "grid.x_e", min = 0.02, max = 0.5 } ]   # freed in the joint pass only
 //! ```
+//!
+//! **Playback modes and channels** (`itaipu_dynamics::mode`). A stage's `mode` says how the
+//! record is played back; `channels` which simulated channels (`p`, `q`, `v`, `efd`, `ifd`) it
+//! compares with the record, each with its weight. The objective is RaPId's: the weighted sum
+//! over the window's samples and the channels of the squared differences in per unit, equal
+//! weights by default (a channel's noise does not scale it; give weights to do so). A phasor
+//! stage without `channels` keeps `objective` and `weights` (P and Q), the same numbers as
+//! before; `objective` and `weights` do not go with `channels` or another mode. A channel the
+//! mode imposes from the record (P in the P-held modes, |V| everywhere but `closed_loop`) cannot
+//! be compared.
 //!
 //! Stage semantics (paper 001 Phase A-C, paper 000 Algorithm 1): stages run in the order gen,
 //! avr, pss, tg, each freeing its parameters with earlier stages' results frozen. With
@@ -41,6 +62,8 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use itaipu_dynamics::event::Channel;
+use itaipu_dynamics::mode::PlaybackMode;
 use serde::Deserialize;
 
 use crate::bounds::FreeBound;
@@ -165,6 +188,83 @@ pub struct StageSpec {
     /// Blocks put into the unit from this stage on (section name → unit-file table).
     #[serde(default)]
     pub replace: BTreeMap<String, toml::Table>,
+    /// How the record is played back in this stage (default: the phasor playback).
+    #[serde(default)]
+    pub mode: PlaybackMode,
+    /// Compared channels and their weights (`{ efd = 1.0 }`); default: the mode's
+    /// ([`PlaybackMode::default_channels`], weight 1). A phasor stage without it compares P and
+    /// Q as `objective` and `weights` say.
+    #[serde(default)]
+    pub channels: Option<BTreeMap<String, f64>>,
+}
+
+/// What a stage compares when it names a mode or channels: the mode and `(channel, weight)`
+/// pairs with a non-zero weight, in canonical channel order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Compare {
+    pub mode: PlaybackMode,
+    pub weights: Vec<(Channel, f64)>,
+}
+
+impl Compare {
+    /// The compared channels and weights of `mode` with `channels` (names checked by
+    /// [`CalibSpec::parse`]; unknown names are left out here).
+    pub fn new(mode: PlaybackMode, channels: Option<&BTreeMap<String, f64>>) -> Compare {
+        let weights = match channels {
+            None => mode.default_channels().iter().map(|c| (*c, 1.0)).collect(),
+            Some(m) => Channel::ALL
+                .into_iter()
+                .filter_map(|c| m.get(c.name()).map(|w| (c, *w)))
+                .filter(|(_, w)| *w > 0.0)
+                .collect(),
+        };
+        Compare { mode, weights }
+    }
+
+    /// The channels compared.
+    pub fn channels(&self) -> Vec<Channel> {
+        self.weights.iter().map(|(c, _)| *c).collect()
+    }
+
+    /// `"mode: v 1, q 1, efd 1"`, for reports.
+    pub fn describe(&self) -> String {
+        format!(
+            "{}: {}",
+            self.mode,
+            self.weights
+                .iter()
+                .map(|(c, w)| format!("{c} {w}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    }
+}
+
+impl StageSpec {
+    /// What the stage compares: `None` for a phasor stage without `channels` (P and Q by
+    /// `objective` and `weights`, the historical objective), else the mode and its channels.
+    pub fn compare(&self) -> Option<Compare> {
+        if self.mode == PlaybackMode::Phasor && self.channels.is_none() {
+            None
+        } else {
+            Some(Compare::new(self.mode, self.channels.as_ref()))
+        }
+    }
+}
+
+/// How the joint pass (and a simultaneous-first pass) plays the record back, and what it frees
+/// besides the stages' parameters (`[calibration.joint]`).
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSpec {
+    #[serde(default)]
+    pub mode: PlaybackMode,
+    #[serde(default)]
+    pub channels: Option<BTreeMap<String, f64>>,
+    /// Parameters freed in the joint pass only (a grid equivalent's impedance, say).
+    #[serde(default)]
+    pub free: Vec<FreeBound>,
+    pub window: Option<[f64; 2]>,
 }
 
 fn default_objective() -> Objective {
@@ -261,6 +361,10 @@ pub struct CalibSpec {
     /// The local method after each swarm (`lm` or `lbfgs`).
     #[serde(default)]
     pub local: LocalMethod,
+    /// How the joint pass plays the record back (`[calibration.joint]`; default: as the
+    /// historical joint pass, phasor, P and Q).
+    #[serde(default)]
+    pub joint: Option<JointSpec>,
 }
 
 /// The local (gradient) method after the swarm.
@@ -353,6 +457,7 @@ impl CalibSpec {
             .calibration
             .ok_or_else(|| SpecError::Missing { path: path.into() })?;
         spec.validate(path)?;
+        check_objective_keys(text, path)?;
         // A replacement diagram's definition file is relative to the spec's file.
         let base = path.parent().unwrap_or(Path::new(""));
         for s in &mut spec.stages {
@@ -448,7 +553,139 @@ impl CalibSpec {
                     ),
                 ));
             }
-            for (j, f) in s.free.iter().enumerate() {
+            check_channels(
+                &err,
+                &format!("{ctx}.channels (stage {})", s.name),
+                s.mode,
+                s.channels.as_ref(),
+            )?;
+            check_free(&err, &ctx, &s.free)?;
+        }
+        if let Some(j) = &self.joint {
+            check_channels(
+                &err,
+                "calibration.joint.channels",
+                j.mode,
+                j.channels.as_ref(),
+            )?;
+            check_free(&err, "calibration.joint", &j.free)?;
+            if let Some([a, b]) = j.window {
+                if !(a < b) {
+                    return Err(err(
+                        "calibration.joint.window".into(),
+                        format!("start {a} must be before end {b}"),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// What the joint (and simultaneous) pass compares: `None` without `[calibration.joint]` or
+    /// with a phasor joint without `channels` (P and Q, the historical joint pass).
+    pub fn joint_compare(&self) -> Option<Compare> {
+        self.joint.as_ref().and_then(|j| {
+            (j.mode != PlaybackMode::Phasor || j.channels.is_some())
+                .then(|| Compare::new(j.mode, j.channels.as_ref()))
+        })
+    }
+
+    /// Every distinct comparison the fit of `stages` makes (the stages', then the joint
+    /// pass's when it runs): the playback modes a fit's fitness rows report. Empty when every
+    /// stage is a historical phasor P+Q stage.
+    pub fn compares(&self, stages: &[String], joint: bool) -> Vec<Compare> {
+        let mut out: Vec<Compare> = vec![];
+        let legacy = Compare::new(PlaybackMode::Phasor, None);
+        let mut any_mode = false;
+        let mut push = |c: Compare| {
+            if let Some(e) = out.iter_mut().find(|e| e.mode == c.mode) {
+                for (ch, w) in c.weights {
+                    if !e.weights.iter().any(|(x, _)| *x == ch) {
+                        e.weights.push((ch, w));
+                    }
+                }
+                e.weights.sort_by_key(|(c, _)| *c);
+            } else {
+                out.push(c);
+            }
+        };
+        for s in stages {
+            match self.stage(s).map(|st| st.compare()) {
+                Some(Some(c)) => {
+                    any_mode = true;
+                    push(c)
+                }
+                Some(None) => push(legacy.clone()),
+                None => {}
+            }
+        }
+        if joint {
+            if let Some(c) = self.joint_compare() {
+                any_mode = true;
+                push(c);
+            }
+        }
+        if any_mode {
+            out
+        } else {
+            vec![]
+        }
+    }
+}
+
+/// Checks a stage's (or the joint pass's) `channels` against its mode.
+fn check_channels(
+    err: &dyn Fn(String, String) -> SpecError,
+    field: &str,
+    mode: PlaybackMode,
+    channels: Option<&BTreeMap<String, f64>>,
+) -> Result<(), SpecError> {
+    let Some(m) = channels else { return Ok(()) };
+    let outputs = mode.outputs();
+    let names = |cs: &[Channel]| cs.iter().map(|c| c.name()).collect::<Vec<_>>().join(", ");
+    for (name, w) in m {
+        let Some(c) = Channel::parse(name) else {
+            return Err(err(
+                field.to_string(),
+                format!(
+                    "unknown channel '{name}' (channels a mode can compare: p, q, v, efd, ifd)"
+                ),
+            ));
+        };
+        if !outputs.contains(&c) {
+            return Err(err(
+                format!("{field}.{name}"),
+                format!(
+                    "mode {mode} does not simulate {c} (it plays it back from the record or                      has no such output); it can compare: {}",
+                    names(outputs)
+                ),
+            ));
+        }
+        if !(w.is_finite() && *w >= 0.0) {
+            return Err(err(
+                format!("{field}.{name}"),
+                format!("weight {w} must be finite and >= 0"),
+            ));
+        }
+    }
+    if !m.values().any(|w| *w > 0.0) {
+        return Err(err(
+            field.to_string(),
+            "no channel with a weight > 0: the objective would sum nothing".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks a list of free entries (`ctx`: `calibration.stage[k]` or `calibration.joint`).
+fn check_free(
+    err: &dyn Fn(String, String) -> SpecError,
+    ctx: &str,
+    free: &[FreeBound],
+) -> Result<(), SpecError> {
+    {
+        {
+            for (j, f) in free.iter().enumerate() {
                 let fctx = format!("{ctx}.free[{j}] ({})", f.param);
                 if !(f.min.is_finite() && f.max.is_finite()) {
                     return Err(err(fctx, "bounds must be finite".into()));
@@ -478,14 +715,49 @@ impl CalibSpec {
                         ));
                     }
                 }
-                if s.free[..j].iter().any(|g| g.param == f.param) {
+                if free[..j].iter().any(|g| g.param == f.param) {
                     return Err(err(fctx, "listed twice".into()));
                 }
             }
         }
-        Ok(())
     }
+    Ok(())
+}
 
+/// `objective` and `weights` say what a phasor stage compares (P and Q); with `channels` or
+/// another mode they would be ignored: refused, naming the stage.
+fn check_objective_keys(text: &str, path: &Path) -> Result<(), SpecError> {
+    let Ok(doc) = text.parse::<toml::Table>() else {
+        return Ok(());
+    };
+    let stages = doc
+        .get("calibration")
+        .and_then(|c| c.get("stage"))
+        .and_then(|s| s.as_array());
+    for (k, st) in stages.into_iter().flatten().enumerate() {
+        let Some(t) = st.as_table() else { continue };
+        let moded = t.contains_key("channels")
+            || t.get("mode")
+                .and_then(|m| m.as_str())
+                .is_some_and(|m| m != "phasor");
+        if !moded {
+            continue;
+        }
+        for key in ["objective", "weights"] {
+            if t.contains_key(key) {
+                return Err(SpecError::Field {
+                    path: path.into(),
+                    field: format!("calibration.stage[{k}].{key}"),
+                    msg: "goes with a phasor stage's P and Q; a stage with a mode or channels                           says what it compares with channels = { … } (weights per channel)"
+                        .into(),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+impl CalibSpec {
     /// The blocks stage `stage` removes from the unit (none under [`StageBlocks::Keep`]).
     pub fn removed_blocks(&self, stage: &str) -> &'static [&'static str] {
         match self.stage_blocks {

@@ -12,7 +12,7 @@ use itaipu_calib::job;
 use itaipu_calib::request::{FitRequest, Stage};
 use itaipu_calib::spec::Strategy;
 use itaipu_dynamics::event::Event;
-use itaipu_dynamics::simulate::simulate;
+use itaipu_dynamics::mode::{simulate_mode_traces, PlaybackMode};
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
@@ -452,6 +452,13 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     };
     let report = run.report.to_json()?;
     job::write_fit_files(&out, &run, &spec_text)?;
+    // The figures play every event back as the fit's last pass did (the joint pass's mode for
+    // a fit with playback modes).
+    let figure_mode = inputs
+        .spec
+        .compares(&opts.stages, opts.polish && opts.stages.len() > 1)
+        .last()
+        .map_or(PlaybackMode::Phasor, |c| c.mode);
     crate::output::write_synced(
         &out.join("report.html"),
         fit_report_html(
@@ -463,6 +470,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
             [&unit_path, &calib_path],
             opts.seed,
             !a.no_plot,
+            figure_mode,
         )
         .as_bytes(),
     )?;
@@ -558,6 +566,7 @@ fn fit_report_html(
     files: [&Path; 2],
     seed: u64,
     plots: bool,
+    mode: PlaybackMode,
 ) -> String {
     let mut inputs = vec![
         InputFile::new("unit", files[0]),
@@ -577,7 +586,7 @@ fn fit_report_html(
             .map(|e| (e, false))
             .chain(held_out.iter().map(|e| (e, true)))
         {
-            let sim = |u: &Unit| simulate(u, e, &Default::default());
+            let sim = |u: &Unit| simulate_mode_traces(u, e, mode, &Default::default());
             match (sim(start), sim(calibrated)) {
                 (Ok(a), Ok(b)) => runs.push((e, h, a, b)),
                 (Err(err), _) | (_, Err(err)) => {
@@ -623,7 +632,7 @@ fn stage_plots(dir: &Path, st: &StageOutput, rep: &StageReport) -> Result<(), Cl
             color,
             thin,
         };
-        let panels = vec![
+        let mut panels = vec![
             plot::Panel {
                 y_label: "P [pu, system base]".into(),
                 series: vec![
@@ -641,6 +650,25 @@ fn stage_plots(dir: &Path, st: &StageOutput, rep: &StageReport) -> Result<(), Cl
                 ],
             },
         ];
+        // A stage in a playback mode (its traces carry v_meas_pu): |V| (simulated in a closed
+        // loop) and E_fd too.
+        let moded = end.get("v_meas_pu").is_some();
+        let others = crate::report::other_channels(end, 50.0);
+        let starts = crate::report::other_channels(start, 50.0);
+        for ((label, meas, sim), (_, _, sim0)) in others.iter().zip(&starts) {
+            if !moded || label.starts_with("frequency") {
+                continue;
+            }
+            let mut v = vec![series("measured", meas.as_slice(), plot::MEASURED, true)];
+            if !sim.is_empty() {
+                v.push(series("start", sim0.as_slice(), plot::START, true));
+                v.push(series("calibrated", sim.as_slice(), plot::SIMULATED, false));
+            }
+            panels.push(plot::Panel {
+                y_label: label.clone(),
+                series: v,
+            });
+        }
         let title = format!(
             "{ev}, stage {}: objective {:.4} -> {:.4}",
             st.stage, rep.objective_before, rep.objective_after

@@ -6,9 +6,10 @@ use std::time::Instant;
 
 use clap::ValueEnum;
 use itaipu_calib::request::SimulateRequest;
-use itaipu_dynamics::event::Event;
+use itaipu_dynamics::event::{Channel, Event};
 use itaipu_dynamics::integrate::Method;
-use itaipu_dynamics::simulate::{simulate, Traces};
+use itaipu_dynamics::mode::{simulate_mode_traces, PlaybackMode};
+use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
 
 use crate::report::svg as plot;
@@ -49,6 +50,19 @@ pub struct SimulateArgs {
     /// Do not draw plot.svg.
     #[arg(long)]
     no_plot: bool,
+    /// Playback mode: phasor (the measured |V| and angle imposed), exciter_alone (the AVR open
+    /// loop on the measured |V|, compared on E_fd), machine_from_efd (the machine on the
+    /// measured E_fd, |V| and P, compared on Q) or closed_loop (the unit against its grid
+    /// equivalent). A record without an angle needs one of the last three.
+    #[arg(long, default_value = "phasor", value_parser = mode_parser())]
+    mode: PlaybackMode,
+}
+
+/// `--mode`: the library's mode names ([`PlaybackMode::NAMES`]).
+fn mode_parser() -> impl clap::builder::TypedValueParser<Value = PlaybackMode> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(PlaybackMode::NAMES)
+        .map(|s| PlaybackMode::parse(&s).expect("a mode name"))
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -92,6 +106,18 @@ pub fn misfit(event: &Event, traces: &Traces) -> (f64, f64, f64, usize) {
     (sp + sq, (sp / nn).sqrt(), (sq / nn).sqrt(), n)
 }
 
+/// The traces' columns of a channel: (simulated, measured).
+fn channel_columns(c: Channel) -> Option<(&'static str, &'static str)> {
+    Some(match c {
+        Channel::P => ("p_pu", "p_meas_pu"),
+        Channel::Q => ("q_pu", "q_meas_pu"),
+        Channel::V => ("v_term", "v_meas_pu"),
+        Channel::Efd => ("efd", "efd_meas_pu"),
+        Channel::Ifd => ("xadifd", "ifd_meas_pu"),
+        Channel::Angle | Channel::Freq => return None,
+    })
+}
+
 fn describe_unit(u: &Unit) -> String {
     u.instances()
         .iter()
@@ -112,6 +138,17 @@ pub fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     let opts = sim_options(a)?;
     let event = load_event(&event_path)?;
     let unit = load_unit(&unit_path)?;
+    if let Some(why) = a.mode.missing(&event, &[]) {
+        return Err(CliError::new(
+            3,
+            format!(
+                "{}: event '{}' {why} (--mode {})",
+                event_path.display(),
+                event.name,
+                a.mode
+            ),
+        ));
+    }
     if let Method::Rk4 { h } = opts.method {
         let steps = event.playback.duration_s() / h;
         if steps > RK4_MAX_STEPS {
@@ -134,7 +171,8 @@ pub fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     )?;
     let out = staging.path().to_path_buf();
     let t0 = Instant::now();
-    let traces = simulate(&unit, &event, &opts).map_err(|e| explain_sim_error(e, &event, &unit))?;
+    let traces = simulate_mode_traces(&unit, &event, a.mode, &opts)
+        .map_err(|e| explain_sim_error(e, &event, &unit))?;
     let wall = t0.elapsed();
     let csv_path = out.join("traces.csv");
     traces
@@ -144,7 +182,15 @@ pub fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
     let op = event.operating_point();
     let r = &event.record;
     let (j, rms_p, rms_q, n_fit) = misfit(&event, &traces);
-    let col = |n: &str| traces.get(n).map(|c| c[0]).unwrap_or(f64::NAN);
+    let col = |n: &str| {
+        // A machine driven by the measured E_fd reads it as efd_meas.
+        let alias = if n == "efd" { "efd_meas" } else { n };
+        traces
+            .get(n)
+            .or_else(|| traces.get(alias))
+            .map(|c| c[0])
+            .unwrap_or(f64::NAN)
+    };
     println!(
         "event  {} ({}): {} samples, {:.3}-{:.3} s, system base {} MVA, {} Hz",
         event.name,
@@ -188,6 +234,41 @@ pub fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
         "misfit fit window {:.2}-{:.2} s ({n_fit} samples): RMS P {rms_p:.4} pu, RMS Q {rms_q:.4} pu, J = sum(dP^2 + dQ^2) = {j:.4}",
         event.fit.start_s, event.fit.end_s
     );
+    if a.mode != PlaybackMode::Phasor {
+        let sums: Vec<String> = a
+            .mode
+            .outputs()
+            .iter()
+            .filter(|c| event.has(**c))
+            .filter_map(|c| {
+                let (sim, meas) = channel_columns(*c)?;
+                let (s, m) = (traces.get(sim)?, traces.get(meas)?);
+                let sse: f64 = (0..s.len())
+                    .filter(|&k| event.fit.contains(r.time_s[k]))
+                    .map(|k| (s[k] - m[k]).powi(2))
+                    .sum();
+                Some(format!("{c} {sse:.5}"))
+            })
+            .collect();
+        println!(
+            "mode   {}: sum of squared differences per channel over the fit window: {}",
+            a.mode,
+            sums.join(", ")
+        );
+        if matches!(
+            a.mode,
+            PlaybackMode::ExciterAlone | PlaybackMode::MachineFromEfd
+        ) {
+            println!(
+                "mode   the machine starts at Q {:.5} pu (machine base), where its steady E_fd is the measured E_fd0 {:.5} pu; the load angle is held by the measured P",
+                col("q_mach_pu"),
+                col("efd_meas")
+            );
+        }
+        for note in event.declaration_notes() {
+            println!("event  {note}");
+        }
+    }
     let mut written = vec!["traces.csv".to_string()];
     if !a.no_plot {
         let plot_path = out.join("plot.svg");
@@ -243,7 +324,53 @@ pub fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
                 ],
             },
         ];
-        let title = format!("{}: {} playback, J = {j:.3}", event.name, unit.name);
+        let mut panels = panels;
+        if a.mode != PlaybackMode::Phasor {
+            panels[0].y_label = "|V| [pu]".into();
+            if a.mode == PlaybackMode::ClosedLoop {
+                panels[0].series[0].label = "simulated |V|".into();
+                panels[0].series[0].color = plot::SIMULATED;
+                panels[0].series.insert(
+                    0,
+                    plot::Series {
+                        label: "measured |V|".into(),
+                        x: t,
+                        y: get("v_meas_pu"),
+                        color: plot::MEASURED,
+                        thin: true,
+                    },
+                );
+            }
+            if let (Some(m), Some(s)) = (traces.get("efd_meas_pu"), traces.get("efd")) {
+                panels.push(plot::Panel {
+                    y_label: "E_fd [pu]".into(),
+                    series: vec![
+                        plot::Series {
+                            label: "measured".into(),
+                            x: t,
+                            y: m,
+                            color: plot::MEASURED,
+                            thin: true,
+                        },
+                        plot::Series {
+                            label: if a.mode == PlaybackMode::MachineFromEfd {
+                                "played back".into()
+                            } else {
+                                "simulated".into()
+                            },
+                            x: t,
+                            y: s,
+                            color: plot::SIMULATED,
+                            thin: false,
+                        },
+                    ],
+                });
+            }
+        }
+        let title = format!(
+            "{}: {} playback ({}), J = {j:.3}",
+            event.name, unit.name, a.mode
+        );
         plot::draw(&plot_path, &title, "time [s]", &panels).map_err(|e| CliError::new(7, e))?;
         written.push("plot.svg".to_string());
     }

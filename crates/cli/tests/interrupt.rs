@@ -227,8 +227,14 @@ fn an_interrupted_diagnose_leaves_nothing() {
         .unwrap();
     let pid = child.id().to_string();
     let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
-    // The first progress line: the run has started (its temporary folder exists).
-    let first = lines.next().unwrap().unwrap();
+    // The first progress line (input warnings come before it): the run has started (its
+    // temporary folder exists).
+    let first = loop {
+        let line = lines.next().unwrap().unwrap();
+        if !line.starts_with("warning") {
+            break line;
+        }
+    };
     let staged: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())

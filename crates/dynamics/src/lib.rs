@@ -13,6 +13,8 @@
 //! * [`unit_file`]: unit model files (TOML).
 //! * [`diagram`]: user-defined control models (block diagrams declared in TOML).
 //! * [`simulate`]: the playback simulation and its traces.
+//! * [`mode`]: playback modes that need no voltage angle (exciter alone, machine from E_fd,
+//!   closed loop against a grid equivalent) and set-point steps.
 
 // Parameter and state guards are written `!(x > 0.0)` on purpose: that form also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -22,6 +24,7 @@ pub mod diagram;
 pub mod dyr;
 pub mod event;
 pub mod integrate;
+pub mod mode;
 pub mod models;
 pub mod params;
 pub mod plausibility;

@@ -47,7 +47,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::event::{read_csv, Event, Record};
+use crate::event::{read_csv_channels, Event, Record, TimeBase, NON_UNIFORM_SPREAD};
 use crate::unit::Unit;
 
 /// Sample intervals above this many times the median interval are a gap.
@@ -207,7 +207,9 @@ fn csv_layout(event: &Event) -> Option<Layout> {
         .split(',')
         .map(|c| c.trim().to_string())
         .collect();
-    let full = read_csv(&event.csv_path, event.nominal_hz).ok()?;
+    let full = read_csv_channels(&event.csv_path, event.nominal_hz, !event.has_angle())
+        .ok()?
+        .0;
     let t0 = *event.record.time_s.first()?;
     let offset = full.time_s.iter().position(|t| *t == t0)?;
     // The reader's records and the file's lines: the same CSV settings, positions kept.
@@ -297,6 +299,40 @@ pub fn check_event(event: &Event, machine_mva: Option<f64>) -> Vec<Finding> {
                     *d / dt
                 ),
                 "trim [playback] to one side of the gap, or split the record into two events",
+            );
+        }
+    }
+    // An uneven time base not declared as such (a recorder's trend, not a PMU): kept as recorded
+    // either way, but said, so that the event file states it.
+    if event.time_base == TimeBase::Uniform {
+        let even: Vec<f64> = rec
+            .time_s
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|d| *d <= GAP_FACTOR * dt)
+            .collect();
+        let uneven = even
+            .iter()
+            .filter(|d| (**d - dt).abs() > NON_UNIFORM_SPREAD * dt)
+            .count();
+        if uneven * 10 > even.len() {
+            let lo = even.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = even.iter().copied().fold(0.0, f64::max);
+            c.push(
+                Severity::Warning,
+                "non_uniform_time",
+                Some(0),
+                "time_s",
+                format!(
+                    "{uneven} of {} sample intervals differ from the median {:.3} ms by more than \
+                     {:.0} % ({:.3}-{:.3} ms): the time base is not uniform",
+                    even.len(),
+                    dt * 1e3,
+                    NON_UNIFORM_SPREAD * 100.0,
+                    lo * 1e3,
+                    hi * 1e3
+                ),
+                "declare time_base = \"non_uniform\" in the event file (the stamps are kept as recorded either way; a stage's lowpass_hz needs uniform stamps)",
             );
         }
     }

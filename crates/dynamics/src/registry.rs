@@ -7,6 +7,7 @@ use crate::models::extensions::{
     speed_deadband::SpeedDeadband, terminal_load::TerminalLoad, two_mass_shaft::TwoMassShaft,
 };
 use crate::models::governor::{constant_pm::ConstantPm, hygov::Hygov};
+use crate::models::grid::GridEquivalent;
 use crate::models::machine::{
     gencls::Gencls, genrou::Genrou, gensae::Gensae, gensal::Gensal, Machine,
 };
@@ -138,6 +139,12 @@ pub static MODELS: &[ModelInfo] = &[
         role: Role::Other,
         summary: "static voltage-dependent load between the machine and the measurement point (extension)",
         make: || Box::new(TerminalLoad::default()),
+    },
+    ModelInfo {
+        name: "grid_equivalent",
+        role: Role::Other,
+        summary: "network seen from the terminal: Z_e = R_e + jX_e to an infinite bus (closed_loop playback only)",
+        make: || Box::new(GridEquivalent::default()),
     },
 ];
 

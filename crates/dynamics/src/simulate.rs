@@ -9,7 +9,7 @@
 use std::path::Path;
 
 use crate::block::InitPoint;
-use crate::event::Event;
+use crate::event::{Channel, Event, SetpointStep};
 use crate::integrate::{self, Dopri5Options, Method, SolveError, Stats};
 use crate::unit::{Playback, PlaybackInput, Unit, UnitError};
 
@@ -48,6 +48,32 @@ pub enum SimError {
     Init(#[from] UnitError),
     #[error("integration failed: {0}")]
     Solve(#[from] SolveError),
+    /// A phasor playback of a record without a voltage angle.
+    #[error("event '{event}' has no voltage angle (its channels leave it out): a phasor playback imposes the measured angle; play it back with a mode that needs none (exciter_alone, machine_from_efd, closed_loop)")]
+    NoAngle { event: String },
+    /// A playback mode needs a channel the record lacks.
+    #[error("event '{event}' has no {channel} channel, which playback mode {mode} plays back")]
+    MissingChannel {
+        event: String,
+        mode: &'static str,
+        channel: &'static str,
+    },
+    /// The unit cannot be played back in a mode (no exciter for an exciter playback, no grid
+    /// equivalent for a closed loop, …).
+    #[error("playback mode {mode}: {msg}")]
+    ModeSetup { mode: &'static str, msg: String },
+    /// A mode's operating point cannot be found (no Q at which the machine's steady E_fd is the
+    /// measured one).
+    #[error("playback mode {mode}: initialisation failed: {msg}")]
+    ModeInit { mode: &'static str, msg: String },
+    /// A mode's closure (the load angle held by the measured P, the network equation of the
+    /// grid equivalent) has no solution at time `t`.
+    #[error("playback mode {mode}: at t = {t:.4} s: {msg}")]
+    ModeSolve {
+        mode: &'static str,
+        t: f64,
+        msg: String,
+    },
 }
 
 impl SimError {
@@ -57,6 +83,11 @@ impl SimError {
             SimError::Frequency { .. } => "frequency_mismatch",
             SimError::Init(e) => e.kind(),
             SimError::Solve(_) => "solve",
+            SimError::NoAngle { .. } => "no_angle",
+            SimError::MissingChannel { .. } => "missing_channel",
+            SimError::ModeSetup { .. } => "mode_setup",
+            SimError::ModeInit { .. } => "init",
+            SimError::ModeSolve { .. } => "solve",
         }
     }
 }
@@ -71,6 +102,17 @@ pub struct PreparedEvent {
     pub op_system: crate::event::OperatingPoint,
     pub system_mva: f64,
     pub nominal_hz: f64,
+    /// Whether the record holds the voltage angle (a phasor playback needs it).
+    pub has_angle: bool,
+    /// Known set-point steps ([`crate::mode`] applies them).
+    pub steps: Vec<SetpointStep>,
+    /// Measured P [pu system base] (the target of the P-held playback modes).
+    pub p_pu: Vec<f64>,
+    /// Measured E_fd and X_adI_fd [pu], if recorded, and their init-window means.
+    pub efd_pu: Option<Vec<f64>>,
+    pub ifd_pu: Option<Vec<f64>>,
+    pub efd0: Option<f64>,
+    pub ifd0: Option<f64>,
 }
 
 impl PreparedEvent {
@@ -86,6 +128,13 @@ impl PreparedEvent {
             op_system: event.operating_point(),
             system_mva: event.system_mva,
             nominal_hz: event.nominal_hz,
+            has_angle: event.has_angle(),
+            steps: event.steps.clone(),
+            p_pu: r.p_pu.clone(),
+            efd_pu: r.efd_pu.clone(),
+            ifd_pu: r.ifd_pu.clone(),
+            efd0: event.init_mean(Channel::Efd),
+            ifd0: event.init_mean(Channel::Ifd),
         }
     }
 
@@ -105,6 +154,10 @@ impl PreparedEvent {
 
 /// Runs one playback; `record(k, unit)` is called at every sample `k` with the bus evaluated
 /// there (read signals with [`Unit::bus`]). Returns the integrator statistics.
+///
+/// A record without a voltage angle is refused ([`SimError::NoAngle`]). An event with
+/// set-point steps is played back by [`crate::mode`] (the unit given to `record` is then the
+/// unit as played back, with the set-point block: read its signals by name on it).
 pub fn run_playback<F>(
     unit: &mut Unit,
     ev: &PreparedEvent,
@@ -114,6 +167,15 @@ pub fn run_playback<F>(
 where
     F: FnMut(usize, &Unit, &[f64]),
 {
+    if !ev.has_angle {
+        return Err(SimError::NoAngle {
+            event: ev.name.clone(),
+        });
+    }
+    if !ev.steps.is_empty() {
+        let mut mu = crate::mode::ModeUnit::new(unit, ev, crate::mode::PlaybackMode::Phasor)?;
+        return crate::mode::run_mode_unit(&mut mu, ev, opts, record);
+    }
     if (unit.nominal_hz - ev.nominal_hz).abs() > 1e-9 {
         return Err(SimError::Frequency {
             unit: unit.name.clone(),
@@ -148,6 +210,10 @@ pub fn simulate_pq(
     ev: &PreparedEvent,
     opts: &SimOptions,
 ) -> Result<(Vec<f64>, Vec<f64>), SimError> {
+    if !ev.steps.is_empty() && ev.has_angle {
+        let o = crate::mode::simulate_mode(unit, ev, crate::mode::PlaybackMode::Phasor, opts)?;
+        return Ok((o.p, o.q));
+    }
     let n = ev.input.time_s.len();
     let (mut p, mut q) = (vec![0.0; n], vec![0.0; n]);
     let to_sys = unit.machine_mva / ev.system_mva;
@@ -214,6 +280,14 @@ impl Traces {
 /// base) and every state as `block.state`; measured `efd_meas_pu`, `ifd_meas_pu`,
 /// `freq_meas_hz` when the event has them.
 pub fn simulate(unit: &Unit, event: &Event, opts: &SimOptions) -> Result<Traces, SimError> {
+    if !event.steps.is_empty() && event.has_angle() {
+        return crate::mode::simulate_mode_traces(
+            unit,
+            event,
+            crate::mode::PlaybackMode::Phasor,
+            opts,
+        );
+    }
     let ev = PreparedEvent::new(event);
     let mut unit = unit.clone();
     simulate_prepared(&mut unit, &ev, event, opts)
@@ -226,6 +300,15 @@ pub fn simulate_prepared(
     event: &Event,
     opts: &SimOptions,
 ) -> Result<Traces, SimError> {
+    if !ev.steps.is_empty() && ev.has_angle {
+        // The unit as played back has the set-point block: its own columns.
+        return crate::mode::simulate_mode_traces(
+            unit,
+            event,
+            crate::mode::PlaybackMode::Phasor,
+            opts,
+        );
+    }
     let n = ev.input.time_s.len();
     let to_sys = unit.machine_mva / ev.system_mva;
     // The column layout is fixed once the wiring is resolved (run_playback initialises).

@@ -105,6 +105,9 @@ pub struct Unit {
     /// Nominal frequency [Hz].
     pub nominal_hz: f64,
     instances: Vec<Instance>,
+    /// Signals written by the playback driver besides `v_term` and `theta_term`
+    /// ([`Unit::add_external`]); on the bus right after those two.
+    externals: Vec<String>,
     signals: Vec<String>,
     bus: Vec<f64>,
     eval_order: Vec<usize>,
@@ -124,6 +127,7 @@ impl Unit {
             machine_mva,
             nominal_hz,
             instances: Vec::new(),
+            externals: Vec::new(),
             signals: Vec::new(),
             bus: Vec::new(),
             eval_order: Vec::new(),
@@ -206,6 +210,7 @@ impl Unit {
     pub fn without(&self, names: &[&str]) -> Result<Unit, UnitError> {
         let mut u = Unit::new(&self.name, self.machine_mva, self.nominal_hz);
         u.description = self.description.clone();
+        u.externals = self.externals.clone();
         for inst in self
             .instances
             .iter()
@@ -236,9 +241,41 @@ impl Unit {
         self.finish()
     }
 
+    /// Declares `name` a signal the playback driver writes, as it writes `v_term` and
+    /// `theta_term` (a measured input: a field voltage, a set-point step): no block may write it
+    /// at run time, a block may read it without a writer, and the driver sets it with
+    /// [`Unit::set_signal`] before every evaluation (and its initial value with
+    /// [`Unit::initialise_with`]). A block may still *give* its initial value (the machine gives
+    /// the E_fd it needs when its `efd` port reads a played-back field voltage). External
+    /// signals sit on the bus right after `v_term` and `theta_term`, in the order declared.
+    pub fn add_external(&mut self, name: &str) {
+        if name != SIG_V_TERM && name != SIG_THETA_TERM && !self.externals.iter().any(|e| e == name)
+        {
+            self.externals.push(name.to_string());
+            self.finished = false;
+        }
+    }
+
+    /// The signals declared with [`Unit::add_external`].
+    pub fn externals(&self) -> &[String] {
+        &self.externals
+    }
+
+    /// Writes bus slot `index` (a signal the driver writes: [`Unit::add_external`]).
+    #[inline(always)]
+    pub fn set_signal(&mut self, index: usize, value: f64) {
+        self.bus[index] = value;
+    }
+
+    #[inline(always)]
+    fn is_external(&self, s: usize) -> bool {
+        s < 2 + self.externals.len()
+    }
+
     /// Resolves the wiring and computes evaluation and initialisation orders.
     pub fn finish(&mut self) -> Result<(), UnitError> {
         self.signals = vec![SIG_V_TERM.to_string(), SIG_THETA_TERM.to_string()];
+        self.signals.extend(self.externals.iter().cloned());
         let (mut nx, mut nev) = (0, 0);
         for inst in &mut self.instances {
             inst.map.clear();
@@ -273,7 +310,7 @@ impl Unit {
         for (b, inst) in self.instances.iter().enumerate() {
             for (port, &s) in inst.block.ports().iter().zip(&inst.map) {
                 if port.dir == Dir::Out {
-                    if s == self.sig_v || s == self.sig_theta {
+                    if s < 2 + self.externals.len() {
                         return Err(UnitError::Wiring(format!(
                             "{} writes '{}', which only the playback source may write",
                             inst.name, self.signals[s]
@@ -301,7 +338,7 @@ impl Unit {
         // An output that needs a target must have a giver; a required input must be driven.
         for inst in &self.instances {
             for (port, &s) in inst.block.ports().iter().zip(&inst.map) {
-                let external = s == self.sig_v || s == self.sig_theta;
+                let external = self.is_external(s);
                 if port.dir == Dir::In
                     && !port.optional
                     && !external
@@ -322,14 +359,14 @@ impl Unit {
             }
         }
         // Tell each block which of its optional inputs nothing drives (they read 0).
+        let n_ext = 2 + self.externals.len();
         for inst in &mut self.instances {
             let undriven: Vec<usize> = (0..inst.map.len())
                 .filter(|&k| {
                     let (port, s) = (&inst.block.ports()[k], inst.map[k]);
                     port.dir == Dir::In
                         && port.optional
-                        && s != self.sig_v
-                        && s != self.sig_theta
+                        && s >= n_ext
                         && writer[s].is_none()
                         && giver[s].is_none()
                 })
@@ -387,6 +424,10 @@ impl Unit {
     /// Number of states.
     pub fn n_states(&self) -> usize {
         self.n_states
+    }
+    /// Number of event (limiter guard) functions.
+    pub fn n_events(&self) -> usize {
+        self.n_events
     }
     /// The blocks in state order.
     pub fn instances(&self) -> &[Instance] {
@@ -519,11 +560,24 @@ impl Unit {
     /// Validates parameters and initialises every block at the operating point `op` (machine
     /// base). Returns the initial state vector. Leaves the bus at the initial values.
     pub fn initialise(&mut self, op: &InitPoint) -> Result<Vec<f64>, UnitError> {
+        self.initialise_with(op, &[])
+    }
+
+    /// [`Unit::initialise`] with the initial values `preset` (`(bus index, value)`) of signals
+    /// the driver writes ([`Unit::add_external`]) set before any block initialises.
+    pub fn initialise_with(
+        &mut self,
+        op: &InitPoint,
+        preset: &[(usize, f64)],
+    ) -> Result<Vec<f64>, UnitError> {
         self.ensure_finished()?;
         let mut x = vec![0.0; self.n_states];
         self.bus.fill(0.0);
         self.bus[self.sig_v] = op.v_mag;
         self.bus[self.sig_theta] = op.v_ang;
+        for &(i, v) in preset {
+            self.bus[i] = v;
+        }
         for k in 0..self.init_order.len() {
             let b = self.init_order[k];
             let inst = &mut self.instances[b];
@@ -595,7 +649,8 @@ impl Unit {
         self.bus[self.sig_theta] = v_ang;
     }
 
-    fn eval_events(&mut self, x: &[f64], g: &mut [f64]) {
+    /// Every block's event functions at `x` (after [`Unit::eval_outputs`] at the same point).
+    pub fn eval_events(&mut self, x: &[f64], g: &mut [f64]) {
         for inst in &self.instances {
             let ne = inst.ev_len;
             if ne == 0 {
@@ -611,7 +666,9 @@ impl Unit {
         }
     }
 
-    fn update_modes(&mut self, x: &mut [f64]) -> bool {
+    /// Every block's discrete modes re-evaluated at `x` (after [`Unit::eval_outputs`]); may
+    /// project `x`. Returns `true` when anything changed.
+    pub fn update_modes(&mut self, x: &mut [f64]) -> bool {
         let mut changed = false;
         for inst in &mut self.instances {
             if inst.ev_len == 0 {

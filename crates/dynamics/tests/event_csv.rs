@@ -229,7 +229,8 @@ fn write_csv_round_trips() {
         q_pu: (0..n).map(|_| 1e-9 * lcg.uniform()).collect(),
         freq_hz: Some((0..n).map(|_| 60.7 + 0.01 * lcg.uniform()).collect()),
         efd_pu: Some((0..n).map(|_| 2.0 + lcg.uniform()).collect()),
-        ifd_pu: Some((0..n).map(|_| 1e6 * lcg.uniform().abs() + 1e-300).collect()),
+        // Plausible per-unit field currents (a median above 20 pu is refused as amperes).
+        ifd_pu: Some((0..n).map(|_| 1.5 + lcg.uniform() * 1e-3).collect()),
         time_s: t,
     };
     let ev = Event::from_record("rt", rec.clone(), 500.0, 60.0, None, None).unwrap();

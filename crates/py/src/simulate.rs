@@ -6,6 +6,7 @@ use pyo3::prelude::*;
 
 use itaipu_calib::job::load_unit as read_unit_any;
 use itaipu_dynamics::event::Event;
+use itaipu_dynamics::mode::{simulate_mode_traces, PlaybackMode};
 use itaipu_dynamics::simulate::{SimOptions, Traces};
 
 use crate::args::{source, swap_error, swapped_events_unit, Source};
@@ -19,13 +20,16 @@ use itaipu_calib::request::SimulateRequest;
 ///
 /// `event` and `unit` are paths to the TOML files (str or os.PathLike) or objects from
 /// `load_event` / `load_unit`. `method` is "dopri5" (adaptive Dormand-Prince 5(4), tolerances
-/// `rtol`, `atol`) or "rk4" (fixed step of at most `step` seconds). The GIL is released while
-/// files are read and the model is integrated.
+/// `rtol`, `atol`) or "rk4" (fixed step of at most `step` seconds). `mode` is the playback
+/// mode: "phasor" (the measured |V| and angle imposed), "exciter_alone", "machine_from_efd" or
+/// "closed_loop" (records without an angle; see the README, "Playback modes"). The GIL is
+/// released while files are read and the model is integrated.
 ///
 /// Raises EventError, UnitModelError, InitError, SimulationError (and ValueError for bad
 /// options, TypeError for bad argument types).
 #[pyfunction]
-#[pyo3(signature = (event, unit, *, method = "dopri5", rtol = 1e-6, atol = 1e-7, step = 0.001))]
+#[pyo3(signature = (event, unit, *, method = "dopri5", rtol = 1e-6, atol = 1e-7, step = 0.001, mode = "phasor"))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn simulate(
     py: Python<'_>,
     event: &Bound<'_, PyAny>,
@@ -34,8 +38,15 @@ pub(crate) fn simulate(
     rtol: f64,
     atol: f64,
     step: f64,
+    mode: &str,
 ) -> PyResult<PyTraces> {
     let opts = sim_options(method, rtol, atol, step)?;
+    let mode = PlaybackMode::parse(mode).ok_or_else(|| {
+        pyo3::exceptions::PyValueError::new_err(format!(
+            "mode: '{mode}' is not one of {}",
+            PlaybackMode::NAMES.join(", ")
+        ))
+    })?;
     if swapped_events_unit(py, event, unit)? {
         return Err(swap_error("simulate"));
     }
@@ -50,7 +61,7 @@ pub(crate) fn simulate(
             Source::Loaded(u) => u,
             Source::Path(p) => Arc::new(read_unit_any(&p)?.unit),
         };
-        Ok(itaipu_dynamics::simulate(&unit, &event, &opts)?)
+        Ok(simulate_mode_traces(&unit, &event, mode, &opts)?)
     });
     result
         .map(|t| PyTraces { inner: t })

@@ -14,8 +14,8 @@ mod stage;
 
 pub use passes::{fit, fit_with};
 pub use report::{
-    Determination, EventFitness, FitReport, FitStatistics, ParamReport, PhaseReport, StageReport,
-    DETERMINED_LIMIT, NOT_DETERMINED_LIMIT,
+    ChannelFitness, Determination, EventFitness, FitReport, FitStatistics, ModeFitness,
+    ParamReport, PhaseReport, StageReport, DETERMINED_LIMIT, NOT_DETERMINED_LIMIT,
 };
 pub(crate) use search::{jacobian, search};
 pub use stage::check_spec;
@@ -24,13 +24,14 @@ use stage::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use itaipu_dynamics::event::Event;
+use itaipu_dynamics::event::{Channel, Event};
+use itaipu_dynamics::mode::{simulate_mode, simulate_mode_traces, PlaybackMode};
 use itaipu_dynamics::simulate::{simulate_prepared, Traces};
 use itaipu_dynamics::unit::Unit;
 
 use crate::local;
 use crate::problem::{accurate_integrator, EventData, ProblemError};
-use crate::spec::{CalibSpec, LocalMethod, Strategy};
+use crate::spec::{CalibSpec, Compare, LocalMethod, Strategy};
 
 /// Correlation above which two parameters are reported as not separately identifiable.
 pub const CORRELATION_LIMIT: f64 = 0.95;
@@ -121,6 +122,10 @@ pub enum FitError {
     Stage { stage: String, msg: String },
     #[error("{0}")]
     Setup(String),
+    /// An event does not hold what a stage plays back or compares (no angle for a phasor
+    /// stage, no E_fd for the exciter alone, a compared channel it did not record).
+    #[error("{0}")]
+    Event(String),
     /// The starting unit does not simulate on a fitted event (it cannot initialise at the
     /// measured operating point, or the integration fails); the engine's error is kept.
     #[error("the starting unit: {0}")]
@@ -141,6 +146,7 @@ impl FitError {
             FitError::Spec(_) => "spec",
             FitError::Stage { .. } => "stage",
             FitError::Setup(_) => "setup",
+            FitError::Event(_) => "event",
             FitError::Start(_) => "start",
             FitError::Interrupted { .. } => "interrupted",
             FitError::Output(_) => "output",
@@ -247,9 +253,170 @@ pub fn fitness(
             rms_q: (s.q / nn).sqrt(),
             samples: s.n,
             held_out,
+            modes: vec![],
         },
         tr,
     ))
+}
+
+/// The fitness row of `unit` on `event` in a fit with playback modes: `rows` the fit's
+/// comparisons ([`CalibSpec::compares`]; empty: the historical P+Q row of [`fitness`]),
+/// `primary` the row's own comparison (the stage's; `None`: the phasor P+Q). `j_pq`, the RMS
+/// values and the traces come from the primary mode; [`EventFitness::modes`] holds every mode of
+/// `rows` (a mode that cannot play the unit back is reported with its error, unless it is the
+/// primary one).
+pub fn row_fitness(
+    unit: &Unit,
+    event: &Event,
+    held_out: bool,
+    rows: &[Compare],
+    primary: Option<&Compare>,
+) -> Result<(EventFitness, Traces), ProblemError> {
+    if rows.is_empty() && primary.is_none() {
+        return fitness(unit, event, held_out);
+    }
+    let data = EventData::new(event, None, None)?;
+    let acc = accurate_integrator();
+    let sim_err = |error| ProblemError::Simulation {
+        event: event.name.clone(),
+        error,
+    };
+    let pmode = primary.map_or(PlaybackMode::Phasor, |c| c.mode);
+    let mut modes = vec![];
+    let mut primary_pq = None;
+    for cmp in rows {
+        let out = simulate_mode(unit, &data.prepared, cmp.mode, &acc);
+        let out = match out {
+            Ok(o) => o,
+            Err(e) if cmp.mode != pmode => {
+                modes.push(ModeFitness {
+                    mode: cmp.mode,
+                    j: None,
+                    channels: vec![],
+                    error: Some(e.to_string()),
+                });
+                continue;
+            }
+            Err(e) => return Err(sim_err(e)),
+        };
+        let reported: Vec<Channel> = cmp
+            .mode
+            .outputs()
+            .iter()
+            .copied()
+            .filter(|c| event.has(*c))
+            .collect();
+        let sums = data.channel_sums(&out, &reported);
+        let weight = |c: Channel| {
+            cmp.weights
+                .iter()
+                .find(|(x, _)| *x == c)
+                .map_or(0.0, |(_, w)| *w)
+        };
+        let j: f64 = sums.iter().map(|(c, s, _)| weight(*c) * s).sum();
+        modes.push(ModeFitness {
+            mode: cmp.mode,
+            j: j.is_finite().then_some(j),
+            channels: sums
+                .iter()
+                .map(|&(c, sse, n)| ChannelFitness {
+                    channel: c,
+                    sse,
+                    rms: (sse / n.max(1) as f64).sqrt(),
+                    samples: n,
+                    weight: weight(c),
+                })
+                .collect(),
+            error: None,
+        });
+        if cmp.mode == pmode {
+            primary_pq = Some((out.p, out.q));
+        }
+    }
+    let (p, q) = match primary_pq {
+        Some(pq) => pq,
+        None => {
+            let o = simulate_mode(unit, &data.prepared, pmode, &acc).map_err(sim_err)?;
+            (o.p, o.q)
+        }
+    };
+    let s = data.window_sums(&p, &q);
+    let nn = s.n.max(1) as f64;
+    let tr = simulate_mode_traces(unit, event, pmode, &acc).map_err(sim_err)?;
+    Ok((
+        EventFitness {
+            event: event.name.clone(),
+            j_pq: s.j((1.0, 1.0)),
+            rms_p: (s.p / nn).sqrt(),
+            rms_q: (s.q / nn).sqrt(),
+            samples: s.n,
+            held_out,
+            modes,
+        },
+        tr,
+    ))
+}
+
+/// Checks, before anything runs, that every event holds what the stages to run play back and
+/// compare (and the joint pass when `joint`): an event without an angle in a phasor stage, or
+/// without a channel a stage compares, is a setup error naming the event's file, the channel
+/// and the stage's field in the spec.
+pub fn check_events(
+    spec: &CalibSpec,
+    spec_file: Option<&std::path::Path>,
+    stages: &[String],
+    joint: bool,
+    events: &[Event],
+    held_out: &[Event],
+) -> Result<(), FitError> {
+    let of = spec_file.map_or(String::new(), |p| format!(" of {}", p.display()));
+    let legacy = |st: &crate::spec::StageSpec| {
+        let (wp, wq) = crate::problem::objective_weights(st.objective, st.weights);
+        Compare {
+            mode: PlaybackMode::Phasor,
+            weights: [(Channel::P, wp), (Channel::Q, wq)]
+                .into_iter()
+                .filter(|(_, w)| *w > 0.0)
+                .collect(),
+        }
+    };
+    let mut checks: Vec<(String, Compare)> = vec![];
+    for s in stages {
+        let Some(k) = spec.stages.iter().position(|st| &st.name == s) else {
+            continue;
+        };
+        let st = &spec.stages[k];
+        let cmp = st.compare().unwrap_or_else(|| legacy(st));
+        let field = if st.compare().is_some() {
+            format!(
+                "calibration.stage[{k}] (stage {s}, mode {}, channels)",
+                cmp.mode
+            )
+        } else {
+            format!("calibration.stage[{k}] (stage {s}, phasor playback)")
+        };
+        checks.push((field, cmp));
+    }
+    if joint {
+        if let Some(c) = spec.joint_compare() {
+            checks.push((format!("calibration.joint (mode {}, channels)", c.mode), c));
+        }
+    }
+    for e in events.iter().chain(held_out) {
+        for (field, cmp) in &checks {
+            if let Some(why) = cmp.mode.missing(e, &cmp.channels()) {
+                let file = e.toml_path.as_ref().map_or_else(
+                    || format!("<in-memory event '{}'>", e.name),
+                    |p| p.display().to_string(),
+                );
+                return Err(FitError::Event(format!(
+                    "{file}: event '{}' {why}; {field}{of} needs it",
+                    e.name
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Search options used by tests and benchmarks that want a quick, reproducible fit.

@@ -62,6 +62,15 @@ pub fn fit_with(
         }
     }
     check_spec(unit, spec, &opts.stages)?;
+    let joint_runs = opts.polish && opts.stages.len() > 1;
+    check_events(spec, None, &opts.stages, joint_runs, events, held_out)?;
+    // With playback modes every fitness row reports every mode of the fit.
+    let rows = spec.compares(&opts.stages, joint_runs);
+    let first = opts
+        .stages
+        .first()
+        .and_then(|s| spec.stage(s))
+        .and_then(|st| st.compare());
     let labels = pass_labels(opts);
     let skip = match &control.resume {
         None => 0,
@@ -79,10 +88,14 @@ pub fn fit_with(
     let mut master = unit.clone();
     let mut start_fitness = vec![];
     for e in events {
-        start_fitness.push(fitness(&master, e, false).map_err(FitError::Start)?.0);
+        start_fitness.push(
+            row_fitness(&master, e, false, &rows, first.as_ref())
+                .map_err(FitError::Start)?
+                .0,
+        );
     }
     for e in held_out {
-        if let Ok((f, _)) = fitness(&master, e, true) {
+        if let Ok((f, _)) = row_fitness(&master, e, true, &rows, first.as_ref()) {
             start_fitness.push(f);
         }
     }
@@ -92,6 +105,7 @@ pub fn fit_with(
         }
     }
     let mut passes = Passes {
+        rows: &rows,
         events,
         held_out,
         opts,
@@ -195,6 +209,8 @@ pub fn fit_with(
 /// The passes of one fit as they run: what is shared by every pass's call and what the passes
 /// so far have given.
 struct Passes<'a> {
+    /// The fit's comparisons, reported in every fitness row ([`row_fitness`]).
+    rows: &'a [crate::spec::Compare],
     events: &'a [Event],
     held_out: &'a [Event],
     opts: &'a FitOptions,
@@ -249,6 +265,7 @@ impl Passes<'_> {
             true,
             also_from,
             self.control.cancel.clone(),
+            self.rows,
         );
         if self.control.cancelled() {
             return Err(self.interrupted());

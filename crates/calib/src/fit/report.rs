@@ -2,6 +2,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use itaipu_dynamics::event::Channel;
+use itaipu_dynamics::mode::PlaybackMode;
+
 use crate::fit::{CORRELATION_LIMIT, CORRELATION_REPORT};
 use crate::spec::{Objective, Weights};
 
@@ -143,12 +146,45 @@ impl FitStatistics {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EventFitness {
     pub event: String,
-    /// Σ(ΔP² + ΔQ²) over the event's fit window (system base), RaPId's J.
+    /// Σ(ΔP² + ΔQ²) over the event's fit window (system base), RaPId's J. In a fit with
+    /// playback modes, in the row's own mode (the stage's; the first stage's for the start row;
+    /// in a P-held mode P is the measured one, so this is Σ ΔQ²).
     pub j_pq: f64,
     pub rms_p: f64,
     pub rms_q: f64,
     pub samples: usize,
     pub held_out: bool,
+    /// In a fit with playback modes: the unit's fitness in every mode the fit uses (absent
+    /// otherwise).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub modes: Vec<ModeFitness>,
+}
+
+/// The fitness of a unit on an event in one playback mode: per channel the mode simulates and
+/// the record holds, the sum of squared differences over the fit window (pu: system base for P
+/// and Q, machine base for |V|, E_fd, X_adI_fd), and `j`, the weighted sum over the channels the
+/// fit compares in that mode (RaPId's fitness with its channels and equal weights).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModeFitness {
+    pub mode: PlaybackMode,
+    /// `Σ_c w_c Σ_k Δc²` over the compared channels; `None` when the mode's playback failed.
+    pub j: Option<f64>,
+    pub channels: Vec<ChannelFitness>,
+    /// Why the playback failed (a unit without a grid equivalent in `closed_loop`, say).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// One channel's misfit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChannelFitness {
+    pub channel: Channel,
+    /// Σ Δ² over the fit window.
+    pub sse: f64,
+    pub rms: f64,
+    pub samples: usize,
+    /// The weight the fit gives the channel in this mode (0: reported, not compared).
+    pub weight: f64,
 }
 
 /// One phase's counters.
@@ -165,6 +201,10 @@ pub struct PhaseReport {
 pub struct StageReport {
     pub stage: String,
     pub strategy: String,
+    /// The stage's playback mode and compared channels (`"closed_loop: v 1, q 1, efd 1"`);
+    /// absent for a phasor P+Q stage (then `objective` and `weights` say what it compares).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compare: Option<String>,
     pub objective: Objective,
     pub weights: Weights,
     pub window: Option<[f64; 2]>,
@@ -265,13 +305,17 @@ impl FitReport {
         let mut out = String::new();
         for s in &r.stages {
             let _ = writeln!(out);
+            let objective = match &s.compare {
+                Some(c) => format!("mode {c}"),
+                None => format!("objective {:?}", s.objective),
+            };
             let _ = writeln!(
                 out,
-                "stage {} ({}, objective {:?}): {:.5} -> {:.5}; {} simulations, \
+                "stage {} ({}, {}): {:.5} -> {:.5}; {} simulations, \
                  {} failed candidates, {:.1} s",
                 s.stage,
                 s.strategy,
-                s.objective,
+                objective,
                 s.objective_before,
                 s.objective_after,
                 s.simulations,
@@ -374,6 +418,46 @@ impl FitReport {
         row(&mut out, "start", &r.start_fitness);
         for s in &r.stages {
             row(&mut out, &s.stage, &s.fitness);
+        }
+        if r.start_fitness.iter().any(|f| !f.modes.is_empty()) {
+            let _ = writeln!(out);
+            let _ = writeln!(
+                out,
+                "fitness per playback mode: J = sum over the compared channels of sum(d^2) (pu), \
+                 then each channel's sum(d^2) (* = compared; per event, * after the event = held out)"
+            );
+            let mode_rows = |out: &mut String, name: &str, f: &[EventFitness]| {
+                for ev in f {
+                    for m in &ev.modes {
+                        let j = m.j.map_or("failed".to_string(), |j| format!("{j:.5}"));
+                        let ch: Vec<String> = m
+                            .channels
+                            .iter()
+                            .map(|c| {
+                                format!(
+                                    "{}{} {:.5}",
+                                    c.channel,
+                                    if c.weight > 0.0 { "*" } else { "" },
+                                    c.sse
+                                )
+                            })
+                            .collect();
+                        let _ = writeln!(
+                            out,
+                            "  {:>10} {:<16} {:<17} J {:>12}   {}",
+                            name,
+                            format!("{}{}", ev.event, if ev.held_out { "*" } else { "" }),
+                            m.mode,
+                            j,
+                            ch.join(", ")
+                        );
+                    }
+                }
+            };
+            mode_rows(&mut out, "start", &r.start_fitness);
+            for s in &r.stages {
+                mode_rows(&mut out, &s.stage, &s.fitness);
+            }
         }
         let _ = writeln!(out, "total {:.1} s on {} threads", r.wall_s, r.threads);
         out

@@ -15,7 +15,7 @@ use crate::identify;
 use crate::problem::{
     accurate_integrator, objective_weights, sum_of_squares, EventData, FreeParam, Problem,
 };
-use crate::spec::{CalibSpec, Objective, StageSpec, Strategy, Weights};
+use crate::spec::{CalibSpec, Compare, Objective, StageSpec, Strategy, Weights};
 
 use super::*;
 
@@ -59,7 +59,8 @@ pub(super) fn build_block(
 }
 
 /// A stage spec combining the free parameters of `stages` (for the simultaneous and joint
-/// passes), objective P+Q.
+/// passes), objective P+Q, or as `[calibration.joint]` says (its mode, channels, window and
+/// extra free parameters).
 pub(super) fn combined_stage(name: &str, spec: &CalibSpec, stages: &[String]) -> StageSpec {
     let mut all = StageSpec {
         name: name.into(),
@@ -71,7 +72,14 @@ pub(super) fn combined_stage(name: &str, spec: &CalibSpec, stages: &[String]) ->
         free: vec![],
         tie: Default::default(),
         replace: Default::default(),
+        mode: Default::default(),
+        channels: None,
     };
+    if let Some(j) = &spec.joint {
+        all.mode = j.mode;
+        all.channels = j.channels.clone();
+        all.window = j.window;
+    }
     for s in stages {
         let st = spec.stage(s).expect("stages are checked against the spec");
         all.free.extend(st.free.iter().cloned());
@@ -79,6 +87,13 @@ pub(super) fn combined_stage(name: &str, spec: &CalibSpec, stages: &[String]) ->
             .extend(st.tie.iter().map(|(a, b)| (a.clone(), b.clone())));
         all.window = all.window.or(st.window);
         all.lowpass_hz = all.lowpass_hz.or(st.lowpass_hz);
+    }
+    if let Some(j) = &spec.joint {
+        for f in &j.free {
+            if !all.free.iter().any(|g| g.param == f.param) {
+                all.free.push(f.clone());
+            }
+        }
     }
     all
 }
@@ -159,6 +174,7 @@ pub(super) fn run_stage(
     use_pso: bool,
     also_from: &[Vec<f64>],
     cancel: Option<Arc<AtomicBool>>,
+    rows: &[Compare],
 ) -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
     let t0 = Instant::now();
     let data: Vec<EventData> = events
@@ -171,6 +187,7 @@ pub(super) fn run_stage(
     let mut problem = Problem::new(unit, free, data, weights);
     problem.ties = ties;
     problem.cancel = cancel;
+    problem.compare = spec.compare();
     if problem.free.iter().any(|f| f.prior.is_some()) {
         problem.prior_weight = problem.measured_noise_variance();
     }
@@ -202,6 +219,7 @@ pub(super) fn run_stage(
             sub.ties = problem.ties.clone();
             sub.prior_weight = problem.prior_weight;
             sub.cancel = problem.cancel.clone();
+            sub.compare = problem.compare.clone();
             let (b, ph) = search(
                 &sub,
                 opts,
@@ -296,8 +314,11 @@ pub(super) fn run_stage(
             }
         })
         .collect();
-    // Filled by the job once the noise floors are known ([`crate::job::run_fit`]).
-    let statistics = FitStatistics::unknown(problem.dim());
+    // A phasor stage's: filled by the job once the noise floors are known
+    // ([`crate::job::run_fit`]).
+    let statistics = mode_statistics(&problem, &best, &acc)
+        .map_err(|m| stage_err(name, format!("the calibrated unit does not simulate: {m}")))?
+        .unwrap_or_else(|| FitStatistics::unknown(problem.dim()));
     let with = |d: Determination| -> Vec<String> {
         parameters
             .iter()
@@ -316,17 +337,18 @@ pub(super) fn run_stage(
     let calibrated_unit = problem.unit_at(&best);
     let mut fitness_rows = vec![];
     let mut traces = vec![];
+    let own = problem.compare.clone();
     for e in events {
-        let (fs, tr_end) =
-            fitness(&calibrated_unit, e, false).map_err(|m| stage_err(name, m.to_string()))?;
-        let (_, tr_start) =
-            fitness(&start_unit, e, false).map_err(|m| stage_err(name, m.to_string()))?;
+        let (fs, tr_end) = row_fitness(&calibrated_unit, e, false, rows, own.as_ref())
+            .map_err(|m| stage_err(name, m.to_string()))?;
+        let (_, tr_start) = row_fitness(&start_unit, e, false, rows, own.as_ref())
+            .map_err(|m| stage_err(name, m.to_string()))?;
         fitness_rows.push(fs);
         traces.push((e.name.clone(), tr_start, tr_end));
     }
     for e in held_out {
         // A held-out event that the calibrated unit cannot simulate is reported, not fatal.
-        match fitness(&calibrated_unit, e, true) {
+        match row_fitness(&calibrated_unit, e, true, rows, own.as_ref()) {
             Ok((fs, _)) => fitness_rows.push(fs),
             Err(m) => progress.message(&format!("{label}: held-out event {}: {m}", e.name)),
         }
@@ -334,6 +356,7 @@ pub(super) fn run_stage(
     let report = StageReport {
         stage: label.to_string(),
         strategy: opts.strategy.to_string(),
+        compare: problem.compare.as_ref().map(|c| c.describe()),
         objective: spec.objective,
         weights: spec.weights,
         window: spec.window,
@@ -402,6 +425,35 @@ pub fn check_spec(unit: &Unit, spec: &CalibSpec, stages: &[String]) -> Result<()
         }
     }
     Ok(())
+}
+
+/// lmfit's goodness-of-fit statistics of a stage that compares channels of a playback mode
+/// (`problem.compare`: E_fd, Q, |V|, …) at `x` ([`FitStatistics`]): each compared channel in
+/// units of its measured noise. A phasor stage's statistics are filled by the job from its P+Q
+/// fitness and the noise floors ([`crate::job::run_fit`]).
+fn mode_statistics(
+    problem: &Problem,
+    x: &[f64],
+    sim: &itaipu_dynamics::simulate::SimOptions,
+) -> Result<Option<FitStatistics>, crate::problem::ProblemError> {
+    let Some(cmp) = &problem.compare else {
+        return Ok(None);
+    };
+    let outs = problem.simulate_outputs(x, sim)?;
+    let (mut chi2, mut n) = (0.0, 0usize);
+    for (ev, out) in problem.events.iter().zip(&outs) {
+        for &(c, _) in &cmp.weights {
+            let var = ev.channel_noise_variance(c).max(f64::MIN_POSITIVE);
+            let (Some(s), Some(m)) = (out.channel(c), ev.measured(c)) else {
+                continue;
+            };
+            for k in (0..s.len()).filter(|&k| ev.in_window[k]) {
+                chi2 += (s[k] - m[k]).powi(2) / var;
+                n += 1;
+            }
+        }
+    }
+    Ok(Some(FitStatistics::new(chi2, n, problem.dim())))
 }
 
 /// The pairs of `problem`'s parameters whose estimates correlate above [`CORRELATION_REPORT`]

@@ -149,6 +149,20 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
         &rows,
     );
     page.note("Noise: the robust standard deviation of the measured P and Q from their second differences (the same estimate that weights the datasheet prior).");
+    // What the events declare beyond their samples (report.json event_notes): channels without
+    // an angle, a non-uniform time base kept as recorded, set-point steps.
+    if let Some(notes) = report["event_notes"].as_object() {
+        for (event, list) in notes {
+            for n in list
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(|n| n.as_str())
+            {
+                page.note(&format!("{event}: {n}"));
+            }
+        }
+    }
 
     // Verdict.
     let worst = worst_ratio(report);

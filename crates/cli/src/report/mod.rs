@@ -450,9 +450,14 @@ pub fn other_channels(
     nominal_hz: f64,
 ) -> Vec<(String, Vec<f64>, Vec<f64>)> {
     let mut v = vec![];
-    if let Some(vm) = tr.get("v_term") {
+    match (tr.get("v_meas_pu"), tr.get("v_term")) {
+        // A closed-loop playback simulates |V| (traces of a playback mode carry v_meas_pu).
+        (Some(m), Some(s)) if m.iter().zip(s).any(|(a, b)| a != b) => {
+            v.push(("|V| [pu]".to_string(), m.to_vec(), s.to_vec()))
+        }
         // The terminal voltage is played back: the measurement is the simulation's input.
-        v.push(("|V| played back [pu]".to_string(), vm.to_vec(), vec![]));
+        (_, Some(vm)) => v.push(("|V| played back [pu]".to_string(), vm.to_vec(), vec![])),
+        _ => {}
     }
     for (meas, sim, label, scale) in [
         ("efd_meas_pu", "efd", "E_fd [pu]", 1.0),

@@ -8,18 +8,19 @@ use std::path::Path;
 
 use super::spec::check_nominal_hz;
 use super::{
-    unwrap_angles, Event, EventError, Location, Record, ACCEPTED_COLUMNS, FREQ_TOLERANCE,
-    MIN_SAMPLES, PQ_LIMIT_PU, V_MEDIAN_RANGE_PU,
+    unwrap_angles, Channel, Event, EventError, Location, Record, ACCEPTED_COLUMNS, FIELD_LIMIT_PU,
+    FREQ_TOLERANCE, MIN_SAMPLES, PQ_LIMIT_PU, V_MEDIAN_RANGE_PU,
 };
 
 impl Event {
     /// Writes the playback record as a canonical CSV: header
-    /// `time_s,v_mag_pu,v_ang_rad,p_pu,q_pu` followed by `freq_hz`, `efd_pu`, `ifd_pu` for the
-    /// optional channels present. Numbers are written with 17 significant digits (like C's
-    /// `%.17g`), which reproduces every `f64` exactly when read back; the voltage is written as
-    /// the record holds it (|V| and the unwrapped angle in radians), so reading the file back
-    /// gives the record bit for bit: an event written and read plays back exactly as the event in
-    /// memory (an import, a synthetic event).
+    /// `time_s,v_mag_pu,v_ang_rad,p_pu,q_pu` (`time_s,v_pu,p_pu,q_pu` for a record without an
+    /// angle) followed by `freq_hz`, `efd_pu`, `ifd_pu` for the optional channels present.
+    /// Numbers are written with 17 significant digits (like C's `%.17g`), which reproduces every
+    /// `f64` exactly when read back; the voltage is written as the record holds it (|V| and the
+    /// unwrapped angle in radians), so reading the file back gives the record bit for bit: an
+    /// event written and read plays back exactly as the event in memory (an import, a synthetic
+    /// event).
     pub fn write_csv(&self, path: &Path) -> Result<(), EventError> {
         let io_err = |source| EventError::Io {
             path: path.to_path_buf(),
@@ -29,13 +30,17 @@ impl Event {
         let file = fs::File::create(path).map_err(io_err)?;
         let mut w = BufWriter::new(file);
         let rec = &self.record;
-        let mut cols: Vec<(&str, &[f64])> = vec![
-            ("time_s", &rec.time_s),
-            ("v_mag_pu", &rec.v_mag_pu),
-            ("v_ang_rad", &rec.v_ang_rad),
-            ("p_pu", &rec.p_pu),
-            ("q_pu", &rec.q_pu),
-        ];
+        let mut cols: Vec<(&str, &[f64])> = if self.has_angle() {
+            vec![
+                ("time_s", &rec.time_s),
+                ("v_mag_pu", &rec.v_mag_pu),
+                ("v_ang_rad", &rec.v_ang_rad),
+            ]
+        } else {
+            // A record without an angle keeps |V| alone (its event declares the channels).
+            vec![("time_s", &rec.time_s), ("v_pu", &rec.v_mag_pu)]
+        };
+        cols.extend([("p_pu", rec.p_pu.as_slice()), ("q_pu", rec.q_pu.as_slice())]);
         if let Some(f) = &rec.freq_hz {
             cols.push(("freq_hz", f));
         }
@@ -259,6 +264,28 @@ pub(super) fn validate_record(
             }
         }
     }
+    for (name, col, what) in [
+        ("efd_pu", &rec.efd_pu, "volts"),
+        ("ifd_pu", &rec.ifd_pu, "amperes"),
+    ] {
+        let Some(v) = col else { continue };
+        let mut a: Vec<f64> = v.iter().map(|x| x.abs()).collect();
+        a.sort_by(f64::total_cmp);
+        let med = a[a.len() / 2];
+        if med > FIELD_LIMIT_PU {
+            return Err(EventError::Units {
+                path: src.to_path_buf(),
+                column: name.to_string(),
+                at: None,
+                message: format!(
+                    "median |{name}| = {med} is above {FIELD_LIMIT_PU} pu, hundreds of times a field's \
+                     no-load value (about 1 pu): this looks like {what}, not per unit; give it per \
+                     unit of the machine's field base (the air-gap-line base: E_fd that gives 1 pu \
+                     open-circuit voltage, X_ad·I_fd)"
+                ),
+            });
+        }
+    }
     if let Some(f) = &rec.freq_hz {
         // Rounded to µHz for the message (60 * 1.1 is 66.00000000000001 in f64).
         let lo = (nominal_hz * (1.0 - FREQ_TOLERANCE) * 1e6).round() / 1e6;
@@ -290,6 +317,36 @@ pub(super) fn validate_record(
 /// present. `nominal_hz` (> 0) is needed for the `freq_hz` sanity check. The file must hold at
 /// least [`MIN_SAMPLES`] samples.
 pub fn read_csv(path: &Path, nominal_hz: f64) -> Result<Record, EventError> {
+    read_csv_channels(path, nominal_hz, false).map(|(r, _)| r)
+}
+
+/// The channels a record holds (`has_angle`: whether its angle was recorded).
+pub(super) fn record_channels(rec: &Record, has_angle: bool) -> Vec<Channel> {
+    let mut c = vec![Channel::V];
+    if has_angle {
+        c.push(Channel::Angle);
+    }
+    c.extend([Channel::P, Channel::Q]);
+    if rec.freq_hz.is_some() {
+        c.push(Channel::Freq);
+    }
+    if rec.efd_pu.is_some() {
+        c.push(Channel::Efd);
+    }
+    if rec.ifd_pu.is_some() {
+        c.push(Channel::Ifd);
+    }
+    c
+}
+
+/// [`read_csv`]; with `magnitude_only_ok` a `v_pu` column without `angle_deg` is a record
+/// without an angle (zeros in `v_ang_rad`; the event must declare it). Returns the record and
+/// whether it holds an angle.
+pub(crate) fn read_csv_channels(
+    path: &Path,
+    nominal_hz: f64,
+    magnitude_only_ok: bool,
+) -> Result<(Record, bool), EventError> {
     check_nominal_hz(path, nominal_hz)?;
     let file = fs::File::open(path).map_err(|source| EventError::Io {
         path: path.to_path_buf(),
@@ -387,7 +444,9 @@ pub fn read_csv(path: &Path, nominal_hz: f64) -> Result<Record, EventError> {
         });
     }
     const VOLTAGE_HINT: &str = "(the voltage is given as v_re_pu and v_im_pu, as v_pu and \
-                                angle_deg, or as v_mag_pu and v_ang_rad)";
+                                angle_deg, or as v_mag_pu and v_ang_rad; a record without an \
+                                angle gives v_pu alone and declares its channels in the event \
+                                file, e.g. channels = [\"v\", \"p\", \"q\", \"efd\"])";
     let polar = polar_deg || polar_rad;
     let (mag, ang) = if polar_rad {
         (mag_rad, ang_rad)
@@ -398,7 +457,7 @@ pub fn read_csv(path: &Path, nominal_hz: f64) -> Result<Record, EventError> {
         match (mag, ang) {
             (Some(a), Some(b)) => (
                 a,
-                b,
+                Some(b),
                 ColumnLabels {
                     voltage: "v_mag_pu",
                     magnitude: "v_mag_pu",
@@ -411,7 +470,15 @@ pub fn read_csv(path: &Path, nominal_hz: f64) -> Result<Record, EventError> {
         match (mag, ang) {
             (Some(a), Some(b)) => (
                 a,
-                b,
+                Some(b),
+                ColumnLabels {
+                    voltage: "v_pu",
+                    magnitude: "v_pu",
+                },
+            ),
+            (Some(a), None) if magnitude_only_ok => (
+                a,
+                None,
                 ColumnLabels {
                     voltage: "v_pu",
                     magnitude: "v_pu",
@@ -424,7 +491,7 @@ pub fn read_csv(path: &Path, nominal_hz: f64) -> Result<Record, EventError> {
         match (re, im) {
             (Some(a), Some(b)) => (
                 a,
-                b,
+                Some(b),
                 ColumnLabels {
                     voltage: "v_re_pu/v_im_pu",
                     magnitude: "|V| from v_re_pu/v_im_pu",
@@ -489,7 +556,9 @@ pub fn read_csv(path: &Path, nominal_hz: f64) -> Result<Record, EventError> {
         };
         time_s.push(num(t_i)?);
         va_v.push(num(va)?);
-        vb_v.push(num(vb)?);
+        if let Some(vb) = vb {
+            vb_v.push(num(vb)?);
+        }
         p.push(num(p_i)?);
         q.push(num(q_i)?);
         if let (Some(j), Some(v)) = (f_i, fr.as_mut()) {
@@ -504,7 +573,11 @@ pub fn read_csv(path: &Path, nominal_hz: f64) -> Result<Record, EventError> {
         lines.push(line);
     }
 
-    let (v_mag_pu, raw_ang): (Vec<f64>, Vec<f64>) = if polar_rad {
+    let has_angle = vb.is_some();
+    let (v_mag_pu, raw_ang): (Vec<f64>, Vec<f64>) = if !has_angle {
+        let n = va_v.len();
+        (va_v, vec![0.0; n])
+    } else if polar_rad {
         (va_v, vb_v)
     } else if polar {
         (va_v, vb_v.iter().map(|d| d.to_radians()).collect())
@@ -528,7 +601,7 @@ pub fn read_csv(path: &Path, nominal_hz: f64) -> Result<Record, EventError> {
     validate_record(path, &rec, nominal_hz, &labels, &|i| {
         Location::Line(lines[i])
     })?;
-    Ok(rec)
+    Ok((rec, has_angle))
 }
 
 fn csv_kind_message(kind: &csv::ErrorKind) -> String {

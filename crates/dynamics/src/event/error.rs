@@ -164,6 +164,16 @@ pub enum EventError {
         message: String,
     },
 
+    /// What the event declares (`channels`, `time_base`, `[[step]]`) is wrong or does not match
+    /// its record.
+    #[error("{}: {field}: {message}", path.display())]
+    Declaration {
+        path: PathBuf,
+        /// e.g. `channels`, `step[1].time_s`
+        field: String,
+        message: String,
+    },
+
     /// A window is upside down, not finite, or not inside the data it must lie in.
     #[error("{}: {field}: {message}", path.display())]
     BadWindow {
@@ -195,6 +205,7 @@ impl EventError {
             EventError::TooFewSamples { .. } => "too_few_samples",
             EventError::Units { .. } => "units",
             EventError::BadWindow { .. } => "bad_window",
+            EventError::Declaration { .. } => "declaration",
         }
     }
 
@@ -217,7 +228,8 @@ impl EventError {
             | EventError::NonMonotonicTime { path, .. }
             | EventError::TooFewSamples { path, .. }
             | EventError::Units { path, .. }
-            | EventError::BadWindow { path, .. } => path,
+            | EventError::BadWindow { path, .. }
+            | EventError::Declaration { path, .. } => path,
         }
     }
 }

@@ -20,6 +20,12 @@
 //! end_s = 4.65
 //! ```
 //!
+//! A staged test also declares what was recorded and what was done (`channels`, `time_base`,
+//! `[[step]]`: the `declare` module, [`Declaration`]): a record without an angle (`channels`
+//! without `"angle"`, |V| as `v_pu` alone), a non-uniform time base (kept as recorded), and
+//! set-point steps (`time_s`, `size_pu`, `reference = "v_ref"`) inside the playback window, the
+//! default init window ending before the first.
+//!
 //! `name`, `csv`, `system_mva` and `nominal_hz` are required; `system_mva` and `nominal_hz` must
 //! be finite and > 0 (any positive nominal frequency is accepted, no warning for values other
 //! than 50/60 Hz). Integers are accepted where floats are expected. Every key of a window table
@@ -79,7 +85,7 @@
 //! | `ifd_pu`    | no       | field current, pu                                                  |
 //!
 //! Exactly one voltage form must be present: (a) `v_re_pu` + `v_im_pu` or (b) `v_pu` +
-//! `angle_deg`. Any other column, a duplicated column or a missing required column is an error.
+//! `angle_deg`; or `v_pu` alone when the event declares its channels without the angle. Any other column, a duplicated column or a missing required column is an error.
 //! Every field must be a finite number. Line numbers in messages are 1-based with the header on
 //! line 1.
 //!
@@ -118,18 +124,26 @@
 //! * `csv.rs`: reading ([`read_csv`]) and writing ([`Event::write_csv`]) the measurement CSV, and
 //!   the validation shared by CSV and in-memory records;
 //! * `window.rs`: [`Window`] and the resolution of the playback, init and fit windows;
-//! * `onset.rs`: [`detect_onset`], the disturbance's onset found in the data.
+//! * `onset.rs`: [`detect_onset`], the disturbance's onset found in the data;
+//! * `declare.rs`, `declare_check.rs`: the declaration (channels, time base, steps) and its
+//!   checks against the record.
 
 use std::ops::Range;
 use std::path::PathBuf;
 
 mod csv;
+mod declare;
 mod error;
 mod onset;
 mod spec;
 mod window;
 
+pub(crate) use self::csv::read_csv_channels;
 pub use self::csv::{format_g17, read_csv};
+pub use declare::{
+    step_level, Channel, Declaration, SetpointStep, StepReference, TimeBase, FIELD_LIMIT_PU,
+    NON_UNIFORM_SPREAD,
+};
 pub use error::{EventError, Location};
 pub use onset::{
     detect_onset, Crossing, OnsetChannel, OnsetDetection, ONSET_FALSE_ALARM, ONSET_LOCATE_SD,
@@ -140,7 +154,9 @@ pub use window::{Window, TIME_TOL_S};
 
 use self::csv::{check_record_shape, validate_record, ColumnLabels};
 use spec::{check_bases, OnsetSpec, WindowSpec};
-use window::assemble;
+use window::{assemble, Declared};
+
+mod declare_check;
 
 /// Minimum number of samples in the record, the playback window, the init window and the fit
 /// window.
@@ -198,7 +214,8 @@ pub struct Record {
     /// Terminal-voltage magnitude |V|, pu of rated terminal voltage.
     pub v_mag_pu: Vec<f64>,
     /// Terminal-voltage angle, rad, in the nominal-frequency PMU frame, unwrapped (continuous);
-    /// the first sample lies in `[-π, π]`.
+    /// the first sample lies in `[-π, π]`. Zeros when the record has no angle (an event whose
+    /// declared channels leave it out: [`Event::has_angle`]).
     pub v_ang_rad: Vec<f64>,
     /// Active power, pu on the system base, generator convention (delivered > 0).
     pub p_pu: Vec<f64>,
@@ -470,6 +487,12 @@ pub struct Event {
     pub onset: Onset,
     /// Samples inside the playback window.
     pub record: Record,
+    /// The recorded channels (declared with `channels`, else those of the CSV: a phasor record).
+    pub channels: Vec<Channel>,
+    /// How the recorder's stamps are spaced (`time_base`; kept as recorded either way).
+    pub time_base: TimeBase,
+    /// Known set-point steps of a staged test (`[[step]]`), in increasing time.
+    pub steps: Vec<SetpointStep>,
 }
 
 impl Event {
@@ -491,13 +514,43 @@ impl Event {
         init: Option<Window>,
         fit: Option<Window>,
     ) -> Result<Event, EventError> {
+        Self::from_record_declared(
+            name,
+            record,
+            system_mva,
+            nominal_hz,
+            init,
+            fit,
+            &Declaration::default(),
+        )
+    }
+
+    /// [`Event::from_record`] with a [`Declaration`]: the recorded channels (a record without
+    /// `angle` holds zeros in `v_ang_rad`; the optional channels present must be the declared
+    /// ones), the time base and the set-point steps, checked as an event file's are.
+    pub fn from_record_declared(
+        name: &str,
+        record: Record,
+        system_mva: f64,
+        nominal_hz: f64,
+        init: Option<Window>,
+        fit: Option<Window>,
+        declaration: &Declaration,
+    ) -> Result<Event, EventError> {
         let src = PathBuf::from(format!("<in-memory event '{name}'>"));
         check_bases(&src, system_mva, nominal_hz)?;
         let mut record = record;
         check_record_shape(&src, &record)?;
-        record.v_ang_rad = unwrap_angles(&record.v_ang_rad);
+        let has_angle = declaration.has_angle();
+        if has_angle {
+            record.v_ang_rad = unwrap_angles(&record.v_ang_rad);
+        } else {
+            record.v_ang_rad = vec![0.0; record.len()];
+        }
         let labels = ColumnLabels::in_memory();
         validate_record(&src, &record, nominal_hz, &labels, &|i| Location::Sample(i))?;
+        let found = self::csv::record_channels(&record, has_angle);
+        let channels = declare_check::resolve_channels(&src, declaration, &found, "the record")?;
         assemble(
             &src,
             name.to_string(),
@@ -511,7 +564,78 @@ impl Event {
             init.map(WindowSpec::from).unwrap_or_default(),
             fit.map(WindowSpec::from).unwrap_or_default(),
             OnsetSpec::Detect,
+            Declared {
+                channels,
+                time_base: declaration.time_base,
+                steps: declaration.steps.clone(),
+            },
         )
+    }
+
+    /// Whether the record holds the voltage angle (a phasor record).
+    pub fn has_angle(&self) -> bool {
+        self.channels.contains(&Channel::Angle)
+    }
+
+    /// Whether the record holds channel `c`.
+    pub fn has(&self, c: Channel) -> bool {
+        self.channels.contains(&c)
+    }
+
+    /// What the event declares beyond its samples, one line each, for reports: the channels
+    /// (when not a phasor record), the time base (when not uniform) and the set-point steps.
+    /// Empty for a plain phasor record.
+    pub fn declaration_notes(&self) -> Vec<String> {
+        let mut out = vec![];
+        if !self.has_angle() {
+            out.push(format!(
+                "recorded channels: {} (no voltage angle: no phasor playback; the playback modes \
+                 exciter_alone, machine_from_efd and closed_loop need none)",
+                self.channels
+                    .iter()
+                    .map(|c| c.name())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        if self.time_base == TimeBase::NonUniform {
+            let dt: Vec<f64> = self.record.time_s.windows(2).map(|w| w[1] - w[0]).collect();
+            let lo = dt.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = dt.iter().copied().fold(0.0, f64::max);
+            out.push(format!(
+                "time base: non-uniform, intervals {:.2}-{:.2} ms; kept as recorded (played back \
+                 and compared at the recorded stamps, inputs linear between them; no resampling)",
+                lo * 1e3,
+                hi * 1e3
+            ));
+        }
+        for (k, s) in self.steps.iter().enumerate() {
+            out.push(format!(
+                "step[{k}]: {} {:+} pu at {} s",
+                s.reference.name(),
+                s.size_pu,
+                s.time_s
+            ));
+        }
+        out
+    }
+
+    /// Mean of a recorded channel over the init window (`None` when not recorded): E_fd0 and
+    /// X_adI_fd0 of the record.
+    pub fn init_mean(&self, c: Channel) -> Option<f64> {
+        let r = self.init_range();
+        let rec = &self.record;
+        let v: &[f64] = match c {
+            Channel::V => &rec.v_mag_pu,
+            Channel::Angle => self.has_angle().then_some(rec.v_ang_rad.as_slice())?,
+            Channel::P => &rec.p_pu,
+            Channel::Q => &rec.q_pu,
+            Channel::Freq => rec.freq_hz.as_deref()?,
+            Channel::Efd => rec.efd_pu.as_deref()?,
+            Channel::Ifd => rec.ifd_pu.as_deref()?,
+        };
+        let s = &v[r];
+        (!s.is_empty()).then(|| s.iter().sum::<f64>() / s.len() as f64)
     }
 
     /// The time of the disturbance's onset, s (`None`: ambient data). Shorthand for

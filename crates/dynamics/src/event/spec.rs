@@ -6,21 +6,26 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use super::csv::read_csv;
-use super::window::{assemble, Window};
-use super::{Event, EventError};
+use super::csv::{read_csv_channels, record_channels};
+use super::declare_check::resolve_channels;
+use super::window::{assemble, Declared, Window};
+use super::{Channel, Declaration, Event, EventError, SetpointStep, StepReference, TimeBase};
 
-const TOP_KEYS: [&str; 9] = [
+const TOP_KEYS: [&str; 12] = [
     "name",
     "description",
     "csv",
     "system_mva",
     "nominal_hz",
     "onset_s",
+    "channels",
+    "time_base",
     "playback",
     "init",
     "fit",
+    "step",
 ];
+const STEP_KEYS: [&str; 3] = ["time_s", "size_pu", "reference"];
 const REQUIRED_KEYS: [&str; 4] = ["name", "csv", "system_mva", "nominal_hz"];
 const WINDOW_TABLES: [&str; 3] = ["playback", "init", "fit"];
 const WINDOW_KEYS: [&str; 2] = ["start_s", "end_s"];
@@ -42,6 +47,22 @@ struct EventSpec {
     init: Option<WindowSpec>,
     #[serde(default)]
     fit: Option<WindowSpec>,
+    #[serde(default)]
+    channels: Option<Vec<String>>,
+    #[serde(default)]
+    time_base: Option<String>,
+    #[serde(default)]
+    step: Vec<StepSpec>,
+}
+
+/// A `[[step]]` table as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StepSpec {
+    time_s: f64,
+    size_pu: f64,
+    #[serde(default)]
+    reference: Option<String>,
 }
 
 /// `onset_s` as written: a time or a word (only `"none"` is accepted).
@@ -106,6 +127,24 @@ fn check_toml_keys(text: &str, path: &Path) -> Result<(), EventError> {
         if !TOP_KEYS.contains(&key) {
             unknown.push((k.span().start, key.to_string(), TOP_KEYS.join(", ")));
             continue;
+        }
+        if key == "step" {
+            if let DeValue::Array(items) = v.get_ref() {
+                for (i, item) in items.iter().enumerate() {
+                    if let DeValue::Table(sub) = item.get_ref() {
+                        for (k2, _) in sub.iter() {
+                            let key2: &str = k2.get_ref();
+                            if !STEP_KEYS.contains(&key2) {
+                                unknown.push((
+                                    k2.span().start,
+                                    format!("step[{i}].{key2}"),
+                                    STEP_KEYS.join(", "),
+                                ));
+                            }
+                        }
+                    }
+                }
+            }
         }
         if WINDOW_TABLES.contains(&key) {
             if let DeValue::Table(sub) = v.get_ref() {
@@ -183,6 +222,7 @@ impl Event {
             message: e.to_string().trim_end().to_string(),
         })?;
         check_bases(path, spec.system_mva, spec.nominal_hz)?;
+        let declaration = declaration(path, &spec)?;
         let onset = match spec.onset_s {
             None => OnsetSpec::Detect,
             Some(OnsetValue::Time(t)) => OnsetSpec::Given(Some(t)),
@@ -202,7 +242,9 @@ impl Event {
 
         let folder = path.parent().unwrap_or_else(|| Path::new(""));
         let csv_path = folder.join(&spec.csv);
-        let full = read_csv(&csv_path, spec.nominal_hz).map_err(|e| match e {
+        let magnitude_only_ok = !declaration.has_angle();
+        let read = read_csv_channels(&csv_path, spec.nominal_hz, magnitude_only_ok);
+        let (full, has_angle) = read.map_err(|e| match e {
             EventError::Io {
                 path: p,
                 action,
@@ -214,6 +256,9 @@ impl Event {
             },
             other => other,
         })?;
+        let found = record_channels(&full, has_angle);
+        let data = format!("the CSV file {}", csv_path.display());
+        let channels = resolve_channels(path, &declaration, &found, &data)?;
 
         assemble(
             path,
@@ -228,6 +273,79 @@ impl Event {
             spec.init.unwrap_or_default(),
             spec.fit.unwrap_or_default(),
             onset,
+            Declared {
+                channels,
+                time_base: declaration.time_base,
+                steps: declaration.steps,
+            },
         )
     }
+}
+
+/// The declaration of an event file (`channels`, `time_base`, `[[step]]`), names checked.
+fn declaration(path: &Path, spec: &EventSpec) -> Result<Declaration, EventError> {
+    let err = |field: String, message: String| EventError::Declaration {
+        path: path.to_path_buf(),
+        field,
+        message,
+    };
+    let channels = match &spec.channels {
+        None => None,
+        Some(names) => Some(
+            names
+                .iter()
+                .map(|n| {
+                    Channel::parse(n.trim()).ok_or_else(|| {
+                        err(
+                            "channels".into(),
+                            format!("unknown channel \"{n}\" (channels: {})", Channel::names()),
+                        )
+                    })
+                })
+                .collect::<Result<Vec<_>, _>>()?,
+        ),
+    };
+    let time_base = match spec.time_base.as_deref().map(str::trim) {
+        None | Some("uniform") => TimeBase::Uniform,
+        Some("non_uniform") => TimeBase::NonUniform,
+        Some(other) => {
+            return Err(err(
+                "time_base".into(),
+                format!("\"{other}\" is not one of \"uniform\", \"non_uniform\""),
+            ))
+        }
+    };
+    let mut steps = vec![];
+    for (k, s) in spec.step.iter().enumerate() {
+        let reference = match s.reference.as_deref() {
+            None => {
+                return Err(err(
+                    format!("step[{k}].reference"),
+                    format!(
+                        "missing: say which reference the step moves ({})",
+                        StepReference::NAMES.join(", ")
+                    ),
+                ))
+            }
+            Some(r) => StepReference::parse(r.trim()).ok_or_else(|| {
+                err(
+                    format!("step[{k}].reference"),
+                    format!(
+                        "\"{r}\" is not a reference a step can move (references: {})",
+                        StepReference::NAMES.join(", ")
+                    ),
+                )
+            })?,
+        };
+        steps.push(SetpointStep {
+            time_s: s.time_s,
+            size_pu: s.size_pu,
+            reference,
+        });
+    }
+    Ok(Declaration {
+        channels,
+        time_base,
+        steps,
+    })
 }

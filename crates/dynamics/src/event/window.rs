@@ -5,12 +5,20 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use super::declare_check::check_steps;
 use super::onset::detect_onset;
 use super::spec::{OnsetSpec, WindowSpec};
 use super::{
-    Event, EventError, Onset, OnsetSource, Record, DEFAULT_INIT_MIN_SAMPLES, DEFAULT_INIT_S,
-    MIN_SAMPLES, ONSET_GUARD_SAMPLES,
+    Channel, Event, EventError, Onset, OnsetSource, Record, SetpointStep, TimeBase,
+    DEFAULT_INIT_MIN_SAMPLES, DEFAULT_INIT_S, MIN_SAMPLES, ONSET_GUARD_SAMPLES,
 };
+
+/// What an event declares, resolved against its record (channels checked).
+pub(super) struct Declared {
+    pub(super) channels: Vec<Channel>,
+    pub(super) time_base: TimeBase,
+    pub(super) steps: Vec<SetpointStep>,
+}
 
 /// A closed time interval `[start_s, end_s]`, seconds on the record's time axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -62,6 +70,7 @@ pub(super) fn assemble(
     init: WindowSpec,
     fit: WindowSpec,
     onset: OnsetSpec,
+    declared: Declared,
 ) -> Result<Event, EventError> {
     // Time stamps on a PMU's reporting grid, as written, are the grid's instants.
     let mut full = full;
@@ -115,14 +124,45 @@ pub(super) fn assemble(
         }
     };
 
+    // Set-point steps: inside the playback record, after its first sample.
+    check_steps(
+        src,
+        &declared.steps,
+        record.start_s(),
+        record.end_s(),
+        &format!("{pb_desc} ({})", record_desc),
+    )?;
+
     // Init.
     let init_start = init.start_s.unwrap_or(pb_win.start_s);
-    let init_default_end = match onset.time_s {
+    let mut init_default_end = match onset.time_s {
         Some(t) if t > init_start => onset_init_end(&record, init_start, t),
         _ => default_init_end(&record, init_start, pb_win.end_s),
     };
+    if let Some(first) = declared.steps.first() {
+        // The operating point is the pre-step one: the default window ends before the step.
+        if first.time_s > init_start {
+            init_default_end =
+                init_default_end.min(onset_init_end(&record, init_start, first.time_s));
+        }
+    }
     let iw = resolve(init, pb_win.start_s, init_default_end);
     check_window(src, "init", &iw, &pb_win, &pb_desc)?;
+    if let Some(first) = declared.steps.first() {
+        if iw.window.end_s >= first.time_s - TIME_TOL_S {
+            return Err(EventError::BadWindow {
+                path: src.to_path_buf(),
+                field: "init.end_s".into(),
+                message: format!(
+                    "{}{} s is not before step[0].time_s = {} s: the operating point is the \
+                     pre-step one; end the init window before the first step",
+                    iw.window.end_s,
+                    if iw.end_default { " (default)" } else { "" },
+                    first.time_s
+                ),
+            });
+        }
+    }
     check_count(
         src,
         "init",
@@ -152,6 +192,9 @@ pub(super) fn assemble(
         fit: fw.window,
         onset,
         record,
+        channels: declared.channels,
+        time_base: declared.time_base,
+        steps: declared.steps,
     })
 }
 
