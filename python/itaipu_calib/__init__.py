@@ -107,7 +107,7 @@ cause whose gain is significant (ΔBIC, fitted and held-out χ²), as ``itaipu-c
     d = ic.diagnose(ev, "data/synthetic/unit_gensae_sexs_stab3_hygov.toml",
                     causes=["measurement_skew", "terminal_load"])
     d.cause                     # 'measurement_skew' (or 'none', 'unexplained')
-    d.verdict                   # cause, title, statement, key_parameters, gains, where
+    d.verdict                   # cause, title, statement, key_parameters, gains, where, grade, probability, competing
     d.candidates, d.evidence    # every cause tried with its gain; the residual evidence
     d.extended_unit_toml        # the extended, re-fitted unit of the named cause (or None)
     d.traces_before[ev.name]    # {'time_s': array, 'p_pu': array, ...}; also traces_after

@@ -163,6 +163,10 @@ def test_a_user_cause_file_is_tried_and_named(tmp_path):
     ev = ic.synth(truth, duration=10.0, seed=5)
     d = ic.diagnose(ev, TRUTH, causes=["reactive_droop", "terminal_load"], user_causes=DROOP, **QUICK)
     assert d.cause == "reactive_droop"
+    # A named cause carries its grade and posterior probability; nothing competes with it.
+    assert d.verdict["grade"] in ("strong", "moderate")
+    assert 0.0 < d.verdict["probability"] <= 1.0
+    assert d.verdict["competing"] == []
     x_c = {p: v for p, v, _ in d.verdict["key_parameters"]}["droop.x_c"]
     assert abs(x_c - 0.07) < 0.01
     assert "diagram" in d.extended_unit.models()

@@ -188,7 +188,9 @@ def test_load_event():
     for arr in (event.time_s, event.v_mag_pu, event.v_ang_rad, event.p_pu, event.q_pu):
         assert arr.shape == (N_SAMPLES,) and arr.dtype == np.float64
     assert event.freq_hz is None
-    assert event.init == (0.0, 0.95)
+    # The init window is found from the record: from its start to 3 samples before the onset
+    # the data show (1.0167 s, sample 61 at 60 samples/s).
+    assert event.init == pytest.approx((0.0, 58 / 60), abs=1e-12)
     assert event.toml_path == EVENT
     op = event.operating_point()
     assert set(op) == {"v_mag_pu", "v_ang_rad", "p_pu", "q_pu", "freq_hz", "t0_s", "n_samples"}
@@ -284,7 +286,7 @@ def test_unknown_csv_column(tmp_path):
     # Exactly the Rust message (what the command line prints after "error: ").
     assert str(info.value) == (
         f"{csv} line 1: unknown column 'bogus'; accepted columns are: time_s, v_re_pu, v_im_pu, "
-        "v_pu, angle_deg, p_pu, q_pu, freq_hz, efd_pu, ifd_pu"
+        "v_pu, angle_deg, v_mag_pu, v_ang_rad, p_pu, q_pu, freq_hz, efd_pu, ifd_pu"
     )
 
 

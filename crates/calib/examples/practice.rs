@@ -188,6 +188,10 @@ fn main() {
                 )
             }
         };
+        let mut s = s;
+        if let Some((Ok(d), _)) = &diag {
+            s.grade = d.report.verdict.grade.map(|g| g.as_str().to_string());
+        }
         let key_txt = s
             .key
             .as_ref()
@@ -208,7 +212,16 @@ fn main() {
             s.fit_ratio,
             s.fit_s,
             s.named.clone().unwrap_or("-".into())
-                + if s.cause_ok == Some(false) { " x" } else { "" },
+                + match s.outcome() {
+                    "wrong name" => " WRONG",
+                    "miss" | "false alarm" => " x",
+                    _ => "",
+                }
+                + match s.grade.as_deref() {
+                    Some("strong") => " (S)",
+                    Some(_) => " (M)",
+                    None => "",
+                },
             s.diagnose_s,
             key_txt
         );
@@ -230,9 +243,34 @@ fn main() {
         .iter()
         .filter(|r| r.hidden == "none" && r.cause_ok == Some(true))
         .count();
+    let count = |o: &str| rows.iter().filter(|r| r.outcome() == o).count();
+    let graded = |g: &str| {
+        let of: Vec<_> = rows
+            .iter()
+            .filter(|r| r.grade.as_deref() == Some(g))
+            .collect();
+        (
+            of.iter().filter(|r| r.outcome() == "right").count(),
+            of.len(),
+        )
+    };
+    let (strong_ok, strong) = graded("strong");
+    let (moderate_ok, moderate) = graded("moderate");
+    let inconclusive = rows
+        .iter()
+        .filter(|r| r.named.as_deref() == Some("inconclusive"))
+        .count();
+    let scored: Vec<_> = rows.iter().filter_map(|r| r.key.as_ref()).collect();
+    let keys_ok = scored.iter().filter(|k| k.3).count();
     println!(
-        "fit within 1.1 x floor: {fit_ok}/{}; right cause: {hits}/{effect}; none on clean: {clean_ok}/{clean}",
-        rows.len()
+        "fit within 1.1 x floor: {fit_ok}/{}; right cause: {hits}/{effect}; wrong names: {}; misses: {} ({inconclusive} inconclusive); \
+         none on clean: {clean_ok}/{clean} (false alarms: {}); strong right: {strong_ok}/{strong}; moderate right: \
+         {moderate_ok}/{moderate}; keys within tolerance: {keys_ok}/{}",
+        rows.len(),
+        count("wrong name"),
+        count("miss"),
+        count("false alarm"),
+        scored.len()
     );
     std::fs::create_dir_all("out").ok();
     if let Ok(text) = serde_json::to_string_pretty(&rows) {

@@ -495,6 +495,31 @@ pub struct CaseScore {
     pub diagnose_s: f64,
     /// Calibrated / true value of the parameters the nominal got wrong.
     pub nominal_errors: Vec<(String, f64, f64, f64)>,
+    /// The named cause's grade (`strong`, `moderate`), when one is named.
+    pub grade: Option<String>,
+}
+
+impl CaseScore {
+    /// How the verdict scores against the key: `right` (the hidden cause, or `none` on a clean
+    /// case), `wrong name` (a cause named that is not the hidden one: the worst outcome, an
+    /// engineer acts on it), `miss` (an effect case diagnosed `none`, `unexplained` or
+    /// `inconclusive`), `false alarm` (a clean case diagnosed anything but `none`), `not run`.
+    pub fn outcome(&self) -> &'static str {
+        let Some(named) = &self.named else {
+            return "not run";
+        };
+        let names_a_cause = !crate::diagnose::NO_CAUSE_VERDICTS.contains(&named.as_str())
+            && !named.starts_with("error");
+        if self.cause_ok == Some(true) {
+            "right"
+        } else if self.hidden == "none" {
+            "false alarm"
+        } else if names_a_cause {
+            "wrong name"
+        } else {
+            "miss"
+        }
+    }
 }
 
 /// Scores a calibrated unit and an optional diagnosis against the key.
@@ -550,5 +575,6 @@ pub fn score(
         key: key_score,
         diagnose_s,
         nominal_errors,
+        grade: None,
     }
 }

@@ -134,6 +134,10 @@ impl FreeParam {
         let u = self.to_unit(x);
         !(0.001..=0.999).contains(&u)
     }
+    /// True when `x` lies within 0.1 % of the box width of the upper bound.
+    pub fn at_upper_bound(&self, x: f64) -> bool {
+        self.to_unit(x) > 0.999
+    }
 }
 
 /// Σ r², the objective of a residual vector.

@@ -187,3 +187,22 @@ fn a_clean_practice_record_is_diagnosed_none() {
     assert_eq!(hidden, "none");
     assert_eq!(report.verdict.cause, "none", "{}", report.verdict.statement);
 }
+
+/// A clean case of the second set (`practice2`, other seeds): a 10 s fault record. Nothing may
+/// be named, and no candidate may pass its test (an `inconclusive` would be an alarm too).
+#[test]
+fn a_clean_record_of_the_second_set_is_diagnosed_none() {
+    let (report, hidden) = fit_and_diagnose("q03");
+    assert_eq!(hidden, "none");
+    assert_eq!(report.verdict.cause, "none", "{}", report.verdict.statement);
+    assert!(report.verdict.grade.is_none() && report.verdict.competing.is_empty());
+    assert!(
+        report.candidates.iter().all(|c| !c.significant),
+        "{:?}",
+        report
+            .candidates
+            .iter()
+            .map(|c| (&c.cause, c.significant))
+            .collect::<Vec<_>>()
+    );
+}

@@ -128,6 +128,49 @@ fn a_hidden_droop_is_named_by_the_user_cause_with_its_reactance() {
     assert!(cand.significant);
 }
 
+/// Outside the catalog: the same hidden droop, calibrated and then diagnosed as a user does
+/// (the practice protocol: the one spec frees the 20 uncertain parameters, the default staged
+/// fit, then the diagnosis re-freeing the calibrated set with its prior), with the whole
+/// built-in catalog and no user cause. No catalog cause models a compensator in front of the
+/// AVR, so none may be named (the engineer would act on it): `unexplained` (a residual above
+/// the noise no candidate explains), `inconclusive` or `none` (a droop the calibration
+/// absorbed).
+#[test]
+fn a_hidden_droop_without_its_user_cause_gets_no_catalog_name() {
+    let ev = dip_event(&truth(0.06), 11);
+    let case = itaipu_calib::practice::PracticeCase {
+        name: "droop".into(),
+        dir: PathBuf::from("."),
+        event: ev,
+        unit: base_unit(),
+    };
+    let (fitted, res) = itaipu_calib::practice::fit_and_diagnose(&case, &Silent).unwrap();
+    let res = res.report;
+    let v = &res.verdict;
+    for c in &res.candidates {
+        println!(
+            "{:<17} significant {} {:?}",
+            c.cause,
+            c.significant,
+            c.gains
+                .as_ref()
+                .map(|g| (g.delta_bic, g.fit_drop, g.held_drop))
+        );
+    }
+    println!(
+        "J {:?}; {}: {}",
+        fitted.report.stages.last().map(|s| s.objective_after),
+        v.cause,
+        v.statement
+    );
+    assert!(res.candidates.len() >= 6, "the whole catalog was tried");
+    assert!(
+        !v.names_a_cause(),
+        "a catalog cause named for an effect outside it: {}",
+        v.statement
+    );
+}
+
 #[test]
 fn on_a_clean_event_the_user_cause_is_not_named() {
     let ev = dip_event(&base_unit(), 12);

@@ -90,7 +90,8 @@ impl PyDiagnosis {
 
 #[pymethods]
 impl PyDiagnosis {
-    /// The verdict as a dict: cause, title, statement, key_parameters, gains, where.
+    /// The verdict as a dict: cause, title, statement, key_parameters, gains, where, grade,
+    /// probability, competing.
     #[getter]
     fn verdict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let mut v = self

@@ -306,6 +306,32 @@ impl Candidates<'_> {
                 rep.note = format!("not named: {why}");
             }
         }
+        // An extension pressed against the upper end of its declared range (the largest
+        // saturation, load, delay, limiter setting the cause can physically be): the residual
+        // asks for more of the effect than the cause can be, so what it gained is a part of
+        // another misfit it bent to follow (an effect outside the catalog, practice's
+        // significant rivals of the named cause, e.g. a terminal load at 0.15 pu beside an
+        // OEL). Not named by the statistical test; the evidence rule below may still name it.
+        if rep.significant {
+            let ext_free = resolve(&ext.unit, &bounds).unwrap_or_default();
+            if let Some((f, v)) = ext_free
+                .iter()
+                .zip(&r.values)
+                .take(ext.extension_free.len())
+                .find(|(f, v)| f.at_upper_bound(**v))
+            {
+                rep.significant = false;
+                rep.note = format!(
+                    "not named: its extension presses against the upper end of its range ({} = {} in [{}, {}]): the \
+                     residual asks for more of this effect than the cause can be, so it does not explain it (another \
+                     effect may be at work)",
+                    f.path,
+                    super::verdict::fmt_num(*v),
+                    super::verdict::fmt_num(f.lo),
+                    super::verdict::fmt_num(f.hi)
+                );
+            }
+        }
         if !rep.significant {
             if let Some(why) = cause.and_then(|c| c.named_by_evidence(ctx)) {
                 rep.significant = true;

@@ -314,7 +314,57 @@ pub struct Verdict {
     /// Where the residual lives: `(signal, window, start_s, end_s)`.
     #[serde(rename = "where")]
     pub where_: Option<(String, String, f64, f64)>,
+    /// A named cause's confidence: `strong` or `moderate` (see [`Grade`]); `None` for `none`,
+    /// `unexplained` and `inconclusive`.
+    pub grade: Option<Grade>,
+    /// The named cause's approximate posterior probability among the models compared (its
+    /// re-fitted baseline and the other significant candidates' extensions, equal prior odds),
+    /// from their VIF-deflated BIC: `1 / Σ_m exp(−(BIC_m − BIC_named)/2)`.
+    pub probability: Option<f64>,
+    /// `inconclusive`: the significant candidates that explain the residual about equally
+    /// (the best first), each with its VIF-deflated BIC above the best's.
+    pub competing: Vec<(String, f64)>,
 }
+
+/// The verdicts that name no cause: `none` (at the noise floor), `unexplained` (a residual no
+/// candidate explains) and `inconclusive` (several explain it about equally). A user cause may
+/// not take one of these ids.
+pub const NO_CAUSE_VERDICTS: [&str; 3] = ["none", "unexplained", "inconclusive"];
+
+impl Verdict {
+    /// A cause is named (not one of [`NO_CAUSE_VERDICTS`]).
+    pub fn names_a_cause(&self) -> bool {
+        !NO_CAUSE_VERDICTS.contains(&self.cause.as_str())
+    }
+}
+
+/// How much a named cause can be trusted.
+///
+/// - `Strong`: the extension beats its re-fitted baseline and every other candidate with a
+///   posterior probability of at least [`STRONG_PROBABILITY`] and its gain holds on the
+///   held-out blocks (not only on the segments' second test, not only by its signature).
+/// - `Moderate`: named, with less than that (a reviewer should check the evidence quoted).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Grade {
+    Strong,
+    Moderate,
+}
+
+impl Grade {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Grade::Strong => "strong",
+            Grade::Moderate => "moderate",
+        }
+    }
+}
+
+/// The posterior probability a named cause needs to be graded `strong`: 0.99, i.e. odds of at
+/// least 99:1 against the baseline and all rivals together (a BIC margin of about 9.2 against a
+/// single alternative, Kass & Raftery's "strong" to "very strong" boundary of 2 ln B = 10 for
+/// the sum of several).
+pub const STRONG_PROBABILITY: f64 = 0.99;
 
 /// Noise and split.
 #[derive(Debug, Clone, Serialize)]

@@ -150,12 +150,13 @@ impl UserCause {
                 format!("'{id}' is not an identifier (letters, digits and _)"),
             ));
         }
-        if catalog::find(&id).is_some() || id == "none" || id == "unexplained" {
+        if catalog::find(&id).is_some() || super::NO_CAUSE_VERDICTS.contains(&id.as_str()) {
             return Err(err(
                 "id",
                 format!(
-                    "'{id}' is taken (the built-in causes: {}; and none, unexplained)",
-                    catalog::ids()
+                    "'{id}' is taken (the built-in causes: {}; and {})",
+                    catalog::ids(),
+                    super::NO_CAUSE_VERDICTS.join(", ")
                 ),
             ));
         }

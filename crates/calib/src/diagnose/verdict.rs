@@ -51,10 +51,15 @@ pub(super) fn undecided(
         .next()
         .map(|(r, g)| {
             format!(
-                " The best candidate, {}, gained ΔBIC {:.1} ({:.1} % of χ²), below the threshold.",
+                " The best candidate, {}, gained ΔBIC {:.1} ({:.1} % of χ²){}.",
                 r.cause,
                 g.delta_bic,
-                100.0 * g.fit_drop
+                100.0 * g.fit_drop,
+                if r.note.starts_with("not named") {
+                    format!(", {}", r.note)
+                } else {
+                    ", not significant".to_string()
+                }
             )
         })
         .unwrap_or_default();
@@ -66,6 +71,9 @@ pub(super) fn undecided(
             key_parameters: vec![],
             gains: None,
             where_: None,
+            grade: None,
+            probability: None,
+            competing: vec![],
         };
     };
     let top = s
@@ -87,6 +95,9 @@ pub(super) fn undecided(
             key_parameters: vec![],
             gains: None,
             where_,
+            grade: None,
+            probability: None,
+            competing: vec![],
         }
     } else if let Some(w) = top {
         let mode = s
@@ -118,6 +129,9 @@ pub(super) fn undecided(
             key_parameters: vec![],
             gains: None,
             where_,
+            grade: None,
+            probability: None,
+            competing: vec![],
         }
     } else {
         // No window (a record too short to cut into any): the residual as a whole.
@@ -132,6 +146,9 @@ pub(super) fn undecided(
             key_parameters: vec![],
             gains: None,
             where_: None,
+            grade: None,
+            probability: None,
+            competing: vec![],
         }
     }
 }
@@ -179,6 +196,36 @@ pub(super) fn decide(
             s(b).total_cmp(&s(a))
         })
     });
+    // Two significant candidates whose extended models explain the fitted samples about
+    // equally: no name (a wrong name is worse than none), the verdict says which compete.
+    let significant: Vec<&CandidateReport> = reports
+        .iter()
+        .filter(|r| r.significant && r.gains.is_some())
+        .collect();
+    if let [best, rivals @ ..] = significant.as_slice() {
+        let competing: Vec<(String, f64)> = rivals
+            .iter()
+            .map(|r| (r.cause.clone(), bic_gap(best, r)))
+            .filter(|(_, gap)| *gap < opts.bic_threshold)
+            .collect();
+        if !competing.is_empty() {
+            let verdict = inconclusive(
+                best,
+                &competing,
+                reports,
+                evidence_before,
+                opts,
+                sigma_p,
+                sigma_q,
+            );
+            return Decision {
+                verdict,
+                extended_unit: None,
+                after: vec![],
+                evidence_after: vec![],
+            };
+        }
+    }
     // A significant candidate has its re-fit and its gains (`Candidates::score` returns them
     // with every report it scores); one without them could not be named, and is not.
     let named = reports
@@ -275,6 +322,17 @@ pub(super) fn decide(
                     back.join(", ")
                 )
             };
+            let probability = posterior(&rep, reports);
+            // Strong: odds of 99:1 or better, and the held-out blocks confirm the gain by the
+            // same test that made it significant (not only the segments' second test, not only
+            // the cause's signature in the evidence).
+            let grade = grade(probability, &g, opts);
+            let statement = format!(
+                "{statement} Confidence: {} (posterior probability {:.3} against its re-fitted baseline and the {} other significant candidate(s)).",
+                grade.as_str(),
+                probability,
+                reports.iter().filter(|c| c.significant && c.cause != rep.cause).count()
+            );
             extended_unit = Some(r.unit);
             Verdict {
                 cause: rep.cause.clone(),
@@ -283,6 +341,9 @@ pub(super) fn decide(
                 key_parameters: key,
                 gains: Some(g),
                 where_: None,
+                grade: Some(grade),
+                probability: Some(probability),
+                competing: vec![],
             }
         }
         None => undecided(evidence_before, reports, opts, sigma_p, sigma_q),
@@ -293,6 +354,120 @@ pub(super) fn decide(
         extended_unit,
         after,
         evidence_after,
+    }
+}
+
+/// The VIF-deflated BIC of `other`'s extended model above `best`'s, on the common fitted
+/// samples: `(χ²_other − χ²_best)/v + (k_other − k_best) ln(N/v)`, k every parameter each
+/// re-fitted and `v` the larger of the two baselines' variance inflation (the conservative
+/// choice: a coloured residual counts as fewer independent samples, which narrows the gap).
+/// Positive favours `best`. Infinite when either has no gains.
+pub(super) fn bic_gap(best: &CandidateReport, other: &CandidateReport) -> f64 {
+    let (Some(a), Some(b)) = (&best.gains, &other.gains) else {
+        return f64::INFINITY;
+    };
+    let v = a.vif.max(b.vif).max(1.0);
+    let n = (a.n_fit.max(1) as f64 / v).max(1.0);
+    (b.chi2_fit_ext - a.chi2_fit_ext) / v
+        + (other.parameters.len() as f64 - best.parameters.len() as f64) * n.ln()
+}
+
+/// The named candidate's approximate posterior probability (equal prior odds) among its
+/// re-fitted baseline (`ΔBIC` below it) and the other significant candidates' extensions
+/// ([`bic_gap`] above it): `1 / (1 + e^{−ΔBIC/2} + Σ e^{−gap/2})`, Schwarz's approximation of
+/// the marginal likelihood. A candidate that failed its own test is no rival explanation: its
+/// extension gained nothing over its baseline, and its extended model's χ² differs from the
+/// named one's by what the two baselines' searches found (each re-fits other interacting
+/// parameters), not by the cause. The figure is an approximation a reviewer weighs, not an
+/// exact Bayes factor.
+pub(super) fn posterior(named: &CandidateReport, reports: &[CandidateReport]) -> f64 {
+    let Some(g) = &named.gains else {
+        return 0.0;
+    };
+    let mut odds_against = (-g.delta_bic / 2.0).exp();
+    for r in reports
+        .iter()
+        .filter(|r| r.cause != named.cause && r.significant)
+    {
+        let gap = bic_gap(named, r);
+        if gap.is_finite() {
+            odds_against += (-gap / 2.0).exp();
+        }
+    }
+    1.0 / (1.0 + odds_against)
+}
+
+/// A named cause's grade: `strong` with a posterior probability of at least
+/// [`STRONG_PROBABILITY`], a ΔBIC against its baseline above the threshold and a held-out drop
+/// of at least `min_held_drop` on the interleaved blocks (the gain predicted, not only fitted);
+/// `moderate` otherwise (named by the segments' second test or by its signature, or a rival
+/// close behind).
+pub(super) fn grade(probability: f64, g: &Gains, opts: &DiagnoseOptions) -> Grade {
+    if probability >= STRONG_PROBABILITY
+        && g.held_drop >= opts.min_held_drop
+        && g.delta_bic > opts.bic_threshold
+    {
+        Grade::Strong
+    } else {
+        Grade::Moderate
+    }
+}
+
+/// The verdict when two or more significant candidates explain the residual within the BIC
+/// threshold of each other: `inconclusive`, with the competitors and where the residual lives.
+fn inconclusive(
+    best: &CandidateReport,
+    competing: &[(String, f64)],
+    reports: &[CandidateReport],
+    ev: &[EventEvidence],
+    opts: &DiagnoseOptions,
+    sigma_p: f64,
+    sigma_q: f64,
+) -> Verdict {
+    let describe = |c: &CandidateReport| {
+        c.gains.as_ref().map_or(c.cause.clone(), |g| {
+            format!(
+                "{} (ΔBIC {:.1} against its baseline, fitted χ² −{:.0} %, held out −{:.0} %)",
+                c.cause,
+                g.delta_bic,
+                100.0 * g.fit_drop,
+                100.0 * g.held_drop
+            )
+        })
+    };
+    let rivals: Vec<String> = competing
+        .iter()
+        .filter_map(|(c, gap)| {
+            reports.iter().find(|r| &r.cause == c).map(|r| {
+                format!(
+                    "{}, whose extended model's BIC is {gap:.1} above",
+                    describe(r)
+                )
+            })
+        })
+        .collect();
+    // Where the residual lives, as `undecided` finds it.
+    let where_ = undecided(ev, reports, opts, sigma_p, sigma_q).where_;
+    let names: Vec<&str> = std::iter::once(best.cause.as_str())
+        .chain(competing.iter().map(|(c, _)| c.as_str()))
+        .collect();
+    Verdict {
+        cause: "inconclusive".into(),
+        title: format!("inconclusive: {}", names.join(" or ")),
+        statement: format!(
+            "Inconclusive: more than one cause explains the residual about equally. {} passes its test, and so does {}: a              BIC difference below {:.0} (Kass and Raftery's \"very strong\" level, the one each cause had to pass against its              baseline) does not decide between them, so none is named. Test them apart with another event (a step of the              other sign or size, a different operating point) or hold one of them out by knowledge of the unit.",
+            describe(best),
+            rivals.join("; and "),
+            opts.bic_threshold
+        ),
+        key_parameters: vec![],
+        gains: None,
+        where_,
+        grade: None,
+        probability: None,
+        competing: std::iter::once((best.cause.clone(), 0.0))
+            .chain(competing.iter().cloned())
+            .collect(),
     }
 }
 
@@ -324,5 +499,185 @@ mod tests {
             v.statement
         );
         assert!(v.where_.is_none());
+    }
+
+    fn candidate(
+        cause: &str,
+        chi2_ext: f64,
+        k: usize,
+        delta_bic: f64,
+        significant: bool,
+    ) -> CandidateReport {
+        CandidateReport {
+            cause: cause.into(),
+            title: cause.into(),
+            applicable: true,
+            note: String::new(),
+            extension: String::new(),
+            parameters: (0..k)
+                .map(|i| CandidateParam {
+                    param: format!("{cause}.p{i}"),
+                    unit: "pu".into(),
+                    start: 1.0,
+                    min: 0.0,
+                    max: 2.0,
+                    result: 1.0,
+                    extension: i == 0,
+                    at_bound: false,
+                    std_error: None,
+                })
+                .collect(),
+            fixed: vec![],
+            gains: Some(Gains {
+                chi2_fit_base: chi2_ext + 100.0,
+                chi2_fit_ext: chi2_ext,
+                chi2_held_base: 500.0,
+                chi2_held_ext: 400.0,
+                null_gain_fit: 0.0,
+                null_gain_held: 0.0,
+                fit_drop: 0.1,
+                held_drop: 0.2,
+                held_drop_segments: None,
+                delta_bic,
+                vif: 2.0,
+                k: 1,
+                n_fit: 1000,
+                n_held: 1000,
+                rms_p_base: 0.01,
+                rms_q_base: 0.01,
+                rms_p_ext: 0.005,
+                rms_q_ext: 0.005,
+            }),
+            significant,
+            signature: vec![],
+            simulations: 0,
+            failed_candidates: 0,
+            wall_s: 0.0,
+            distortion: vec![],
+        }
+    }
+
+    fn evidence() -> Vec<EventEvidence> {
+        let t: Vec<f64> = (0..600).map(|k| k as f64 / 60.0).collect();
+        let r: Vec<f64> = t.iter().map(|x| 0.05 * (3.0 * x).sin()).collect();
+        vec![EventEvidence {
+            event: "e".into(),
+            onset_s: 1.0,
+            signals: vec![analyse("P", &t, &r, &r, &[], &EvidenceOptions::default())],
+            p_peak: None,
+        }]
+    }
+
+    /// Two causes that pass their tests and whose extended models are within the BIC threshold
+    /// of each other: no name, both listed, no extended unit; the same pair far apart names the
+    /// better one (here without its re-fit record, so it falls back to undecided: the name needs
+    /// the re-fit, which `decide` never invents).
+    #[test]
+    fn two_causes_explaining_the_residual_about_equally_are_inconclusive() {
+        let opts = DiagnoseOptions::default();
+        // VIF 2: a χ² difference of 12 is a deflated gap of 6 < 10.
+        let mut reports = vec![
+            candidate("saturation", 300.0, 3, 40.0, true),
+            candidate("torsional_mode", 312.0, 3, 30.0, true),
+            candidate("governor", 350.0, 2, 2.0, false),
+        ];
+        let d = decide(
+            &mut reports,
+            BTreeMap::new(),
+            &[],
+            (1.0, 1.0),
+            &evidence(),
+            &opts,
+            0.002,
+            0.002,
+        );
+        assert_eq!(d.verdict.cause, "inconclusive", "{}", d.verdict.statement);
+        assert!(!d.verdict.names_a_cause());
+        assert!(d.extended_unit.is_none());
+        let names: Vec<&str> = d
+            .verdict
+            .competing
+            .iter()
+            .map(|(c, _)| c.as_str())
+            .collect();
+        assert_eq!(names, ["saturation", "torsional_mode"]);
+        assert!(
+            (d.verdict.competing[1].1 - 6.0).abs() < 1e-9,
+            "{:?}",
+            d.verdict.competing
+        );
+        assert!(
+            d.verdict.statement.contains("torsional_mode"),
+            "{}",
+            d.verdict.statement
+        );
+        // The rival 40 χ² behind (deflated gap 20): not inconclusive.
+        let mut reports = vec![
+            candidate("saturation", 300.0, 3, 40.0, true),
+            candidate("torsional_mode", 340.0, 3, 30.0, true),
+        ];
+        let d = decide(
+            &mut reports,
+            BTreeMap::new(),
+            &[],
+            (1.0, 1.0),
+            &evidence(),
+            &opts,
+            0.002,
+            0.002,
+        );
+        assert_ne!(d.verdict.cause, "inconclusive");
+        // A non-significant rival close behind does not make it inconclusive either.
+        let mut reports = vec![
+            candidate("saturation", 300.0, 3, 40.0, true),
+            candidate("torsional_mode", 301.0, 3, 5.0, false),
+        ];
+        let d = decide(
+            &mut reports,
+            BTreeMap::new(),
+            &[],
+            (1.0, 1.0),
+            &evidence(),
+            &opts,
+            0.002,
+            0.002,
+        );
+        assert_ne!(d.verdict.cause, "inconclusive");
+    }
+
+    /// The posterior: one clear winner has odds above 99:1 and is graded strong; a close rival
+    /// or a weak gain over the baseline lowers it to moderate; the held-out drop is required.
+    #[test]
+    fn the_posterior_and_the_grade_follow_the_bic_margins() {
+        let opts = DiagnoseOptions::default();
+        let best = candidate("saturation", 300.0, 3, 40.0, true);
+        let far = candidate("governor", 360.0, 3, 12.0, true);
+        let p = posterior(&best, &[best.clone(), far.clone()]);
+        // exp(−20) against the baseline, exp(−15) against the rival (gap 60/2 = 30).
+        let expected = 1.0 / (1.0 + (-20.0f64).exp() + (-15.0f64).exp());
+        assert!((p - expected).abs() < 1e-12, "{p}");
+        assert_eq!(grade(p, best.gains.as_ref().unwrap(), &opts), Grade::Strong);
+        // A rival 4 χ² behind (deflated gap 2): odds e^-1, probability ≈ 0.73.
+        let near = candidate("governor", 304.0, 3, 12.0, true);
+        let p2 = posterior(&best, &[best.clone(), near.clone()]);
+        assert!((p2 - 1.0 / (1.0 + (-20.0f64).exp() + (-1.0f64).exp())).abs() < 1e-12);
+        assert_eq!(
+            grade(p2, best.gains.as_ref().unwrap(), &opts),
+            Grade::Moderate
+        );
+        // The same rival without a significant gain over its own baseline is no rival.
+        let failed = CandidateReport {
+            significant: false,
+            ..near
+        };
+        let p3 = posterior(&best, &[best.clone(), failed]);
+        assert!((p3 - 1.0 / (1.0 + (-20.0f64).exp())).abs() < 1e-12);
+        // Clear odds but a held-out drop below the threshold: moderate.
+        let mut g = best.gains.clone().unwrap();
+        g.held_drop = 0.0;
+        assert_eq!(grade(p, &g, &opts), Grade::Moderate);
+        // A rival with more parameters pays ln(N/VIF) each.
+        let bigger = candidate("oel", 300.0, 5, 40.0, true);
+        assert!((bic_gap(&best, &bigger) - 2.0 * (500.0f64).ln()).abs() < 1e-12);
     }
 }

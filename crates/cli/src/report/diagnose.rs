@@ -165,15 +165,37 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
 
     // Verdict.
     let v = &r.verdict;
-    let named = v.cause != "none" && v.cause != "unexplained";
+    let named = v.names_a_cause();
     let worst = worst_ratio(r);
-    let tone = Tone::judge(worst, named, v.cause == "unexplained");
+    let tone = Tone::judge(
+        worst,
+        named,
+        v.cause == "unexplained" || v.cause == "inconclusive",
+    );
     let mut body = format!("<p>{}</p>\n", e(&v.statement));
     body.push_str(&format!(
         "<p>Residual of the unit as given: at most <span data-derived=\"worst-ratio\">{worst:.2}</span> × the noise RMS (green needs at most {:.1} and no cause named; above {:.1} it is red).</p>\n",
         super::AT_NOISE,
         super::FAR_ABOVE_NOISE
     ));
+    if let (Some(g), Some(pr)) = (v.grade, v.probability) {
+        body.push_str(&format!(
+            "<p>Confidence: <b>{}</b> (posterior probability <span data-json=\"/verdict/probability\" data-value=\"{}\">{pr:.3}</span> among the re-fitted baseline and the candidates; strong needs at least {})</p>\n",
+            g.as_str(),
+            serde_json::to_string(&pr).unwrap_or_default(),
+            itaipu_calib::diagnose::STRONG_PROBABILITY
+        ));
+    }
+    if !v.competing.is_empty() {
+        body.push_str(&format!(
+            "<p>Competing causes: {}</p>\n",
+            v.competing
+                .iter()
+                .map(|(c, gap)| format!("<code>{}</code> (BIC +{gap:.1})", e(c)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
     if !v.key_parameters.is_empty() {
         body.push_str(&format!(
             "<p>Key parameters: {}</p>\n",

@@ -24,7 +24,7 @@ pub fn draw_plots(
 ) -> Result<Vec<PlotFile>, CliError> {
     let mut files = vec![];
     let mut stems = BTreeSet::new();
-    let named = Some(r.verdict.cause.as_str()).filter(|c| *c != "none" && *c != "unexplained");
+    let named = Some(r.verdict.cause.as_str()).filter(|_| r.verdict.names_a_cause());
     for (k, (event, tr)) in before.iter().enumerate() {
         let mut stem = file_stem(event);
         if !stems.insert(stem.clone()) {

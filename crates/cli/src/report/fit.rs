@@ -305,10 +305,9 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
                     cell(report, &ptr("result"), num),
                     cell(report, &ptr("std_error"), num),
                     match report.pointer(&ptr("relative_error")) {
-                        Some(Value::Number(n)) => Cell::json_pct(
-                            n.as_f64().unwrap_or(f64::NAN),
-                            ptr("relative_error"),
-                        ),
+                        Some(Value::Number(n)) => {
+                            Cell::json_pct(n.as_f64().unwrap_or(f64::NAN), ptr("relative_error"))
+                        }
                         _ => Cell::text("-"),
                     },
                     Cell::Html(format!("<span class=\"flag\">{}</span>", e(&fl.join(", ")))),
