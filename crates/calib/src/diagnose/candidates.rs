@@ -70,6 +70,7 @@ impl Candidates<'_> {
             fixed: vec![],
             gains: None,
             significant: false,
+            by_evidence: false,
             signature: cause.map_or_else(Vec::new, |c| c.signature(evidence_before, ctx)),
             simulations: 0,
             failed_candidates: 0,
@@ -335,6 +336,7 @@ impl Candidates<'_> {
         if !rep.significant {
             if let Some(why) = cause.and_then(|c| c.named_by_evidence(ctx)) {
                 rep.significant = true;
+                rep.by_evidence = true;
                 rep.note = format!("named by the evidence: {why}");
             }
         }

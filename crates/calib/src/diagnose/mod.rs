@@ -31,9 +31,14 @@
 //! 6. **Verdict.** A candidate is significant when `ΔBIC > bic_threshold`, its fitted χ² is down
 //!    by at least `min_fit_drop` and its held-out χ² by at least `min_held_drop`. Among the
 //!    significant ones, the extended model with the lowest `χ²_ext + k ln N` (k = every
-//!    parameter it re-fitted) is named. Otherwise the verdict is `none` (residual RMS within
-//!    `noise_factor` of the noise floor) or `unexplained` (with the window and signal where the
-//!    residual lives).
+//!    parameter it re-fitted) is the best; an extension pressed against the upper end of its
+//!    range is not significant (the residual asks for more than the cause can be). The best is
+//!    named only when every other significant candidate's extended model is at least
+//!    `bic_threshold` above it (VIF-deflated); otherwise the verdict is `inconclusive` with the
+//!    competitors. A named cause carries its posterior probability and a grade ([`Grade`]).
+//!    With no significant candidate the verdict is `none` (residual RMS within `noise_factor`
+//!    of the noise floor) or `unexplained` (with the window and signal where the residual
+//!    lives).
 //!
 //! The residuals of a calibrated model are rarely white, so χ² overstates the evidence when the
 //! model error dominates the noise; the held-out check and the relative-drop threshold guard
@@ -277,6 +282,9 @@ pub struct CandidateReport {
     pub fixed: Vec<(String, f64)>,
     pub gains: Option<Gains>,
     pub significant: bool,
+    /// Significant by the cause's signature in the evidence (e.g. a shaft resonance's peak),
+    /// not by the re-fit's test: never graded `strong`.
+    pub by_evidence: bool,
     /// What in the evidence points to (or away from) this cause.
     pub signature: Vec<String>,
     pub simulations: usize,

@@ -326,7 +326,11 @@ pub(super) fn decide(
             // Strong: odds of 99:1 or better, and the held-out blocks confirm the gain by the
             // same test that made it significant (not only the segments' second test, not only
             // the cause's signature in the evidence).
-            let grade = grade(probability, &g, opts);
+            let grade = if rep.by_evidence {
+                Grade::Moderate
+            } else {
+                grade(probability, &g, opts)
+            };
             let statement = format!(
                 "{statement} Confidence: {} (posterior probability {:.3} against its re-fitted baseline and the {} other significant candidate(s)).",
                 grade.as_str(),
@@ -549,6 +553,7 @@ mod tests {
                 rms_q_ext: 0.005,
             }),
             significant,
+            by_evidence: false,
             signature: vec![],
             simulations: 0,
             failed_candidates: 0,
