@@ -199,8 +199,9 @@ pub fn fill_statistics(stages: &mut [crate::fit::StageReport], noise: &[NoiseRow
             .find(|n| n.event == ev)
             .map(|n| (n.sigma_p, n.sigma_q))
     };
-    // A stage of a playback mode compares other channels: its statistics are its own.
-    for st in stages.iter_mut().filter(|st| st.statistics.n_data == 0) {
+    // A stage of a playback mode compares other channels: its statistics are its own
+    // (computed by the stage on those channels).
+    for st in stages.iter_mut().filter(|st| st.compare.is_none()) {
         st.statistics =
             crate::fit::FitStatistics::of_fitness(&st.fitness, st.parameters.len(), sigma);
     }

@@ -625,49 +625,33 @@ fn stage_plots(dir: &Path, st: &StageOutput, rep: &StageReport) -> Result<(), Cl
             g(end, "p_pu"),
             g(end, "q_pu"),
         );
-        let series = |label: &str, y, color, thin| plot::Series {
-            label: label.into(),
-            x: t,
-            y,
-            color,
-            thin,
-        };
         let mut panels = vec![
-            plot::Panel {
-                y_label: "P [pu, system base]".into(),
-                series: vec![
-                    series("measured", pm.as_slice(), plot::MEASURED, true),
-                    series("start", ps.as_slice(), plot::START, true),
-                    series("calibrated", pe.as_slice(), plot::SIMULATED, false),
-                ],
-            },
-            plot::Panel {
-                y_label: "Q [pu, system base]".into(),
-                series: vec![
-                    series("measured", qm.as_slice(), plot::MEASURED, true),
-                    series("start", qs.as_slice(), plot::START, true),
-                    series("calibrated", qe.as_slice(), plot::SIMULATED, false),
-                ],
-            },
+            plot::start_end_panel(t, "P [pu, system base]".into(), "measured", &pm, &ps, &pe),
+            plot::start_end_panel(t, "Q [pu, system base]".into(), "measured", &qm, &qs, &qe),
         ];
         // A stage in a playback mode (its traces carry v_meas_pu): |V| (simulated in a closed
-        // loop) and E_fd too.
+        // loop) and E_fd too. (The nominal frequency only converts the frequency channel,
+        // which these plots leave out.)
         let moded = end.get("v_meas_pu").is_some();
-        let others = crate::report::other_channels(end, 50.0);
-        let starts = crate::report::other_channels(start, 50.0);
+        let (others, starts) = if moded {
+            (
+                crate::report::other_channels(end, 50.0),
+                crate::report::other_channels(start, 50.0),
+            )
+        } else {
+            (vec![], vec![])
+        };
         for ((label, meas, sim), (_, _, sim0)) in others.iter().zip(&starts) {
-            if !moded || label.starts_with("frequency") {
-                continue;
+            if !label.starts_with("frequency") {
+                panels.push(plot::start_end_panel(
+                    t,
+                    label.clone(),
+                    "measured",
+                    meas,
+                    sim0,
+                    sim,
+                ));
             }
-            let mut v = vec![series("measured", meas.as_slice(), plot::MEASURED, true)];
-            if !sim.is_empty() {
-                v.push(series("start", sim0.as_slice(), plot::START, true));
-                v.push(series("calibrated", sim.as_slice(), plot::SIMULATED, false));
-            }
-            panels.push(plot::Panel {
-                y_label: label.clone(),
-                series: v,
-            });
         }
         let title = format!(
             "{ev}, stage {}: objective {:.4} -> {:.4}",

@@ -1332,18 +1332,7 @@ pub fn simulate_mode_traces(
     let to_sys = unit.machine_mva / ev.system_mva;
     let signals: Vec<String> = mu.unit.signal_names().to_vec();
     let states = mu.unit.state_names();
-    let mut names: Vec<String> = [
-        "p_pu",
-        "q_pu",
-        "p_meas_pu",
-        "q_meas_pu",
-        "p_mach_pu",
-        "q_mach_pu",
-    ]
-    .map(String::from)
-    .to_vec();
-    names.extend(signals.iter().cloned());
-    names.extend(states.iter().cloned());
+    let names = crate::simulate::trace_names(&signals, &states);
     let mut cols: Vec<Vec<f64>> = vec![vec![f64::NAN; n]; names.len()];
     let (ip, iq) = (mu.ip, mu.iq);
     let ns = signals.len();
@@ -1360,33 +1349,15 @@ pub fn simulate_mode_traces(
             cols[6 + ns + j][k] = *v;
         }
     })?;
-    if matches!(mode, PlaybackMode::Phasor | PlaybackMode::ClosedLoop) {
-        let (c0, rest) = cols.split_at_mut(1);
-        mu.unit
-            .transform_pq(&ev.input.time_s, &mut c0[0], &mut rest[0]);
-        let (c4, rest) = cols[4..].split_at_mut(1);
-        mu.unit
-            .transform_pq(&ev.input.time_s, &mut c4[0], &mut rest[0]);
-    }
-    cols[2] = event.record.p_pu.clone();
-    cols[3] = event.record.q_pu.clone();
-    let r = &event.record;
-    names.push("v_meas_pu".into());
-    cols.push(r.v_mag_pu.clone());
-    for (name, col) in [
-        ("efd_meas_pu", &r.efd_pu),
-        ("ifd_meas_pu", &r.ifd_pu),
-        ("freq_meas_hz", &r.freq_hz),
-    ] {
-        if let Some(c) = col {
-            names.push(name.to_string());
-            cols.push(c.clone());
-        }
-    }
-    Ok(Traces {
-        time_s: ev.input.time_s.clone(),
+    let measuring = matches!(mode, PlaybackMode::Phasor | PlaybackMode::ClosedLoop);
+    Ok(crate::simulate::finish_traces(
+        &mu.unit,
+        event,
+        &ev.input.time_s,
         names,
-        columns: cols,
+        cols,
         stats,
-    })
+        measuring,
+        true,
+    ))
 }

@@ -324,18 +324,7 @@ pub fn simulate_prepared(
     let iq = unit
         .signal_index("qe")
         .ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?;
-    let mut names: Vec<String> = [
-        "p_pu",
-        "q_pu",
-        "p_meas_pu",
-        "q_meas_pu",
-        "p_mach_pu",
-        "q_mach_pu",
-    ]
-    .map(String::from)
-    .to_vec();
-    names.extend(signals.iter().cloned());
-    names.extend(states.iter().cloned());
+    let names = trace_names(&signals, &states);
     let mut cols: Vec<Vec<f64>> = vec![Vec::with_capacity(n); names.len()];
     let stats = run_playback(unit, ev, opts, |_, u, x| {
         let bus = u.bus();
@@ -351,14 +340,64 @@ pub fn simulate_prepared(
             cols[6 + signals.len() + j].push(*v);
         }
     })?;
-    // What a measuring device would record (skew, phase and ratio errors), on both bases.
-    let (c0, rest) = cols.split_at_mut(1);
-    unit.transform_pq(&ev.input.time_s, &mut c0[0], &mut rest[0]);
-    let (c4, rest) = cols[4..].split_at_mut(1);
-    unit.transform_pq(&ev.input.time_s, &mut c4[0], &mut rest[0]);
-    cols[2] = event.record.p_pu.clone();
-    cols[3] = event.record.q_pu.clone();
+    Ok(finish_traces(
+        unit,
+        event,
+        &ev.input.time_s,
+        names,
+        cols,
+        stats,
+        true,
+        false,
+    ))
+}
+
+/// The columns of [`Traces`] before the measured ones: P and Q on the system base, their
+/// measured columns, P and Q on the machine base, every bus signal, every state.
+pub(crate) fn trace_names(signals: &[String], states: &[String]) -> Vec<String> {
+    let mut names: Vec<String> = [
+        "p_pu",
+        "q_pu",
+        "p_meas_pu",
+        "q_meas_pu",
+        "p_mach_pu",
+        "q_mach_pu",
+    ]
+    .map(String::from)
+    .to_vec();
+    names.extend(signals.iter().cloned());
+    names.extend(states.iter().cloned());
+    names
+}
+
+/// Completes a playback's [`Traces`] (columns laid out by [`trace_names`]): with `measuring`,
+/// P and Q as a measuring device would record them (the unit's skew, phase and ratio errors, on
+/// both bases); the recorded P and Q in their measured columns; with `v_meas` the recorded |V|;
+/// then the recorded optional channels.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn finish_traces(
+    unit: &Unit,
+    event: &Event,
+    time_s: &[f64],
+    mut names: Vec<String>,
+    mut cols: Vec<Vec<f64>>,
+    stats: Stats,
+    measuring: bool,
+    v_meas: bool,
+) -> Traces {
+    if measuring {
+        let (c0, rest) = cols.split_at_mut(1);
+        unit.transform_pq(time_s, &mut c0[0], &mut rest[0]);
+        let (c4, rest) = cols[4..].split_at_mut(1);
+        unit.transform_pq(time_s, &mut c4[0], &mut rest[0]);
+    }
     let r = &event.record;
+    cols[2] = r.p_pu.clone();
+    cols[3] = r.q_pu.clone();
+    if v_meas {
+        names.push("v_meas_pu".into());
+        cols.push(r.v_mag_pu.clone());
+    }
     for (name, col) in [
         ("efd_meas_pu", &r.efd_pu),
         ("ifd_meas_pu", &r.ifd_pu),
@@ -369,10 +408,10 @@ pub fn simulate_prepared(
             cols.push(c.clone());
         }
     }
-    Ok(Traces {
-        time_s: ev.input.time_s.clone(),
+    Traces {
+        time_s: time_s.to_vec(),
         names,
         columns: cols,
         stats,
-    })
+    }
 }

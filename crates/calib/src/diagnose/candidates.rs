@@ -295,8 +295,9 @@ impl Candidates<'_> {
             rms_q_ext,
         };
         rep.significant = passes(net_fit, net_held);
-        let fitted: Vec<(String, f64)> = resolve(&ext.unit, &bounds)
-            .unwrap_or_default()
+        // The re-fit's free parameters (the extension's first), resolved once.
+        let free = resolve(&ext.unit, &bounds).unwrap_or_default();
+        let fitted: Vec<(String, f64)> = free
             .iter()
             .zip(&r.values)
             .map(|(f, v)| (f.path.clone(), *v))
@@ -314,8 +315,7 @@ impl Candidates<'_> {
         // significant rivals of the named cause, e.g. a terminal load at 0.15 pu beside an
         // OEL). Not named by the statistical test; the evidence rule below may still name it.
         if rep.significant {
-            let ext_free = resolve(&ext.unit, &bounds).unwrap_or_default();
-            if let Some((f, v)) = ext_free
+            if let Some((f, v)) = free
                 .iter()
                 .zip(&r.values)
                 .take(ext.extension_free.len())
@@ -341,7 +341,6 @@ impl Candidates<'_> {
             }
         }
         rep.distortion = distortion(&opts.refit, &base_ref.unit, &r.unit);
-        let free = resolve(&ext.unit, &bounds).unwrap_or_default();
         rep.parameters = free
             .iter()
             .zip(&r.values)

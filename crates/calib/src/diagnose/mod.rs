@@ -555,8 +555,6 @@ fn diagnose_run(
         weights,
         &evidence_before,
         opts,
-        sigma_p,
-        sigma_q,
     );
 
     let report = Diagnosis {

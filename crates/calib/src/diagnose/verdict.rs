@@ -19,20 +19,10 @@ pub(super) fn fmt_num(v: f64) -> String {
     }
 }
 
-/// The verdict when no cause is significant: `none` at the noise floor, else `unexplained`
-/// with where the residual lives.
-pub(super) fn undecided(
-    ev: &[EventEvidence],
-    reports: &[CandidateReport],
-    opts: &DiagnoseOptions,
-    sigma_p: f64,
-    sigma_q: f64,
-) -> Verdict {
-    // The signal with the largest residual RMS relative to its noise floor (the evidence's
-    // `rms_over_noise`: the event's own floor, [`crate::noise::noise_floor`], as the report
-    // shows it).
-    let ratio = |s: &SignalEvidence| s.rms_over_noise;
-    let _ = (sigma_p, sigma_q);
+/// The event and P or Q signal with the largest residual RMS relative to its noise floor (the
+/// evidence's `rms_over_noise`: the event's own floor, [`crate::noise::noise_floor`], as the
+/// report shows it).
+fn worst_residual(ev: &[EventEvidence]) -> Option<(&str, &SignalEvidence)> {
     let mut worst: Option<(&str, &SignalEvidence)> = None;
     for e in ev {
         for s in e
@@ -40,11 +30,30 @@ pub(super) fn undecided(
             .iter()
             .filter(|s| s.signal == "P" || s.signal == "Q")
         {
-            if worst.is_none_or(|(_, w)| ratio(s) > ratio(w)) {
+            if worst.is_none_or(|(_, w)| s.rms_over_noise > w.rms_over_noise) {
                 worst = Some((&e.event, s));
             }
         }
     }
+    worst
+}
+
+/// The window holding the largest share of a signal's squared residual.
+fn top_window(s: &SignalEvidence) -> Option<&crate::evidence::WindowStats> {
+    s.windows
+        .iter()
+        .max_by(|a, b| a.share_of_sse.total_cmp(&b.share_of_sse))
+}
+
+/// The verdict when no cause is significant: `none` at the noise floor, else `unexplained`
+/// with where the residual lives.
+pub(super) fn undecided(
+    ev: &[EventEvidence],
+    reports: &[CandidateReport],
+    opts: &DiagnoseOptions,
+) -> Verdict {
+    let ratio = |s: &SignalEvidence| s.rms_over_noise;
+    let worst = worst_residual(ev);
     let best_try = reports
         .iter()
         .filter_map(|r| r.gains.as_ref().map(|g| (r, g)))
@@ -76,10 +85,7 @@ pub(super) fn undecided(
             competing: vec![],
         };
     };
-    let top = s
-        .windows
-        .iter()
-        .max_by(|a, b| a.share_of_sse.total_cmp(&b.share_of_sse));
+    let top = top_window(s);
     let where_ = top.map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s));
     let over = ratio(s);
     if over <= opts.noise_factor {
@@ -173,8 +179,6 @@ pub(super) fn decide(
     weights: (f64, f64),
     evidence_before: &[EventEvidence],
     opts: &DiagnoseOptions,
-    sigma_p: f64,
-    sigma_q: f64,
 ) -> Decision {
     // 5. Rank and decide.
     // Significant candidates first. Each passed the test against its own baseline (the same
@@ -209,15 +213,7 @@ pub(super) fn decide(
             .filter(|(_, gap)| *gap < opts.bic_threshold)
             .collect();
         if !competing.is_empty() {
-            let verdict = inconclusive(
-                best,
-                &competing,
-                reports,
-                evidence_before,
-                opts,
-                sigma_p,
-                sigma_q,
-            );
+            let verdict = inconclusive(best, &competing, reports, evidence_before, opts);
             return Decision {
                 verdict,
                 extended_unit: None,
@@ -350,7 +346,7 @@ pub(super) fn decide(
                 competing: vec![],
             }
         }
-        None => undecided(evidence_before, reports, opts, sigma_p, sigma_q),
+        None => undecided(evidence_before, reports, opts),
     };
 
     Decision {
@@ -425,8 +421,6 @@ fn inconclusive(
     reports: &[CandidateReport],
     ev: &[EventEvidence],
     opts: &DiagnoseOptions,
-    sigma_p: f64,
-    sigma_q: f64,
 ) -> Verdict {
     let describe = |c: &CandidateReport| {
         c.gains.as_ref().map_or(c.cause.clone(), |g| {
@@ -451,7 +445,9 @@ fn inconclusive(
         })
         .collect();
     // Where the residual lives, as `undecided` finds it.
-    let where_ = undecided(ev, reports, opts, sigma_p, sigma_q).where_;
+    let where_ = worst_residual(ev).and_then(|(_, s)| {
+        top_window(s).map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s))
+    });
     let names: Vec<&str> = std::iter::once(best.cause.as_str())
         .chain(competing.iter().map(|(c, _)| c.as_str()))
         .collect();
@@ -495,7 +491,7 @@ mod tests {
             signals: vec![s],
             p_peak: None,
         }];
-        let v = undecided(&ev, &[], &DiagnoseOptions::default(), 0.002, 0.002);
+        let v = undecided(&ev, &[], &DiagnoseOptions::default());
         assert_eq!(v.cause, "unexplained");
         assert!(
             v.statement.contains("Unexplained residual at Q on e"),
@@ -573,29 +569,30 @@ mod tests {
         }]
     }
 
+    /// `decide` on the reports alone (no re-fit records: a name falls back to undecided).
+    fn decide_on(mut reports: Vec<CandidateReport>) -> Decision {
+        decide(
+            &mut reports,
+            BTreeMap::new(),
+            &[],
+            (1.0, 1.0),
+            &evidence(),
+            &DiagnoseOptions::default(),
+        )
+    }
+
     /// Two causes that pass their tests and whose extended models are within the BIC threshold
     /// of each other: no name, both listed, no extended unit; the same pair far apart names the
     /// better one (here without its re-fit record, so it falls back to undecided: the name needs
     /// the re-fit, which `decide` never invents).
     #[test]
     fn two_causes_explaining_the_residual_about_equally_are_inconclusive() {
-        let opts = DiagnoseOptions::default();
         // VIF 2: a χ² difference of 12 is a deflated gap of 6 < 10.
-        let mut reports = vec![
+        let d = decide_on(vec![
             candidate("saturation", 300.0, 3, 40.0, true),
             candidate("torsional_mode", 312.0, 3, 30.0, true),
             candidate("governor", 350.0, 2, 2.0, false),
-        ];
-        let d = decide(
-            &mut reports,
-            BTreeMap::new(),
-            &[],
-            (1.0, 1.0),
-            &evidence(),
-            &opts,
-            0.002,
-            0.002,
-        );
+        ]);
         assert_eq!(d.verdict.cause, "inconclusive", "{}", d.verdict.statement);
         assert!(!d.verdict.names_a_cause());
         assert!(d.extended_unit.is_none());
@@ -617,36 +614,16 @@ mod tests {
             d.verdict.statement
         );
         // The rival 40 χ² behind (deflated gap 20): not inconclusive.
-        let mut reports = vec![
+        let d = decide_on(vec![
             candidate("saturation", 300.0, 3, 40.0, true),
             candidate("torsional_mode", 340.0, 3, 30.0, true),
-        ];
-        let d = decide(
-            &mut reports,
-            BTreeMap::new(),
-            &[],
-            (1.0, 1.0),
-            &evidence(),
-            &opts,
-            0.002,
-            0.002,
-        );
+        ]);
         assert_ne!(d.verdict.cause, "inconclusive");
         // A non-significant rival close behind does not make it inconclusive either.
-        let mut reports = vec![
+        let d = decide_on(vec![
             candidate("saturation", 300.0, 3, 40.0, true),
             candidate("torsional_mode", 301.0, 3, 5.0, false),
-        ];
-        let d = decide(
-            &mut reports,
-            BTreeMap::new(),
-            &[],
-            (1.0, 1.0),
-            &evidence(),
-            &opts,
-            0.002,
-            0.002,
-        );
+        ]);
         assert_ne!(d.verdict.cause, "inconclusive");
     }
 

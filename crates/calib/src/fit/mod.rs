@@ -243,20 +243,28 @@ pub fn fitness(
             t: f64::NAN,
         });
     };
-    let s = data.window_sums(p, q);
+    let f = pq_fitness(event, data.window_sums(p, q), held_out, vec![]);
+    Ok((f, tr))
+}
+
+/// An event's P+Q fitness from its window sums (J with unit weights, RMS per channel), with
+/// the per-mode rows `modes`.
+fn pq_fitness(
+    event: &Event,
+    s: crate::problem::WindowSums,
+    held_out: bool,
+    modes: Vec<ModeFitness>,
+) -> EventFitness {
     let nn = s.n.max(1) as f64;
-    Ok((
-        EventFitness {
-            event: event.name.clone(),
-            j_pq: s.j((1.0, 1.0)),
-            rms_p: (s.p / nn).sqrt(),
-            rms_q: (s.q / nn).sqrt(),
-            samples: s.n,
-            held_out,
-            modes: vec![],
-        },
-        tr,
-    ))
+    EventFitness {
+        event: event.name.clone(),
+        j_pq: s.j((1.0, 1.0)),
+        rms_p: (s.p / nn).sqrt(),
+        rms_q: (s.q / nn).sqrt(),
+        samples: s.n,
+        held_out,
+        modes,
+    }
 }
 
 /// The fitness row of `unit` on `event` in a fit with playback modes: `rows` the fit's
@@ -340,21 +348,9 @@ pub fn row_fitness(
             (o.p, o.q)
         }
     };
-    let s = data.window_sums(&p, &q);
-    let nn = s.n.max(1) as f64;
+    let f = pq_fitness(event, data.window_sums(&p, &q), held_out, modes);
     let tr = simulate_mode_traces(unit, event, pmode, &acc).map_err(sim_err)?;
-    Ok((
-        EventFitness {
-            event: event.name.clone(),
-            j_pq: s.j((1.0, 1.0)),
-            rms_p: (s.p / nn).sqrt(),
-            rms_q: (s.q / nn).sqrt(),
-            samples: s.n,
-            held_out,
-            modes,
-        },
-        tr,
-    ))
+    Ok((f, tr))
 }
 
 /// Checks, before anything runs, that every event holds what the stages to run play back and

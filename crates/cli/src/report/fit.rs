@@ -406,36 +406,31 @@ fn event_figure(report: &Value, tr: &EventTraces) -> Result<String, String> {
     };
     let mut panels = vec![];
     for (sig, m, a, b) in [("P", &pm, &ps, &pc), ("Q", &qm, &qs, &qc)] {
-        panels.push(plot::Panel {
-            y_label: format!("{sig} [pu, system base]"),
-            series: vec![
-                series("measured", m.as_slice(), plot::MEASURED, true),
-                series("start", a.as_slice(), plot::START, true),
-                series("calibrated", b.as_slice(), plot::SIMULATED, false),
-            ],
-        });
+        panels.push(plot::start_end_panel(
+            t,
+            format!("{sig} [pu, system base]"),
+            "measured",
+            m,
+            a,
+            b,
+        ));
     }
     let start_channels = other_channels(st, tr.nominal_hz);
     let channels = other_channels(ca, tr.nominal_hz);
     for ((label, meas, sim), (_, _, sim0)) in channels.iter().zip(&start_channels) {
-        let mut v = vec![series(
-            if sim.is_empty() {
-                "measured (played back)"
-            } else {
-                "measured"
-            },
-            meas.as_slice(),
-            plot::MEASURED,
-            true,
-        )];
-        if !sim.is_empty() {
-            v.push(series("start", sim0.as_slice(), plot::START, true));
-            v.push(series("calibrated", sim.as_slice(), plot::SIMULATED, false));
-        }
-        panels.push(plot::Panel {
-            y_label: label.clone(),
-            series: v,
-        });
+        let measured = if sim.is_empty() {
+            "measured (played back)"
+        } else {
+            "measured"
+        };
+        panels.push(plot::start_end_panel(
+            t,
+            label.clone(),
+            measured,
+            meas,
+            sim0,
+            sim,
+        ));
     }
     let mut decor: Vec<plot::Decor> = panels.iter().map(|_| plot::Decor::default()).collect();
     let (sp, sq) = noise_of(report, tr.event)

@@ -22,6 +22,32 @@ pub struct Panel<'a> {
     pub series: Vec<Series<'a>>,
 }
 
+/// A panel of a measured channel (`measured_label`) with the simulation at a fit's start and
+/// end drawn over it (`start`, `calibrated`), as the fit report and the stage plots draw it; a
+/// channel that is played back, not simulated (`end` empty), shows the measurement alone.
+pub fn start_end_panel<'a>(
+    t: &'a [f64],
+    y_label: String,
+    measured_label: &str,
+    meas: &'a [f64],
+    start: &'a [f64],
+    end: &'a [f64],
+) -> Panel<'a> {
+    let series = |label: &str, y, color, thin| Series {
+        label: label.into(),
+        x: t,
+        y,
+        color,
+        thin,
+    };
+    let mut v = vec![series(measured_label, meas, MEASURED, true)];
+    if !end.is_empty() {
+        v.push(series("start", start, START, true));
+        v.push(series("calibrated", end, SIMULATED, false));
+    }
+    Panel { y_label, series: v }
+}
+
 pub const MEASURED: RGBColor = RGBColor(90, 90, 90);
 pub const SIMULATED: RGBColor = RGBColor(214, 39, 40);
 pub const START: RGBColor = RGBColor(31, 119, 180);
