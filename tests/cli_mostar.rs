@@ -110,8 +110,64 @@ fn a_staged_fit_of_the_mostar_record_runs_in_its_playback_modes() {
     }
 }
 
-/// A record without an angle in a phasor playback (simulate, or a fit whose stages are phasor
-/// stages), a compared channel the record lacks, a step outside the record, E_fd in volts, a
+/// `diagnose --mode` on the bundled record with a tiny search and two causes: the closed loop
+/// compares |V|, Q and E_fd, each with its own noise floor; a cause the mode cannot show (the
+/// governor: the grid equivalent holds the frequency) says why; the plots draw the compared
+/// signals' residuals.
+#[test]
+fn the_mostar_record_is_diagnosed_in_the_mode_named() {
+    let tmp = TempDir::new("mostar-diagnose");
+    let out = tmp.path().join("diag");
+    let code = cli(&[
+        "diagnose",
+        "--event",
+        s(&data("mostar/event.toml")),
+        "--unit",
+        s(&data("mostar/calibrated.toml")),
+        "--mode",
+        "closed_loop",
+        "--cause",
+        "governor,terminal_load",
+        "--particles",
+        "4",
+        "--pso-iterations",
+        "2",
+        "--local-iterations",
+        "2",
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(code, 0);
+    let d = json(&out.join("diagnosis.json"));
+    assert_eq!(d["noise"]["playback"], "closed_loop: |V|, Q, Efd");
+    let sigmas: Vec<&str> = d["noise"]["sigmas"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x[0].as_str().unwrap())
+        .collect();
+    assert_eq!(sigmas, ["|V|", "Q", "Efd"]);
+    let gov = d["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["cause"] == "governor")
+        .unwrap();
+    assert_eq!(gov["applicable"], false);
+    assert!(gov["note"].as_str().unwrap().contains("closed_loop"));
+    let load = d["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["cause"] == "terminal_load")
+        .unwrap();
+    assert_eq!(load["applicable"], true, "{}", load["note"]);
+    let svg = std::fs::read_to_string(out.join("residual-mostar-avr-step.svg")).unwrap();
+    assert!(svg.contains("Efd residual") && svg.contains("|V| residual"));
+}
+
+/// A record without an angle in a phasor playback (simulate, diagnose without --mode, or a fit
+/// whose stages are phasor stages), a compared channel the record lacks, a step outside the record, E_fd in volts, a
 /// duplicated time stamp: each stops with exit 3, and the --out folder is not created.
 #[test]
 fn bad_mostar_inputs_stop_before_anything_is_written() {
@@ -169,6 +225,20 @@ fn bad_mostar_inputs_stop_before_anything_is_written() {
                 s(&itaipu_spec).into(),
                 "--stage".into(),
                 "avr".into(),
+            ],
+        ),
+        (
+            "phasor diagnose",
+            vec!["diagnose".into(), "--event".into(), s(&ev).into()],
+        ),
+        (
+            "diagnose E_fd in volts",
+            vec![
+                "diagnose".into(),
+                "--mode".into(),
+                "exciter_alone".into(),
+                "--event".into(),
+                s(&volts).into(),
             ],
         ),
         (

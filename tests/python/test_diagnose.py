@@ -196,3 +196,25 @@ def test_the_cause_list_is_the_registry_the_diagnosis_uses():
     assert [k.strip() for k in known.split(",")] == listed
     for c in ic.causes():
         assert c["title"] and c["signature"] and c["extension"] and c["key_params"]
+
+
+MOSTAR = DATA / "mostar"
+
+
+def test_a_record_without_an_angle_is_diagnosed_in_the_mode_named():
+    event, unit = MOSTAR / "event.toml", MOSTAR / "calibrated.toml"
+    # Without a mode: the phasor playback needs the angle the record lacks.
+    with pytest.raises(ic.EventError, match="angle.*mode="):
+        ic.diagnose(event, unit, causes=["terminal_load"], **QUICK)
+    with pytest.raises(ValueError, match="mode"):
+        ic.diagnose(event, unit, causes=["terminal_load"], mode="open_loop", **QUICK)
+    # In exciter_alone only E_fd is compared, each σ from its own pre-step residual; a cause the
+    # mode cannot show says why instead of being re-fitted.
+    d = ic.diagnose(event, unit, causes=["terminal_load"], mode="exciter_alone", **QUICK)
+    noise = d.report["noise"]
+    assert noise["playback"] == "exciter_alone: Efd"
+    (signal, sigma), = noise["sigmas"]
+    assert signal == "Efd" and 0.005 < sigma < 0.1
+    (c,) = d.candidates
+    assert not c["applicable"] and "exciter_alone" in c["note"]
+    assert [s["signal"] for s in d.evidence[0]["signals"]] == ["Efd"]

@@ -219,6 +219,7 @@ impl Error {
             Error::Diagnose(e) => match e {
                 // A diagnosis that cannot run as asked (an unknown cause, a bad re-fit request).
                 DiagnoseError::Setup(_) => C::Calibration,
+                DiagnoseError::Event(_) => C::EventData,
                 DiagnoseError::Simulation { error, .. } => {
                     error.as_ref().map_or(C::Simulation, C::of_sim)
                 }

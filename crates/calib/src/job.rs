@@ -122,6 +122,17 @@ pub fn preflight(unit: &Unit, event: &Event) -> Result<(), Error> {
         .map_err(|e| explain(e, event, unit))
 }
 
+/// [`preflight`] in the diagnosis's playback (a mode's for a record without an angle).
+pub fn preflight_in(unit: &Unit, event: &Event, pb: &diagnose::Playback) -> Result<(), Error> {
+    if pb.is_phasor() {
+        return preflight(unit, event);
+    }
+    let ev = itaipu_dynamics::simulate::PreparedEvent::new(event);
+    itaipu_dynamics::mode::simulate_mode(unit, &ev, pb.mode, &Default::default())
+        .map(|_| ())
+        .map_err(|e| explain(e, event, unit))
+}
+
 /// A simulation error traced back to the data: an integration failure at time t names the
 /// samples around t, an initialisation failure the operating point it was given.
 pub fn explain(e: SimError, event: &Event, unit: &Unit) -> Error {
@@ -642,9 +653,10 @@ pub fn prepare_diagnose(
     let mut opts = request.options(unit)?;
     merge_calibrated_set(&mut opts.refit, calibrated_set, unit);
     let all: Vec<&Event> = events.iter().chain(held_out).collect();
+    let pb = diagnose::Playback::for_events(opts.mode, &all)?;
     let warnings = check_inputs(&all, unit, unit_path)?;
     for e in all {
-        preflight(unit, e)?;
+        preflight_in(unit, e, &pb)?;
     }
     Ok((opts, warnings))
 }

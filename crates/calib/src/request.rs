@@ -488,6 +488,8 @@ pub fn parse_refit(text: &str) -> Result<RefitRequest, RequestError> {
 /// ([`crate::job::prepare_diagnose`]).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct DiagnoseRequest {
+    /// The playback mode of a record without an angle (`None`: the phasor playback).
+    pub mode: Option<itaipu_dynamics::mode::PlaybackMode>,
     pub causes: Vec<String>,
     pub user_causes: Vec<std::path::PathBuf>,
     pub refit: Vec<RefitRequest>,
@@ -521,6 +523,7 @@ impl DiagnoseRequest {
         let mut opts = DiagnoseOptions {
             causes,
             user_causes,
+            mode: self.mode,
             ..Default::default()
         };
         self.search.apply_diagnose(&mut opts)?;

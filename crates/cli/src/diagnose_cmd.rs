@@ -61,6 +61,13 @@ pub struct DiagnoseArgs {
     /// Allow writing into an existing, non-empty --out folder.
     #[arg(long)]
     force: bool,
+    /// Playback of the events: phasor (default; the measured |V| and angle imposed, P and Q
+    /// compared) or, for a record without an angle (a staged test), exciter_alone (the AVR
+    /// open loop, compared on E_fd), machine_from_efd (compared on Q) or closed_loop (the unit
+    /// against its grid equivalent, compared on |V|, Q and E_fd). Each compared channel is
+    /// weighted by its own noise floor.
+    #[arg(long, value_parser = crate::simulate_cmd::mode_parser())]
+    mode: Option<itaipu_dynamics::mode::PlaybackMode>,
     #[command(flatten)]
     search: SearchArgs,
     /// Do not draw the plots (report.html is written without them).
@@ -91,6 +98,7 @@ fn user_cause_inputs(paths: &[PathBuf]) -> Vec<InputFile> {
 pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     // Usage errors first, then the input files, then the output folder, then the (long) run.
     let request = DiagnoseRequest {
+        mode: a.mode,
         causes: a.cause.clone(),
         user_causes: a.user_cause.clone(),
         refit: refit_requests(&a.refit)?,
@@ -369,9 +377,14 @@ fn print_report(r: &Diagnosis) {
     );
     println!();
     let noise = format!(
-        "σP {} pu, σQ {} pu (pre-event residual); split: {} ({} fitted, {} held-out samples)",
-        num(r.noise.sigma_p),
-        num(r.noise.sigma_q),
+        "playback {}; {} (pre-event residual); split: {} ({} fitted, {} held-out samples)",
+        r.noise.playback,
+        r.noise
+            .sigmas
+            .iter()
+            .map(|(s, v)| format!("σ{s} {} pu", num(*v)))
+            .collect::<Vec<_>>()
+            .join(", "),
         r.noise.split,
         r.noise.n_fit,
         r.noise.n_held

@@ -59,7 +59,7 @@ pub struct SimulateArgs {
 }
 
 /// `--mode`: the library's mode names ([`PlaybackMode::NAMES`]).
-fn mode_parser() -> impl clap::builder::TypedValueParser<Value = PlaybackMode> {
+pub(crate) fn mode_parser() -> impl clap::builder::TypedValueParser<Value = PlaybackMode> {
     use clap::builder::TypedValueParser;
     clap::builder::PossibleValuesParser::new(PlaybackMode::NAMES)
         .map(|s| PlaybackMode::parse(&s).expect("a mode name"))

@@ -309,7 +309,9 @@ pub(crate) fn refit_list(
 /// FitResult) diagnoses that fit's calibrated unit with its whole calibrated set re-freed,
 /// within the spec's bounds and with the calibration's datasheet prior, as `itaipu-calib
 /// diagnose --fit`: `unit` is then left out (or is `fit.unit`). `user_causes` (a path or a list
-/// of paths) adds causes written by the user, as `--user-cause`. The GIL is released while it
+/// of paths) adds causes written by the user, as `--user-cause`. `mode` plays a record without
+/// an angle back in a playback mode ("exciter_alone", "machine_from_efd", "closed_loop"), as
+/// `--mode`: its compared channels, each weighted by its noise floor, are diagnosed. The GIL is released while it
 /// runs. Plausibility warnings on the inputs are issued as `ItaipuWarning`s and kept in the
 /// report's `warnings`. Returns a Diagnosis.
 ///
@@ -321,9 +323,10 @@ pub(crate) fn refit_list(
 #[pyo3(
     signature = (events, unit = None, held_out = None, *, causes = None, seed = None, particles = None,
                  pso_iterations = None, local_iterations = None, threads = None, refit = None, fit = None,
-                 user_causes = None, lbfgs_iterations = None),
+                 user_causes = None, mode = None, lbfgs_iterations = None),
     text_signature = "(events, unit=None, held_out=None, *, causes=None, seed=None, particles=None, \
-                      pso_iterations=None, local_iterations=None, threads=None, refit=None, fit=None, user_causes=None)"
+                      pso_iterations=None, local_iterations=None, threads=None, refit=None, fit=None, user_causes=None, \
+                      mode=None)"
 )]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
@@ -340,8 +343,23 @@ pub(crate) fn diagnose(
     refit: Option<&Bound<'_, PyAny>>,
     fit: Option<&Bound<'_, PyAny>>,
     user_causes: Option<&Bound<'_, PyAny>>,
+    mode: Option<&str>,
     lbfgs_iterations: Option<u64>,
 ) -> PyResult<PyDiagnosis> {
+    let mode = mode
+        .map(|m| {
+            itaipu_dynamics::mode::PlaybackMode::parse(m).ok_or_else(|| {
+                crate::errors::usage_error(
+                    py,
+                    "mode",
+                    &format!(
+                        "'{m}' is not one of {}",
+                        itaipu_dynamics::mode::PlaybackMode::NAMES.join(", ")
+                    ),
+                )
+            })
+        })
+        .transpose()?;
     let local_iterations = crate::args::renamed(
         py,
         "lbfgs_iterations",
@@ -418,6 +436,7 @@ pub(crate) fn diagnose(
         },
     };
     let request = DiagnoseRequest {
+        mode,
         causes: cause_list(causes)?,
         user_causes: user_paths,
         refit: refit_list(refit)?,

@@ -77,6 +77,10 @@ impl Candidates<'_> {
             wall_s: 0.0,
             distortion: vec![],
         };
+        if let Some(why) = cause.and_then(|c| ctx.not_seen(c.acts())) {
+            rep.note = format!("not applicable: {why}");
+            return (rep, None);
+        }
         let exts: Vec<Extension> = match user_cause::extend_all(id, unit, ctx, &opts.user_causes) {
             Err(catalog::CauseError::NotApplicable(why)) => {
                 rep.note = format!("not applicable: {why}");
@@ -218,9 +222,9 @@ impl Candidates<'_> {
                 }
             }
         }
-        let (base, base_rms_pq) = {
+        let (base, base_rms) = {
             let b: &Refit = base_again.as_ref().unwrap_or(&baselines[&key]);
-            (b.clone_scores(), b.rms_pq)
+            (b.clone_scores(), b.rms.clone())
         };
         let raw_fit = base.chi2_fit - r.chi2_fit;
         let raw_held = base.chi2_held - r.chi2_held;
@@ -272,7 +276,26 @@ impl Candidates<'_> {
             }
         }
         let base_ref: &Refit = base_again.as_ref().unwrap_or(&baselines[&key]);
-        let ((rms_p_base, rms_q_base), (rms_p_ext, rms_q_ext)) = (base_rms_pq, r.rms_pq);
+        // Per compared channel (P and Q first in the phasor playback).
+        let signals: Vec<&str> = match env.compare {
+            None => vec!["P", "Q"],
+            Some(c) => c
+                .weights
+                .iter()
+                .map(|(c, _)| super::playback::signal_name(*c))
+                .collect(),
+        };
+        let rms: Vec<(String, f64, f64)> = signals
+            .iter()
+            .zip(base_rms.iter().zip(&r.rms))
+            .map(|(s, (b, e))| (s.to_string(), *b, *e))
+            .collect();
+        let of = |name: &str| {
+            rms.iter()
+                .find(|(s, _, _)| s == name)
+                .map_or((f64::NAN, f64::NAN), |(_, b, e)| (*b, *e))
+        };
+        let ((rms_p_base, rms_p_ext), (rms_q_base, rms_q_ext)) = (of("P"), of("Q"));
         let (net_fit, net_held) = (raw_fit - null_fit, raw_held - null_held);
         let gains = Gains {
             chi2_fit_base: base.chi2_fit,
@@ -289,6 +312,7 @@ impl Candidates<'_> {
             k,
             n_fit: r.n_fit,
             n_held: r.n_held,
+            rms,
             rms_p_base,
             rms_q_base,
             rms_p_ext,

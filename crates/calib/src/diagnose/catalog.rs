@@ -42,6 +42,10 @@ pub trait Cause: Sync {
     /// Its id, title and descriptions.
     fn info(&self) -> &'static CauseInfo;
 
+    /// The part of the unit its extension acts through: where a playback mode cannot show it,
+    /// the cause is not applicable ([`Context::not_seen`]).
+    fn acts(&self) -> Acts;
+
     /// Extends `x.unit` (a copy of the unit as given, its machine, exciter, PSS and governor
     /// named in `roles`) with the cause's model and sets what a re-fit frees: the extension's
     /// own parameters, the unit parameters it interacts with, ties, fixed results, the search
@@ -186,6 +190,101 @@ pub struct Context {
     /// Largest rise of the field current X_adI_fd of the unit as given over its pre-event value,
     /// as a fraction (`None`: unknown).
     pub field_current_rise: Option<f64>,
+    /// Largest set-point step the events apply to the voltage regulator, as a fraction
+    /// (`None`: no step, or a mode that does not play them). At the summing point a step of
+    /// the reference by x drives the AVR as a dip of |V| by x does.
+    pub setpoint_step: Option<f64>,
+    /// How the events are played back ([`super::Playback`]): a cause whose extension does not
+    /// act on what the mode compares is not applicable there ([`Context::not_seen`]).
+    pub mode: itaipu_dynamics::mode::PlaybackMode,
+    /// The compared channels (empty: the phasor playback's P and Q).
+    pub compared: Vec<itaipu_dynamics::event::Channel>,
+}
+
+impl Context {
+    /// Whether the events drive the AVR by at least `x` (a fraction): a dip of |V| or a
+    /// set-point step of that size; `true` when the regime is unknown.
+    pub fn drives_avr_by(&self, x: f64) -> bool {
+        self.deepest_dip.is_none_or(|d| d >= x) || self.setpoint_step.is_some_and(|s| s >= x)
+    }
+
+    /// Whether the diagnosis compares channel `c`.
+    pub fn compares(&self, c: itaipu_dynamics::event::Channel) -> bool {
+        use itaipu_dynamics::event::Channel;
+        if self.compared.is_empty() {
+            matches!(c, Channel::P | Channel::Q)
+        } else {
+            self.compared.contains(&c)
+        }
+    }
+
+    /// Why a cause acting through `acts` (the unit's parts its extension changes) cannot show in
+    /// this playback: the part is not simulated in the mode, or nothing it drives is compared.
+    /// `None` when it can show (always in the phasor playback, where every part is simulated
+    /// and P and Q are compared).
+    ///
+    /// The machine in `exciter_alone` is driven by the measured E_fd: its magnetic state
+    /// reaches the compared E_fd only through the field current of the exciter's commutation
+    /// term (K_C·I_fd), a second-order path that cannot determine a machine parameter, so a
+    /// machine cause is not tried there.
+    pub fn not_seen(&self, acts: Acts) -> Option<String> {
+        use itaipu_dynamics::event::Channel::{Efd, Ifd, P, Q, V};
+        use itaipu_dynamics::mode::PlaybackMode::*;
+        let m = self.mode;
+        let any = |cs: &[itaipu_dynamics::event::Channel]| cs.iter().any(|c| self.compares(*c));
+        match (acts, m) {
+            (_, Phasor) => None,
+            (Acts::Exciter, MachineFromEfd) => Some(format!(
+                "in mode {m} the measured E_fd drives the machine: the exciter is not simulated"
+            )),
+            (Acts::Exciter, _) if !any(&[Efd, V, Q, P, Ifd]) => {
+                Some(format!("mode {m} compares nothing the exciter drives"))
+            }
+            (Acts::Machine, ExciterAlone) => Some(format!(
+                "in mode {m} the measured E_fd drives the machine, which reaches the compared \
+                 E_fd only through the field current of the commutation term"
+            )),
+            (Acts::Terminal, ExciterAlone) => Some(format!(
+                "in mode {m} the measured |V| is imposed and only E_fd is compared: a load at \
+                 the terminal changes neither"
+            )),
+            (Acts::Terminal, _) if !any(&[P, Q, V]) => {
+                Some(format!("mode {m} compares neither P, Q nor |V|"))
+            }
+            (Acts::PowerMeasurement, ClosedLoop) if !any(&[P, Q]) => {
+                Some(format!("mode {m} compares neither P nor Q"))
+            }
+            (Acts::PowerMeasurement, ClosedLoop) => None,
+            (Acts::PowerMeasurement, _) => Some(format!(
+                "mode {m} does not model the measuring device's P and Q against its voltage"
+            )),
+            (Acts::Mechanical, _) => Some(format!(
+                "in mode {m} the mechanical side is not exercised (P is imposed, or the grid \
+                 equivalent's frequency is held)"
+            )),
+            (Acts::ActivePower, _) if !any(&[P]) => Some(format!(
+                "mode {m} does not compare P, where the cause shows"
+            )),
+            _ => None,
+        }
+    }
+}
+
+/// The part of the unit a cause's extension acts through, for [`Context::not_seen`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Acts {
+    /// The exciter (its limits, its limiters).
+    Exciter,
+    /// The machine's electrical equations (saturation).
+    Machine,
+    /// A load at the terminal bus, between the machine and the measurement.
+    Terminal,
+    /// The measuring device's P and Q channels.
+    PowerMeasurement,
+    /// The turbine and governor, the swing equation.
+    Mechanical,
+    /// Oscillations of the active power (a shaft's torsional mode, the PSS).
+    ActivePower,
 }
 
 /// Largest chance that noise alone gives a resonance, for it to name a torsional mode: one in

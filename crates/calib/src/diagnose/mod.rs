@@ -40,6 +40,19 @@
 //!    of the noise floor) or `unexplained` (with the window and signal where the residual
 //!    lives).
 //!
+//! # Records without an angle
+//!
+//! A staged test (|V|, P, Q, E_fd from the excitation system's recorder, no voltage angle) is
+//! diagnosed in the playback mode the user names ([`DiagnoseOptions::mode`], [`Playback`]):
+//! every step above runs on that mode's compared channels instead of P and Q (each weighted by
+//! `1/σ_c²`, σ_c its pre-step noise floor), the surrogate events redraw the noise of every
+//! recorded channel, the evidence reads each compared residual against the imposed inputs
+//! (|V| where it is imposed, the declared set point), a set-point step counts as a dip of its
+//! size for the limits' regime, and a cause whose extension acts on a part of the unit the mode
+//! does not simulate, or on nothing it compares, is not applicable with the reason
+//! ([`catalog::Context::not_seen`]). Without a mode such a record is refused
+//! ([`DiagnoseError::Event`]).
+//!
 //! The residuals of a calibrated model are rarely white, so χ² overstates the evidence when the
 //! model error dominates the noise; the held-out check and the relative-drop threshold guard
 //! against naming a cause that only absorbs some structured misfit.
@@ -56,6 +69,7 @@ mod candidates;
 pub mod catalog;
 pub mod causes;
 mod noise;
+pub mod playback;
 mod reference;
 mod refit;
 mod split;
@@ -70,6 +84,7 @@ pub use windows::{event_evidence, windows};
 
 use candidates::*;
 use noise::*;
+pub use playback::Playback;
 use refit::*;
 use split::*;
 use windows::*;
@@ -117,6 +132,10 @@ pub struct DiagnoseOptions {
     pub min_held_drop: f64,
     /// Residual RMS up to this multiple of the noise floor counts as "at the noise floor".
     pub noise_factor: f64,
+    /// How the events are played back ([`Playback`]): `None` = the phasor playback (P and Q
+    /// compared), which needs a voltage angle; a record without one is diagnosed in the mode
+    /// named here, on that mode's compared channels.
+    pub mode: Option<itaipu_dynamics::mode::PlaybackMode>,
     /// When set (by a signal handler, say), every later candidate evaluation of the re-fits
     /// fails at once and the diagnosis returns [`DiagnoseError::Interrupted`] with the causes
     /// it finished.
@@ -147,6 +166,7 @@ impl Default for DiagnoseOptions {
             min_fit_drop: 0.02,
             min_held_drop: 0.01,
             noise_factor: 1.5,
+            mode: None,
             cancel: None,
         }
     }
@@ -158,6 +178,10 @@ pub enum DiagnoseError {
     /// Bad request (unknown cause, no event).
     #[error("{0}")]
     Setup(String),
+    /// An event lacks what the playback plays back or compares (a record without an angle
+    /// diagnosed by the phasor playback, a compared channel not recorded).
+    #[error("{0}")]
+    Event(String),
     /// The unit does not simulate on an event as given; `error` is the engine's own error when
     /// there is one (an initialisation failure is then told apart from an integration failure).
     #[error("the unit does not simulate on event '{event}': {msg}")]
@@ -190,6 +214,7 @@ impl DiagnoseError {
     pub fn kind(&self) -> &'static str {
         match self {
             DiagnoseError::Setup(_) => "setup",
+            DiagnoseError::Event(_) => "event",
             DiagnoseError::Simulation { .. } => "simulation",
             DiagnoseError::Interrupted { .. } => "interrupted",
         }
@@ -261,7 +286,11 @@ pub struct Gains {
     pub k: usize,
     pub n_fit: usize,
     pub n_held: usize,
-    /// RMS of P and Q over all samples, before (baseline) and after [pu system base].
+    /// RMS of each compared channel over all samples, `(signal, baseline, extended)` [pu]
+    /// (P and Q in the phasor playback, on the system base).
+    pub rms: Vec<(String, f64, f64)>,
+    /// RMS of P and Q over all samples, before (baseline) and after [pu system base] (`null`
+    /// when the playback does not compare them).
     pub rms_p_base: f64,
     pub rms_q_base: f64,
     pub rms_p_ext: f64,
@@ -377,6 +406,11 @@ pub const STRONG_PROBABILITY: f64 = 0.99;
 /// Noise and split.
 #[derive(Debug, Clone, Serialize)]
 pub struct NoiseModel {
+    /// The playback and its compared channels (`"phasor: P, Q"`: [`Playback::describe`]).
+    pub playback: String,
+    /// The noise floor of each compared channel, `(signal, σ)` [pu]; the χ² weights are `1/σ²`.
+    pub sigmas: Vec<(String, f64)>,
+    /// σ_P and σ_Q of the phasor playback (`null` in a mode that does not compare them).
     pub sigma_p: f64,
     pub sigma_q: f64,
     pub split: String,
@@ -483,9 +517,26 @@ fn diagnose_run(
         )));
     }
 
-    // 1. Noise, from the pre-event residual of the unit as given.
-    let (sigma_p, sigma_q) = noise::sigma_pq(unit, events)?;
-    let weights = (1.0 / sigma_p.powi(2), 1.0 / sigma_q.powi(2));
+    // 1. Noise, from the pre-event residual of the unit as given, on the compared channels.
+    let all: Vec<&Event> = events.iter().chain(held_out).collect();
+    let pb = Playback::for_events(opts.mode, &all)?;
+    let sigmas = noise::sigmas(unit, events, &pb)?;
+    let sigma_of = |c: itaipu_dynamics::event::Channel| {
+        pb.channels
+            .iter()
+            .position(|k| *k == c)
+            .map_or(f64::NAN, |j| sigmas[j])
+    };
+    let (sigma_p, sigma_q) = (
+        sigma_of(itaipu_dynamics::event::Channel::P),
+        sigma_of(itaipu_dynamics::event::Channel::Q),
+    );
+    let weights = if pb.is_phasor() {
+        (1.0 / sigma_p.powi(2), 1.0 / sigma_q.powi(2))
+    } else {
+        (1.0, 1.0)
+    };
+    let compare = pb.compare(&sigmas);
     let sp = split(events, held_out, opts.block_s)?;
     // The contiguous segments of the second held-out test (without held-out events).
     let sp_segments = if sp.blocks {
@@ -502,13 +553,21 @@ fn diagnose_run(
         before,
         evidence: evidence_before,
         sp_null,
-    } = reference::reference(unit, events, held_out, &sp, weights, opts, progress)?;
+    } = reference::reference(
+        unit,
+        events,
+        held_out,
+        &sp,
+        (&pb, weights, compare.as_ref()),
+        opts,
+        progress,
+    )?;
     let unit = &reference.unit.clone();
     let mut baselines: BTreeMap<String, Refit> = BTreeMap::new();
     baselines.insert(bounds_key(&nuisance), reference);
 
     // 3. Context for the catalog.
-    let ctx = reference::catalog_context(events, &before, &evidence_before);
+    let ctx = reference::catalog_context(events, &before, &evidence_before, &pb);
 
     // 4. Candidates.
     let ids: Vec<&str> = if opts.causes.is_empty() {
@@ -524,6 +583,7 @@ fn diagnose_run(
         env: RefitEnv {
             sp: &sp,
             weights,
+            compare: compare.as_ref(),
             opts,
             progress,
         },
@@ -552,7 +612,7 @@ fn diagnose_run(
         &mut reports,
         refits,
         events,
-        weights,
+        (&pb, weights, compare.as_ref()),
         &evidence_before,
         opts,
     );
@@ -566,6 +626,13 @@ fn diagnose_run(
         evidence: evidence_before,
         evidence_after,
         noise: NoiseModel {
+            playback: pb.describe(),
+            sigmas: pb
+                .channels
+                .iter()
+                .zip(&sigmas)
+                .map(|(c, s)| (playback::signal_name(*c).to_string(), *s))
+                .collect(),
             sigma_p,
             sigma_q,
             split: sp.description.clone(),

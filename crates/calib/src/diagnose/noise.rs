@@ -69,6 +69,75 @@ pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Eve
     Ok(s)
 }
 
+/// A surrogate of `event` for a playback mode ([`Playback`] other than the phasor one): the
+/// compared channels simulated by the reference (`outputs`) plus fresh white noise at the
+/// record's own levels, every other recorded channel (the inputs the mode imposes) with its own
+/// noise drawn again, the declared steps and windows kept.
+pub(super) fn surrogate_in_mode(
+    event: &Event,
+    pb: &Playback,
+    outputs: &itaipu_dynamics::mode::ModeOutputs,
+    seed: u64,
+) -> Result<Event, String> {
+    let mut rng = itaipu_dynamics::synthetic::Normal::new(seed ^ 0x005E_ED0F_5A11);
+    let mut s = event.clone();
+    s.name = format!("{} (surrogate)", event.name);
+    for &c in &event.channels {
+        let Some(y) = event.series(c) else { continue };
+        let v = pre_event(event, y);
+        let sigma = if v.len() >= 10 {
+            evidence::noise_floor(&v)
+        } else {
+            evidence::noise_floor(y)
+        };
+        let sim = if pb.channels.contains(&c) {
+            Some(
+                outputs
+                    .channel(c)
+                    .ok_or_else(|| format!("no simulated {}", c.name()))?,
+            )
+        } else {
+            None
+        };
+        let out = s.series_mut(c).expect("a recorded channel");
+        for (k, y) in out.iter_mut().enumerate() {
+            let base = sim.map_or(*y, |x| x[k]);
+            *y = base + sigma * rng.sample();
+        }
+    }
+    Ok(s)
+}
+
+/// The noise floor σ_c of each compared channel of `pb` (in its order) for the unit as given
+/// on `events`: σ_P, σ_Q of [`sigma_pq`] for the phasor playback; in a mode, each compared
+/// channel's [`crate::noise::noise_floor`] of the mode's simulation, pooled likewise.
+pub(super) fn sigmas(
+    unit: &Unit,
+    events: &[Event],
+    pb: &Playback,
+) -> Result<Vec<f64>, DiagnoseError> {
+    if pb.is_phasor() {
+        let (p, q) = sigma_pq(unit, events)?;
+        return Ok(vec![p, q]);
+    }
+    let mut floors: Vec<Vec<(f64, usize)>> = vec![vec![]; pb.channels.len()];
+    for e in events {
+        let out = pb.outputs(unit, e)?;
+        let n = e.record.time_s.len();
+        for (j, &c) in pb.channels.iter().enumerate() {
+            let (Some(sim), Some(meas)) = (out.channel(c), e.series(c)) else {
+                return Err(DiagnoseError::Setup(format!(
+                    "event '{}': channel {} is neither simulated nor recorded",
+                    e.name,
+                    c.name()
+                )));
+            };
+            floors[j].push((crate::noise::noise_floor(e, sim, meas).sigma, n));
+        }
+    }
+    Ok(floors.iter().map(|f| crate::noise::pooled(f)).collect())
+}
+
 /// σ_P, σ_Q of the unit as given on `events`: each event's noise floor
 /// ([`crate::noise::noise_floor`]: the pre-event residual's standard deviation, the one
 /// definition every report shows), pooled over the events by their number of samples.

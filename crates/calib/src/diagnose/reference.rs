@@ -70,7 +70,7 @@ pub(super) fn reference(
     events: &[Event],
     held_out: &[Event],
     sp: &Split,
-    weights: (f64, f64),
+    (pb, weights, compare): playback::Scoring,
     opts: &DiagnoseOptions,
     progress: &dyn Progress,
 ) -> Result<Reference, DiagnoseError> {
@@ -78,6 +78,7 @@ pub(super) fn reference(
     let env = RefitEnv {
         sp,
         weights,
+        compare,
         opts,
         progress,
     };
@@ -91,30 +92,43 @@ pub(super) fn reference(
     let mut before = vec![];
     let mut evidence_before = vec![];
     for e in events {
-        let (_, tr) = fitness(&reference.unit, e, false)
-            .map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
-        evidence_before.push(event_evidence(e, &tr));
+        let (tr, ev) = pb.evidence(&reference.unit, e)?;
+        evidence_before.push(ev);
         before.push((e.name.clone(), tr));
     }
     // Surrogate events: what the reference unit would give on these inputs, with measurement
     // noise on P, Q and input noise on |V| and the angle drawn again at the levels the record
     // shows. The reference is exact there, so a re-fit's gain on them is pure noise fitting.
+    // In a playback mode, the compared channels are the simulated ones and every imposed
+    // channel gets its noise drawn again.
+    let in_mode = |e: &Event, seed: u64| -> Result<Event, DiagnoseError> {
+        let outs = pb.outputs(&reference.unit, e)?;
+        surrogate_in_mode(e, pb, &outs, seed).map_err(DiagnoseError::Setup)
+    };
     let mut surrogate_held = vec![];
     for (k, e) in held_out.iter().enumerate() {
+        let seed = opts.seed.wrapping_add(1000 + k as u64);
+        if !pb.is_phasor() {
+            surrogate_held.push(in_mode(e, seed)?);
+            continue;
+        }
         let (_, tr) = fitness(&reference.unit, e, true)
             .map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
-        surrogate_held.push(
-            surrogate(e, &tr, opts.seed.wrapping_add(1000 + k as u64))
-                .map_err(DiagnoseError::Setup)?,
-        );
+        surrogate_held.push(surrogate(e, &tr, seed).map_err(DiagnoseError::Setup)?);
     }
     let surrogate_events: Vec<Event> = events
         .iter()
         .zip(&before)
         .enumerate()
-        .map(|(k, (e, (_, tr)))| surrogate(e, tr, opts.seed.wrapping_add(k as u64)))
-        .collect::<Result<_, _>>()
-        .map_err(DiagnoseError::Setup)?;
+        .map(|(k, (e, (_, tr)))| {
+            let seed = opts.seed.wrapping_add(k as u64);
+            if pb.is_phasor() {
+                surrogate(e, tr, seed).map_err(DiagnoseError::Setup)
+            } else {
+                in_mode(e, seed)
+            }
+        })
+        .collect::<Result<_, _>>()?;
     let sp_null = split(&surrogate_events, &surrogate_held, opts.block_s)?;
     Ok(Reference {
         nuisance,
@@ -132,9 +146,18 @@ pub(super) fn catalog_context(
     events: &[Event],
     before: &[(String, Traces)],
     evidence_before: &[EventEvidence],
+    pb: &Playback,
 ) -> Context {
     // `diagnose` refuses an empty event list, and `before` holds every event's traces.
     let mut ctx = context_from(&before[0].1, &events[0]);
+    ctx.mode = pb.mode;
+    ctx.compared = pb.channels.clone();
+    ctx.setpoint_step = events
+        .iter()
+        .filter(|_| pb.mode.applies_steps())
+        .flat_map(|e| &e.steps)
+        .map(|s| s.size_pu.abs())
+        .reduce(f64::max);
     ctx.mode_hint_hz = mode_hint(evidence_before, ctx.rate_hz);
     ctx.shaft_resonance = evidence_before
         .iter()

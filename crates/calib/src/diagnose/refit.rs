@@ -10,7 +10,7 @@ use crate::problem::{
     accurate_integrator, search_integrator, sum_of_squares, EventData, FreeParam, Problem,
     SimulatedPq, WindowSums,
 };
-use crate::spec::Strategy;
+use crate::spec::{Compare, Strategy};
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::unit::{ParamRef, Unit};
 
@@ -56,9 +56,10 @@ pub(super) struct Refit {
     pub(super) failures: usize,
     /// Variance inflation of the fitted residual, `(1 + ρ₁)/(1 − ρ₁)` (AR(1) approximation).
     pub(super) vif: f64,
-    /// RMS of P and Q [pu] over every sample of the fitted events (the fitted and held-out
-    /// blocks both; held-out events apart), from the same accurate simulation as the χ².
-    pub(super) rms_pq: (f64, f64),
+    /// RMS of each compared channel (P and Q in the phasor playback; [`Playback::channels`])
+    /// [pu] over every sample of the fitted events (the fitted and held-out blocks both;
+    /// held-out events apart), from the same accurate simulation as the χ².
+    pub(super) rms: Vec<f64>,
 }
 
 /// The scores of a re-fit (without its unit and values).
@@ -182,6 +183,9 @@ pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)]) {
 pub(super) struct RefitEnv<'a> {
     pub(super) sp: &'a Split,
     pub(super) weights: (f64, f64),
+    /// A playback mode's compared channels and their noise weights (`None`: the phasor
+    /// playback, P and Q weighted by `weights`).
+    pub(super) compare: Option<&'a Compare>,
     pub(super) opts: &'a DiagnoseOptions,
     pub(super) progress: &'a dyn Progress,
 }
@@ -196,6 +200,34 @@ impl<'a> RefitEnv<'a> {
     pub(super) fn with(self, opts: &'a DiagnoseOptions) -> Self {
         Self { opts, ..self }
     }
+
+    /// A re-fit's problem over `data`: the noise weights, the compared channels, the ties and
+    /// the priors' weight every re-fit uses.
+    pub(super) fn problem(
+        &self,
+        unit: Unit,
+        free: Vec<FreeParam>,
+        data: Vec<EventData>,
+        ties: &[(ParamRef, ParamRef)],
+    ) -> Problem {
+        problem_for(unit, free, data, self.weights, self.compare, ties)
+    }
+}
+
+/// [`RefitEnv::problem`] without an environment.
+fn problem_for(
+    unit: Unit,
+    free: Vec<FreeParam>,
+    data: Vec<EventData>,
+    weights: (f64, f64),
+    compare: Option<&Compare>,
+    ties: &[(ParamRef, ParamRef)],
+) -> Problem {
+    let mut p = Problem::new(unit, free, data, weights);
+    p.compare = compare.cloned();
+    p.ties = ties.to_vec();
+    p.prior_weight = PRIOR_WEIGHT;
+    p
 }
 
 pub(super) fn refit(
@@ -208,6 +240,7 @@ pub(super) fn refit(
     let RefitEnv {
         sp,
         weights,
+        compare,
         opts,
         progress,
     } = *env;
@@ -243,14 +276,12 @@ pub(super) fn refit(
         for f in &free {
             held_unit.set(f.r, f.start);
         }
-        let mut problem = Problem::new(
+        let mut problem = env.problem(
             held_unit,
             global.iter().map(|&j| free[j].clone()).collect(),
             sp.fit.clone(),
-            weights,
+            &tie_refs,
         );
-        problem.ties = tie_refs.clone();
-        problem.prior_weight = PRIOR_WEIGHT;
         problem.cancel = opts.cancel.clone();
         // Scan (the parameters that ask for it), swarm, scan again from the swarm's best (the
         // interacting parameters it corrected move the valleys the scanned ones lie in), L-BFGS.
@@ -290,9 +321,7 @@ pub(super) fn refit(
                 ..f.clone()
             })
             .collect();
-        let mut problem = Problem::new(unit.clone(), polish_free, sp.fit.clone(), weights);
-        problem.ties = tie_refs.clone();
-        problem.prior_weight = PRIOR_WEIGHT;
+        let mut problem = env.problem(unit.clone(), polish_free, sp.fit.clone(), &tie_refs);
         problem.cancel = opts.cancel.clone();
         x = search(
             &problem,
@@ -311,26 +340,43 @@ pub(super) fn refit(
         return Err("interrupted".into());
     }
     let acc = accurate_integrator();
-    let mut fit_problem = Problem::new(unit.clone(), free.clone(), sp.fit.clone(), weights);
-    fit_problem.ties = tie_refs.clone();
-    fit_problem.prior_weight = PRIOR_WEIGHT;
-    let mut held = Problem::new(unit.clone(), free, sp.held.clone(), weights);
-    held.ties = tie_refs;
-    held.prior_weight = PRIOR_WEIGHT;
+    let fit_problem = env.problem(unit.clone(), free.clone(), sp.fit.clone(), &tie_refs);
+    let held = env.problem(unit.clone(), free, sp.held.clone(), &tie_refs);
     // One accurate simulation per event: the fitted and held-out samples of a block split are
     // windows on the same events (held-out events are simulated on their own).
-    let pq = fit_problem.simulate(&x, &acc).map_err(|e| e.to_string())?;
-    let r_fit = fit_problem
-        .residuals_from(&x, &pq)
-        .map_err(|e| e.to_string())?;
-    let r_held = if sp.blocks {
-        held.residuals_from(&x, &pq)
-    } else {
-        held.residuals(&x, &acc)
-    }
-    .map_err(|e| e.to_string())?;
+    let (r_fit, r_held, rms) = match compare {
+        None => {
+            let pq = fit_problem.simulate(&x, &acc).map_err(|e| e.to_string())?;
+            let r_fit = fit_problem
+                .residuals_from(&x, &pq)
+                .map_err(|e| e.to_string())?;
+            let r_held = if sp.blocks {
+                held.residuals_from(&x, &pq)
+            } else {
+                held.residuals(&x, &acc)
+            }
+            .map_err(|e| e.to_string())?;
+            let (p, q) = rms_over_events(&fit_problem, sp.blocks.then_some(&held), &pq);
+            (r_fit, r_held, vec![p, q])
+        }
+        Some(cmp) => {
+            let outs = fit_problem
+                .simulate_outputs(&x, &acc)
+                .map_err(|e| e.to_string())?;
+            let r_fit = fit_problem
+                .residuals_from_outputs(&x, &outs)
+                .map_err(|e| e.to_string())?;
+            let r_held = if sp.blocks {
+                held.residuals_from_outputs(&x, &outs)
+            } else {
+                held.residuals(&x, &acc)
+            }
+            .map_err(|e| e.to_string())?;
+            let rms = rms_of_channels(&fit_problem, sp.blocks.then_some(&held), &outs, cmp);
+            (r_fit, r_held, rms)
+        }
+    };
     let chi2_prior = sum_of_squares(&fit_problem.prior_residuals(&x));
-    let rms_pq = rms_over_events(&fit_problem, sp.blocks.then_some(&held), &pq);
     Ok(Refit {
         unit: fit_problem.unit_at(&x),
         values: x,
@@ -343,14 +389,43 @@ pub(super) fn refit(
         failures,
         vif: variance_inflation(
             &r_fit,
-            if weights.0 > 0.0 && weights.1 > 0.0 {
-                2
-            } else {
-                1
+            match compare {
+                Some(c) => c.weights.len().max(1),
+                None if weights.0 > 0.0 && weights.1 > 0.0 => 2,
+                None => 1,
             },
         ),
-        rms_pq,
+        rms,
     })
+}
+
+/// RMS of each channel of `cmp` (unweighted) over the windows of `fit`'s events, plus those of
+/// `held`'s when given, from the playback-mode simulation `outs`.
+fn rms_of_channels(
+    fit: &Problem,
+    held: Option<&Problem>,
+    outs: &[itaipu_dynamics::mode::ModeOutputs],
+    cmp: &Compare,
+) -> Vec<f64> {
+    cmp.weights
+        .iter()
+        .map(|&(c, _)| {
+            let (mut s, mut n) = (0.0, 0usize);
+            for (i, out) in outs.iter().enumerate() {
+                let parts = std::iter::once(&fit.events[i]).chain(held.map(|h| &h.events[i]));
+                for ev in parts {
+                    let (Some(sim), Some(meas)) = (out.channel(c), ev.measured(c)) else {
+                        continue;
+                    };
+                    for k in (0..ev.in_window.len()).filter(|&k| ev.in_window[k]) {
+                        s += (sim[k] - meas[k]).powi(2);
+                        n += 1;
+                    }
+                }
+            }
+            (s / n.max(1) as f64).sqrt()
+        })
+        .collect()
 }
 
 /// RMS of P and Q (unweighted) over the windows of `fit`'s events, plus those of `held`'s
@@ -380,6 +455,7 @@ pub(super) fn std_errors(
     values: &[f64],
     events: &[Event],
     weights: (f64, f64),
+    compare: Option<&Compare>,
 ) -> Option<Vec<f64>> {
     let free: Vec<FreeParam> = resolve(unit, bounds)
         .ok()?
@@ -392,9 +468,14 @@ pub(super) fn std_errors(
         .map(|e| EventData::new(e, None, None))
         .collect::<Result<_, _>>()
         .ok()?;
-    let mut problem = Problem::new(unit.clone(), free, data, weights);
-    problem.ties = tie_refs(unit, ties).ok()?;
-    problem.prior_weight = PRIOR_WEIGHT;
+    let problem = problem_for(
+        unit.clone(),
+        free,
+        data,
+        weights,
+        compare,
+        &tie_refs(unit, ties).ok()?,
+    );
     let jac = crate::fit::jacobian(&problem, values)?;
     let rss = sum_of_squares(&problem.residuals(values, &accurate_integrator()).ok()?);
     Some(crate::identify::analyse(&jac, rss, crate::fit::CORRELATION_LIMIT).std_errors)
@@ -523,12 +604,13 @@ mod tests {
         let env = RefitEnv {
             sp: &sp,
             weights: (1.0, 1.0),
+            compare: None,
             opts: &opts,
             progress: &Silent,
         };
         let out = refit(&env, &calibrated, &[], &[], "as given").unwrap();
         let (f, _) = fitness(&calibrated, &ev, false).unwrap();
-        let (p, q) = out.rms_pq;
+        let (p, q) = (out.rms[0], out.rms[1]);
         assert!(
             (p - f.rms_p).abs() <= 1e-9 * f.rms_p,
             "{p} against {}",

@@ -4,7 +4,6 @@
 use std::collections::BTreeMap;
 
 use crate::evidence::SignalEvidence;
-use crate::fit::fitness;
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
@@ -22,13 +21,16 @@ pub(super) fn fmt_num(v: f64) -> String {
 /// The event and P or Q signal with the largest residual RMS relative to its noise floor (the
 /// evidence's `rms_over_noise`: the event's own floor, [`crate::noise::noise_floor`], as the
 /// report shows it).
-fn worst_residual(ev: &[EventEvidence]) -> Option<(&str, &SignalEvidence)> {
+fn worst_residual<'a>(
+    ev: &'a [EventEvidence],
+    compared: &[&str],
+) -> Option<(&'a str, &'a SignalEvidence)> {
     let mut worst: Option<(&str, &SignalEvidence)> = None;
     for e in ev {
         for s in e
             .signals
             .iter()
-            .filter(|s| s.signal == "P" || s.signal == "Q")
+            .filter(|s| compared.contains(&s.signal.as_str()))
         {
             if worst.is_none_or(|(_, w)| s.rms_over_noise > w.rms_over_noise) {
                 worst = Some((&e.event, s));
@@ -49,11 +51,12 @@ fn top_window(s: &SignalEvidence) -> Option<&crate::evidence::WindowStats> {
 /// with where the residual lives.
 pub(super) fn undecided(
     ev: &[EventEvidence],
+    compared: &[&str],
     reports: &[CandidateReport],
     opts: &DiagnoseOptions,
 ) -> Verdict {
     let ratio = |s: &SignalEvidence| s.rms_over_noise;
-    let worst = worst_residual(ev);
+    let worst = worst_residual(ev, compared);
     let best_try = reports
         .iter()
         .filter_map(|r| r.gains.as_ref().map(|g| (r, g)))
@@ -76,7 +79,10 @@ pub(super) fn undecided(
         return Verdict {
             cause: "none".into(),
             title: "no residual to explain".into(),
-            statement: "No P or Q residual.".into(),
+            statement: format!(
+                "No residual of the compared signals ({}).",
+                compared.join(", ")
+            ),
             key_parameters: vec![],
             gains: None,
             where_: None,
@@ -176,11 +182,16 @@ pub(super) fn decide(
     reports: &mut [CandidateReport],
     mut refits: BTreeMap<String, RefitRecord>,
     events: &[Event],
-    weights: (f64, f64),
+    (pb, weights, compare): super::playback::Scoring,
     evidence_before: &[EventEvidence],
     opts: &DiagnoseOptions,
 ) -> Decision {
     // 5. Rank and decide.
+    let compared: Vec<&str> = pb
+        .channels
+        .iter()
+        .map(|c| super::playback::signal_name(*c))
+        .collect();
     // Significant candidates first. Each passed the test against its own baseline (the same
     // interacting parameters re-fitted without it); among them, the extended model that
     // explains the data best wins: lowest BIC on the common fitted samples,
@@ -213,7 +224,7 @@ pub(super) fn decide(
             .filter(|(_, gap)| *gap < opts.bic_threshold)
             .collect();
         if !competing.is_empty() {
-            let verdict = inconclusive(best, &competing, reports, evidence_before, opts);
+            let verdict = inconclusive(best, &competing, reports, evidence_before, &compared, opts);
             return Decision {
                 verdict,
                 extended_unit: None,
@@ -239,7 +250,9 @@ pub(super) fn decide(
     let verdict = match named {
         Some((mut rep, g, (r, bounds, ties))) => {
             // Uncertainty of the re-fitted parameters (all samples, with the priors).
-            if let Some(se) = std_errors(&r.unit, &bounds, &ties, &r.values, events, weights) {
+            if let Some(se) =
+                std_errors(&r.unit, &bounds, &ties, &r.values, events, weights, compare)
+            {
                 for (p, e) in rep.parameters.iter_mut().zip(se) {
                     p.std_error = Some(e);
                 }
@@ -248,8 +261,8 @@ pub(super) fn decide(
                 }
             }
             for e in events {
-                if let Ok((_, tr)) = fitness(&r.unit, e, false) {
-                    evidence_after.push(event_evidence(e, &tr));
+                if let Ok((tr, ev)) = pb.evidence(&r.unit, e) {
+                    evidence_after.push(ev);
                     after.push((e.name.clone(), tr));
                 }
             }
@@ -346,7 +359,7 @@ pub(super) fn decide(
                 competing: vec![],
             }
         }
-        None => undecided(evidence_before, reports, opts),
+        None => undecided(evidence_before, &compared, reports, opts),
     };
 
     Decision {
@@ -420,6 +433,7 @@ fn inconclusive(
     competing: &[(String, f64)],
     reports: &[CandidateReport],
     ev: &[EventEvidence],
+    compared: &[&str],
     opts: &DiagnoseOptions,
 ) -> Verdict {
     let describe = |c: &CandidateReport| {
@@ -445,7 +459,7 @@ fn inconclusive(
         })
         .collect();
     // Where the residual lives, as `undecided` finds it.
-    let where_ = worst_residual(ev).and_then(|(_, s)| {
+    let where_ = worst_residual(ev, compared).and_then(|(_, s)| {
         top_window(s).map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s))
     });
     let names: Vec<&str> = std::iter::once(best.cause.as_str())
@@ -491,7 +505,7 @@ mod tests {
             signals: vec![s],
             p_peak: None,
         }];
-        let v = undecided(&ev, &[], &DiagnoseOptions::default());
+        let v = undecided(&ev, &["P", "Q"], &[], &DiagnoseOptions::default());
         assert_eq!(v.cause, "unexplained");
         assert!(
             v.statement.contains("Unexplained residual at Q on e"),
@@ -543,6 +557,7 @@ mod tests {
                 k: 1,
                 n_fit: 1000,
                 n_held: 1000,
+                rms: vec![],
                 rms_p_base: 0.01,
                 rms_q_base: 0.01,
                 rms_p_ext: 0.005,
@@ -575,7 +590,7 @@ mod tests {
             &mut reports,
             BTreeMap::new(),
             &[],
-            (1.0, 1.0),
+            (&Playback::phasor(), (1.0, 1.0), None),
             &evidence(),
             &DiagnoseOptions::default(),
         )

@@ -159,3 +159,70 @@ pub fn event_evidence(event: &Event, traces: &Traces) -> EventEvidence {
         p_peak,
     }
 }
+
+/// Residual evidence of a playback mode's simulation `outs` of `event` ([`Playback`]): the
+/// compared channels' residuals (named as in [`playback::signal_name`]), against the inputs the
+/// mode imposes that a residual may follow: the measured |V| (when not compared) and the
+/// declared set point (when the mode plays the steps). No shaft-band line unless P is compared.
+pub(super) fn event_evidence_in_mode(
+    event: &Event,
+    outs: &itaipu_dynamics::mode::ModeOutputs,
+    pb: &Playback,
+) -> EventEvidence {
+    use itaipu_dynamics::event::Channel;
+    let (onset, win) = windows(event);
+    let r = &event.record;
+    let opts = EvidenceOptions {
+        windows: win,
+        noise_window: (r.time_s[0], onset),
+        ..Default::default()
+    };
+    let setpoint: Vec<f64> = r
+        .time_s
+        .iter()
+        .map(|t| itaipu_dynamics::event::step_level(&event.steps, *t))
+        .collect();
+    let mut inputs: Vec<(&str, &[f64])> = vec![];
+    if !pb.channels.contains(&Channel::V) {
+        inputs.push(("|V|", &r.v_mag_pu));
+    }
+    if !event.steps.is_empty() && pb.mode.applies_steps() {
+        inputs.push(("set point", &setpoint));
+    }
+    let mut signals = vec![];
+    let mut p_peak = None;
+    for &c in &pb.channels {
+        let (Some(sim), Some(meas)) = (outs.channel(c), event.series(c)) else {
+            continue;
+        };
+        let res: Vec<f64> = sim.iter().zip(meas).map(|(a, b)| a - b).collect();
+        let opts = EvidenceOptions {
+            noise_sigma: Some(crate::noise::noise_floor(event, sim, meas).sigma),
+            ..opts.clone()
+        };
+        signals.push(evidence::analyse(
+            playback::signal_name(c),
+            &r.time_s,
+            &res,
+            meas,
+            &inputs,
+            &opts,
+        ));
+        if c == Channel::P {
+            let n = r.time_s.len();
+            let dt = (r.time_s[n - 1] - r.time_s[0]) / (n.max(2) - 1) as f64;
+            p_peak = evidence::spectral_peak(
+                &res,
+                dt,
+                SHAFT_BAND_HZ.0,
+                SHAFT_BAND_HZ.1.min(0.95 * 0.5 / dt),
+            );
+        }
+    }
+    EventEvidence {
+        event: event.name.clone(),
+        onset_s: onset,
+        signals,
+        p_peak,
+    }
+}

@@ -278,29 +278,28 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
     // Noise: the one reference.
     let n = &r.noise;
     page.h2("noise", "Noise and the reference");
-    let (ref_p, ref_q) = (reference_rms(r, "P"), reference_rms(r, "Q"));
+    let rows: Vec<Vec<Cell>> = n
+        .sigmas
+        .iter()
+        .enumerate()
+        .map(|(k, (s, sigma))| {
+            vec![
+                Cell::text(s),
+                Cell::json(*sigma, &format!("/noise/sigmas/{k}/1"), num),
+                Cell::Num(num(reference_rms(r, s))),
+            ]
+        })
+        .collect();
+    page.p(&format!(
+        "Playback: {}. Split: {} ({} fitted, {} held-out samples).",
+        n.playback, n.split, n.n_fit, n.n_held
+    ));
     page.table(
         "noise-table",
-        &[
-            "σP [pu]",
-            "σQ [pu]",
-            "split",
-            "fitted samples",
-            "held-out samples",
-            "reference RMS P [pu]",
-            "reference RMS Q [pu]",
-        ],
-        &[vec![
-            Cell::json(n.sigma_p, "/noise/sigma_p", num),
-            Cell::json(n.sigma_q, "/noise/sigma_q", num),
-            Cell::text(&n.split),
-            Cell::Num(n.n_fit.to_string()),
-            Cell::Num(n.n_held.to_string()),
-            Cell::Num(num(ref_p)),
-            Cell::Num(num(ref_q)),
-        ]],
+        &["compared signal", "σ [pu]", "reference RMS [pu]"],
+        &rows,
     );
-    page.note("σ from the pre-event segment of the residuals; χ² = Σ(ΔP/σP)² + Σ(ΔQ/σQ)². The reference throughout this report is the unit as given: its residual RMS (pooled over the events) is the one every RMS below is compared with, and the evidence tables are computed from it.");
+    page.note("σ from the pre-event segment of the residuals; χ² = Σ_c Σ (Δc/σ_c)² over the compared signals (P and Q for a phasor record). The reference throughout this report is the unit as given: its residual RMS (pooled over the events) is the one every RMS below is compared with, and the evidence tables are computed from it.");
 
     // Candidates.
     page.h2("candidates", "Candidates");
@@ -331,8 +330,13 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
                 } else {
                     "no".into()
                 }),
-                Cell::json(g.rms_p_ext, ptr("rms_p_ext"), num),
-                Cell::json(g.rms_q_ext, ptr("rms_q_ext"), num),
+                Cell::text(
+                    g.rms
+                        .iter()
+                        .map(|(s, _, ext)| format!("{s} {}", num(*ext)))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                ),
             ]),
             None => row.push(Cell::Html(format!(
                 "<span class=\"muted\">{}</span>",
@@ -355,15 +359,17 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
             "held-out drop [%]",
             "k",
             "significant",
-            "RMS P ext [pu]",
-            "RMS Q ext [pu]",
+            "RMS ext [pu]",
         ],
         &rows,
     );
     page.note(&format!(
-        "Reference (unit as given): RMS P {} pu, RMS Q {} pu.",
-        num(ref_p),
-        num(ref_q)
+        "Reference (unit as given): RMS {}.",
+        n.sigmas
+            .iter()
+            .map(|(s, _)| format!("{s} {} pu", num(reference_rms(r, s))))
+            .collect::<Vec<_>>()
+            .join(", ")
     ));
     for (i, c) in r
         .candidates

@@ -45,23 +45,30 @@ pub fn draw_plots(
             Ok::<String, CliError>(svg)
         };
 
-        // Residuals with the implicated window and the noise band.
-        let (rp, rq) = (
-            residual(tr, "p_pu", "p_meas_pu"),
-            residual(tr, "q_pu", "q_meas_pu"),
-        );
-        let after_res = tr_after.map(|ta| {
-            (
-                residual(ta, "p_pu", "p_meas_pu"),
-                residual(ta, "q_pu", "q_meas_pu"),
-            )
+        // Residuals of the compared signals with the implicated window and the noise band.
+        let compared: Vec<(&str, &str, &str, f64)> = r
+            .noise
+            .sigmas
+            .iter()
+            .filter_map(|(s, sigma)| {
+                let (sim, meas) = trace_columns(s)?;
+                Some((s.as_str(), sim, meas, *sigma))
+            })
+            .collect();
+        let res_before: Vec<Vec<f64>> = compared
+            .iter()
+            .map(|(_, sim, meas, _)| residual(tr, sim, meas))
+            .collect();
+        let res_after: Option<Vec<Vec<f64>>> = tr_after.map(|ta| {
+            compared
+                .iter()
+                .map(|(_, sim, meas, _)| residual(ta, sim, meas))
+                .collect()
         });
         let mut panels = vec![];
         let mut decor = vec![];
-        for (signal, res, sigma, k) in [
-            ("P", &rp, r.noise.sigma_p, 0),
-            ("Q", &rq, r.noise.sigma_q, 1),
-        ] {
+        for (k, &(signal, _, _, sigma)) in compared.iter().enumerate() {
+            let res = &res_before[k];
             let mut series = vec![plot::Series {
                 label: "as given".into(),
                 x: t,
@@ -69,8 +76,8 @@ pub fn draw_plots(
                 color: plot::START,
                 thin: false,
             }];
-            if let (Some(ta), Some((ap, aq)), Some(cause)) = (tr_after, &after_res, named) {
-                let y = if k == 0 { ap } else { aq };
+            if let (Some(ta), Some(after), Some(cause)) = (tr_after, &res_after, named) {
+                let y = &after[k];
                 series.push(plot::Series {
                     label: format!("with {cause}"),
                     x: &ta.time_s,
@@ -105,7 +112,11 @@ pub fn draw_plots(
         files.push(PlotFile {
             file,
             event: event.clone(),
-            caption: "P and Q residuals (simulated − measured) of the unit as given, the implicated window shaded, ±σ noise band".into(),
+            caption: format!(
+                "{} residuals (simulated − measured) of the unit as given, the implicated window \
+                 shaded, ±σ noise band",
+                compared.iter().map(|c| c.0).collect::<Vec<_>>().join(", ")
+            ),
             svg,
         });
 
@@ -113,7 +124,7 @@ pub fn draw_plots(
         if let Some(ev) = ev {
             let mut panels = vec![];
             let mut decor = vec![];
-            for signal in ["P", "Q"] {
+            for signal in r.noise.sigmas.iter().map(|(s, _)| s.as_str()) {
                 let Some(s) = ev.signals.iter().find(|s| s.signal == signal) else {
                     continue;
                 };
@@ -173,9 +184,9 @@ pub fn draw_plots(
                 files.push(PlotFile {
                     file,
                     event: event.clone(),
-                    caption:
-                        "amplitude spectra of the P and Q residuals (Hann window), the peak marked"
-                            .into(),
+                    caption: "amplitude spectra of the compared signals' residuals (Hann window), \
+                              the peak marked"
+                        .into(),
                     svg,
                 });
             }
@@ -280,6 +291,18 @@ pub fn draw_plots(
 /// The window to shade in the `signal` residual panel of an event: the verdict's (the same
 /// labelled window of this event when it has one), otherwise the signal's window with the
 /// largest share of the squared error.
+/// The simulated and measured trace columns of a compared signal (as the evidence names it).
+fn trace_columns(signal: &str) -> Option<(&'static str, &'static str)> {
+    Some(match signal {
+        "P" => ("p_pu", "p_meas_pu"),
+        "Q" => ("q_pu", "q_meas_pu"),
+        "|V|" => ("v_term", "v_meas_pu"),
+        "Efd" => ("efd", "efd_meas_pu"),
+        "Ifd" => ("xadifd", "ifd_meas_pu"),
+        _ => return None,
+    })
+}
+
 pub fn implicated_window(
     r: &Diagnosis,
     ev: Option<&EventEvidence>,

@@ -620,12 +620,11 @@ impl Event {
         out
     }
 
-    /// Mean of a recorded channel over the init window (`None` when not recorded): E_fd0 and
-    /// X_adI_fd0 of the record.
-    pub fn init_mean(&self, c: Channel) -> Option<f64> {
-        let r = self.init_range();
+    /// The recorded samples of channel `c` (`None` when it was not recorded; the angle only in
+    /// a phasor record).
+    pub fn series(&self, c: Channel) -> Option<&[f64]> {
         let rec = &self.record;
-        let v: &[f64] = match c {
+        Some(match c {
             Channel::V => &rec.v_mag_pu,
             Channel::Angle => self.has_angle().then_some(rec.v_ang_rad.as_slice())?,
             Channel::P => &rec.p_pu,
@@ -633,8 +632,28 @@ impl Event {
             Channel::Freq => rec.freq_hz.as_deref()?,
             Channel::Efd => rec.efd_pu.as_deref()?,
             Channel::Ifd => rec.ifd_pu.as_deref()?,
-        };
-        let s = &v[r];
+        })
+    }
+
+    /// [`Event::series`], to change in place (a surrogate record, say).
+    pub fn series_mut(&mut self, c: Channel) -> Option<&mut [f64]> {
+        let has_angle = self.has_angle();
+        let rec = &mut self.record;
+        Some(match c {
+            Channel::V => &mut rec.v_mag_pu,
+            Channel::Angle => has_angle.then_some(rec.v_ang_rad.as_mut_slice())?,
+            Channel::P => &mut rec.p_pu,
+            Channel::Q => &mut rec.q_pu,
+            Channel::Freq => rec.freq_hz.as_deref_mut()?,
+            Channel::Efd => rec.efd_pu.as_deref_mut()?,
+            Channel::Ifd => rec.ifd_pu.as_deref_mut()?,
+        })
+    }
+
+    /// Mean of a recorded channel over the init window (`None` when not recorded): E_fd0 and
+    /// X_adI_fd0 of the record.
+    pub fn init_mean(&self, c: Channel) -> Option<f64> {
+        let s = &self.series(c)?[self.init_range()];
         (!s.is_empty()).then(|| s.iter().sum::<f64>() / s.len() as f64)
     }
 

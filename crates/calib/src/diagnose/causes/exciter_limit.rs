@@ -76,6 +76,10 @@ impl Cause for ExciterLimit {
         &INFO
     }
 
+    fn acts(&self) -> super::super::catalog::Acts {
+        super::super::catalog::Acts::Exciter
+    }
+
     fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
         self.extend_variant(x, roles, ctx, 0)
     }
@@ -106,11 +110,12 @@ impl Cause for ExciterLimit {
                 }
             )));
         };
-        if ctx.deepest_dip.is_some_and(|d| d < LIMIT_DIP) {
+        if !ctx.drives_avr_by(LIMIT_DIP) {
             // A limit just above the operating point would only clamp E_fd to make up for a
             // mis-calibrated AVR gain.
             return Err(CauseError::not_applicable(format!(
-                "no event dips |V| by {:.0} % or more, so the AVR is not driven to its limits",
+                "no event dips |V| (or steps its set point) by {:.0} % or more, so the AVR is not \
+                 driven to its limits",
                 100.0 * LIMIT_DIP
             )));
         }

@@ -27,6 +27,10 @@ impl Cause for Governor {
         &INFO
     }
 
+    fn acts(&self) -> super::super::catalog::Acts {
+        super::super::catalog::Acts::Mechanical
+    }
+
     fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
         let Some(g) = roles.governor.as_deref() else {
             return Err(CauseError::not_applicable("no governor block"));

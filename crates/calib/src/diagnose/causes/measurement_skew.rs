@@ -34,6 +34,10 @@ impl Cause for MeasurementSkew {
         &INFO
     }
 
+    fn acts(&self) -> super::super::catalog::Acts {
+        super::super::catalog::Acts::PowerMeasurement
+    }
+
     fn extend(&self, x: &mut Extension, _roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
         if x.unit.block("measurement").is_some() {
             return Err(CauseError::not_applicable(

@@ -29,6 +29,10 @@ impl Cause for Oel {
         &INFO
     }
 
+    fn acts(&self) -> super::super::catalog::Acts {
+        super::super::catalog::Acts::Exciter
+    }
+
     fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
         let Some(exc) = roles.exciter.as_deref() else {
             return Err(CauseError::not_applicable(
@@ -48,8 +52,7 @@ impl Cause for Oel {
         if x.unit.block("oel").is_some() {
             return Err(CauseError::not_applicable("the unit already has an OEL"));
         }
-        if ctx.deepest_dip.is_some_and(|d| d < LIMIT_DIP)
-            && ctx.field_current_rise.is_none_or(|r| r < OEL_IFD_RISE)
+        if !ctx.drives_avr_by(LIMIT_DIP) && ctx.field_current_rise.is_none_or(|r| r < OEL_IFD_RISE)
         {
             // Without a dip or a sustained field forcing the field current is not driven into
             // overload; a limiter picking up just above the operating point would only trim a

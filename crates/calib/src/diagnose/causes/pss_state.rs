@@ -25,6 +25,10 @@ impl Cause for PssState {
         &INFO
     }
 
+    fn acts(&self) -> super::super::catalog::Acts {
+        super::super::catalog::Acts::Exciter
+    }
+
     fn extend(&self, x: &mut Extension, roles: &Roles, _ctx: &Context) -> Result<(), CauseError> {
         let Some(exc) = roles.exciter.as_deref() else {
             return Err(CauseError::not_applicable("no exciter for a PSS to act on"));

@@ -24,6 +24,10 @@ impl Cause for Saturation {
         &INFO
     }
 
+    fn acts(&self) -> super::super::catalog::Acts {
+        super::super::catalog::Acts::Machine
+    }
+
     fn extend(&self, x: &mut Extension, roles: &Roles, _ctx: &Context) -> Result<(), CauseError> {
         let m = &roles.machine;
         let (s10, s12) = (format!("{m}.s10"), format!("{m}.s12"));

@@ -26,6 +26,10 @@ impl Cause for TerminalLoad {
         &INFO
     }
 
+    fn acts(&self) -> super::super::catalog::Acts {
+        super::super::catalog::Acts::Terminal
+    }
+
     fn extend(&self, x: &mut Extension, _roles: &Roles, _ctx: &Context) -> Result<(), CauseError> {
         if x.unit.block("load").is_some() {
             return Err(CauseError::not_applicable(

@@ -37,6 +37,10 @@ impl Cause for TorsionalMode {
         &INFO
     }
 
+    fn acts(&self) -> super::super::catalog::Acts {
+        super::super::catalog::Acts::ActivePower
+    }
+
     fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
         if roles.governor.is_none() {
             return Err(CauseError::not_applicable(

@@ -1,0 +1,183 @@
+//! What a diagnosis plays back and compares.
+//!
+//! A phasor record (the voltage angle recorded): the measured phasor imposed at the terminal,
+//! P and Q compared, each weighted by the inverse of its noise variance: the diagnosis as it
+//! was first written, bit for bit. A record without an angle (a staged test recorded by the
+//! excitation system's recorder: |V|, P, Q, E_fd) cannot be played back that way; the user names
+//! one of the playback modes of [`itaipu_dynamics::mode`] and the diagnosis compares that mode's
+//! default channels (`exciter_alone`: E_fd; `machine_from_efd`: Q; `closed_loop`: |V|, Q, E_fd),
+//! each weighted by `1/σ_c²` with σ_c its own noise floor, so that every χ² of the diagnosis is
+//! still in units of the noise variance whatever the channel. The mode is the engineer's
+//! choice, not guessed: each mode imposes different channels and assumes different things (the
+//! grid equivalent of `closed_loop`, the measured E_fd of `machine_from_efd`).
+
+use itaipu_dynamics::event::{Channel, Event};
+use itaipu_dynamics::mode::{simulate_mode, simulate_mode_traces, ModeOutputs, PlaybackMode};
+use itaipu_dynamics::simulate::{PreparedEvent, Traces};
+
+use crate::fit::fitness;
+use crate::problem::accurate_integrator;
+use crate::spec::Compare;
+
+use super::DiagnoseError;
+
+/// The playback of a diagnosis and its compared channels (see the module documentation).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Playback {
+    pub mode: PlaybackMode,
+    /// The compared channels, in canonical order.
+    pub channels: Vec<Channel>,
+}
+
+impl Playback {
+    /// The phasor playback, P and Q compared.
+    pub fn phasor() -> Self {
+        Self::new(PlaybackMode::Phasor)
+    }
+
+    /// `mode` with its default compared channels ([`PlaybackMode::default_channels`]).
+    pub fn new(mode: PlaybackMode) -> Self {
+        Self {
+            mode,
+            channels: mode.default_channels().to_vec(),
+        }
+    }
+
+    pub fn is_phasor(&self) -> bool {
+        self.mode == PlaybackMode::Phasor
+    }
+
+    /// The playback a diagnosis of `events` uses: `mode` when given (every event must hold what
+    /// it plays back and compares), else the phasor playback, which needs every event's angle.
+    /// The error names the event and what it lacks.
+    pub fn for_events(
+        mode: Option<PlaybackMode>,
+        events: &[&Event],
+    ) -> Result<Self, DiagnoseError> {
+        let pb = Self::new(mode.unwrap_or_default());
+        for e in events {
+            if let Some(why) = pb.mode.missing(e, &pb.channels) {
+                let file = e.toml_path.as_ref().map_or_else(
+                    || format!("<in-memory event '{}'>", e.name),
+                    |p| p.display().to_string(),
+                );
+                let asked = match mode {
+                    None => "the diagnosis's playback (none asked: the phasor playback; name \
+                             one with --mode, Python mode=)"
+                        .to_string(),
+                    Some(m) => format!("the diagnosis's playback mode {m}"),
+                };
+                return Err(DiagnoseError::Event(format!(
+                    "{file}: event '{}' {why}; {asked} needs it",
+                    e.name
+                )));
+            }
+        }
+        Ok(pb)
+    }
+
+    /// The [`Compare`] of every re-fit's problem with the noise weights `1/σ_c²` (`sigmas` in
+    /// the order of [`Playback::channels`]); `None` for the phasor playback, whose problems
+    /// weigh P and Q by their `(w_P, w_Q)` pair.
+    pub(super) fn compare(&self, sigmas: &[f64]) -> Option<Compare> {
+        (!self.is_phasor()).then(|| Compare {
+            mode: self.mode,
+            weights: self
+                .channels
+                .iter()
+                .zip(sigmas)
+                .map(|(c, s)| (*c, 1.0 / (s * s)))
+                .collect(),
+        })
+    }
+
+    /// The channels of `unit` played back on `event` (accurate integrator).
+    pub(super) fn outputs(
+        &self,
+        unit: &itaipu_dynamics::unit::Unit,
+        event: &Event,
+    ) -> Result<ModeOutputs, DiagnoseError> {
+        let ev = PreparedEvent::new(event);
+        simulate_mode(unit, &ev, self.mode, &accurate_integrator()).map_err(|error| {
+            DiagnoseError::Simulation {
+                event: event.name.clone(),
+                msg: error.to_string(),
+                error: Some(error),
+            }
+        })
+    }
+
+    /// Every trace of `unit` played back on `event` (accurate integrator): the phasor
+    /// playback's are [`fitness`]'s.
+    pub(super) fn traces(
+        &self,
+        unit: &itaipu_dynamics::unit::Unit,
+        event: &Event,
+    ) -> Result<Traces, DiagnoseError> {
+        if self.is_phasor() {
+            return fitness(unit, event, false)
+                .map(|(_, tr)| tr)
+                .map_err(|err| DiagnoseError::simulation(&event.name, &err));
+        }
+        simulate_mode_traces(unit, event, self.mode, &accurate_integrator()).map_err(|error| {
+            DiagnoseError::Simulation {
+                event: event.name.clone(),
+                msg: error.to_string(),
+                error: Some(error),
+            }
+        })
+    }
+
+    /// `"phasor: P, Q"`, `"closed_loop: |V|, Q, E_fd"`: for reports.
+    pub fn describe(&self) -> String {
+        format!(
+            "{}: {}",
+            self.mode,
+            self.channels
+                .iter()
+                .map(|c| signal_name(*c))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    }
+}
+
+/// What every χ² of a diagnosis is computed with: the playback, the phasor playback's
+/// `(w_P, w_Q)` and a mode's [`Compare`] (`None` in the phasor playback).
+pub(super) type Scoring<'a> = (&'a Playback, (f64, f64), Option<&'a Compare>);
+
+impl Playback {
+    /// The evidence of `unit` on `event`, with the traces it comes from: the phasor playback's
+    /// [`super::event_evidence`] on [`fitness`]'s traces; in a mode, the compared channels'
+    /// residuals ([`super::windows::event_evidence_in_mode`]).
+    pub(super) fn evidence(
+        &self,
+        unit: &itaipu_dynamics::unit::Unit,
+        event: &Event,
+    ) -> Result<(Traces, super::EventEvidence), DiagnoseError> {
+        let tr = self.traces(unit, event)?;
+        if self.is_phasor() {
+            let ev = super::event_evidence(event, &tr);
+            return Ok((tr, ev));
+        }
+        let outs = self.outputs(unit, event)?;
+        Ok((
+            tr,
+            super::windows::event_evidence_in_mode(event, &outs, self),
+        ))
+    }
+}
+
+/// The name of a channel's residual in the evidence (`P`, `Q`, `|V|`, `Efd`, `Ifd`): the names
+/// the catalog's signatures read.
+pub fn signal_name(c: Channel) -> &'static str {
+    match c {
+        Channel::P => "P",
+        Channel::Q => "Q",
+        Channel::V => "|V|",
+        Channel::Efd => "Efd",
+        Channel::Ifd => "Ifd",
+        Channel::Angle => "angle",
+        Channel::Freq => "frequency",
+    }
+}

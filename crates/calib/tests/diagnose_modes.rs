@@ -1,0 +1,132 @@
+//! The diagnosis of a record without a voltage angle (a staged step test), in a playback mode:
+//! a clean step test raises no alarm, an exciter ceiling hidden in the truth is named with its
+//! value, and a record without an angle is refused (naming the event and what it lacks) unless
+//! a mode is named that reads it.
+
+mod common;
+
+use common::{noisy_step_test, truth};
+use itaipu_calib::diagnose::{diagnose, DiagnoseError, DiagnoseOptions};
+use itaipu_calib::fit::Silent;
+use itaipu_dynamics::mode::PlaybackMode;
+
+fn in_mode(mode: PlaybackMode) -> DiagnoseOptions {
+    DiagnoseOptions {
+        mode: Some(mode),
+        ..Default::default()
+    }
+}
+
+/// The Mostar unit's own noisy step test (white noise on every channel, E_fd σ 0.01 pu),
+/// diagnosed in `exciter_alone` with the whole catalog: nothing is named, the causes the mode
+/// cannot show say why, and the noise floor is found on the compared channel alone.
+#[test]
+fn a_clean_step_test_diagnosed_open_loop_names_nothing() {
+    let unit = truth();
+    let ev = noisy_step_test(&unit, 11);
+    let d = diagnose(
+        &unit,
+        std::slice::from_ref(&ev),
+        &[],
+        &in_mode(PlaybackMode::ExciterAlone),
+        &Silent,
+    )
+    .unwrap()
+    .report;
+    assert_eq!(d.verdict.cause, "none", "{}", d.verdict.statement);
+    assert_eq!(d.noise.sigmas.len(), 1);
+    let (signal, sigma) = &d.noise.sigmas[0];
+    assert_eq!(signal, "Efd");
+    assert!(
+        (0.007..0.014).contains(sigma),
+        "the E_fd noise floor is the recorder's 0.01 pu: {sigma}"
+    );
+    for id in [
+        "saturation",
+        "governor",
+        "measurement_skew",
+        "terminal_load",
+    ] {
+        let c = d.candidates.iter().find(|c| c.cause == id).unwrap();
+        assert!(
+            !c.applicable && c.note.contains("exciter_alone"),
+            "{id}: {}",
+            c.note
+        );
+    }
+    // The set-point step drives the AVR as a dip would: the exciter's limit is tried.
+    let lim = d
+        .candidates
+        .iter()
+        .find(|c| c.cause == "exciter_limit")
+        .unwrap();
+    assert!(lim.applicable, "{}", lim.note);
+}
+
+/// The same step test with the regulator's ceiling V_RMAX hidden at 3 pu (the unit file says
+/// 10): the open-loop E_fd is clipped on the step up. Diagnosed in `exciter_alone` with the
+/// whole catalog, `exciter_limit` is named and V_RMAX comes back within 10 %.
+#[test]
+fn a_hidden_regulator_ceiling_is_named_from_a_step_test() {
+    let nominal = truth();
+    let hidden = nominal.with_params(&[("exciter.vr_max", 3.0)]).unwrap();
+    let ev = noisy_step_test(&hidden, 12);
+    let d = diagnose(
+        &nominal,
+        std::slice::from_ref(&ev),
+        &[],
+        &in_mode(PlaybackMode::ExciterAlone),
+        &Silent,
+    )
+    .unwrap()
+    .report;
+    assert_eq!(d.verdict.cause, "exciter_limit", "{}", d.verdict.statement);
+    let vr_max = d
+        .verdict
+        .key_parameters
+        .iter()
+        .find(|(p, _, _)| p == "exciter.vr_max")
+        .map(|(_, v, _)| *v)
+        .unwrap();
+    assert!((vr_max / 3.0 - 1.0).abs() < 0.10, "V_RMAX {vr_max}");
+}
+
+/// A record without an angle is not played back as a phasor: without a mode the diagnosis stops
+/// before any re-fit, naming the event, the missing angle and how to name a mode; a mode whose
+/// compared channel the record lacks is refused likewise.
+#[test]
+fn a_record_without_an_angle_needs_a_mode_that_reads_it() {
+    let unit = truth();
+    let ev = noisy_step_test(&unit, 13);
+    let Err(DiagnoseError::Event(msg)) = diagnose(
+        &unit,
+        std::slice::from_ref(&ev),
+        &[],
+        &DiagnoseOptions::default(),
+        &Silent,
+    ) else {
+        panic!("a phasor diagnosis of a record without an angle must be refused");
+    };
+    assert!(
+        msg.contains("synthetic-step") && msg.contains("angle") && msg.contains("--mode"),
+        "{msg}"
+    );
+    let mut no_efd = ev.clone();
+    no_efd
+        .channels
+        .retain(|c| *c != itaipu_dynamics::event::Channel::Efd);
+    no_efd.record.efd_pu = None;
+    let Err(DiagnoseError::Event(msg)) = diagnose(
+        &unit,
+        std::slice::from_ref(&no_efd),
+        &[],
+        &in_mode(PlaybackMode::ExciterAlone),
+        &Silent,
+    ) else {
+        panic!("an exciter_alone diagnosis without E_fd must be refused");
+    };
+    assert!(
+        msg.contains("efd") && msg.contains("exciter_alone"),
+        "{msg}"
+    );
+}
