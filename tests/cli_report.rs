@@ -319,7 +319,7 @@ fn diagnose_report_matches_diagnosis_json_and_stands_alone() {
     // The named cause's parameters with standard errors, and the candidates' gains.
     assert!(html.contains("data-json=\"/candidates/0/parameters/0/result\""));
     assert!(html.contains("data-json=\"/candidates/0/gains/delta_bic\""));
-    assert!(html.contains("data-json=\"/noise/sigma_p\""));
+    assert!(html.contains("data-json=\"/noise/sigmas/0/1\""));
     // No window of fewer than 5 samples and no mode with implausible damping among the
     // numbers shown.
     let doc = roxmltree::Document::parse_with_options(
