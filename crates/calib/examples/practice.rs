@@ -37,8 +37,8 @@ fn print_stage(st: &itaipu_calib::fit::StageReport) {
         st.phases
             .iter()
             .map(|p| format!(
-                "[{} {} it, {:.5}, {}]",
-                p.phase, p.iterations, p.best_objective, p.stopped_by
+                "[{} {} it, {:.5}, {}, {:.1} s, {} sims]",
+                p.phase, p.iterations, p.best_objective, p.stopped_by, p.wall_s, p.simulations
             ))
             .collect::<Vec<_>>()
             .join(" ")
@@ -95,7 +95,7 @@ fn main() {
                 &Silent,
             ) {
                 Ok(r) => {
-                    if std::env::var("VERBOSE").is_ok() {
+                    if std::env::var("VERBOSE").is_ok() || std::env::var("PROFILE").is_ok() {
                         r.report.stages.iter().for_each(print_stage);
                     }
                     std::fs::create_dir_all("out/practice").ok();
@@ -136,6 +136,17 @@ fn main() {
             if let Ok(text) = serde_json::to_string_pretty(&d.report) {
                 std::fs::create_dir_all("out/practice").ok();
                 std::fs::write(format!("out/practice/{name}.diagnosis.json"), text).ok();
+            }
+        }
+        // PROFILE=1: where the diagnosis' time went, per kind of re-fit and phase.
+        if std::env::var("PROFILE").is_ok() {
+            if let Some((Ok(d), _)) = &diag {
+                for r in &d.report.profile {
+                    println!(
+                        "      profile {:<32} {:<22} {:8.2} s {:7} sims {:4} re-fits",
+                        r.kind, r.phase, r.wall_s, r.simulations, r.refits
+                    );
+                }
             }
         }
         if std::env::var("VERBOSE").is_ok() {

@@ -61,6 +61,28 @@ fn a_clean_step_test_diagnosed_open_loop_names_nothing() {
         .find(|c| c.cause == "exciter_limit")
         .unwrap();
     assert!(lim.applicable, "{}", lim.note);
+    // The profile accounts for the run: one reference re-fit, at least one extension re-fit per
+    // applicable cause, and the re-fits' whole times within the diagnosis' wall time.
+    let refits = |kind: &str| {
+        d.profile
+            .iter()
+            .find(|r| r.kind == kind && r.phase == "whole re-fit")
+            .map_or(0, |r| r.refits)
+    };
+    assert_eq!(refits("reference"), 1);
+    let applicable = d.candidates.iter().filter(|c| c.applicable).count();
+    assert!(refits("extensions") >= applicable, "{:?}", d.profile);
+    let refit_wall: f64 = d
+        .profile
+        .iter()
+        .filter(|r| r.phase == "whole re-fit")
+        .map(|r| r.wall_s)
+        .sum();
+    assert!(
+        refit_wall > 0.0 && refit_wall <= d.wall_s,
+        "{refit_wall} of {}",
+        d.wall_s
+    );
 }
 
 /// The same step test with the regulator's ceiling V_RMAX hidden at 3 pu (the unit file says

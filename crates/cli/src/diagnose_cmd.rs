@@ -478,6 +478,15 @@ fn print_report(r: &Diagnosis) {
         }
     }
     println!(
+        "{}",
+        wrap(
+            &itaipu_calib::diagnose::profile_summary(&r.profile),
+            WIDTH,
+            "time     ",
+            "         "
+        )
+    );
+    println!(
         "total {:.1} s on {} threads, seed {}",
         r.wall_s, r.threads, r.seed
     );

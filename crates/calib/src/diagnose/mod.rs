@@ -437,9 +437,46 @@ pub struct Diagnosis {
     pub warnings: Vec<itaipu_dynamics::plausibility::Finding>,
     /// Calibrated parameters freed again in every re-fit ([`DiagnoseOptions::refit`]).
     pub refit: Vec<FreeBound>,
+    /// Where the time went ([`ProfileRow`]), for the speed work.
+    pub profile: Vec<ProfileRow>,
     pub seed: u64,
     pub threads: usize,
     pub wall_s: f64,
+}
+
+/// One row of a diagnosis' profile: the re-fits of one kind (`reference`, `baselines`,
+/// `extensions`, `baseline again`, `segments test`, `surrogate (noise-only) re-fits`; or
+/// `diagnosis` for the steps outside the re-fits) in one phase (`grid scan`, `swarm`, `local`,
+/// `χ² (accurate)`, `whole re-fit` which counts the re-fits and holds their whole wall time).
+#[derive(Debug, Clone, Serialize)]
+pub struct ProfileRow {
+    pub kind: String,
+    pub phase: String,
+    pub wall_s: f64,
+    pub simulations: usize,
+    pub refits: usize,
+}
+
+/// One line of where a diagnosis' time went: each kind of re-fit's whole time and count, then
+/// the steps outside the re-fits (`"reference 1.2 s (1 re-fit), baselines 4.0 s (5), …"`).
+pub fn profile_summary(rows: &[ProfileRow]) -> String {
+    rows.iter()
+        .filter(|r| r.phase == "whole re-fit" || r.kind == "diagnosis")
+        .map(|r| {
+            if r.kind == "diagnosis" {
+                format!("{} {:.1} s", r.phase, r.wall_s)
+            } else {
+                format!(
+                    "{} {:.1} s ({} re-fit{})",
+                    r.kind,
+                    r.wall_s,
+                    r.refits,
+                    if r.refits == 1 { "" } else { "s" }
+                )
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Result of [`diagnose`].
@@ -518,9 +555,18 @@ fn diagnose_run(
     }
 
     // 1. Noise, from the pre-event residual of the unit as given, on the compared channels.
+    let profile = Profile::default();
+    let t_noise = Instant::now();
     let all: Vec<&Event> = events.iter().chain(held_out).collect();
     let pb = Playback::for_events(opts.mode, &all)?;
     let sigmas = noise::sigmas(unit, events, &pb)?;
+    profile.add(
+        "diagnosis",
+        "noise floor",
+        t_noise.elapsed().as_secs_f64(),
+        0,
+        0,
+    );
     let sigma_of = |c: itaipu_dynamics::event::Channel| {
         pb.channels
             .iter()
@@ -561,6 +607,7 @@ fn diagnose_run(
         (&pb, weights, compare.as_ref()),
         opts,
         progress,
+        &profile,
     )?;
     let unit = &reference.unit.clone();
     let mut baselines: BTreeMap<String, Refit> = BTreeMap::new();
@@ -586,6 +633,7 @@ fn diagnose_run(
             compare: compare.as_ref(),
             opts,
             progress,
+            profile: Some(&profile),
         },
         sp_null: &sp_null,
         sp_segments: sp_segments.as_ref(),
@@ -603,6 +651,7 @@ fn diagnose_run(
     }
 
     // 5. Rank and decide.
+    let t_verdict = Instant::now();
     let verdict::Decision {
         verdict,
         extended_unit,
@@ -617,6 +666,13 @@ fn diagnose_run(
         opts,
     );
 
+    profile.add(
+        "diagnosis",
+        "verdict: standard errors, evidence after",
+        t_verdict.elapsed().as_secs_f64(),
+        0,
+        0,
+    );
     let report = Diagnosis {
         unit: unit.name.clone(),
         events: events.iter().map(|e| e.name.clone()).collect(),
@@ -641,6 +697,7 @@ fn diagnose_run(
         },
         warnings: vec![],
         refit: opts.refit.clone(),
+        profile: profile.rows(),
         seed: opts.seed,
         threads: rayon::current_num_threads(),
         wall_s: t_start.elapsed().as_secs_f64(),

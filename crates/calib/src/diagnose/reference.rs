@@ -73,6 +73,7 @@ pub(super) fn reference(
     (pb, weights, compare): playback::Scoring,
     opts: &DiagnoseOptions,
     progress: &dyn Progress,
+    profile: &Profile,
 ) -> Result<Reference, DiagnoseError> {
     let nuisance = catalog::nuisance(unit);
     let env = RefitEnv {
@@ -81,6 +82,7 @@ pub(super) fn reference(
         compare,
         opts,
         progress,
+        profile: Some(profile),
     };
     let reference = refit(&env, unit, &nuisance, &[], "nuisance offsets").map_err(|msg| {
         DiagnoseError::Simulation {
@@ -89,6 +91,7 @@ pub(super) fn reference(
             error: None,
         }
     })?;
+    let t_evidence = std::time::Instant::now();
     let mut before = vec![];
     let mut evidence_before = vec![];
     for e in events {
@@ -130,6 +133,13 @@ pub(super) fn reference(
         })
         .collect::<Result<_, _>>()?;
     let sp_null = split(&surrogate_events, &surrogate_held, opts.block_s)?;
+    profile.add(
+        "diagnosis",
+        "evidence and surrogate records",
+        t_evidence.elapsed().as_secs_f64(),
+        0,
+        0,
+    );
     Ok(Reference {
         nuisance,
         refit: reference,

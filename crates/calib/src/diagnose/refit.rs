@@ -177,6 +177,64 @@ pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)]) {
     }
 }
 
+/// Where a diagnosis' time goes ([`Diagnosis::profile`]): wall time, simulations and re-fits per
+/// kind of re-fit ([`refit_kind`]) and phase, summed over the run (re-fits of one cause run one
+/// after another; the swarm's and the local method's simulations run on every thread).
+#[derive(Default)]
+pub(super) struct Profile(std::sync::Mutex<Vec<ProfileRow>>);
+
+impl Profile {
+    /// Adds `wall_s` seconds, `simulations` and `refits` to the row (`kind`, `phase`).
+    pub(super) fn add(
+        &self,
+        kind: &str,
+        phase: &str,
+        wall_s: f64,
+        simulations: usize,
+        refits: usize,
+    ) {
+        let mut rows = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        match rows.iter_mut().find(|r| r.kind == kind && r.phase == phase) {
+            Some(r) => {
+                r.wall_s += wall_s;
+                r.simulations += simulations;
+                r.refits += refits;
+            }
+            None => rows.push(ProfileRow {
+                kind: kind.to_string(),
+                phase: phase.to_string(),
+                wall_s,
+                simulations,
+                refits,
+            }),
+        }
+    }
+
+    /// The rows, in the order they first appeared.
+    pub(super) fn rows(&self) -> Vec<ProfileRow> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+}
+
+/// The kind of a re-fit, from its label: the reference's nuisance re-fit, a cause's baseline,
+/// its extension (every start and structure), the baseline again from the extension's values,
+/// the second held-out test's segments, or the surrogate (noise-only) re-fits.
+pub(super) fn refit_kind(label: &str) -> &'static str {
+    if label == "nuisance offsets" {
+        "reference"
+    } else if label.contains(" null") {
+        "surrogate (noise-only) re-fits"
+    } else if label.contains("on segments") {
+        "segments test"
+    } else if label.ends_with("baseline again") {
+        "baseline again"
+    } else if label.ends_with(" baseline") {
+        "baselines"
+    } else {
+        "extensions"
+    }
+}
+
 /// What every re-fit of a diagnosis shares: the samples it fits and judges (the record's split,
 /// or its surrogate's), the noise weights, the options and where progress goes.
 #[derive(Clone, Copy)]
@@ -188,6 +246,8 @@ pub(super) struct RefitEnv<'a> {
     pub(super) compare: Option<&'a Compare>,
     pub(super) opts: &'a DiagnoseOptions,
     pub(super) progress: &'a dyn Progress,
+    /// Where the re-fits' time goes (`None`: not kept).
+    pub(super) profile: Option<&'a Profile>,
 }
 
 impl<'a> RefitEnv<'a> {
@@ -243,7 +303,34 @@ pub(super) fn refit(
         compare,
         opts,
         progress,
+        profile,
     } = *env;
+    let kind = refit_kind(label);
+    let t_refit = std::time::Instant::now();
+    let record = |phase: &str, wall_s: f64, simulations: usize| {
+        if let Some(p) = profile {
+            p.add(kind, phase, wall_s, simulations, 0);
+        }
+    };
+    // The search phases' own times, and the grid scans'.
+    let record_phases = |phases: &[crate::fit::PhaseReport]| {
+        for ph in phases {
+            let name = if ph.phase == "pso" { "swarm" } else { "local" };
+            record(name, ph.wall_s, ph.simulations);
+        }
+    };
+    let timed_scan = |problem: &mut Problem, scans: &[(usize, usize)]| {
+        if scans.is_empty() {
+            return;
+        }
+        let (t0, s0) = (std::time::Instant::now(), problem.simulations());
+        scan(problem, scans);
+        record(
+            "grid scan",
+            t0.elapsed().as_secs_f64(),
+            problem.simulations() - s0,
+        );
+    };
     if opts.cancelled() {
         return Err("interrupted".into());
     }
@@ -291,19 +378,19 @@ pub(super) fn refit(
             .filter(|(_, &j)| bounds[j].scan >= 2)
             .map(|(jj, &j)| (jj, bounds[j].scan))
             .collect();
-        scan(&mut problem, &scans);
+        timed_scan(&mut problem, &scans);
         let swarm_only = FitOptions {
             lbfgs_iterations: 0,
             ..fit_opts.clone()
         };
-        let best = search(&problem, &swarm_only, label, progress, true, &[]).0;
+        let (best, phases) = search(&problem, &swarm_only, label, progress, true, &[]);
+        record_phases(&phases);
         for (f, v) in problem.free.iter_mut().zip(&best) {
             f.start = *v;
         }
-        if !scans.is_empty() {
-            scan(&mut problem, &scans);
-        }
-        let best = search(&problem, &fit_opts, label, progress, false, &[]).0;
+        timed_scan(&mut problem, &scans);
+        let (best, phases) = search(&problem, &fit_opts, label, progress, false, &[]);
+        record_phases(&phases);
         for (jj, &j) in global.iter().enumerate() {
             x[j] = best[jj];
         }
@@ -323,15 +410,16 @@ pub(super) fn refit(
             .collect();
         let mut problem = env.problem(unit.clone(), polish_free, sp.fit.clone(), &tie_refs);
         problem.cancel = opts.cancel.clone();
-        x = search(
+        let (best, phases) = search(
             &problem,
             &fit_opts,
             &format!("{label} (polish)"),
             progress,
             false,
             &[],
-        )
-        .0;
+        );
+        record_phases(&phases);
+        x = best;
         simulations += problem.simulations();
         failures += problem.failures();
     }
@@ -340,6 +428,7 @@ pub(super) fn refit(
         return Err("interrupted".into());
     }
     let acc = accurate_integrator();
+    let t_acc = std::time::Instant::now();
     let fit_problem = env.problem(unit.clone(), free.clone(), sp.fit.clone(), &tie_refs);
     let held = env.problem(unit.clone(), free, sp.held.clone(), &tie_refs);
     // One accurate simulation per event: the fitted and held-out samples of a block split are
@@ -377,6 +466,15 @@ pub(super) fn refit(
         }
     };
     let chi2_prior = sum_of_squares(&fit_problem.prior_residuals(&x));
+    // One accurate simulation per fitted event, and per held-out event.
+    record(
+        "χ² (accurate)",
+        t_acc.elapsed().as_secs_f64(),
+        sp.fit.len() + if sp.blocks { 0 } else { sp.held.len() },
+    );
+    if let Some(p) = profile {
+        p.add(kind, "whole re-fit", t_refit.elapsed().as_secs_f64(), 0, 1);
+    }
     Ok(Refit {
         unit: fit_problem.unit_at(&x),
         values: x,
@@ -606,6 +704,7 @@ mod tests {
             weights: (1.0, 1.0),
             compare: None,
             opts: &opts,
+            profile: None,
             progress: &Silent,
         };
         let out = refit(&env, &calibrated, &[], &[], "as given").unwrap();

@@ -194,6 +194,12 @@ pub struct PhaseReport {
     pub iterations: u64,
     pub best_objective: f64,
     pub stopped_by: String,
+    /// Wall time of the phase [s] (0 in reports written before it was kept).
+    #[serde(default)]
+    pub wall_s: f64,
+    /// Simulations the phase ran (its candidates' playbacks, the local method's Jacobians).
+    #[serde(default)]
+    pub simulations: usize,
 }
 
 /// The report of one stage.

@@ -38,6 +38,7 @@ pub(crate) fn search(
     let mut phases = vec![];
     let mut candidates = vec![start.clone()];
     if use_pso && n > 0 && opts.pso_iterations > 0 {
+        let (t0, sims0) = (std::time::Instant::now(), problem.simulations());
         progress.phase(stage, "pso", opts.pso_iterations as u64);
         let sim = search_integrator();
         let pso_opts = PsoOptions {
@@ -67,6 +68,8 @@ pub(crate) fn search(
             iterations: res.iterations as u64,
             best_objective: res.best_cost,
             stopped_by: format!("{:?}", res.stopped_by),
+            wall_s: t0.elapsed().as_secs_f64(),
+            simulations: problem.simulations() - sims0,
         });
         candidates.push(problem.from_unit(&res.best));
     }
@@ -80,6 +83,7 @@ pub(crate) fn search(
             break;
         }
         let name = if lm { "levenberg-marquardt" } else { "lbfgs" };
+        let (t0, sims0) = (std::time::Instant::now(), problem.simulations());
         progress.phase(stage, name, opts.lbfgs_iterations);
         let res = if lm {
             local::levenberg_marquardt(problem, from, opts.lbfgs_iterations, opts.lm_stop)
@@ -110,6 +114,8 @@ pub(crate) fn search(
             iterations: res.iterations,
             best_objective: res.best_cost,
             stopped_by: res.stopped_by.clone(),
+            wall_s: t0.elapsed().as_secs_f64(),
+            simulations: problem.simulations() - sims0,
         });
         if i > 0 {
             // The first start (the swarm's best or the stage start) is a candidate already.

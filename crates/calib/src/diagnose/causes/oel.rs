@@ -58,7 +58,8 @@ impl Cause for Oel {
             // overload; a limiter picking up just above the operating point would only trim a
             // mis-calibrated AVR gain.
             return Err(CauseError::not_applicable(format!(
-                "no event dips |V| by {:.0} % or more or raises the field current by {:.0} % or more, \
+                "no event dips |V| (or steps its set point) by {:.0} % or more or raises the field \
+                 current by {:.0} % or more, \
                  so the field current is not forced into overload",
                 100.0 * LIMIT_DIP,
                 100.0 * OEL_IFD_RISE
