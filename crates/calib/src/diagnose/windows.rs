@@ -107,15 +107,22 @@ pub(super) fn frequency_deviation(event: &Event) -> Vec<f64> {
         .collect()
 }
 
-/// Residual evidence of `traces` (simulated with the unit) against `event`.
-pub fn event_evidence(event: &Event, traces: &Traces) -> EventEvidence {
+/// The onset and the evidence options of `event`: its windows ([`windows`]) and the pre-event
+/// segment as the noise window.
+fn evidence_options(event: &Event) -> (f64, EvidenceOptions) {
     let (onset, win) = windows(event);
-    let r = &event.record;
     let opts = EvidenceOptions {
         windows: win,
-        noise_window: (r.time_s[0], onset),
+        noise_window: (event.record.time_s[0], onset),
         ..Default::default()
     };
+    (onset, opts)
+}
+
+/// Residual evidence of `traces` (simulated with the unit) against `event`.
+pub fn event_evidence(event: &Event, traces: &Traces) -> EventEvidence {
+    let (onset, opts) = evidence_options(event);
+    let r = &event.record;
     let fdev = frequency_deviation(event);
     let inputs: Vec<(&str, &[f64])> = vec![("|V|", &r.v_mag_pu), ("frequency", &fdev)];
     let mut signals = vec![];
@@ -143,14 +150,7 @@ pub fn event_evidence(event: &Event, traces: &Traces) -> EventEvidence {
     }
     let p_peak = traces.get("p_pu").and_then(|sim| {
         let res: Vec<f64> = sim.iter().zip(&r.p_pu).map(|(a, b)| a - b).collect();
-        let n = r.time_s.len();
-        let dt = (r.time_s[n - 1] - r.time_s[0]) / (n.max(2) - 1) as f64;
-        evidence::spectral_peak(
-            &res,
-            dt,
-            SHAFT_BAND_HZ.0,
-            SHAFT_BAND_HZ.1.min(0.95 * 0.5 / dt),
-        )
+        shaft_peak(&r.time_s, &res)
     });
     EventEvidence {
         event: event.name.clone(),
@@ -158,6 +158,19 @@ pub fn event_evidence(event: &Event, traces: &Traces) -> EventEvidence {
         signals,
         p_peak,
     }
+}
+
+/// The strongest resonance of a P residual in the shaft band ([`SHAFT_BAND_HZ`], below 0.95 ×
+/// Nyquist of the mean sample interval).
+fn shaft_peak(time_s: &[f64], residual: &[f64]) -> Option<evidence::SpectralPeak> {
+    let n = time_s.len();
+    let dt = (time_s[n - 1] - time_s[0]) / (n.max(2) - 1) as f64;
+    evidence::spectral_peak(
+        residual,
+        dt,
+        SHAFT_BAND_HZ.0,
+        SHAFT_BAND_HZ.1.min(0.95 * 0.5 / dt),
+    )
 }
 
 /// Residual evidence of a playback mode's simulation `outs` of `event` ([`Playback`]): the
@@ -170,13 +183,8 @@ pub(super) fn event_evidence_in_mode(
     pb: &Playback,
 ) -> EventEvidence {
     use itaipu_dynamics::event::Channel;
-    let (onset, win) = windows(event);
+    let (onset, opts) = evidence_options(event);
     let r = &event.record;
-    let opts = EvidenceOptions {
-        windows: win,
-        noise_window: (r.time_s[0], onset),
-        ..Default::default()
-    };
     let setpoint: Vec<f64> = r
         .time_s
         .iter()
@@ -209,14 +217,7 @@ pub(super) fn event_evidence_in_mode(
             &opts,
         ));
         if c == Channel::P {
-            let n = r.time_s.len();
-            let dt = (r.time_s[n - 1] - r.time_s[0]) / (n.max(2) - 1) as f64;
-            p_peak = evidence::spectral_peak(
-                &res,
-                dt,
-                SHAFT_BAND_HZ.0,
-                SHAFT_BAND_HZ.1.min(0.95 * 0.5 / dt),
-            );
+            p_peak = shaft_peak(&r.time_s, &res);
         }
     }
     EventEvidence {
