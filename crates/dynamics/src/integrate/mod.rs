@@ -152,6 +152,13 @@ pub enum SolveError {
     BadSetting(String),
     #[error("more than 100 events less than 1 ns apart at t = {t:.9} s (modes chatter)")]
     EventLoop { t: f64 },
+    /// RK4 cannot follow the system at this step: a mode of the state Jacobian at the start
+    /// has `h·|λ|` beyond RK4's stability region ([`rk4::RK4_STABLE_HLAMBDA`]).
+    #[error(
+        "RK4 at h = {h:e} s cannot follow a mode of {rate:.1} 1/s (time constant {:.2e} s) at the start: take a shorter step or dopri5",
+        1.0 / rate
+    )]
+    Stiff { h: f64, rate: f64 },
 }
 
 /// Integrates `sys` from `knots[0]` to the last knot starting at `x` (overwritten with the final

@@ -16,8 +16,20 @@
 //! land exactly on the knots. Events are located on the cubic Hermite interpolant built from
 //! `(x0, f0, x1, f1)` of the step (one extra right-hand-side evaluation, only when a sign change
 //! is seen); the step is then re-taken as a shorter RK4 step that ends at the event.
+//!
+//! **Stability check.** Before the first step the driver linearises the system at the start (a
+//! forward-difference Jacobian of the right-hand side, `n + 1` evaluations) and refuses, with
+//! [`SolveError::Stiff`], a step at which a mode `λ` has `h·|λ|` beyond
+//! [`RK4_STABLE_HLAMBDA`]: there RK4 amplifies the mode at every step, and where a limit holds
+//! the state it does not even blow up, it gives a finite wrong trajectory.
 
 use super::{begin, check_finite, Events, OdeSystem, SolveError, Stats};
+
+/// Largest `h·|λ|` at which [`Rk4`] integrates a mode `λ` of the start's linearisation. RK4's
+/// region of absolute stability reaches -2.785 on the negative real axis and ±2.828 on the
+/// imaginary axis, and holds the half-disc `|z| <= 2.5` of the left half-plane; 2.5 keeps every
+/// decaying mode, real or oscillatory, inside it.
+pub const RK4_STABLE_HLAMBDA: f64 = 2.5;
 
 /// Fixed-step classical RK4 driver (see the module documentation).
 #[derive(Debug, Clone, PartialEq)]
@@ -56,6 +68,16 @@ impl Rk4 {
     {
         begin(sys, x, knots)?;
         let mut t = knots[0];
+        // The longest step taken: `h`, or the longest knot interval when every one is shorter.
+        let h_taken = knots
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(0.0, f64::max)
+            .min(self.h);
+        let rate = fastest_rate(sys, t, x);
+        if h_taken * rate > RK4_STABLE_HLAMBDA {
+            return Err(SolveError::Stiff { h: h_taken, rate });
+        }
         observer(0, t, x, sys);
 
         let n = x.len();
@@ -119,6 +141,38 @@ impl Rk4 {
         }
         Ok(stats)
     }
+}
+
+/// The largest `|λ|` among the eigenvalues of the Jacobian of `sys` at `(t, x)` (forward
+/// differences with steps `1e-7·max(1, |x_i|)`); 0 for a system without states, and `+∞` when the
+/// right-hand side is not finite around `x`. Leaves the system as evaluated at `(t, x)`.
+pub fn fastest_rate<S: OdeSystem>(sys: &mut S, t: f64, x: &[f64]) -> f64 {
+    let n = x.len();
+    if n == 0 {
+        return 0.0;
+    }
+    let mut f0 = vec![0.0; n];
+    sys.rhs(t, x, &mut f0);
+    let (mut xp, mut fp) = (x.to_vec(), vec![0.0; n]);
+    let mut jac = nalgebra::DMatrix::<f64>::zeros(n, n);
+    for j in 0..n {
+        let d = 1e-7 * x[j].abs().max(1.0);
+        xp[j] = x[j] + d;
+        sys.rhs(t, &xp, &mut fp);
+        xp[j] = x[j];
+        for i in 0..n {
+            jac[(i, j)] = (fp[i] - f0[i]) / d;
+        }
+    }
+    // The system's caches (signals, outputs) are left as at `x`, as an observer may read them.
+    sys.rhs(t, x, &mut f0);
+    if jac.iter().any(|v| !v.is_finite()) {
+        return f64::INFINITY;
+    }
+    jac.complex_eigenvalues()
+        .iter()
+        .map(|l| l.norm())
+        .fold(0.0, f64::max)
 }
 
 /// Number of equal sub-steps for an interval `delta` with largest step `h`.
@@ -807,5 +861,48 @@ pub(super) mod tests {
                 "h = {h}"
             );
         }
+    }
+
+    /// Two decoupled decays at rates 1000 and 1 (1/s) through a rotation, so the fast mode is
+    /// not on the diagonal: `x' = R·diag(-1000, -1)·Rᵀ·x`.
+    struct Stiff;
+
+    impl OdeSystem for Stiff {
+        fn dim(&self) -> usize {
+            2
+        }
+        fn rhs(&mut self, _t: f64, x: &[f64], dx: &mut [f64]) {
+            let (c, s) = (0.6, 0.8);
+            let (a, b) = (c * x[0] + s * x[1], -s * x[0] + c * x[1]);
+            let (da, db) = (-1000.0 * a, -b);
+            dx[0] = c * da - s * db;
+            dx[1] = s * da + c * db;
+        }
+    }
+
+    /// The start's fastest mode is 1000 1/s: RK4 refuses a step with `h·|λ|` above 2.5 (where
+    /// it would amplify the mode ~2 600 times per step at h = 16.7 ms) and integrates the decay
+    /// at a step inside the region; the knots' spacing caps the step.
+    #[test]
+    fn rk4_refuses_a_step_beyond_its_stability_region() {
+        let run = |h: f64, knots: &[f64]| {
+            let mut x = vec![1.0, 1.0];
+            solve(&Method::Rk4 { h }, &mut Stiff, &mut x, knots, |_, _, _, _| {}).map(|_| x)
+        };
+        let rate = fastest_rate(&mut Stiff, 0.0, &[1.0, 1.0]);
+        assert!((rate - 1000.0).abs() < 1e-3, "{rate}");
+        match run(1.0 / 60.0, &[0.0, 1.0]) {
+            Err(SolveError::Stiff { h, rate }) => {
+                assert!((h - 1.0 / 60.0).abs() < 1e-15 && (rate - 1000.0).abs() < 1e-3)
+            }
+            other => panic!("{other:?}"),
+        }
+        // 2.4 ms: h·|λ| = 2.4, inside; the slow mode decays as e^-t.
+        let x = run(2.4e-3, &[0.0, 1.0]).unwrap();
+        let b = -0.8 * x[0] + 0.6 * x[1];
+        assert!((b - (-0.8f64 + 0.6) * (-1.0f64).exp()).abs() < 1e-6, "{x:?}");
+        // A long h on knots 1 ms apart takes 1 ms steps: accepted.
+        let knots: Vec<f64> = (0..=100).map(|k| k as f64 * 1e-3).collect();
+        assert!(run(1.0, &knots).is_ok());
     }
 }
