@@ -390,14 +390,8 @@ pub fn objective_weights(objective: Objective, w: Weights) -> (f64, f64) {
     }
 }
 
-/// Integrator used for objective evaluations during the diagnosis' searches (swarms and grid
-/// scans), and for a fit swarm's candidate that [`swarm_integrator`] cannot simulate:
+/// Integrator used for objective evaluations during the search (swarms and grid scans):
 /// Dormand-Prince at rtol 1e-5, atol 1e-6.
-///
-/// The diagnosis keeps it where the fit's swarms take RK4: its searches rank an extension's few
-/// parameters near the calibrated optimum, where what decides is a gain of a few units of χ²,
-/// and RK4's error (up to 0.13 σ RMS on a practice record, [`swarm_integrator`]) is worth up to
-/// n·0.13² ≈ 25 units of χ² over n = 1 500 samples.
 ///
 /// What a search needs is the ranking of candidates; every result it hands on is polished by the
 /// local method and re-evaluated on [`accurate_integrator`]. At these tolerances, on a record at
@@ -421,37 +415,6 @@ pub fn search_integrator() -> SimOptions {
             max_steps: 25_000,
             ..Default::default()
         }),
-    }
-}
-
-/// Step of the fit swarms' integrator ([`swarm_integrator`]): the sample interval of a PMU at
-/// 60 samples/s, the faster of the two rates PMUs report at (IEEE C37.118 classes at 60 Hz: 30
-/// and 60 frames/s). The played-back input is linear between samples and the RK4 driver lands on
-/// every sample, so at 60 samples/s this is one step per sample, at 30 two.
-pub const SWARM_RK4_STEP_S: f64 = 1.0 / 60.0;
-
-/// Integrator of the fit's swarms: classical RK4 at [`SWARM_RK4_STEP_S`], with the search
-/// integrator as the fallback for a candidate it cannot simulate ([`Problem::cost_with_fallback`]).
-///
-/// A stage's swarm makes thousands of simulations (40 particles, up to 100 iterations: 86-88 %
-/// of a practice fit's time) far from the optimum, where candidates differ by much more than the
-/// integration error; every result it hands on is polished by Levenberg-Marquardt on the
-/// Dormand-Prince integrator. RK4 at one step per sample needs 4 right-hand sides per sample where
-/// Dormand-Prince at rtol 1e-5 needs 6 and its error norm: on the nominal units of the 22
-/// practice records it took 1.2-2.0 ms per playback against 2.8-5.1 ms, with P and Q within
-/// 2.6e-4 pu RMS of the accurate integrator on every record (p18's Q; 1e-5 or less on most),
-/// 0.13 σ of the PMU noise (σ ≈ 2e-3 pu) at worst (`tests/objective.rs` checks p01).
-///
-/// RK4 is stable for a real mode only while `h/τ < 2.79`: a candidate with a mode faster than
-/// 6 ms, which a user's bounds may allow, blows up in RK4 although it is a sound unit. Such a
-/// candidate, and any other that fails in RK4, is simulated again on [`search_integrator`], which
-/// alone decides whether it fails (is penalised and logged), so the swarm fails exactly the
-/// candidates it failed before.
-pub fn swarm_integrator() -> SimOptions {
-    SimOptions {
-        method: Method::Rk4 {
-            h: SWARM_RK4_STEP_S,
-        },
     }
 }
 
@@ -780,18 +743,6 @@ impl Problem {
     pub fn cost(&self, x: &[f64], sim: &SimOptions) -> f64 {
         self.residuals_logged(x, sim)
             .map_or(self.penalty, |r| sum_of_squares(&r))
-    }
-
-    /// The objective at physical values `x` on `fast`; where `fast` cannot simulate the
-    /// candidate (its error is not logged), [`Self::cost`] on `fallback`, which alone decides a
-    /// failure. The swarms' evaluation ([`swarm_integrator`]).
-    pub fn cost_with_fallback(&self, x: &[f64], fast: &SimOptions, fallback: &SimOptions) -> f64 {
-        self.evaluations
-            .fetch_add(self.events.len(), Ordering::Relaxed);
-        match self.residuals(x, fast) {
-            Ok(r) => sum_of_squares(&r),
-            Err(_) => self.cost(x, fallback),
-        }
     }
 
     /// The residuals at physical values `x`, counted as an evaluation; `None` (the failure

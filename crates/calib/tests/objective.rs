@@ -63,14 +63,13 @@ fn a_window_bound_within_the_tolerance_of_a_sample_holds_it() {
 
 /// The searches' integrators against the accurate one on an independent record (the bundled
 /// practice case p01, the nominal unit): what a swarm or a Levenberg-Marquardt step ranks is the
-/// accurate J to well within the differences they rank, the search integrator takes a
-/// quarter fewer steps at least than the tolerances it replaced, and the swarms' RK4 at least a
-/// quarter fewer right-hand sides than the search integrator.
+/// accurate J to well within the differences they rank, and the search integrator takes a
+/// quarter fewer steps at least than the tolerances it replaced.
 #[test]
 fn the_search_integrators_agree_with_the_accurate_one_on_a_practice_record() {
     use itaipu_calib::local::{lm_integrator, LmStop, LM_RTOL};
     use itaipu_calib::practice::PracticeCase;
-    use itaipu_calib::problem::{search_integrator, swarm_integrator};
+    use itaipu_calib::problem::search_integrator;
     use itaipu_dynamics::simulate::{run_playback, SimOptions};
 
     let dir =
@@ -82,7 +81,6 @@ fn the_search_integrators_agree_with_the_accurate_one_on_a_practice_record() {
     let ja = data.window_sums(&pa, &qa).j((1.0, 1.0));
     for (name, o, pq_tol, j_tol) in [
         ("search", search_integrator(), 2e-4, 2e-3),
-        ("swarm", swarm_integrator(), 2e-4, 2e-3),
         ("lm", lm_integrator(LM_RTOL), 2e-5, 2e-4),
         (
             "lm comparison",
@@ -122,15 +120,5 @@ fn the_search_integrators_agree_with_the_accurate_one_on_a_practice_record() {
     assert!(
         (now as f64) < 0.75 * then as f64,
         "the search integrator took {now} steps, the earlier tolerances {then}"
-    );
-    let rhs = |o: &SimOptions| {
-        run_playback(&mut case.unit.clone(), &data.prepared, o, |_, _, _| {})
-            .unwrap()
-            .rhs_evals
-    };
-    let (rk4, dopri) = (rhs(&swarm_integrator()), rhs(&search_integrator()));
-    assert!(
-        (rk4 as f64) < 0.75 * dopri as f64,
-        "the swarm integrator took {rk4} right-hand sides, the search integrator {dopri}"
     );
 }

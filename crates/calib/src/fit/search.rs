@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 
 use crate::local;
-use crate::problem::{accurate_integrator, search_integrator, swarm_integrator, Problem};
+use crate::problem::{accurate_integrator, search_integrator, Problem};
 use crate::pso::{self, PsoOptions};
 use crate::spec::LocalMethod;
 
@@ -40,7 +40,7 @@ pub(crate) fn search(
     if use_pso && n > 0 && opts.pso_iterations > 0 {
         let (t0, sims0) = (std::time::Instant::now(), problem.simulations());
         progress.phase(stage, "pso", opts.pso_iterations as u64);
-        let (sim, fallback) = (swarm_integrator(), search_integrator());
+        let sim = search_integrator();
         let pso_opts = PsoOptions {
             particles: opts.particles,
             iterations: opts.pso_iterations,
@@ -57,7 +57,7 @@ pub(crate) fn search(
         // box as usual.
         let u0 = Some(problem.to_unit(&start)).filter(|u| u.iter().all(|v| v.is_finite()));
         let res = pso::minimize(
-            |u: &[f64]| problem.cost_with_fallback(&problem.from_unit(u), &sim, &fallback),
+            |u: &[f64]| problem.cost(&problem.from_unit(u), &sim),
             n,
             u0.as_deref(),
             &pso_opts,
@@ -175,42 +175,6 @@ mod tests {
     use crate::diagnose::trial::base_unit;
     use crate::problem::{EventData, FreeParam};
     use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
-
-    /// A candidate with a mode faster than RK4 at the swarm's step can follow (the exciter's
-    /// T_E at 1 ms: h/T_E = 17, beyond RK4's stability limit of 2.79) is a sound unit: the swarm
-    /// scores it on the search integrator instead of penalising it, and a candidate that RK4
-    /// simulates is scored on RK4 alone.
-    #[test]
-    fn a_candidate_rk4_cannot_simulate_is_scored_on_the_fallback() {
-        let unit = base_unit();
-        let profile = VoltageProfile {
-            duration_s: 3.0,
-            rate_hz: 60.0,
-            ..VoltageProfile::default()
-        };
-        let ev = synthesize(
-            "dip",
-            &unit,
-            &profile,
-            1000.0,
-            &PmuNoise::typical(1),
-            &Default::default(),
-        )
-        .unwrap();
-        let r = unit.param("exciter.te").unwrap();
-        let f = FreeParam::new("exciter.te".into(), r, 1e-3, 0.2, 0.05, "s");
-        let data = vec![EventData::new(&ev, None, None).unwrap()];
-        let problem = Problem::new(unit, vec![f], data, (1.0, 1.0));
-        let (fast, slow) = (swarm_integrator(), search_integrator());
-        assert!(problem.residuals(&[1e-3], &fast).is_err(), "RK4 follows T_E = 1 ms");
-        let c = problem.cost_with_fallback(&[1e-3], &fast, &slow);
-        assert!(c < problem.penalty, "{c}");
-        assert_eq!(c, problem.cost(&[1e-3], &slow));
-        let ok = problem.cost_with_fallback(&[0.05], &fast, &slow);
-        assert_eq!(ok, problem.cost(&[0.05], &fast));
-        assert_ne!(ok, problem.cost(&[0.05], &slow));
-        assert_eq!(problem.failures(), 0);
-    }
 
     /// A free parameter whose start is NaN (a unit holding a NaN value) does not reach the
     /// swarm's start point, which panics on it: the search runs from the box.

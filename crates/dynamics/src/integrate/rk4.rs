@@ -17,6 +17,9 @@
 //! `(x0, f0, x1, f1)` of the step (one extra right-hand-side evaluation, only when a sign change
 //! is seen); the step is then re-taken as a shorter RK4 step that ends at the event.
 //!
+//! **Step budget.** Twice the grid's steps plus 100: an event may cut every step short once;
+//! modes switching several times within most steps fail with [`SolveError::TooManySteps`].
+//!
 //! **Stability check.** Before the first step the driver linearises the system at the start (a
 //! forward-difference Jacobian of the right-hand side, `n + 1` evaluations) and refuses, with
 //! [`SolveError::Stiff`], a step at which a mode `λ` has `h·|λ|` beyond
@@ -74,6 +77,15 @@ impl Rk4 {
             .map(|w| w[1] - w[0])
             .fold(0.0, f64::max)
             .min(self.h);
+        // The step budget: every grid step once more (an event may cut each short once), plus
+        // 100. Modes that switch several times within most steps (a limiter chattering on a
+        // candidate whose loop is unstable at the limit) have no meaningful RK4 solution, and
+        // locating each switch would cost without bound.
+        let max_steps = 2 * knots
+            .windows(2)
+            .map(|w| sub_steps(w[1] - w[0], self.h))
+            .sum::<usize>()
+            + 100;
         let rate = fastest_rate(sys, t, x);
         if h_taken * rate > RK4_STABLE_HLAMBDA {
             return Err(SolveError::Stiff { h: h_taken, rate });
@@ -124,6 +136,9 @@ impl Rk4 {
                     }
 
                     stats.steps_accepted += 1;
+                    if stats.steps_accepted > max_steps {
+                        return Err(SolveError::TooManySteps { t, max_steps });
+                    }
                     x.copy_from_slice(&x_new);
                     t = t_end;
                     if fire {
@@ -887,7 +902,14 @@ pub(super) mod tests {
     fn rk4_refuses_a_step_beyond_its_stability_region() {
         let run = |h: f64, knots: &[f64]| {
             let mut x = vec![1.0, 1.0];
-            solve(&Method::Rk4 { h }, &mut Stiff, &mut x, knots, |_, _, _, _| {}).map(|_| x)
+            solve(
+                &Method::Rk4 { h },
+                &mut Stiff,
+                &mut x,
+                knots,
+                |_, _, _, _| {},
+            )
+            .map(|_| x)
         };
         let rate = fastest_rate(&mut Stiff, 0.0, &[1.0, 1.0]);
         assert!((rate - 1000.0).abs() < 1e-3, "{rate}");
@@ -900,9 +922,66 @@ pub(super) mod tests {
         // 2.4 ms: h·|λ| = 2.4, inside; the slow mode decays as e^-t.
         let x = run(2.4e-3, &[0.0, 1.0]).unwrap();
         let b = -0.8 * x[0] + 0.6 * x[1];
-        assert!((b - (-0.8f64 + 0.6) * (-1.0f64).exp()).abs() < 1e-6, "{x:?}");
+        assert!(
+            (b - (-0.8f64 + 0.6) * (-1.0f64).exp()).abs() < 1e-6,
+            "{x:?}"
+        );
         // A long h on knots 1 ms apart takes 1 ms steps: accepted.
         let knots: Vec<f64> = (0..=100).map(|k| k as f64 * 1e-3).collect();
         assert!(run(1.0, &knots).is_ok());
+    }
+
+    /// `x' = 1`, reset to 0 whenever it reaches 3 ms: an event every 3 ms, three or four per
+    /// 10 ms grid step.
+    struct Sawtooth;
+
+    impl OdeSystem for Sawtooth {
+        fn dim(&self) -> usize {
+            1
+        }
+        fn rhs(&mut self, _t: f64, _x: &[f64], dx: &mut [f64]) {
+            dx[0] = 1.0;
+        }
+        fn n_events(&self) -> usize {
+            1
+        }
+        fn events(&mut self, _t: f64, x: &[f64], g: &mut [f64]) {
+            g[0] = 0.003 - x[0];
+        }
+        fn handle_event(&mut self, _t: f64, x: &mut [f64]) -> bool {
+            if x[0] >= 0.003 - 1e-12 {
+                x[0] = 0.0;
+                return true;
+            }
+            false
+        }
+    }
+
+    /// Modes switching several times within every step exhaust RK4's budget (twice the grid's
+    /// steps plus 100) and fail instead of being located one by one without bound; one switch
+    /// every two steps fits.
+    #[test]
+    fn rk4_fails_modes_switching_within_every_step() {
+        let mut x = vec![0.0];
+        match solve(
+            &Method::Rk4 { h: 0.01 },
+            &mut Sawtooth,
+            &mut x,
+            &[0.0, 10.0],
+            |_, _, _, _| {},
+        ) {
+            Err(SolveError::TooManySteps { max_steps, .. }) => assert_eq!(max_steps, 2_100),
+            other => panic!("{other:?}"),
+        }
+        let mut x = vec![0.0];
+        let stats = solve(
+            &Method::Rk4 { h: 0.0015 },
+            &mut Sawtooth,
+            &mut x,
+            &[0.0, 1.0],
+            |_, _, _, _| {},
+        )
+        .unwrap();
+        assert!(stats.events >= 300, "{stats:?}");
     }
 }
