@@ -352,19 +352,29 @@ pub fn simulate_prepared(
     ))
 }
 
+/// The columns of [`Traces`] holding a channel: `(simulated, measured)`. The simulated column
+/// is the system-base P or Q, or the bus signal (`v_term`, `efd`, `xadifd`); the measured one
+/// is present where the record holds the channel ([`finish_traces`]). `None` for the angle and
+/// the frequency, which a playback imposes rather than simulates.
+pub fn trace_columns(c: Channel) -> Option<(&'static str, &'static str)> {
+    Some(match c {
+        Channel::P => ("p_pu", "p_meas_pu"),
+        Channel::Q => ("q_pu", "q_meas_pu"),
+        Channel::V => ("v_term", "v_meas_pu"),
+        Channel::Efd => ("efd", "efd_meas_pu"),
+        Channel::Ifd => ("xadifd", "ifd_meas_pu"),
+        Channel::Angle | Channel::Freq => return None,
+    })
+}
+
 /// The columns of [`Traces`] before the measured ones: P and Q on the system base, their
 /// measured columns, P and Q on the machine base, every bus signal, every state.
 pub(crate) fn trace_names(signals: &[String], states: &[String]) -> Vec<String> {
-    let mut names: Vec<String> = [
-        "p_pu",
-        "q_pu",
-        "p_meas_pu",
-        "q_meas_pu",
-        "p_mach_pu",
-        "q_mach_pu",
-    ]
-    .map(String::from)
-    .to_vec();
+    let col = |c: Channel| trace_columns(c).expect("P and Q have trace columns");
+    let (p, q) = (col(Channel::P), col(Channel::Q));
+    let mut names: Vec<String> = [p.0, q.0, p.1, q.1, "p_mach_pu", "q_mach_pu"]
+        .map(String::from)
+        .to_vec();
     names.extend(signals.iter().cloned());
     names.extend(states.iter().cloned());
     names
@@ -394,13 +404,14 @@ pub(crate) fn finish_traces(
     let r = &event.record;
     cols[2] = r.p_pu.clone();
     cols[3] = r.q_pu.clone();
+    let meas = |c: Channel| trace_columns(c).map_or("", |(_, m)| m);
     if v_meas {
-        names.push("v_meas_pu".into());
+        names.push(meas(Channel::V).into());
         cols.push(r.v_mag_pu.clone());
     }
     for (name, col) in [
-        ("efd_meas_pu", &r.efd_pu),
-        ("ifd_meas_pu", &r.ifd_pu),
+        (meas(Channel::Efd), &r.efd_pu),
+        (meas(Channel::Ifd), &r.ifd_pu),
         ("freq_meas_hz", &r.freq_hz),
     ] {
         if let Some(c) = col {

@@ -211,6 +211,15 @@ impl DiagnoseError {
         }
     }
 
+    /// [`DiagnoseError::Simulation`] on `event` from the engine's own error.
+    pub(crate) fn engine(event: &str, error: itaipu_dynamics::simulate::SimError) -> Self {
+        DiagnoseError::Simulation {
+            event: event.to_string(),
+            msg: error.to_string(),
+            error: Some(error),
+        }
+    }
+
     pub fn kind(&self) -> &'static str {
         match self {
             DiagnoseError::Setup(_) => "setup",

@@ -98,13 +98,8 @@ impl Playback {
         event: &Event,
     ) -> Result<ModeOutputs, DiagnoseError> {
         let ev = PreparedEvent::new(event);
-        simulate_mode(unit, &ev, self.mode, &accurate_integrator()).map_err(|error| {
-            DiagnoseError::Simulation {
-                event: event.name.clone(),
-                msg: error.to_string(),
-                error: Some(error),
-            }
-        })
+        simulate_mode(unit, &ev, self.mode, &accurate_integrator())
+            .map_err(|error| DiagnoseError::engine(&event.name, error))
     }
 
     /// Every trace of `unit` played back on `event` (accurate integrator): the phasor
@@ -119,13 +114,8 @@ impl Playback {
                 .map(|(_, tr)| tr)
                 .map_err(|err| DiagnoseError::simulation(&event.name, &err));
         }
-        simulate_mode_traces(unit, event, self.mode, &accurate_integrator()).map_err(|error| {
-            DiagnoseError::Simulation {
-                event: event.name.clone(),
-                msg: error.to_string(),
-                error: Some(error),
-            }
-        })
+        simulate_mode_traces(unit, event, self.mode, &accurate_integrator())
+            .map_err(|error| DiagnoseError::engine(&event.name, error))
     }
 
     /// `"phasor: P, Q"`, `"closed_loop: |V|, Q, E_fd"`: for reports.
@@ -179,5 +169,38 @@ pub fn signal_name(c: Channel) -> &'static str {
         Channel::Ifd => "Ifd",
         Channel::Angle => "angle",
         Channel::Freq => "frequency",
+    }
+}
+
+/// The channel a residual is named after ([`signal_name`]'s inverse).
+pub fn signal_channel(name: &str) -> Option<Channel> {
+    Channel::ALL.into_iter().find(|c| signal_name(*c) == name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every channel's residual name leads back to the channel, and the compared channels have
+    /// the trace columns the reports read them from.
+    #[test]
+    fn signal_names_and_trace_columns_are_one_map() {
+        for c in Channel::ALL {
+            assert_eq!(signal_channel(signal_name(c)), Some(c), "{c:?}");
+        }
+        assert_eq!(signal_channel("Vt"), None);
+        for mode in [
+            PlaybackMode::Phasor,
+            PlaybackMode::ExciterAlone,
+            PlaybackMode::MachineFromEfd,
+            PlaybackMode::ClosedLoop,
+        ] {
+            for c in mode.default_channels() {
+                assert!(
+                    itaipu_dynamics::simulate::trace_columns(*c).is_some(),
+                    "{mode}: {c:?}"
+                );
+            }
+        }
     }
 }

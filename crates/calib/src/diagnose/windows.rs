@@ -3,8 +3,9 @@
 //! change).
 
 use crate::evidence::{self, EvidenceOptions};
+use itaipu_dynamics::event::Channel;
 use itaipu_dynamics::event::Event;
-use itaipu_dynamics::simulate::Traces;
+use itaipu_dynamics::simulate::{trace_columns, Traces};
 
 use super::*;
 
@@ -140,13 +141,15 @@ pub fn event_evidence(event: &Event, traces: &Traces) -> EventEvidence {
             ));
         }
     };
-    add("P", col("p_pu"), &r.p_pu);
-    add("Q", col("q_pu"), &r.q_pu);
-    if let Some(efd) = &r.efd_pu {
-        add("Efd", col("efd"), efd);
-    }
-    if let Some(ifd) = &r.ifd_pu {
-        add("Ifd", col("xadifd"), ifd);
+    for (c, meas) in [
+        (Channel::P, Some(&r.p_pu)),
+        (Channel::Q, Some(&r.q_pu)),
+        (Channel::Efd, r.efd_pu.as_ref()),
+        (Channel::Ifd, r.ifd_pu.as_ref()),
+    ] {
+        if let (Some(meas), Some((sim, _))) = (meas, trace_columns(c)) {
+            add(playback::signal_name(c), col(sim), meas);
+        }
     }
     let p_peak = traces.get("p_pu").and_then(|sim| {
         let res: Vec<f64> = sim.iter().zip(&r.p_pu).map(|(a, b)| a - b).collect();
@@ -182,7 +185,6 @@ pub(super) fn event_evidence_in_mode(
     outs: &itaipu_dynamics::mode::ModeOutputs,
     pb: &Playback,
 ) -> EventEvidence {
-    use itaipu_dynamics::event::Channel;
     let (onset, opts) = evidence_options(event);
     let r = &event.record;
     let setpoint: Vec<f64> = r

@@ -51,7 +51,8 @@ pub fn draw_plots(
             .sigmas
             .iter()
             .filter_map(|(s, sigma)| {
-                let (sim, meas) = trace_columns(s)?;
+                let c = itaipu_calib::diagnose::playback::signal_channel(s)?;
+                let (sim, meas) = itaipu_dynamics::simulate::trace_columns(c)?;
                 Some((s.as_str(), sim, meas, *sigma))
             })
             .collect();
@@ -291,18 +292,6 @@ pub fn draw_plots(
 /// The window to shade in the `signal` residual panel of an event: the verdict's (the same
 /// labelled window of this event when it has one), otherwise the signal's window with the
 /// largest share of the squared error.
-/// The simulated and measured trace columns of a compared signal (as the evidence names it).
-fn trace_columns(signal: &str) -> Option<(&'static str, &'static str)> {
-    Some(match signal {
-        "P" => ("p_pu", "p_meas_pu"),
-        "Q" => ("q_pu", "q_meas_pu"),
-        "|V|" => ("v_term", "v_meas_pu"),
-        "Efd" => ("efd", "efd_meas_pu"),
-        "Ifd" => ("xadifd", "ifd_meas_pu"),
-        _ => return None,
-    })
-}
-
 pub fn implicated_window(
     r: &Diagnosis,
     ev: Option<&EventEvidence>,
