@@ -9,7 +9,7 @@ use itaipu_calib::request::SimulateRequest;
 use itaipu_dynamics::event::{Channel, Event};
 use itaipu_dynamics::integrate::Method;
 use itaipu_dynamics::mode::{simulate_mode_traces, PlaybackMode};
-use itaipu_dynamics::simulate::Traces;
+use itaipu_dynamics::simulate::{trace_columns, Traces};
 use itaipu_dynamics::unit::Unit;
 
 use crate::report::svg as plot;
@@ -91,12 +91,15 @@ fn sim_options(a: &SimulateArgs) -> Result<itaipu_dynamics::simulate::SimOptions
 /// Sum over the fit-window samples of squared P and Q errors (paper 000 eq. 3, RaPId's J),
 /// and the RMS errors of P and Q, all on the system base.
 pub fn misfit(event: &Event, traces: &Traces) -> (f64, f64, f64, usize) {
-    let (p, q) = (traces.get("p_pu").unwrap(), traces.get("q_pu").unwrap());
+    let col = |c: Channel| {
+        let (sim, _) = trace_columns(c).expect("P and Q have trace columns");
+        traces.get(sim).expect("a playback's traces carry P and Q")
+    };
+    let (p, q) = (col(Channel::P), col(Channel::Q));
     let r = &event.record;
     let (mut sp, mut sq, mut n) = (0.0, 0.0, 0usize);
     for k in 0..r.time_s.len() {
-        let t = r.time_s[k];
-        if t >= event.fit.start_s - 1e-9 && t <= event.fit.end_s + 1e-9 {
+        if event.fit.contains(r.time_s[k]) {
             sp += (p[k] - r.p_pu[k]).powi(2);
             sq += (q[k] - r.q_pu[k]).powi(2);
             n += 1;
@@ -104,18 +107,6 @@ pub fn misfit(event: &Event, traces: &Traces) -> (f64, f64, f64, usize) {
     }
     let nn = n.max(1) as f64;
     (sp + sq, (sp / nn).sqrt(), (sq / nn).sqrt(), n)
-}
-
-/// The traces' columns of a channel: (simulated, measured).
-fn channel_columns(c: Channel) -> Option<(&'static str, &'static str)> {
-    Some(match c {
-        Channel::P => ("p_pu", "p_meas_pu"),
-        Channel::Q => ("q_pu", "q_meas_pu"),
-        Channel::V => ("v_term", "v_meas_pu"),
-        Channel::Efd => ("efd", "efd_meas_pu"),
-        Channel::Ifd => ("xadifd", "ifd_meas_pu"),
-        Channel::Angle | Channel::Freq => return None,
-    })
 }
 
 fn describe_unit(u: &Unit) -> String {
@@ -241,7 +232,7 @@ pub fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
             .iter()
             .filter(|c| event.has(**c))
             .filter_map(|c| {
-                let (sim, meas) = channel_columns(*c)?;
+                let (sim, meas) = trace_columns(*c)?;
                 let (s, m) = (traces.get(sim)?, traces.get(meas)?);
                 let sse: f64 = (0..s.len())
                     .filter(|&k| event.fit.contains(r.time_s[k]))

@@ -24,7 +24,10 @@
 //! forward-difference Jacobian of the right-hand side, `n + 1` evaluations) and refuses, with
 //! [`SolveError::Stiff`], a step at which a mode `λ` has `h·|λ|` beyond
 //! [`RK4_STABLE_HLAMBDA`]: there RK4 amplifies the mode at every step, and where a limit holds
-//! the state it does not even blow up, it gives a finite wrong trajectory.
+//! the state it does not even blow up, it gives a finite wrong trajectory. The check sees the
+//! modes of the start only: a mode that becomes fast later (a limit releasing a state, a
+//! saturation curve steepening) is not seen, and the step budget is then the only guard. Use
+//! Dormand-Prince (the default) where a run leaves the start's operating point far behind.
 
 use super::{begin, check_finite, Events, OdeSystem, SolveError, Stats};
 
