@@ -1326,6 +1326,25 @@ pub fn simulate_mode_traces(
     if mode == PlaybackMode::Phasor && event.steps.is_empty() {
         return crate::simulate::simulate(unit, event, opts);
     }
+    simulate_mode_both(unit, event, mode, opts).map(|(traces, _)| traces)
+}
+
+/// One playback in `mode` giving both [`simulate_mode_traces`]'s traces and [`simulate_mode`]'s
+/// channels, each equal to what its own function gives (the same unit, integrator and steps):
+/// for a caller that needs the compared channels and the traces of the same run. A phasor
+/// playback without steps runs twice (its traces are `simulate`'s, its channels
+/// `run_playback`'s).
+pub fn simulate_mode_both(
+    unit: &Unit,
+    event: &Event,
+    mode: PlaybackMode,
+    opts: &SimOptions,
+) -> Result<(Traces, ModeOutputs), SimError> {
+    if mode == PlaybackMode::Phasor && event.steps.is_empty() {
+        let traces = crate::simulate::simulate(unit, event, opts)?;
+        let outputs = simulate_mode(unit, &PreparedEvent::new(event), mode, opts)?;
+        return Ok((traces, outputs));
+    }
     let ev = PreparedEvent::new(event);
     let mut mu = ModeUnit::new(unit, &ev, mode)?;
     let n = ev.input.time_s.len();
@@ -1336,7 +1355,23 @@ pub fn simulate_mode_traces(
     let mut cols: Vec<Vec<f64>> = vec![vec![f64::NAN; n]; names.len()];
     let (ip, iq) = (mu.ip, mu.iq);
     let ns = signals.len();
+    let reader = Reader {
+        ip,
+        iq,
+        iefd: mu.iefd,
+        iifd: mu.iifd,
+        to_sys,
+    };
+    let mut out = ModeOutputs {
+        p: vec![f64::NAN; n],
+        q: vec![f64::NAN; n],
+        v: vec![f64::NAN; n],
+        efd: vec![f64::NAN; n],
+        ifd: vec![f64::NAN; n],
+        stats: Stats::default(),
+    };
     let stats = run_mode_unit(&mut mu, &ev, opts, |k, u, x| {
+        reader.read(k, u, &mut out);
         let (pk, qk) = u.measured_pq_now(ip, iq);
         cols[0][k] = pk * to_sys;
         cols[1][k] = qk * to_sys;
@@ -1350,7 +1385,12 @@ pub fn simulate_mode_traces(
         }
     })?;
     let measuring = matches!(mode, PlaybackMode::Phasor | PlaybackMode::ClosedLoop);
-    Ok(crate::simulate::finish_traces(
+    out.stats = stats;
+    if measuring {
+        mu.unit
+            .transform_pq(&ev.input.time_s, &mut out.p, &mut out.q);
+    }
+    let traces = crate::simulate::finish_traces(
         &mu.unit,
         event,
         &ev.input.time_s,
@@ -1359,5 +1399,6 @@ pub fn simulate_mode_traces(
         stats,
         measuring,
         true,
-    ))
+    );
+    Ok((traces, out))
 }

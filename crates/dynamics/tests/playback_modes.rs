@@ -7,7 +7,8 @@ use std::path::Path;
 
 use itaipu_dynamics::event::{Channel, Declaration, Event, Record, SetpointStep, StepReference};
 use itaipu_dynamics::mode::{
-    initial_derivatives, simulate_mode, simulate_mode_traces, ModeOutputs, PlaybackMode,
+    initial_derivatives, simulate_mode, simulate_mode_both, simulate_mode_traces, ModeOutputs,
+    PlaybackMode,
 };
 use itaipu_dynamics::registry;
 use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimError, SimOptions};
@@ -276,6 +277,61 @@ fn the_open_loop_modes_reproduce_a_closed_loop_step() {
     no_steps.steps.clear();
     let (_, q0) = simulate_pq(&mut unit.clone(), &PreparedEvent::new(&no_steps), &tight()).unwrap();
     assert!(max_abs_diff(&q0, &cl.q) > 0.1);
+}
+
+/// One playback giving traces and channels (`simulate_mode_both`) gives exactly what the two
+/// functions give on their own, in every mode, on a recorded step (every channel, and the angle
+/// the phasor playback needs): the same unit, integrator and steps, bit for bit.
+#[test]
+fn traces_and_channels_of_one_playback_are_each_functions_own() {
+    let unit = mostar_unit();
+    let ev = constant_event(3001, 0.001, 1.2, None, false, step_pair(0.5, 2.0));
+    let cl = simulate_mode(
+        &unit,
+        &PreparedEvent::new(&ev),
+        PlaybackMode::ClosedLoop,
+        &tight(),
+    )
+    .unwrap();
+    let tr = simulate_mode_traces(&unit, &ev, PlaybackMode::ClosedLoop, &tight()).unwrap();
+    let rec = recorded(&ev, &cl, tr.get("theta_term").unwrap(), true, true);
+    let mut no_steps = rec.clone();
+    no_steps.steps.clear();
+    for (event, mode) in [
+        (&rec, PlaybackMode::ClosedLoop),
+        (&rec, PlaybackMode::ExciterAlone),
+        (&rec, PlaybackMode::MachineFromEfd),
+        (&rec, PlaybackMode::Phasor),
+        (&no_steps, PlaybackMode::Phasor),
+    ] {
+        let (traces, outputs) = simulate_mode_both(&unit, event, mode, &tight()).unwrap();
+        let alone = simulate_mode(&unit, &PreparedEvent::new(event), mode, &tight()).unwrap();
+        let traces_alone = simulate_mode_traces(&unit, event, mode, &tight()).unwrap();
+        assert_eq!(traces.names, traces_alone.names, "{mode}");
+        for (a, b) in traces.columns.iter().zip(&traces_alone.columns) {
+            assert!(
+                a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{mode}: a trace differs"
+            );
+        }
+        for c in [
+            Channel::P,
+            Channel::Q,
+            Channel::V,
+            Channel::Efd,
+            Channel::Ifd,
+        ] {
+            let (x, y) = (outputs.channel(c).unwrap(), alone.channel(c).unwrap());
+            assert!(
+                x.iter().zip(y).all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{mode}: channel {c:?} differs"
+            );
+        }
+        assert_eq!(outputs.stats, alone.stats, "{mode}");
+        // The traces' P and Q are the channels' (the same measuring device on both).
+        assert_eq!(traces.get("p_pu").unwrap(), &outputs.p[..], "{mode}");
+        assert!(outputs.p.iter().all(|v| v.is_finite()), "{mode}");
+    }
 }
 
 /// A V_ref step enters at the voltage summing point (after the transducer lag T_R = 25 ms) and

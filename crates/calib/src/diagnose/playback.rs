@@ -12,7 +12,9 @@
 //! grid equivalent of `closed_loop`, the measured E_fd of `machine_from_efd`).
 
 use itaipu_dynamics::event::{Channel, Event};
-use itaipu_dynamics::mode::{simulate_mode, simulate_mode_traces, ModeOutputs, PlaybackMode};
+use itaipu_dynamics::mode::{
+    simulate_mode, simulate_mode_both, simulate_mode_traces, ModeOutputs, PlaybackMode,
+};
 use itaipu_dynamics::simulate::{PreparedEvent, Traces};
 
 use crate::fit::fitness;
@@ -139,22 +141,22 @@ pub(super) type Scoring<'a> = (&'a Playback, (f64, f64), Option<&'a Compare>);
 impl Playback {
     /// The evidence of `unit` on `event`, with the traces it comes from: the phasor playback's
     /// [`super::event_evidence`] on [`fitness`]'s traces; in a mode, the compared channels'
-    /// residuals ([`super::windows::event_evidence_in_mode`]).
+    /// residuals ([`super::windows::event_evidence_in_mode`]), with those channels, all from one
+    /// simulation ([`simulate_mode_both`]: what [`Self::traces`] and [`Self::outputs`] give).
     pub(super) fn evidence(
         &self,
         unit: &itaipu_dynamics::unit::Unit,
         event: &Event,
-    ) -> Result<(Traces, super::EventEvidence), DiagnoseError> {
-        let tr = self.traces(unit, event)?;
+    ) -> Result<(Traces, super::EventEvidence, Option<ModeOutputs>), DiagnoseError> {
         if self.is_phasor() {
+            let tr = self.traces(unit, event)?;
             let ev = super::event_evidence(event, &tr);
-            return Ok((tr, ev));
+            return Ok((tr, ev, None));
         }
-        let outs = self.outputs(unit, event)?;
-        Ok((
-            tr,
-            super::windows::event_evidence_in_mode(event, &outs, self),
-        ))
+        let (tr, outs) = simulate_mode_both(unit, event, self.mode, &accurate_integrator())
+            .map_err(|error| DiagnoseError::engine(&event.name, error))?;
+        let ev = super::windows::event_evidence_in_mode(event, &outs, self);
+        Ok((tr, ev, Some(outs)))
     }
 }
 

@@ -3,6 +3,7 @@
 
 use crate::fit::{fitness, Progress};
 use itaipu_dynamics::event::Event;
+use itaipu_dynamics::mode::ModeOutputs;
 use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
 
@@ -94,25 +95,35 @@ pub(super) fn reference(
     let t_evidence = std::time::Instant::now();
     let mut before = vec![];
     let mut evidence_before = vec![];
+    // In a playback mode, the compared channels of the same playbacks (for the surrogates).
+    let mut outputs_before = vec![];
     for e in events {
-        let (tr, ev) = pb.evidence(&reference.unit, e)?;
+        let (tr, ev, outs) = pb.evidence(&reference.unit, e)?;
         evidence_before.push(ev);
         before.push((e.name.clone(), tr));
+        outputs_before.push(outs);
     }
     // Surrogate events: what the reference unit would give on these inputs, with measurement
     // noise on P, Q and input noise on |V| and the angle drawn again at the levels the record
     // shows. The reference is exact there, so a re-fit's gain on them is pure noise fitting.
     // In a playback mode, the compared channels are the simulated ones and every imposed
     // channel gets its noise drawn again.
-    let in_mode = |e: &Event, seed: u64| -> Result<Event, DiagnoseError> {
-        let outs = pb.outputs(&reference.unit, e)?;
-        surrogate_in_mode(e, pb, &outs, seed).map_err(DiagnoseError::Setup)
+    let in_mode = |e: &Event, outs: Option<&ModeOutputs>, seed: u64| {
+        let played;
+        let outs = match outs {
+            Some(o) => o,
+            None => {
+                played = pb.outputs(&reference.unit, e)?;
+                &played
+            }
+        };
+        surrogate_in_mode(e, pb, outs, seed).map_err(DiagnoseError::Setup)
     };
     let mut surrogate_held = vec![];
     for (k, e) in held_out.iter().enumerate() {
         let seed = opts.seed.wrapping_add(1000 + k as u64);
         if !pb.is_phasor() {
-            surrogate_held.push(in_mode(e, seed)?);
+            surrogate_held.push(in_mode(e, None, seed)?);
             continue;
         }
         let (_, tr) = fitness(&reference.unit, e, true)
@@ -121,14 +132,14 @@ pub(super) fn reference(
     }
     let surrogate_events: Vec<Event> = events
         .iter()
-        .zip(&before)
+        .zip(before.iter().zip(&outputs_before))
         .enumerate()
-        .map(|(k, (e, (_, tr)))| {
+        .map(|(k, (e, ((_, tr), outs)))| {
             let seed = opts.seed.wrapping_add(k as u64);
             if pb.is_phasor() {
                 surrogate(e, tr, seed).map_err(DiagnoseError::Setup)
             } else {
-                in_mode(e, seed)
+                in_mode(e, outs.as_ref(), seed)
             }
         })
         .collect::<Result<_, _>>()?;

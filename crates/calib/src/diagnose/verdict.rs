@@ -261,7 +261,7 @@ pub(super) fn decide(
                 }
             }
             for e in events {
-                if let Ok((tr, ev)) = pb.evidence(&r.unit, e) {
+                if let Ok((tr, ev, _)) = pb.evidence(&r.unit, e) {
                     evidence_after.push(ev);
                     after.push((e.name.clone(), tr));
                 }
