@@ -112,7 +112,13 @@ impl Candidates<'_> {
             .collect();
         let key = bounds_key(&base_bounds);
         if !baselines.contains_key(&key) {
-            match refit(&env, unit, &base_bounds, &[], &format!("{id} baseline")) {
+            match refit(
+                &env,
+                unit,
+                &base_bounds,
+                &[],
+                &Label::new(RefitKind::Baseline, format!("{id} baseline")),
+            ) {
                 Ok(r) => {
                     baselines.insert(key.clone(), r);
                 }
@@ -122,7 +128,13 @@ impl Candidates<'_> {
                 }
             }
         }
-        let mut r = match fit_extension(&env, &ext, &baselines[&key], !base_bounds.is_empty(), id) {
+        let mut r = match fit_extension(
+            &env,
+            &ext,
+            &baselines[&key],
+            !base_bounds.is_empty(),
+            &Label::new(RefitKind::Extension, id),
+        ) {
             Ok(r) => r,
             Err(msg) => {
                 rep.note =
@@ -143,7 +155,7 @@ impl Candidates<'_> {
             exts.clear();
         }
         for alt in exts {
-            let label = format!("{id} ({})", alt.description);
+            let label = Label::new(RefitKind::Extension, format!("{id} ({})", alt.description));
             if let Ok(r2) = fit_extension(
                 &env,
                 &alt,
@@ -215,7 +227,7 @@ impl Candidates<'_> {
                 unit,
                 &base_bounds,
                 &r,
-                &format!("{id} baseline again"),
+                &Label::new(RefitKind::BaselineAgain, format!("{id} baseline again")),
             ) {
                 if b2.chi2_fit < baselines[&key].chi2_fit {
                     base_again = Some(b2);
@@ -241,21 +253,21 @@ impl Candidates<'_> {
                     unit,
                     &base_bounds,
                     &[],
-                    &format!("{id} null baseline"),
+                    &Label::new(RefitKind::Surrogate, format!("{id} null baseline")),
                 ) {
                     baselines.insert(nkey.clone(), b);
                 }
             }
             // The standard search budget: on the surrogate the reference is exact and the
             // start is its optimum, so the longer search a bent calibration needs buys nothing.
-            match (baselines.get(&nkey), refit(&env_null, &ext.unit, &bounds, &ext.ties, &format!("{id} null"))) {
+            match (baselines.get(&nkey), refit(&env_null, &ext.unit, &bounds, &ext.ties, &Label::new(RefitKind::Surrogate, format!("{id} null")))) {
                 (Some(b0), Ok(r0)) => {
                     // The null baseline again from where the extension's null re-fit ended, as
                     // on the record: the noise-fitting gain is the extension's, not a luckier
                     // search.
                     let mut b0 = b0.clone_scores();
                     if b0.chi2_fit > r0.chi2_fit && !base_bounds.is_empty() {
-                        if let Some(b2) = baseline_from(&env_null, unit, &base_bounds, &r0, &format!("{id} null baseline again")) {
+                        if let Some(b2) = baseline_from(&env_null, unit, &base_bounds, &r0, &Label::new(RefitKind::Surrogate, format!("{id} null baseline again"))) {
                             if b2.chi2_fit < b0.chi2_fit {
                                 b0 = b2.clone_scores();
                             }
@@ -458,12 +470,12 @@ fn segments_test(
 ) -> Option<SegmentsTest> {
     let lkey = format!("segments:{key}");
     if !baselines.contains_key(&lkey) {
-        let label = format!("{id} baseline on segments");
+        let label = Label::new(RefitKind::Segments, format!("{id} baseline on segments"));
         let b = refit(env, unit, base_bounds, &[], &label).ok()?;
         baselines.insert(lkey.clone(), b);
     }
     let bl = &baselines[&lkey];
-    let label = format!("{id} on segments");
+    let label = Label::new(RefitKind::Segments, format!("{id} on segments"));
     let rl = fit_extension(env, ext, bl, !base_bounds.is_empty(), &label).ok()?;
     // Per held-out sample, against the baseline re-fitted on the blocks: a baseline that
     // predicts the held-out segments far worse has over-fitted the segments it saw, and two
@@ -512,7 +524,7 @@ fn fit_extension(
     ext: &Extension,
     baseline: &Refit,
     has_base: bool,
-    label: &str,
+    label: &Label,
 ) -> Result<Refit, String> {
     let mut bounds = ext.extension_free.clone();
     bounds.extend(ext.interacting_free.iter().map(
@@ -537,7 +549,7 @@ fn fit_extension(
                 &ext.unit,
                 &calibrated,
                 &ext.ties,
-                &format!("{label} from the calibrated values"),
+                &label.then("from the calibrated values"),
             )?
         }
         Err(e) => return Err(e),
@@ -570,7 +582,7 @@ fn fit_extension(
             &ext.unit,
             &from_base,
             &ext.ties,
-            &format!("{label} from the baseline"),
+            &label.then("from the baseline"),
         ) {
             if r2.chi2_fit < r.chi2_fit {
                 r = r.replaced_by(r2);
@@ -589,7 +601,7 @@ fn baseline_from(
     unit: &Unit,
     base_bounds: &[FreeBound],
     from: &Refit,
-    label: &str,
+    label: &Label,
 ) -> Option<Refit> {
     let start: Vec<FreeBound> = base_bounds
         .iter()

@@ -85,12 +85,17 @@ pub(super) fn reference(
         progress,
         profile: Some(profile),
     };
-    let reference = refit(&env, unit, &nuisance, &[], "nuisance offsets").map_err(|msg| {
-        DiagnoseError::Simulation {
-            event: events[0].name.clone(),
-            msg,
-            error: None,
-        }
+    let reference = refit(
+        &env,
+        unit,
+        &nuisance,
+        &[],
+        &Label::new(RefitKind::Reference, "nuisance offsets"),
+    )
+    .map_err(|msg| DiagnoseError::Simulation {
+        event: events[0].name.clone(),
+        msg,
+        error: None,
     })?;
     let t_evidence = std::time::Instant::now();
     let mut before = vec![];

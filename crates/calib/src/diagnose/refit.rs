@@ -216,22 +216,52 @@ impl Profile {
     }
 }
 
-/// The kind of a re-fit, from its label: the reference's nuisance re-fit, a cause's baseline,
-/// its extension (every start and structure), the baseline again from the extension's values,
-/// the second held-out test's segments, or the surrogate (noise-only) re-fits.
-pub(super) fn refit_kind(label: &str) -> &'static str {
-    if label == "nuisance offsets" {
-        "reference"
-    } else if label.contains(" null") {
-        "surrogate (noise-only) re-fits"
-    } else if label.contains("on segments") {
-        "segments test"
-    } else if label.ends_with("baseline again") {
-        "baseline again"
-    } else if label.ends_with(" baseline") {
-        "baselines"
-    } else {
-        "extensions"
+/// The kind of a re-fit, what the profile counts it as: the reference's nuisance re-fit, a
+/// cause's baseline, its extension (every start and structure), the baseline again from the
+/// extension's values, the second held-out test's segments, or the surrogate (noise-only)
+/// re-fits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum RefitKind {
+    Reference,
+    Baseline,
+    Extension,
+    BaselineAgain,
+    Segments,
+    Surrogate,
+}
+
+impl RefitKind {
+    /// The profile's name of the kind.
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Self::Reference => "reference",
+            Self::Baseline => "baselines",
+            Self::Extension => "extensions",
+            Self::BaselineAgain => "baseline again",
+            Self::Segments => "segments test",
+            Self::Surrogate => "surrogate (noise-only) re-fits",
+        }
+    }
+}
+
+/// A re-fit's kind and its name in progress messages (`"saturation baseline"`).
+#[derive(Debug, Clone)]
+pub(super) struct Label {
+    pub(super) kind: RefitKind,
+    pub(super) text: String,
+}
+
+impl Label {
+    pub(super) fn new(kind: RefitKind, text: impl Into<String>) -> Self {
+        Self {
+            kind,
+            text: text.into(),
+        }
+    }
+
+    /// The same kind of re-fit, its name followed by `more` (another start of the same re-fit).
+    pub(super) fn then(&self, more: &str) -> Self {
+        Self::new(self.kind, format!("{} {more}", self.text))
     }
 }
 
@@ -295,7 +325,7 @@ pub(super) fn refit(
     unit: &Unit,
     bounds: &[FreeBound],
     ties: &[(String, String)],
-    label: &str,
+    label: &Label,
 ) -> Result<Refit, String> {
     let RefitEnv {
         sp,
@@ -305,7 +335,8 @@ pub(super) fn refit(
         progress,
         profile,
     } = *env;
-    let kind = refit_kind(label);
+    let kind = label.kind.name();
+    let label = label.text.as_str();
     let t_refit = std::time::Instant::now();
     let record = |phase: &str, wall_s: f64, simulations: usize| {
         if let Some(p) = profile {
@@ -688,6 +719,31 @@ mod tests {
     use crate::diagnose::trial::{scenario, truth_and_event};
     use crate::fit::{fitness, Silent};
 
+    /// Another start of a re-fit is counted as the same kind, whatever its name says: an
+    /// extension polished "from the baseline" is an extension (the profile once read the kind
+    /// off the name, and counted it as a baseline).
+    #[test]
+    fn a_further_start_keeps_its_refits_kind() {
+        let ext = Label::new(RefitKind::Extension, "saturation");
+        let polish = ext.then("from the baseline");
+        assert_eq!(polish.kind, RefitKind::Extension);
+        assert_eq!(polish.text, "saturation from the baseline");
+        let seg = Label::new(RefitKind::Segments, "oel on segments").then("from the baseline");
+        assert_eq!(seg.kind.name(), "segments test");
+        let kinds = [
+            RefitKind::Reference,
+            RefitKind::Baseline,
+            RefitKind::Extension,
+            RefitKind::BaselineAgain,
+            RefitKind::Segments,
+            RefitKind::Surrogate,
+        ];
+        let mut names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), kinds.len(), "two kinds share a profile name");
+    }
+
     /// A re-fit's RMS comes from its own simulation over the fitted and held-out blocks: it
     /// equals the RMS of [`fitness`] over every sample of the event (a separate simulation), and
     /// the fitted blocks alone give another number.
@@ -707,7 +763,14 @@ mod tests {
             profile: None,
             progress: &Silent,
         };
-        let out = refit(&env, &calibrated, &[], &[], "as given").unwrap();
+        let out = refit(
+            &env,
+            &calibrated,
+            &[],
+            &[],
+            &Label::new(RefitKind::Reference, "as given"),
+        )
+        .unwrap();
         let (f, _) = fitness(&calibrated, &ev, false).unwrap();
         let (p, q) = (out.rms[0], out.rms[1]);
         assert!(
