@@ -233,6 +233,18 @@ pub struct ModeOutputs {
 }
 
 impl ModeOutputs {
+    /// `n` samples of every channel, each NaN until a playback writes it.
+    fn unset(n: usize) -> Self {
+        Self {
+            p: vec![f64::NAN; n],
+            q: vec![f64::NAN; n],
+            v: vec![f64::NAN; n],
+            efd: vec![f64::NAN; n],
+            ifd: vec![f64::NAN; n],
+            stats: Stats::default(),
+        }
+    }
+
     /// The simulated series of channel `c` (`None` for the angle and the frequency).
     pub fn channel(&self, c: Channel) -> Option<&[f64]> {
         match c {
@@ -1271,14 +1283,7 @@ pub fn simulate_mode(
     opts: &SimOptions,
 ) -> Result<ModeOutputs, SimError> {
     let n = ev.input.time_s.len();
-    let mut out = ModeOutputs {
-        p: vec![f64::NAN; n],
-        q: vec![f64::NAN; n],
-        v: vec![f64::NAN; n],
-        efd: vec![f64::NAN; n],
-        ifd: vec![f64::NAN; n],
-        stats: Stats::default(),
-    };
+    let mut out = ModeOutputs::unset(n);
     let to_sys = unit.machine_mva / ev.system_mva;
     if mode == PlaybackMode::Phasor && ev.steps.is_empty() {
         let mut u = unit.clone();
@@ -1362,14 +1367,7 @@ pub fn simulate_mode_both(
         iifd: mu.iifd,
         to_sys,
     };
-    let mut out = ModeOutputs {
-        p: vec![f64::NAN; n],
-        q: vec![f64::NAN; n],
-        v: vec![f64::NAN; n],
-        efd: vec![f64::NAN; n],
-        ifd: vec![f64::NAN; n],
-        stats: Stats::default(),
-    };
+    let mut out = ModeOutputs::unset(n);
     let stats = run_mode_unit(&mut mu, &ev, opts, |k, u, x| {
         reader.read(k, u, &mut out);
         let (pk, qk) = u.measured_pq_now(ip, iq);
