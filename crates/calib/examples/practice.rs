@@ -9,7 +9,8 @@
 //! Environment: `VERBOSE` prints each stage and each candidate's gains, `FAILURES` (with
 //! `VERBOSE`) each stage's first failure messages, `REUSE_FITS` re-uses the calibrated units of
 //! an earlier run (`out/practice/<case>.toml`), `NO_REFIT` diagnoses without re-fitting the
-//! calibrated set.
+//! calibrated set, `CAUSES=a,b` tries those causes of the catalog only (for experiments: the
+//! verdict then weighs fewer rivals).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -121,6 +122,9 @@ fn main() {
             let mut dopts = diagnose_options(&case, &spec, &opts.stages, &calibrated);
             if std::env::var("NO_REFIT").is_ok() {
                 dopts.refit.clear();
+            }
+            if let Ok(causes) = std::env::var("CAUSES") {
+                dopts.causes = causes.split(',').map(|c| c.trim().to_string()).collect();
             }
             let d = diagnose(
                 &calibrated,

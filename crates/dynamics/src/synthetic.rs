@@ -198,7 +198,7 @@ pub struct PmuNoise {
     /// Quantisation step of P and Q [pu] (0 = none).
     pub pq_quantum: f64,
     /// Time skew of the power channels: the recorded P and Q at t are the true ones at
-    /// t − `pq_delay_s` (linear interpolation) [s].
+    /// t − `pq_delay_s` ([`delayed`]) [s].
     pub pq_delay_s: f64,
     pub seed: u64,
 }
@@ -312,12 +312,94 @@ pub fn synthesize(
     )?)
 }
 
-/// `y` delayed by `tau` seconds on the sample times `t`: y(t_k − τ) by linear interpolation,
-/// held at the first sample before the record starts.
+/// Half-width, in samples, of the fractional-delay kernel of [`delayed`] (32 taps).
+pub const DELAY_HALF_WIDTH: usize = 16;
+
+/// `y` delayed by `tau` seconds on the sample times `t`: y(t_k − τ), held at the first (last)
+/// sample beyond the record's ends.
+///
+/// On a uniform grid (every time within a tenth of a sample interval of the regular grid, which
+/// timestamps rounded to the millisecond are) the fractional part is a band-limited
+/// interpolation: a Hann-windowed sinc of [`DELAY_HALF_WIDTH`] samples each side, normalised to
+/// unit gain at DC,
+///
+/// ```text
+/// y(i + u) = Σ_j h(j − u) y[i + j] / Σ_j h(j − u),   h(x) = sinc(x) · ½ (1 + cos(π x / M)),  j = −M+1 … M
+/// ```
+///
+/// which keeps the amplitude within 0.3 % and the delay within 1e-4 sample up to 0.4 × the
+/// sample rate, and the variance of white noise within 5 % at every fraction. A PMU's channels
+/// are band-limited (IEEE C37.118 filters), so this is a time shift of the signal, and the fit
+/// sees no other effect of it. Linear interpolation is not: at a fraction u it keeps
+/// (1 − u)² + u² of white noise's variance, half at half a sample, so the simulated P and Q
+/// (noisy where they follow the measured voltage's noise) fitted χ² better at every half sample
+/// whatever the real skew: on the 66 practice cases the delay re-fit settled near half a sample
+/// on governor records with no skew (χ² gains of 39 to 130) and at 0.52 and 0.65 samples on two
+/// ambient records skewed by 1.61 and 1.31 samples.
+///
+/// A whole number of samples is an exact shift. A non-uniform grid (gaps, a changed rate) is
+/// delayed by linear interpolation on its times.
 pub fn delayed(t: &[f64], y: &[f64], tau: f64) -> Vec<f64> {
-    if tau == 0.0 {
+    if tau == 0.0 || y.len() < 2 {
         return y.to_vec();
     }
+    match uniform_step(t) {
+        Some(dt) => delayed_uniform(y, tau / dt),
+        None => delayed_linear(t, y, tau),
+    }
+}
+
+/// The sample interval of a uniform grid (see [`delayed`]), `None` otherwise.
+fn uniform_step(t: &[f64]) -> Option<f64> {
+    let n = t.len();
+    let dt = (t[n - 1] - t[0]) / (n - 1) as f64;
+    (dt > 0.0
+        && t.iter()
+            .enumerate()
+            .all(|(k, tk)| (tk - t[0] - k as f64 * dt).abs() <= 0.1 * dt))
+    .then_some(dt)
+}
+
+/// `y` delayed by `d` samples with the band-limited kernel of [`delayed`].
+fn delayed_uniform(y: &[f64], d: f64) -> Vec<f64> {
+    let n = y.len() as i64;
+    let m = DELAY_HALF_WIDTH as i64;
+    // Sample k reads position k − d = i + u with the same fraction u for every k.
+    let shift = (-d).floor();
+    let u = -d - shift;
+    let at = |i: i64| y[i.clamp(0, n - 1) as usize];
+    if !(1e-12..=1.0 - 1e-12).contains(&u) {
+        let whole = shift as i64 + i64::from(u > 0.5);
+        return (0..n).map(|k| at(k + whole)).collect();
+    }
+    let sinc = |x: f64| (std::f64::consts::PI * x).sin() / (std::f64::consts::PI * x);
+    let taps: Vec<(i64, f64)> = (-m + 1..=m)
+        .map(|j| {
+            let x = j as f64 - u;
+            let window = 0.5 * (1.0 + (std::f64::consts::PI * x / m as f64).cos());
+            (j, sinc(x) * window)
+        })
+        .collect();
+    let gain: f64 = taps.iter().map(|(_, h)| h).sum();
+    let first = shift as i64;
+    (0..n)
+        .map(|k| {
+            // Position i + u, 0 < u < 1: before the record (i < 0) held at the first
+            // sample, beyond it at the last, as the linear delay holds them.
+            let i = k + first;
+            if i < 0 {
+                return y[0];
+            }
+            if i >= n - 1 {
+                return y[(n - 1) as usize];
+            }
+            taps.iter().map(|(j, h)| h * at(i + j)).sum::<f64>() / gain
+        })
+        .collect()
+}
+
+/// `y` delayed by `tau` seconds by linear interpolation on the times `t` (a non-uniform grid).
+fn delayed_linear(t: &[f64], y: &[f64], tau: f64) -> Vec<f64> {
     let mut cursor = 0usize;
     t.iter()
         .map(|&tk| {
@@ -343,6 +425,7 @@ pub fn delayed(t: &[f64], y: &[f64], tau: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::PI;
 
     #[test]
     fn normal_is_deterministic_and_standard() {
@@ -363,13 +446,74 @@ mod tests {
 
     #[test]
     fn delay_shifts_a_ramp_by_tau() {
-        let t: Vec<f64> = (0..100).map(|k| k as f64 / 60.0).collect();
+        let t: Vec<f64> = (0..200).map(|k| k as f64 / 60.0).collect();
         let y: Vec<f64> = t.iter().map(|t| 2.0 * t).collect();
         let d = delayed(&t, &y, 0.005);
-        for k in 1..100 {
-            assert!((d[k] - 2.0 * (t[k] - 0.005)).abs() < 1e-12);
+        // Away from the ends (where the kernel reads held samples) within 1e-4 of a sample.
+        for k in DELAY_HALF_WIDTH..200 - DELAY_HALF_WIDTH {
+            assert!(
+                (d[k] - 2.0 * (t[k] - 0.005)).abs() < 2.0 * 1e-4 / 60.0,
+                "{k}: {} against {}",
+                d[k],
+                2.0 * (t[k] - 0.005)
+            );
         }
         assert_eq!(delayed(&t, &y, 0.0), y);
+        // Before the record: the first sample held.
+        assert_eq!(delayed(&t, &y, 0.05)[..3], [0.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn a_whole_number_of_samples_is_an_exact_shift() {
+        let t: Vec<f64> = (0..50).map(|k| 10.0 + k as f64 * 0.02).collect();
+        let y: Vec<f64> = (0..50).map(|k| ((k * k) % 7) as f64).collect();
+        let d = delayed(&t, &y, 0.04);
+        assert_eq!(d[..2], [y[0], y[0]]);
+        assert_eq!(d[2..], y[..48]);
+    }
+
+    /// A band-limited signal keeps its amplitude and takes the delay, to well within what a
+    /// fit resolves, at a fraction of a sample.
+    #[test]
+    fn a_fractional_delay_shifts_a_sinusoid() {
+        let fs = 60.0;
+        let t: Vec<f64> = (0..600).map(|k| k as f64 / fs).collect();
+        for (f_hz, tau) in [(0.68, 0.0269), (6.0, 0.0219), (15.0, 0.0083)] {
+            let y: Vec<f64> = t.iter().map(|t| (2.0 * PI * f_hz * t).sin()).collect();
+            let d = delayed(&t, &y, tau);
+            for k in 2 * DELAY_HALF_WIDTH..600 - 2 * DELAY_HALF_WIDTH {
+                let want = (2.0 * PI * f_hz * (t[k] - tau)).sin();
+                assert!(
+                    (d[k] - want).abs() < 3e-3,
+                    "{f_hz} Hz, {k}: {} against {want}",
+                    d[k]
+                );
+            }
+        }
+    }
+
+    /// The reason for the kernel: delayed white noise keeps its variance at every fraction
+    /// (linear interpolation keeps half of it at half a sample), so a delay fit to noisy
+    /// playback gains nothing by smoothing.
+    #[test]
+    fn a_fractional_delay_keeps_white_noise_variance() {
+        let n = 20_000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 / 60.0).collect();
+        let mut rng = Normal::new(11);
+        let y: Vec<f64> = (0..n).map(|_| rng.sample()).collect();
+        let var = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64;
+        let v0 = var(&y);
+        for frac in [0.1, 0.25, 0.5, 0.75] {
+            let d = delayed(&t, &y, (1.0 + frac) / 60.0);
+            let kept = var(&d[100..n - 100]) / v0;
+            assert!(kept > 0.93 && kept < 1.02, "fraction {frac}: kept {kept}");
+        }
+        // Linear interpolation on the same noise, for contrast (a non-uniform grid takes it).
+        let mut t2 = t.clone();
+        t2[n / 2] += 0.5 / 60.0;
+        let lin = delayed(&t2, &y, 1.5 / 60.0);
+        let kept = var(&lin[100..n / 2 - 100]) / v0;
+        assert!((kept - 0.5).abs() < 0.03, "linear kept {kept}");
     }
 
     #[test]

@@ -2,10 +2,15 @@
 //! before they are compared with the recording.
 //!
 //! ```text
-//! time skew:        P'(t) = P(t − τ),  Q'(t) = Q(t − τ)            (linear interpolation)
+//! time skew:        P'(t) = P(t − τ),  Q'(t) = Q(t − τ)            (band-limited interpolation)
 //! VT/CT phase error φ:  P'' = P' cos φ + Q' sin φ,   Q'' = Q' cos φ − P' sin φ
 //! ratio errors:     P_meas = k_P · P'',   Q_meas = k_Q · Q''
 //! ```
+//!
+//! The fractional part of τ is interpolated by [`crate::synthetic::delayed`]: a windowed sinc
+//! that keeps the variance of the noise the simulated P and Q take from the measured voltage
+//! (`models.md` §12.5 says "interpolated"; linear interpolation smooths that noise most at half a
+//! sample, and a delay fit then rewarded the smoothing, not the skew).
 //!
 //! τ > 0 means the power channels lag the voltage channel. The block has no states and no
 //! ports: it acts on the recorded P and Q series through [`Block::transform_pq`]. With its
