@@ -790,6 +790,14 @@ pub fn check_relations(unit: &Unit, file: &Path) -> Vec<Finding> {
     out
 }
 
+/// Whether the saturation factors S(1.0), S(1.2) describe a magnetisation curve: iron saturates
+/// more the higher the flux, so the factor grows, `S(1.2) > S(1.0)`; or `S(1.0) = 0`, the usual
+/// way of writing "no saturation". (Open-circuit data put S(1.2) at 3-5 × S(1.0).) The one
+/// criterion of the unit checks below and of the diagnosis's saturation cause.
+pub fn is_magnetisation_curve(s10: f64, s12: f64) -> bool {
+    s10 <= 0.0 || s12 > s10
+}
+
 /// Machine saturation data that is no magnetisation curve: `S(1.2) <= S(1.0)` with `S(1.0) > 0`
 /// (saturation that does not grow with flux; with S(1.0) = S(1.2) GENSAE's exponential curve is
 /// `Se = S(1.0)` at every flux, RaPId's Itaipu `S10 = S12 = 1` among them). `S(1.0) = 0` is
@@ -802,7 +810,7 @@ fn check_saturation(unit: &Unit, file: &Path) -> Vec<Finding> {
             continue;
         };
         let (s10, s12) = (ps.get(i10), ps.get(i12));
-        if s10 > 0.0 && s12 <= s10 {
+        if !is_magnetisation_curve(s10, s12) {
             // GENSAE's curve is S(1.0)·ψⁿ, n = ln(S12/S10)/ln 1.2: flat or falling with flux.
             let shape = if inst.block.model() == "GENSAE" {
                 format!(

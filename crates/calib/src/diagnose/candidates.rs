@@ -338,7 +338,7 @@ impl Candidates<'_> {
             .zip(&r.values)
             .map(|(f, v)| (f.path.clone(), *v))
             .collect();
-        if let Some(why) = cause.and_then(|c| c.below_resolution(&fitted, ctx)) {
+        if let Some(why) = cause.and_then(|c| c.vetoed(&fitted, ctx)) {
             if rep.significant {
                 rep.significant = false;
                 rep.note = format!("not named: {why}");

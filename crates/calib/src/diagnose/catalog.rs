@@ -90,6 +90,20 @@ pub trait Cause: Sync {
         None
     }
 
+    /// Why the fitted extension (its parameters `(path, value)`) is no unit that can exist (a
+    /// saturation curve that falls with flux); then it is not named, whatever its gain: an
+    /// engineer acts on a named cause's values.
+    fn unphysical(&self, _fitted: &[(String, f64)], _ctx: &Context) -> Option<String> {
+        None
+    }
+
+    /// Why a cause's fitted extension is not named whatever its gain: below what the data
+    /// resolve ([`Cause::below_resolution`]) or no physical unit ([`Cause::unphysical`]).
+    fn vetoed(&self, fitted: &[(String, f64)], ctx: &Context) -> Option<String> {
+        self.below_resolution(fitted, ctx)
+            .or_else(|| self.unphysical(fitted, ctx))
+    }
+
     /// The cause's canonical self-test: values hidden in a synthetic truth (`spread(salt)` is a
     /// seeded number in [-1, 1]), the parameter whose recovery is scored and the event that
     /// drives the unit into the cause's regime (see [`super::trial::scenario`]).

@@ -50,6 +50,27 @@ impl Cause for Saturation {
         super::q_window(ev)
     }
 
+    /// A fitted curve that is no magnetisation curve
+    /// ([`itaipu_dynamics::plausibility::is_magnetisation_curve`]): GENSAE's exponential
+    /// S(1.0)·ψⁿ then has n ≤ 0, less saturation at higher flux. Such a curve can fit a record's
+    /// misfit (the bundled Itaipu record, calibrated: S(1.0) 0.40, S(1.2) 0.20, 4 % of χ²), but
+    /// no machine has it, so it does not name saturation.
+    fn unphysical(&self, fitted: &[(String, f64)], _ctx: &Context) -> Option<String> {
+        let find = |suffix: &str| {
+            fitted
+                .iter()
+                .find(|(p, _)| p.ends_with(suffix))
+                .map(|(p, v)| (p.as_str(), *v))
+        };
+        let ((p10, s10), (p12, s12)) = (find(".s10")?, find(".s12")?);
+        (!itaipu_dynamics::plausibility::is_magnetisation_curve(s10, s12)).then(|| {
+            format!(
+                "the fitted curve is no magnetisation curve ({p10} = {s10:.4}, {p12} = {s12:.4}: \
+                 the saturation factor must grow with flux, S(1.2) > S(1.0))"
+            )
+        })
+    }
+
     fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
         Scenario {
             values: vec![
@@ -59,5 +80,54 @@ impl Cause for Saturation {
             key: None,
             kind: EventKind::FaultDip,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::catalog::cause;
+
+    fn ctx() -> Context {
+        Context {
+            efd0: None,
+            xadifd0: None,
+            rate_hz: 60.0,
+            mode_hint_hz: None,
+            shaft_resonance: None,
+            deepest_dip: None,
+            sustained_df_hz: None,
+            field_current_rise: None,
+            setpoint_step: None,
+            mode: Default::default(),
+            compared: vec![],
+        }
+    }
+
+    /// The veto the candidates' scoring asks every cause (`Cause::vetoed`): a saturation
+    /// curve that falls with flux is not named, one that grows is.
+    #[test]
+    fn a_saturation_curve_falling_with_flux_is_vetoed() {
+        let sat = cause("saturation").unwrap();
+        let fitted = |s10: f64, s12: f64| {
+            vec![
+                ("machine.s10".to_string(), s10),
+                ("machine.s12".to_string(), s12),
+                ("exciter.k".to_string(), 200.0),
+            ]
+        };
+        let why = sat.vetoed(&fitted(0.398, 0.198), &ctx()).expect("vetoed");
+        assert!(why.contains("no magnetisation curve"), "{why}");
+        assert!(sat.vetoed(&fitted(0.3, 0.3), &ctx()).is_some());
+        assert!(sat.vetoed(&fitted(0.12, 0.45), &ctx()).is_none());
+        assert!(
+            sat.vetoed(&fitted(0.0, 0.0), &ctx()).is_none(),
+            "no saturation"
+        );
+        // Other causes are not judged by it.
+        let skew = cause("measurement_skew").unwrap();
+        assert!(skew
+            .vetoed(&[("measurement.pq_delay_s".to_string(), 0.025)], &ctx())
+            .is_none());
     }
 }
