@@ -663,10 +663,23 @@ fn a_bus_fed_ceiling_below_its_floor_in_a_deep_dip_gives_the_ceiling() {
     );
 }
 
+/// `base` with a `pmu_measurement` block named "measurement" at its defaults.
+fn with_measurement(base: &Unit) -> Unit {
+    let mut with = base.clone();
+    with.put(
+        "measurement",
+        itaipu_dynamics::registry::find("pmu_measurement")
+            .unwrap()
+            .create(),
+        &[],
+    )
+    .unwrap();
+    with
+}
+
 /// `pmu_measurement`: neutral by default; otherwise skew, phase and ratio as documented.
 #[test]
 fn pmu_measurement_applies_skew_phase_and_ratio() {
-    use itaipu_dynamics::registry;
     use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
     use itaipu_dynamics::synthetic::{delayed, synthesize, PmuNoise, VoltageProfile};
     let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -687,13 +700,7 @@ fn pmu_measurement_applies_skew_phase_and_ratio() {
     .unwrap();
     let prep = PreparedEvent::new(&ev);
     let (p0, q0) = simulate_pq(&mut base.clone(), &prep, &SimOptions::default()).unwrap();
-    let mut with = base.clone();
-    with.put(
-        "measurement",
-        registry::find("pmu_measurement").unwrap().create(),
-        &[],
-    )
-    .unwrap();
+    let mut with = with_measurement(&base);
     let (p1, q1) = simulate_pq(&mut with.clone(), &prep, &SimOptions::default()).unwrap();
     assert_eq!((&p0, &q0), (&p1, &q1), "defaults change nothing");
     let set = |u: &mut itaipu_dynamics::unit::Unit, name: &str, v: f64| {
@@ -775,7 +782,6 @@ fn terminal_load_is_delivered_by_the_machine_and_missing_from_the_recording() {
 /// the measured voltage into P and Q, most at half a sample), a skew where there is none.
 #[test]
 fn a_delay_fitted_to_a_record_without_skew_finds_none() {
-    use itaipu_dynamics::registry;
     use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
     use itaipu_dynamics::synthetic::EventKind;
     let base = unit(BASE);
@@ -796,13 +802,7 @@ fn a_delay_fitted_to_a_record_without_skew_finds_none() {
         )
         .unwrap();
         let prep = PreparedEvent::new(&ev);
-        let mut with = base.clone();
-        with.put(
-            "measurement",
-            registry::find("pmu_measurement").unwrap().create(),
-            &[],
-        )
-        .unwrap();
+        let with = with_measurement(&base);
         let r = with.param("measurement.pq_delay_s").unwrap();
         let chi2: Vec<(f64, f64)> = (0..=20)
             .map(|i| {

@@ -90,17 +90,8 @@ mod tests {
 
     fn ctx() -> Context {
         Context {
-            efd0: None,
-            xadifd0: None,
             rate_hz: 60.0,
-            mode_hint_hz: None,
-            shaft_resonance: None,
-            deepest_dip: None,
-            sustained_df_hz: None,
-            field_current_rise: None,
-            setpoint_step: None,
-            mode: Default::default(),
-            compared: vec![],
+            ..Default::default()
         }
     }
 
