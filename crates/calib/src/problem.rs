@@ -19,7 +19,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use itaipu_dynamics::event::{Channel, Event, Window, MIN_SAMPLES};
-use itaipu_dynamics::integrate::{Dopri5Options, Method};
+use itaipu_dynamics::integrate::{Dopri5Options, Method, StepLog};
 use itaipu_dynamics::mode::{simulate_mode, ModeOutputs};
 use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
 use itaipu_dynamics::unit::{ParamRef, Unit};
@@ -564,12 +564,57 @@ impl Problem {
     /// compared channel (in channel order within a sample) in that playback mode, then the
     /// priors'.
     pub fn residuals(&self, x: &[f64], sim: &SimOptions) -> Result<Vec<f64>, ProblemError> {
+        self.residuals_each(x, &vec![sim; self.events.len()])
+    }
+
+    /// [`Problem::residuals`] with event `i` simulated on `sims[i]` (each event's replay of its
+    /// own logged steps, [`Problem::residuals_with_steps`]).
+    pub fn residuals_each(
+        &self,
+        x: &[f64],
+        sims: &[&SimOptions],
+    ) -> Result<Vec<f64>, ProblemError> {
         if self.compare.is_some() {
-            let outs = self.simulate_outputs(x, sim)?;
+            let outs = self.simulate_outputs_each(x, sims)?;
             return self.residuals_from_outputs(x, &outs);
         }
-        let pq = self.simulate(x, sim)?;
+        let pq = self.simulate_each(x, sims)?;
         self.residuals_from(x, &pq)
+    }
+
+    /// The residuals at `x` simulated on Dormand-Prince `opts` (counted as an evaluation, a
+    /// failure logged), and per event a [`Method::Replay`] of the steps its simulation took:
+    /// residuals replayed on those steps at nearby parameters ([`Problem::residuals_each`])
+    /// differ from each other smoothly, without the step-size noise of two adaptive runs.
+    pub fn residuals_with_steps(
+        &self,
+        x: &[f64],
+        opts: &Dopri5Options,
+    ) -> Option<(Vec<f64>, Vec<SimOptions>)> {
+        let logs: Vec<StepLog> = self.events.iter().map(|_| StepLog::default()).collect();
+        let sims: Vec<SimOptions> = logs
+            .iter()
+            .map(|log| SimOptions {
+                method: Method::Dopri5Logged(opts.clone(), log.clone()),
+            })
+            .collect();
+        let refs: Vec<&SimOptions> = sims.iter().collect();
+        self.evaluations
+            .fetch_add(self.events.len(), Ordering::Relaxed);
+        match self.residuals_each(x, &refs) {
+            Ok(r) => Some((
+                r,
+                logs.iter()
+                    .map(|log| SimOptions {
+                        method: Method::Replay(log.times()),
+                    })
+                    .collect(),
+            )),
+            Err(msg) => {
+                self.record_failure(x, msg.to_string());
+                None
+            }
+        }
     }
 
     /// Every event simulated in the stage's playback mode ([`Problem::compare`]; the phasor
@@ -579,6 +624,14 @@ impl Problem {
         x: &[f64],
         sim: &SimOptions,
     ) -> Result<Vec<ModeOutputs>, ProblemError> {
+        self.simulate_outputs_each(x, &vec![sim; self.events.len()])
+    }
+
+    fn simulate_outputs_each(
+        &self,
+        x: &[f64],
+        sims: &[&SimOptions],
+    ) -> Result<Vec<ModeOutputs>, ProblemError> {
         if self.cancelled() {
             return Err(ProblemError::Interrupted);
         }
@@ -586,7 +639,8 @@ impl Problem {
         let unit = self.unit_at(x);
         self.events
             .iter()
-            .map(|ev| {
+            .zip(sims)
+            .map(|(ev, sim)| {
                 simulate_mode(&unit, &ev.prepared, mode, sim).map_err(|error| {
                     ProblemError::Simulation {
                         event: ev.name.clone(),
@@ -633,9 +687,17 @@ impl Problem {
     /// The simulated P and Q of every event at physical values `x` (the record's samples; in
     /// the stage's playback mode with [`Problem::compare`]).
     pub fn simulate(&self, x: &[f64], sim: &SimOptions) -> Result<Vec<SimulatedPq>, ProblemError> {
+        self.simulate_each(x, &vec![sim; self.events.len()])
+    }
+
+    fn simulate_each(
+        &self,
+        x: &[f64],
+        sims: &[&SimOptions],
+    ) -> Result<Vec<SimulatedPq>, ProblemError> {
         if self.compare.is_some() {
             return Ok(self
-                .simulate_outputs(x, sim)?
+                .simulate_outputs_each(x, sims)?
                 .into_iter()
                 .map(|o| (o.p, o.q))
                 .collect());
@@ -646,7 +708,8 @@ impl Problem {
         let mut unit = self.unit_at(x);
         self.events
             .iter()
-            .map(|ev| {
+            .zip(sims)
+            .map(|(ev, sim)| {
                 simulate_pq(&mut unit, &ev.prepared, sim).map_err(|error| {
                     ProblemError::Simulation {
                         event: ev.name.clone(),
@@ -748,9 +811,14 @@ impl Problem {
     /// The residuals at physical values `x`, counted as an evaluation; `None` (the failure
     /// counted and logged) when the candidate fails.
     pub fn residuals_logged(&self, x: &[f64], sim: &SimOptions) -> Option<Vec<f64>> {
+        self.residuals_logged_each(x, &vec![sim; self.events.len()])
+    }
+
+    /// [`Problem::residuals_logged`] with event `i` simulated on `sims[i]`.
+    pub fn residuals_logged_each(&self, x: &[f64], sims: &[&SimOptions]) -> Option<Vec<f64>> {
         self.evaluations
             .fetch_add(self.events.len(), Ordering::Relaxed);
-        match self.residuals(x, sim) {
+        match self.residuals_each(x, sims) {
             Ok(r) => Some(r),
             Err(msg) => {
                 self.record_failure(x, msg.to_string());

@@ -267,6 +267,8 @@ impl SimulateRequest {
                 }
                 Method::Dopri5(Dopri5Options { rtol, atol, ..base })
             }
+            // Not a name `Method::from_str` gives: logs and replays are made by the calibrator.
+            m @ (Method::Dopri5Logged(..) | Method::Replay(_)) => m,
         };
         Ok(SimOptions { method })
     }

@@ -133,7 +133,24 @@ impl Dopri5 {
         sys: &mut S,
         x: &mut [f64],
         knots: &[f64],
+        observer: O,
+    ) -> Result<Stats, SolveError>
+    where
+        S: OdeSystem,
+        O: FnMut(usize, f64, &[f64], &mut S),
+    {
+        self.solve_logged(sys, x, knots, observer, None)
+    }
+
+    /// As [`Dopri5::solve`], appending the end time of every accepted step to `log` (the steps
+    /// a [`replay`] retakes).
+    pub fn solve_logged<S, O>(
+        &mut self,
+        sys: &mut S,
+        x: &mut [f64],
+        knots: &[f64],
         mut observer: O,
+        mut log: Option<&mut Vec<f64>>,
     ) -> Result<Stats, SolveError>
     where
         S: OdeSystem,
@@ -213,6 +230,9 @@ impl Dopri5 {
                 step.advance();
                 x.copy_from_slice(step.x_start());
                 t = t_end;
+                if let Some(log) = log.as_deref_mut() {
+                    log.push(t);
+                }
                 if fire {
                     sys.handle_event(t, x);
                     check_finite(t, x)?;
@@ -229,6 +249,94 @@ impl Dopri5 {
         }
         Ok(stats)
     }
+}
+
+/// Retakes the Dormand-Prince steps of an earlier run: every step ends at the next of `ends` (the
+/// step ends [`Dopri5::solve_logged`] recorded, sorted) or at the next knot, whichever comes
+/// first, and is accepted without error control; events are located and handled as in
+/// [`Dopri5::solve`] (a crossing moved by other parameters splits its step where it now falls).
+/// See [`super::solve`] for the contract.
+///
+/// Why: the result is then a smooth function of the system's parameters (the step sequence does
+/// not change with them), so a difference quotient between two replays on the same steps is the
+/// derivative of the discretised playback, free of the step-size noise of two adaptive runs
+/// ("internal numerical differentiation", Bock 1981).
+pub fn replay<S, O>(
+    sys: &mut S,
+    x: &mut [f64],
+    knots: &[f64],
+    ends: &[f64],
+    mut observer: O,
+) -> Result<Stats, SolveError>
+where
+    S: OdeSystem,
+    O: FnMut(usize, f64, &[f64], &mut S),
+{
+    begin(sys, x, knots)?;
+    let mut t = knots[0];
+    observer(0, t, x, sys);
+    let mut stats = Stats::default();
+    if knots.len() == 1 {
+        return Ok(stats);
+    }
+    let span = (knots[knots.len() - 1] - t).abs().max(t.abs());
+    // Two step ends closer than this count as one (an event that moved by less).
+    let tiny = 1e3 * f64::EPSILON * span.max(1.0);
+    let max_steps = 2 * ends.len() + 2 * knots.len() + 1000;
+    let mut step = Dopri5Step::new(x.len());
+    let mut events = Events::new(sys);
+    step.start(sys, t, x);
+    events.restart(sys, t, x);
+    stats.rhs_evals += 1;
+    let mut next = ends.partition_point(|&e| e <= t + tiny);
+    for (k, &t_knot) in knots.iter().enumerate().skip(1) {
+        while t < t_knot {
+            if stats.steps_accepted >= max_steps {
+                return Err(SolveError::TooManySteps { t, max_steps });
+            }
+            while next < ends.len() && ends[next] <= t + tiny {
+                next += 1;
+            }
+            let t1 = match ends.get(next) {
+                Some(&e) if e < t_knot - tiny => e,
+                _ => t_knot,
+            };
+            step.attempt(sys, t1);
+            stats.rhs_evals += 6;
+            check_finite(t1, step.x_end())?;
+            let (mut t_end, mut fire) = (t1, false);
+            if events.crossed(sys, t1, step.x_end()) {
+                let h = t1 - t;
+                let located = events.locate(sys, t, t1, |s, out| step.dense((s - t) / h, out));
+                if let Some(te) = located {
+                    (t_end, fire) = (te, true);
+                    if te < t1 {
+                        step.attempt(sys, te);
+                        stats.rhs_evals += 6;
+                        check_finite(te, step.x_end())?;
+                        fire = events.crossed(sys, te, step.x_end());
+                    }
+                }
+            }
+            stats.steps_accepted += 1;
+            step.advance();
+            x.copy_from_slice(step.x_start());
+            t = t_end;
+            if fire {
+                sys.handle_event(t, x);
+                check_finite(t, x)?;
+                stats.events += 1;
+                events.record(t)?;
+                step.start(sys, t, x);
+                stats.rhs_evals += 1;
+                events.restart(sys, t, x);
+            } else {
+                events.step_accepted();
+            }
+        }
+        observer(k, t_knot, x, sys);
+    }
+    Ok(stats)
 }
 
 /// PI step-size controller state.
@@ -589,6 +697,116 @@ mod tests {
             );
             assert!(s.steps_accepted >= 20);
         }
+    }
+
+    /// A logged run's steps, replayed on the same system, give the same trajectory bit for bit
+    /// (the same steps from the same states), in as many steps.
+    #[test]
+    fn a_replay_retakes_a_logged_runs_steps() {
+        let knots = [0.3, 0.5, 1.0, 2.0, 4.0];
+        let log = super::super::StepLog::default();
+        let logged = Method::Dopri5Logged(opts(1e-6, 1e-8, 0.5), log.clone());
+        let mut x = Oscillator::exact(0.3);
+        let mut seen = vec![];
+        let s1 = solve(&logged, &mut Oscillator, &mut x, &knots, |_, _, x, _| {
+            seen.push(x.to_vec())
+        })
+        .unwrap();
+        let steps = log.times();
+        assert_eq!(steps.len(), s1.steps_accepted);
+        assert!(s1.steps_rejected + s1.steps_accepted > 10);
+        let mut y = Oscillator::exact(0.3);
+        let mut again = vec![];
+        let s2 = solve(
+            &Method::Replay(steps),
+            &mut Oscillator,
+            &mut y,
+            &knots,
+            |_, _, x, _| again.push(x.to_vec()),
+        )
+        .unwrap();
+        assert_eq!(s2.steps_accepted, s1.steps_accepted);
+        assert_eq!(s2.steps_rejected, 0);
+        assert_eq!(seen, again);
+    }
+
+    /// `x' = a·cos t` with a non-windup upper limit 0.5 that holds until the input turns
+    /// negative at π/2: `x` reaches the limit at `asin(0.5/a)` and ends at `x(3) = 0.5 +
+    /// a·(sin 3 − 1)`, so `dx(3)/da = sin 3 − 1` although the switch moves with `a`.
+    struct ScaledLimiter {
+        a: f64,
+        held: bool,
+        hit: Option<f64>,
+    }
+
+    impl OdeSystem for ScaledLimiter {
+        fn dim(&self) -> usize {
+            1
+        }
+        fn rhs(&mut self, t: f64, _x: &[f64], dx: &mut [f64]) {
+            dx[0] = if self.held { 0.0 } else { self.a * t.cos() };
+        }
+        fn n_events(&self) -> usize {
+            1
+        }
+        fn events(&mut self, t: f64, x: &[f64], g: &mut [f64]) {
+            g[0] = if self.held { t.cos() } else { 0.5 - x[0] };
+        }
+        fn handle_event(&mut self, t: f64, x: &mut [f64]) -> bool {
+            let switch = if self.held {
+                t.cos() <= 1e-9
+            } else {
+                0.5 - x[0] <= 1e-9
+            };
+            if switch {
+                self.held = !self.held;
+                if self.held {
+                    x[0] = 0.5;
+                    self.hit = Some(t);
+                }
+            }
+            switch
+        }
+    }
+
+    fn limited_end(a: f64, method: &Method) -> (f64, f64) {
+        let mut sys = ScaledLimiter {
+            a,
+            held: false,
+            hit: None,
+        };
+        let mut x = [0.0];
+        solve(
+            method,
+            &mut sys,
+            &mut x,
+            &[0.0, 1.0, 2.0, 3.0],
+            |_, _, _, _| {},
+        )
+        .unwrap();
+        (x[0], sys.hit.unwrap())
+    }
+
+    /// Replays of the steps of one run at a coarse tolerance, at parameters `a` and `a + h`,
+    /// differ by the derivative of the discretised solution: here within 1e-6 of the exact
+    /// `dx(3)/da` at `h = 1e-7`, with the limiter's switch located anew in each replay (its time
+    /// moves by 4e-8 s), and the replays' switch times are the exact ones.
+    #[test]
+    fn replays_differentiate_through_a_moving_switch() {
+        let log = super::super::StepLog::default();
+        let a = 1.2;
+        limited_end(a, &Method::Dopri5Logged(opts(1e-6, 1e-8, 0.3), log.clone()));
+        let replay = Method::Replay(log.times());
+        let h = 1e-7;
+        let (x0, t0) = limited_end(a, &replay);
+        let (x1, t1) = limited_end(a + h, &replay);
+        for (aa, t) in [(a, t0), (a + h, t1)] {
+            assert!((t - (0.5 / aa).asin()).abs() < 1e-9, "switch at {t}");
+        }
+        assert!(t1 < t0);
+        let d = (x1 - x0) / h;
+        let exact = 3f64.sin() - 1.0;
+        assert!((d - exact).abs() < 1e-6 * exact.abs(), "{d} for {exact}");
     }
 
     #[test]

@@ -72,13 +72,66 @@ pub enum Method {
     Rk4 { h: f64 },
     /// Adaptive Dormand-Prince 5(4).
     Dopri5(Dopri5Options),
+    /// Adaptive Dormand-Prince 5(4) that appends the end of every accepted step to a log, for a
+    /// [`Method::Replay`] of the same run.
+    Dopri5Logged(Dopri5Options, StepLog),
+    /// The Dormand-Prince steps of an earlier logged run, retaken without error control
+    /// ([`dopri5::replay`]): a smooth function of the parameters, for derivatives by differences.
+    Replay(StepTimes),
+}
+
+/// Where a [`Method::Dopri5Logged`] run writes its step ends: shared, so that the caller keeps
+/// a handle while the options travel down to the integrator; successive solves (the segments
+/// of a set-point playback) append. Two logs are equal only when they are the same log.
+#[derive(Debug, Clone, Default)]
+pub struct StepLog(std::sync::Arc<std::sync::Mutex<Vec<f64>>>);
+
+impl PartialEq for StepLog {
+    fn eq(&self, other: &Self) -> bool {
+        std::sync::Arc::ptr_eq(&self.0, &other.0)
+    }
+}
+
+impl StepLog {
+    /// The step ends logged so far, sorted (a replay's schedule).
+    pub fn times(&self) -> StepTimes {
+        let mut v = self
+            .0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone();
+        v.sort_by(f64::total_cmp);
+        StepTimes(v.into())
+    }
+    fn append(&self, ends: &[f64]) {
+        self.0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .extend_from_slice(ends);
+    }
+}
+
+/// The sorted step ends of a logged run ([`StepLog::times`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepTimes(pub std::sync::Arc<[f64]>);
+
+impl StepTimes {
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
 }
 
 impl std::fmt::Display for Method {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Method::Rk4 { h } => write!(f, "RK4, h = {} ms", h * 1e3),
-            Method::Dopri5(o) => write!(f, "Dopri5, rtol {:e}, atol {:e}", o.rtol, o.atol),
+            Method::Dopri5(o) | Method::Dopri5Logged(o, _) => {
+                write!(f, "Dopri5, rtol {:e}, atol {:e}", o.rtol, o.atol)
+            }
+            Method::Replay(s) => write!(f, "Dopri5 replay of {} steps", s.len()),
         }
     }
 }
@@ -178,6 +231,14 @@ where
     match method {
         Method::Rk4 { h } => Rk4::new(*h)?.solve(sys, x, knots, observer),
         Method::Dopri5(opts) => Dopri5::new(opts.clone())?.solve(sys, x, knots, observer),
+        Method::Dopri5Logged(opts, log) => {
+            let mut ends = vec![];
+            let res =
+                Dopri5::new(opts.clone())?.solve_logged(sys, x, knots, observer, Some(&mut ends));
+            log.append(&ends);
+            res
+        }
+        Method::Replay(steps) => dopri5::replay(sys, x, knots, &steps.0, observer),
     }
 }
 
