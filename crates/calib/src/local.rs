@@ -249,10 +249,11 @@ pub const LM_FD_STEP: f64 = 1e-4;
 /// figures from a scratch variant of it).
 /// Levenberg-Marquardt needs a descent direction, not the derivative (each step is checked on
 /// the objective itself), and rtol-1e-6 steps (the default simulation's tolerance) are about two
-/// thirds of rtol 1e-7's: the bundled Itaipu fit's local phases took 1.14 s for 1.73 s, J 0.8294
-/// for 0.8288 (the adaptive differences it replaces: 0.8605, the joint pass from the datasheet
-/// ending on "converged" at 0.8626 where the replays went on to 0.831). At 1e-5 the columns are
-/// too coarse: the same joint pass stalled at J 1.05.
+/// thirds of rtol 1e-7's: the bundled Itaipu fit's local phases took 1.14 s where replays of
+/// the rtol-1e-7 run's own steps took 1.73 s, both to J 0.829 (the adaptive differences they
+/// replace: 0.8605, the joint pass from the datasheet ending on "converged" at 0.8626 where the
+/// replays went on to 0.831). At 1e-5 the columns are too coarse: the same joint pass from the
+/// datasheet stalled at J 1.05.
 pub const JACOBIAN_RTOL: f64 = 1e-6;
 
 /// Step of the forward differences between two replays of the same steps, in box coordinates.
