@@ -231,9 +231,61 @@ mod tests {
     /// off by its whole effect.
     #[test]
     fn replayed_columns_agree_with_accurate_central_differences() {
+        check_replayed_columns(
+            base_unit(),
+            &[
+                ("machine.h", 2.0, 8.0),
+                ("machine.x_d_prime", 0.2, 0.45),
+                ("exciter.k", 20.0, 400.0),
+                ("exciter.te", 0.01, 0.5),
+                ("pss.k_x", 0.1, 5.0),
+                ("governor.t_g", 0.1, 1.0),
+            ],
+            (2e-4, 5e-2),
+        );
+    }
+
+    /// The same on user-defined diagrams (the bundled Itaipu unit with its AVR and PSS as
+    /// diagrams, `data/itaipu/unit_ud.toml`): their primitives (PI with a non-windup clamp,
+    /// lags, lead-lag, washout, min/max selectors, products, sums, gains) and their Newton
+    /// initialisation, which sets the diagrams' states and references from the parameters
+    /// (`exciter.k_efd` scales the initial E_fd: a replay that kept the initial state would miss
+    /// its whole effect). Looser than on the built-in blocks, and why: the selectors' kinks are
+    /// crossed inside steps (no event locates them), where a Runge-Kutta step is first-order, so
+    /// the adaptive reference itself carries step-size noise there. Measured: replays of the
+    /// accurate steps 1e-4 to 1.3e-2 off the reference (the largest the transducer's T_R, 10 ms),
+    /// on rtol-1e-6 steps 2e-4 to 3.6e-2; central differences of accurate adaptive runs, the
+    /// identifiability report's method before replays, 3e-4 to 6.7e-2 off the same reference.
+    #[test]
+    fn replayed_columns_agree_on_user_defined_diagrams() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/itaipu/unit_ud.toml");
+        check_replayed_columns(
+            itaipu_dynamics::unit_file::read_unit(&path).unwrap(),
+            &[
+                ("machine.h", 2.0, 8.0),
+                ("exciter.k_v", 1.0, 200.0),
+                ("exciter.k_ei", 5.0, 500.0),
+                ("exciter.t_r", 0.005, 0.05),
+                ("exciter.k_efd", 0.5, 2.0),
+                ("pss.k_f", 0.1, 10.0),
+                ("pss.t_f", 0.01, 0.5),
+                ("pss.t_p", 0.5, 10.0),
+            ],
+            (5e-2, 5e-2),
+        );
+    }
+
+    /// Checks each column of the identifiability and the Levenberg-Marquardt Jacobians at 10 %
+    /// above `unit`'s values of `params` against central differences at rtol 1e-10, to the
+    /// relative errors `tol` (in the column's norm).
+    fn check_replayed_columns(
+        unit: itaipu_dynamics::unit::Unit,
+        params: &[(&str, f64, f64)],
+        tol: (f64, f64),
+    ) {
         use crate::local::{jacobian_columns, JACOBIAN_RTOL};
         use itaipu_dynamics::integrate::Dopri5Options;
-        let unit = base_unit();
         let profile = VoltageProfile {
             duration_s: 6.0,
             ..VoltageProfile::default()
@@ -247,21 +299,14 @@ mod tests {
             &Default::default(),
         )
         .unwrap();
-        let free: Vec<FreeParam> = [
-            ("machine.h", 2.0, 8.0),
-            ("machine.x_d_prime", 0.2, 0.45),
-            ("exciter.k", 20.0, 400.0),
-            ("exciter.te", 0.01, 0.5),
-            ("pss.k_x", 0.1, 5.0),
-            ("governor.t_g", 0.1, 1.0),
-        ]
-        .iter()
-        .map(|&(p, lo, hi)| {
-            let r = unit.param(p).unwrap();
-            let v = unit.get(r);
-            FreeParam::new(p.into(), r, lo, hi, v * 1.1, "")
-        })
-        .collect();
+        let free: Vec<FreeParam> = params
+            .iter()
+            .map(|&(p, lo, hi)| {
+                let r = unit.param(p).unwrap();
+                let v = unit.get(r);
+                FreeParam::new(p.into(), r, lo, hi, v * 1.1, "")
+            })
+            .collect();
         let data = vec![EventData::new(&ev, None, None).unwrap()];
         let problem = Problem::new(unit, free, data, (1.0, 1.0));
         let x = problem.start();
@@ -313,8 +358,8 @@ mod tests {
             let path = &problem.free[j].path;
             let e_lm = rel(lm[j].as_ref().unwrap(), refc, 1.0);
             eprintln!("{path}: identifiability {e:.1e}, Levenberg-Marquardt {e_lm:.1e}");
-            assert!(e < 2e-4, "{path}: {e:e}");
-            assert!(e_lm < 5e-2, "{path}: {e_lm:e}");
+            assert!(e < tol.0, "{path}: {e:e}");
+            assert!(e_lm < tol.1, "{path}: {e_lm:e}");
         }
     }
 
