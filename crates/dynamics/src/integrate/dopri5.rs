@@ -206,49 +206,63 @@ impl Dopri5 {
                     stats.steps_rejected += 1;
                     continue;
                 }
-                check_finite(t1, step.x_end())?;
-
-                // An event ends the step early at `t_end`; `fire` once confirmed.
-                let (mut t_end, mut fire) = (t1, false);
-                if events.crossed(sys, t1, step.x_end()) {
-                    let h = t1 - t;
-                    let located = events.locate(sys, t, t1, |s, out| step.dense((s - t) / h, out));
-                    if let Some(te) = located {
-                        (t_end, fire) = (te, true);
-                        if te < t1 {
-                            step.attempt(sys, te); // accepted without error control
-                            stats.rhs_evals += 6;
-                            check_finite(te, step.x_end())?;
-                            // Dense output and the re-taken step may disagree slightly; if the
-                            // latter has not crossed yet, the next step will.
-                            fire = events.crossed(sys, te, step.x_end());
-                        }
-                    }
-                }
-
-                stats.steps_accepted += 1;
-                step.advance();
-                x.copy_from_slice(step.x_start());
-                t = t_end;
+                t = accept(sys, &mut step, &mut events, &mut stats, t1, x)?;
                 if let Some(log) = log.as_deref_mut() {
                     log.push(t);
-                }
-                if fire {
-                    sys.handle_event(t, x);
-                    check_finite(t, x)?;
-                    stats.events += 1;
-                    events.record(t)?;
-                    step.start(sys, t, x); // f may jump at an event: no FSAL
-                    stats.rhs_evals += 1;
-                    events.restart(sys, t, x);
-                } else {
-                    events.step_accepted();
                 }
             }
             observer(k, t_knot, x, sys);
         }
         Ok(stats)
     }
+}
+
+/// Accepts the step just attempted from `step.t()` to `t1`: an event crossing inside it ends
+/// the step early at the located time (the step re-taken there, accepted without error
+/// control), and the event is handled once the re-taken step confirms it; `x` becomes the
+/// step's end. Returns the time reached.
+fn accept<S: OdeSystem>(
+    sys: &mut S,
+    step: &mut Dopri5Step,
+    events: &mut Events,
+    stats: &mut Stats,
+    t1: f64,
+    x: &mut [f64],
+) -> Result<f64, SolveError> {
+    let t = step.t();
+    check_finite(t1, step.x_end())?;
+    // An event ends the step early at `t_end`; `fire` once confirmed.
+    let (mut t_end, mut fire) = (t1, false);
+    if events.crossed(sys, t1, step.x_end()) {
+        let h = t1 - t;
+        let located = events.locate(sys, t, t1, |s, out| step.dense((s - t) / h, out));
+        if let Some(te) = located {
+            (t_end, fire) = (te, true);
+            if te < t1 {
+                step.attempt(sys, te);
+                stats.rhs_evals += 6;
+                check_finite(te, step.x_end())?;
+                // Dense output and the re-taken step may disagree slightly; if the latter has
+                // not crossed yet, the next step will.
+                fire = events.crossed(sys, te, step.x_end());
+            }
+        }
+    }
+    stats.steps_accepted += 1;
+    step.advance();
+    x.copy_from_slice(step.x_start());
+    if fire {
+        sys.handle_event(t_end, x);
+        check_finite(t_end, x)?;
+        stats.events += 1;
+        events.record(t_end)?;
+        step.start(sys, t_end, x); // f may jump at an event: no FSAL
+        stats.rhs_evals += 1;
+        events.restart(sys, t_end, x);
+    } else {
+        events.step_accepted();
+    }
+    Ok(t_end)
 }
 
 /// Retakes the Dormand-Prince steps of an earlier run: every step ends at the next of `ends` (the
@@ -303,36 +317,7 @@ where
             };
             step.attempt(sys, t1);
             stats.rhs_evals += 6;
-            check_finite(t1, step.x_end())?;
-            let (mut t_end, mut fire) = (t1, false);
-            if events.crossed(sys, t1, step.x_end()) {
-                let h = t1 - t;
-                let located = events.locate(sys, t, t1, |s, out| step.dense((s - t) / h, out));
-                if let Some(te) = located {
-                    (t_end, fire) = (te, true);
-                    if te < t1 {
-                        step.attempt(sys, te);
-                        stats.rhs_evals += 6;
-                        check_finite(te, step.x_end())?;
-                        fire = events.crossed(sys, te, step.x_end());
-                    }
-                }
-            }
-            stats.steps_accepted += 1;
-            step.advance();
-            x.copy_from_slice(step.x_start());
-            t = t_end;
-            if fire {
-                sys.handle_event(t, x);
-                check_finite(t, x)?;
-                stats.events += 1;
-                events.record(t)?;
-                step.start(sys, t, x);
-                stats.rhs_evals += 1;
-                events.restart(sys, t, x);
-            } else {
-                events.step_accepted();
-            }
+            t = accept(sys, &mut step, &mut events, &mut stats, t1, x)?;
         }
         observer(k, t_knot, x, sys);
     }
