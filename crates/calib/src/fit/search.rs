@@ -136,7 +136,8 @@ pub(crate) fn search(
 /// integrator ([`Problem::residuals_with_steps`]), each column the derivative of that
 /// discretised playback (free of step-size noise, so the step can be 1e-6 of the parameter's
 /// scale, where two adaptive runs needed central differences at 1e-4), backwards where a
-/// parameter sits on its upper bound (the model may reject values beyond it). The residuals
+/// parameter sits on its upper bound (the model may reject values beyond it) or where the model
+/// refuses the forward step (a parameter pressed against another, X'_d on X_d). The residuals
 /// replayed at `x` are the base of the differences; `None` when a simulation fails.
 pub(crate) fn jacobian(problem: &Problem, x: &[f64]) -> Option<Vec<Vec<f64>>> {
     let Method::Dopri5(acc) = accurate_integrator().method else {
@@ -151,11 +152,16 @@ pub(crate) fn jacobian(problem: &Problem, x: &[f64]) -> Option<Vec<Vec<f64>>> {
             let f = &problem.free[j];
             let scale = (f.hi - f.lo).min(x[j].abs().max(1e-3 * (f.hi - f.lo)));
             let h = JACOBIAN_STEP * scale;
+            let column = |h: f64| -> Option<Vec<f64>> {
+                let mut xv = x.to_vec();
+                xv[j] += h;
+                let r = problem.residuals_each(&xv, &replays).ok()?;
+                (r.len() == r0.len()).then(|| r.iter().zip(&r0).map(|(a, b)| (a - b) / h).collect())
+            };
+            // Forwards but past the upper bound; where the model refuses the step (X'_d pressed
+            // against X_d) the other side.
             let h = if x[j] + h > f.hi { -h } else { h };
-            let mut xv = x.to_vec();
-            xv[j] += h;
-            let r = problem.residuals_each(&xv, &replays).ok()?;
-            (r.len() == r0.len()).then(|| r.iter().zip(&r0).map(|(a, b)| (a - b) / h).collect())
+            column(h).or_else(|| column(-h))
         })
         .collect();
     let cols: Vec<Vec<f64>> = cols.into_iter().collect::<Option<_>>()?;
