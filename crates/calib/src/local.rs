@@ -241,8 +241,7 @@ pub const LM_FD_STEP: f64 = 1e-4;
 
 /// Tolerance of the runs whose steps a Levenberg-Marquardt Jacobian on replays
 /// ([`LmStop::replay`]) replays when the residuals are simulated tighter (at [`LM_RTOL`]). A
-/// replayed column is the exact
-/// derivative of the playback discretised on those steps; it differs from the true derivative
+/// replayed column is the exact derivative of the playback discretised on those steps; it differs from the true derivative
 /// by how the frozen steps' own error changes with the parameter, which is largest for fast
 /// time constants: the exciter's T_E column is 1.8e-2 off at rtol 1e-6, 1.2e-3 at 1e-7, where
 /// slow parameters' columns are 1e-6-1e-5 off, and differences of two adaptive runs 1e-4 for all
@@ -251,9 +250,9 @@ pub const LM_FD_STEP: f64 = 1e-4;
 /// Levenberg-Marquardt needs a descent direction, not the derivative (each step is checked on
 /// the objective itself), and rtol-1e-6 steps (the default simulation's tolerance) are about two
 /// thirds of rtol 1e-7's: the bundled Itaipu fit's local phases took 1.14 s where replays of
-/// the rtol-1e-7 run's own steps took 1.73 s, both to J 0.829 (the adaptive differences they
-/// replace: 0.8605, the joint pass from the datasheet ending on "converged" at 0.8626 where the
-/// replays went on to 0.831). At 1e-5 the columns are too coarse: the same joint pass from the
+/// the rtol-1e-7 run's own steps took 1.73 s, both to J 0.829 (the adaptive differences:
+/// 0.8605, the joint pass from the datasheet ending on "converged" at 0.8626 where the replays
+/// went on to 0.831). At 1e-5 the columns are too coarse: the same joint pass from the
 /// datasheet stalled at J 1.05.
 pub const JACOBIAN_RTOL: f64 = 1e-6;
 
