@@ -251,6 +251,62 @@ mod tests {
         );
     }
 
+    /// A parameter pressed against another (X'_d a hair below X_d, where the bundled Itaipu fit
+    /// ends) still gets its column: the model refuses the forward step, and the identifiability
+    /// Jacobian takes the backward one, which agrees with a backward difference of adaptive runs
+    /// at the accurate integrator (to their noise, 1e-3 at this step).
+    #[test]
+    fn a_column_the_model_refuses_forwards_is_taken_backwards() {
+        let x_d = 0.95;
+        let unit = base_unit()
+            .with_params(&[("machine.x_d", x_d), ("machine.x_d_prime", x_d - 1e-9)])
+            .unwrap();
+        let profile = VoltageProfile {
+            duration_s: 4.0,
+            ..VoltageProfile::default()
+        };
+        let ev = synthesize(
+            "dip",
+            &unit,
+            &profile,
+            60.0,
+            &PmuNoise::typical(5),
+            &Default::default(),
+        )
+        .unwrap();
+        let free: Vec<FreeParam> = [("machine.x_d_prime", 0.2, 0.99), ("machine.h", 2.0, 8.0)]
+            .iter()
+            .map(|&(p, lo, hi)| {
+                let r = unit.param(p).unwrap();
+                FreeParam::new(p.into(), r, lo, hi, unit.get(r), "")
+            })
+            .collect();
+        let data = vec![EventData::new(&ev, None, None).unwrap()];
+        let problem = Problem::new(unit, free, data, (1.0, 1.0));
+        let x = problem.start();
+        let mut up = x.clone();
+        up[0] += 1e-6;
+        assert!(
+            problem.residuals(&up, &accurate_integrator()).is_err(),
+            "the model takes X'_d above X_d"
+        );
+        let jac = jacobian(&problem, &x).expect("a Jacobian");
+        let col: Vec<f64> = jac.iter().map(|row| row[0]).collect();
+        assert!(col.iter().all(|v| v.is_finite()));
+        let h = 1e-4;
+        let mut dn = x.clone();
+        dn[0] -= h;
+        let acc = accurate_integrator();
+        let (r0, r1) = (
+            problem.residuals(&x, &acc).unwrap(),
+            problem.residuals(&dn, &acc).unwrap(),
+        );
+        let back: Vec<f64> = r0.iter().zip(&r1).map(|(a, b)| (a - b) / h).collect();
+        let d: f64 = col.iter().zip(&back).map(|(a, b)| (a - b).powi(2)).sum();
+        let e = (d / back.iter().map(|b| b * b).sum::<f64>()).sqrt();
+        assert!(e < 1e-2, "X'_d column {e:e} off the backward difference");
+    }
+
     /// The same on user-defined diagrams (the bundled Itaipu unit with its AVR and PSS as
     /// diagrams, `data/itaipu/unit_ud.toml`): their primitives (PI with a non-windup clamp,
     /// lags, lead-lag, washout, min/max selectors, products, sums, gains) and their Newton
