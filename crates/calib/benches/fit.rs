@@ -7,10 +7,10 @@
 //! * `diagnose_full_catalog_20s`: `diagnose` with the whole catalog (default options) on a 20 s
 //!   synthetic fault-dip event at 60 samples/s with PMU noise, on the generic hydro unit (the
 //!   issue's target: within 60 s on this 2-core machine);
-//! * `practice_fit_and_diagnose`: the default fit and the diagnosis of the bundled practice case
-//!   p01 with every uncertain parameter free (target: within 60 s);
 //! * `jacobian_adaptive_differences` / `jacobian_replayed`: one Levenberg-Marquardt Jacobian
-//!   (12 parameters, a 20 s synthetic dip) by differences of adaptive runs and on replays.
+//!   (12 parameters, a 20 s synthetic dip) by differences of adaptive runs and on replays;
+//! * `practice_fit_and_diagnose`: the default fit and the diagnosis of the bundled practice case
+//!   p01 with every uncertain parameter free (target: within 60 s).
 
 use std::path::PathBuf;
 
@@ -115,42 +115,27 @@ fn practice_fit_and_diagnose(bencher: Bencher) {
 /// The problem of one Jacobian: a 20 s fault dip at 60 samples/s with PMU noise into the
 /// synthetic unit, twelve parameters of its four blocks free, at 10 % off their values.
 fn jacobian_problem() -> itaipu_calib::problem::Problem {
-    use itaipu_calib::diagnose::trial::{base_unit, trial_noise};
-    use itaipu_calib::problem::{EventData, FreeParam, Problem};
-    use itaipu_dynamics::synthetic::{synthesize, VoltageProfile};
-    let unit = base_unit();
-    let ev = synthesize(
-        "dip",
-        &unit,
-        &VoltageProfile::default(),
-        60.0,
-        &trial_noise(1),
-        &Default::default(),
+    use itaipu_calib::diagnose::trial::{base_unit, dip_problem};
+    dip_problem(
+        base_unit(),
+        &[
+            ("machine.h", 2.0, 8.0),
+            ("machine.x_d", 0.6, 1.4),
+            ("machine.x_d_prime", 0.2, 0.45),
+            ("machine.t_d0_prime", 3.0, 12.0),
+            ("exciter.k", 20.0, 400.0),
+            ("exciter.te", 0.01, 0.5),
+            ("exciter.tb", 1.0, 20.0),
+            ("pss.k_x", 0.1, 5.0),
+            ("pss.t_x2", 0.5, 10.0),
+            ("governor.t_g", 0.1, 1.0),
+            ("governor.t_w", 0.5, 3.0),
+            ("governor.r_temp", 0.1, 0.8),
+        ],
+        20.0,
+        1,
+        1.1,
     )
-    .unwrap();
-    let free = [
-        ("machine.h", 2.0, 8.0),
-        ("machine.x_d", 0.6, 1.4),
-        ("machine.x_d_prime", 0.2, 0.45),
-        ("machine.t_d0_prime", 3.0, 12.0),
-        ("exciter.k", 20.0, 400.0),
-        ("exciter.te", 0.01, 0.5),
-        ("exciter.tb", 1.0, 20.0),
-        ("pss.k_x", 0.1, 5.0),
-        ("pss.t_x2", 0.5, 10.0),
-        ("governor.t_g", 0.1, 1.0),
-        ("governor.t_w", 0.5, 3.0),
-        ("governor.r_temp", 0.1, 0.8),
-    ]
-    .iter()
-    .map(|&(p, lo, hi)| {
-        let r = unit.param(p).unwrap();
-        let v = unit.get(r);
-        FreeParam::new(p.into(), r, lo, hi, v * 1.1, "")
-    })
-    .collect();
-    let data = vec![EventData::new(&ev, None, None).unwrap()];
-    Problem::new(unit, free, data, (1.0, 1.0))
 }
 
 /// One Levenberg-Marquardt Jacobian (12 columns, [`jacobian_problem`]) as a calibration took it

@@ -267,3 +267,38 @@ pub fn scenario(cause: &str, seed: u64, kind: Option<EventKind>) -> Trial {
     }
     t
 }
+
+/// The least-squares problem of a fault dip (`duration_s` at 60 samples/s, PMU noise of `seed`)
+/// played into `unit`, with `free` parameters (path, lower and upper bound) starting at
+/// `start_scale` times their values in `unit`: the Jacobian tests' and benchmarks' problem.
+pub fn dip_problem(
+    unit: Unit,
+    free: &[(&str, f64, f64)],
+    duration_s: f64,
+    seed: u64,
+    start_scale: f64,
+) -> crate::problem::Problem {
+    use crate::problem::{EventData, FreeParam, Problem};
+    let profile = VoltageProfile {
+        duration_s,
+        ..VoltageProfile::default()
+    };
+    let ev = synthesize(
+        "dip",
+        &unit,
+        &profile,
+        60.0,
+        &PmuNoise::typical(seed),
+        &Default::default(),
+    )
+    .expect("a dip into a unit that initialises");
+    let free: Vec<FreeParam> = free
+        .iter()
+        .map(|&(p, lo, hi)| {
+            let r = unit.param(p).expect("a parameter of the unit");
+            FreeParam::new(p.into(), r, lo, hi, start_scale * unit.get(r), "")
+        })
+        .collect();
+    let data = vec![EventData::new(&ev, None, None).expect("a synthesized event")];
+    Problem::new(unit, free, data, (1.0, 1.0))
+}

@@ -261,28 +261,13 @@ mod tests {
         let unit = base_unit()
             .with_params(&[("machine.x_d", x_d), ("machine.x_d_prime", x_d - 1e-9)])
             .unwrap();
-        let profile = VoltageProfile {
-            duration_s: 4.0,
-            ..VoltageProfile::default()
-        };
-        let ev = synthesize(
-            "dip",
-            &unit,
-            &profile,
-            60.0,
-            &PmuNoise::typical(5),
-            &Default::default(),
-        )
-        .unwrap();
-        let free: Vec<FreeParam> = [("machine.x_d_prime", 0.2, 0.99), ("machine.h", 2.0, 8.0)]
-            .iter()
-            .map(|&(p, lo, hi)| {
-                let r = unit.param(p).unwrap();
-                FreeParam::new(p.into(), r, lo, hi, unit.get(r), "")
-            })
-            .collect();
-        let data = vec![EventData::new(&ev, None, None).unwrap()];
-        let problem = Problem::new(unit, free, data, (1.0, 1.0));
+        let problem = crate::diagnose::trial::dip_problem(
+            unit,
+            &[("machine.x_d_prime", 0.2, 0.99), ("machine.h", 2.0, 8.0)],
+            4.0,
+            5,
+            1.0,
+        );
         let x = problem.start();
         let mut up = x.clone();
         up[0] += 1e-6;
@@ -348,29 +333,7 @@ mod tests {
     ) {
         use crate::local::{jacobian_columns, JACOBIAN_RTOL};
         use itaipu_dynamics::integrate::Dopri5Options;
-        let profile = VoltageProfile {
-            duration_s: 6.0,
-            ..VoltageProfile::default()
-        };
-        let ev = synthesize(
-            "dip",
-            &unit,
-            &profile,
-            60.0,
-            &PmuNoise::typical(3),
-            &Default::default(),
-        )
-        .unwrap();
-        let free: Vec<FreeParam> = params
-            .iter()
-            .map(|&(p, lo, hi)| {
-                let r = unit.param(p).unwrap();
-                let v = unit.get(r);
-                FreeParam::new(p.into(), r, lo, hi, v * 1.1, "")
-            })
-            .collect();
-        let data = vec![EventData::new(&ev, None, None).unwrap()];
-        let problem = Problem::new(unit, free, data, (1.0, 1.0));
+        let problem = crate::diagnose::trial::dip_problem(unit, params, 6.0, 3, 1.1);
         let x = problem.start();
         let u = problem.to_unit(&x);
         let tight = SimOptions {
