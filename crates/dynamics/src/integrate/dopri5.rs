@@ -149,72 +149,197 @@ impl Dopri5 {
         sys: &mut S,
         x: &mut [f64],
         knots: &[f64],
-        mut observer: O,
-        mut log: Option<&mut Vec<f64>>,
+        observer: O,
+        log: Option<&mut Vec<f64>>,
     ) -> Result<Stats, SolveError>
     where
         S: OdeSystem,
         O: FnMut(usize, f64, &[f64], &mut S),
     {
-        begin(sys, x, knots)?;
-        let mut t = knots[0];
-        observer(0, t, x, sys);
-        let mut stats = Stats::default();
-        if knots.len() == 1 {
-            return Ok(stats);
-        }
+        let rule = Adaptive {
+            opts: &self.opts,
+            ctl: Controller {
+                h: 0.0,
+                err_old: 1e-4,
+                rejected: false,
+            },
+            span: 0.0,
+            shortened: false,
+            log,
+        };
+        drive(sys, x, knots, observer, rule)
+    }
+}
 
-        let o = &self.opts;
-        let span = knots[knots.len() - 1] - t;
-        let mut step = Dopri5Step::new(x.len());
-        let mut events = Events::new(sys);
-        step.start(sys, t, x);
-        events.restart(sys, t, x);
-        stats.rhs_evals += 1;
-        let h0 = if o.h_init > 0.0 {
+/// Where each step of a Dormand-Prince run ends and whether it is kept: the one difference
+/// between an adaptive run ([`Adaptive`]) and a replay of its steps ([`Replayed`]), which share
+/// everything else ([`drive`]: the start, the knots, the stages, event location and handling).
+trait StepRule {
+    /// Called once the start point and `k1` are set (may evaluate the system, counted in
+    /// `stats`).
+    fn begin<S: OdeSystem>(
+        &mut self,
+        sys: &mut S,
+        step: &mut Dopri5Step,
+        stats: &mut Stats,
+        knots: &[f64],
+    );
+    /// End of the next attempt from `t`, at most `t_knot`; an error stops the run (the step
+    /// budget spent, a step too short to advance).
+    fn next_end(&mut self, t: f64, t_knot: f64, stats: &Stats) -> Result<f64, SolveError>;
+    /// Whether the attempt just made from `t` to `t1` is kept (a rejection is counted here).
+    fn keep(&mut self, step: &Dopri5Step, t: f64, t1: f64, stats: &mut Stats) -> bool;
+    /// A kept step was accepted and ended at `t` (earlier than planned when an event ended it).
+    fn accepted(&mut self, t: f64);
+}
+
+/// The adaptive run: the PI controller proposes the steps and the error norm judges them; every
+/// accepted step's end is appended to `log` when there is one.
+struct Adaptive<'a> {
+    opts: &'a Dopri5Options,
+    ctl: Controller,
+    /// Length of the whole run (s), the scale of the step-underflow test.
+    span: f64,
+    /// The attempt was cut to end on a knot.
+    shortened: bool,
+    log: Option<&'a mut Vec<f64>>,
+}
+
+impl StepRule for Adaptive<'_> {
+    fn begin<S: OdeSystem>(
+        &mut self,
+        sys: &mut S,
+        step: &mut Dopri5Step,
+        stats: &mut Stats,
+        knots: &[f64],
+    ) {
+        let o = self.opts;
+        self.span = knots[knots.len() - 1] - knots[0];
+        self.ctl.h = if o.h_init > 0.0 {
             o.h_init.min(o.h_max)
         } else {
             stats.rhs_evals += 1;
             step.initial_step(sys, o.rtol, o.atol, o.h_max)
         };
-        let mut ctl = Controller {
-            h: h0,
-            err_old: 1e-4,
-            rejected: false,
-        };
-
-        for (k, &t_knot) in knots.iter().enumerate().skip(1) {
-            while t < t_knot {
-                if stats.steps_accepted + stats.steps_rejected >= o.max_steps {
-                    return Err(SolveError::TooManySteps {
-                        t,
-                        max_steps: o.max_steps,
-                    });
-                }
-                if ctl.h <= 10.0 * f64::EPSILON * t.abs().max(span) {
-                    return Err(SolveError::StepUnderflow { t, h: ctl.h });
-                }
-                let (t1, shortened) = if t + 1.01 * ctl.h >= t_knot {
-                    (t_knot, t_knot - t < ctl.h)
-                } else {
-                    (t + ctl.h, false)
-                };
-                step.attempt(sys, t1);
-                stats.rhs_evals += 6;
-                let err = step.error_norm(o.rtol, o.atol);
-                if !ctl.update(err, t1 - t, shortened, o.h_max) {
-                    stats.steps_rejected += 1;
-                    continue;
-                }
-                t = accept(sys, &mut step, &mut events, &mut stats, t1, x)?;
-                if let Some(log) = log.as_deref_mut() {
-                    log.push(t);
-                }
-            }
-            observer(k, t_knot, x, sys);
-        }
-        Ok(stats)
     }
+
+    fn next_end(&mut self, t: f64, t_knot: f64, stats: &Stats) -> Result<f64, SolveError> {
+        let max_steps = self.opts.max_steps;
+        if stats.steps_accepted + stats.steps_rejected >= max_steps {
+            return Err(SolveError::TooManySteps { t, max_steps });
+        }
+        let h = self.ctl.h;
+        if h <= 10.0 * f64::EPSILON * t.abs().max(self.span) {
+            return Err(SolveError::StepUnderflow { t, h });
+        }
+        let t1;
+        (t1, self.shortened) = if t + 1.01 * h >= t_knot {
+            (t_knot, t_knot - t < h)
+        } else {
+            (t + h, false)
+        };
+        Ok(t1)
+    }
+
+    fn keep(&mut self, step: &Dopri5Step, t: f64, t1: f64, stats: &mut Stats) -> bool {
+        let (o, shortened) = (self.opts, self.shortened);
+        let err = step.error_norm(o.rtol, o.atol);
+        let kept = self.ctl.update(err, t1 - t, shortened, o.h_max);
+        if !kept {
+            stats.steps_rejected += 1;
+        }
+        kept
+    }
+
+    fn accepted(&mut self, t: f64) {
+        if let Some(log) = self.log.as_deref_mut() {
+            log.push(t);
+        }
+    }
+}
+
+/// A replay: every step ends at the next logged end or knot, whichever comes first, and is kept.
+struct Replayed<'a> {
+    /// The logged step ends, sorted.
+    ends: &'a [f64],
+    /// Index of the first end not yet passed.
+    next: usize,
+    /// Two step ends closer than this count as one (an event that moved by less).
+    tiny: f64,
+    max_steps: usize,
+}
+
+impl StepRule for Replayed<'_> {
+    fn begin<S: OdeSystem>(&mut self, _: &mut S, _: &mut Dopri5Step, _: &mut Stats, knots: &[f64]) {
+        let t0 = knots[0];
+        let span = (knots[knots.len() - 1] - t0).abs().max(t0.abs());
+        self.tiny = 1e3 * f64::EPSILON * span.max(1.0);
+        self.max_steps = 2 * self.ends.len() + 2 * knots.len() + 1000;
+    }
+
+    fn next_end(&mut self, t: f64, t_knot: f64, stats: &Stats) -> Result<f64, SolveError> {
+        let max_steps = self.max_steps;
+        if stats.steps_accepted >= max_steps {
+            return Err(SolveError::TooManySteps { t, max_steps });
+        }
+        let (ends, tiny) = (self.ends, self.tiny);
+        while self.next < ends.len() && ends[self.next] <= t + tiny {
+            self.next += 1;
+        }
+        Ok(match ends.get(self.next) {
+            Some(&e) if e < t_knot - tiny => e,
+            _ => t_knot,
+        })
+    }
+
+    fn keep(&mut self, _: &Dopri5Step, _: f64, _: f64, _: &mut Stats) -> bool {
+        true
+    }
+
+    fn accepted(&mut self, _: f64) {}
+}
+
+/// The Dormand-Prince run over `knots` with the steps `rule` chooses (see [`super::solve`] for
+/// the contract).
+fn drive<S, O, R>(
+    sys: &mut S,
+    x: &mut [f64],
+    knots: &[f64],
+    mut observer: O,
+    mut rule: R,
+) -> Result<Stats, SolveError>
+where
+    S: OdeSystem,
+    O: FnMut(usize, f64, &[f64], &mut S),
+    R: StepRule,
+{
+    begin(sys, x, knots)?;
+    let mut t = knots[0];
+    observer(0, t, x, sys);
+    let mut stats = Stats::default();
+    if knots.len() == 1 {
+        return Ok(stats);
+    }
+    let mut step = Dopri5Step::new(x.len());
+    let mut events = Events::new(sys);
+    step.start(sys, t, x);
+    events.restart(sys, t, x);
+    stats.rhs_evals += 1;
+    rule.begin(sys, &mut step, &mut stats, knots);
+    for (k, &t_knot) in knots.iter().enumerate().skip(1) {
+        while t < t_knot {
+            let t1 = rule.next_end(t, t_knot, &stats)?;
+            step.attempt(sys, t1);
+            stats.rhs_evals += 6;
+            if !rule.keep(&step, t, t1, &mut stats) {
+                continue;
+            }
+            t = accept(sys, &mut step, &mut events, &mut stats, t1, x)?;
+            rule.accepted(t);
+        }
+        observer(k, t_knot, x, sys);
+    }
+    Ok(stats)
 }
 
 /// Accepts the step just attempted from `step.t()` to `t1`: an event crossing inside it ends
@@ -280,48 +405,19 @@ pub fn replay<S, O>(
     x: &mut [f64],
     knots: &[f64],
     ends: &[f64],
-    mut observer: O,
+    observer: O,
 ) -> Result<Stats, SolveError>
 where
     S: OdeSystem,
     O: FnMut(usize, f64, &[f64], &mut S),
 {
-    begin(sys, x, knots)?;
-    let mut t = knots[0];
-    observer(0, t, x, sys);
-    let mut stats = Stats::default();
-    if knots.len() == 1 {
-        return Ok(stats);
-    }
-    let span = (knots[knots.len() - 1] - t).abs().max(t.abs());
-    // Two step ends closer than this count as one (an event that moved by less).
-    let tiny = 1e3 * f64::EPSILON * span.max(1.0);
-    let max_steps = 2 * ends.len() + 2 * knots.len() + 1000;
-    let mut step = Dopri5Step::new(x.len());
-    let mut events = Events::new(sys);
-    step.start(sys, t, x);
-    events.restart(sys, t, x);
-    stats.rhs_evals += 1;
-    let mut next = ends.partition_point(|&e| e <= t + tiny);
-    for (k, &t_knot) in knots.iter().enumerate().skip(1) {
-        while t < t_knot {
-            if stats.steps_accepted >= max_steps {
-                return Err(SolveError::TooManySteps { t, max_steps });
-            }
-            while next < ends.len() && ends[next] <= t + tiny {
-                next += 1;
-            }
-            let t1 = match ends.get(next) {
-                Some(&e) if e < t_knot - tiny => e,
-                _ => t_knot,
-            };
-            step.attempt(sys, t1);
-            stats.rhs_evals += 6;
-            t = accept(sys, &mut step, &mut events, &mut stats, t1, x)?;
-        }
-        observer(k, t_knot, x, sys);
-    }
-    Ok(stats)
+    let rule = Replayed {
+        ends,
+        next: 0,
+        tiny: 0.0,
+        max_steps: 0,
+    };
+    drive(sys, x, knots, observer, rule)
 }
 
 /// PI step-size controller state.
