@@ -321,3 +321,59 @@ fn each_bad_cause_file_is_refused_naming_the_file_and_the_field() {
     assert!(why.contains("already has a block named 'droop'"), "{why}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The bundled cause files of the outside-the-catalog trials (`examples/outside_catalog.rs`):
+/// each reads, applies to the synthetic unit, starts near neutral (a 1 ms lag: P and Q within a
+/// tenth of a PMU's noise, 2e-3 pu, of the unit without it) and, hidden at a typical value,
+/// moves P or Q by more than the noise on the event it acts on.
+#[test]
+fn the_bundled_lag_causes_are_near_neutral_at_their_start_and_act_when_hidden() {
+    let base = base_unit();
+    for (file, param, value, kind) in [
+        (
+            "avr_transducer.toml",
+            "transducer.t_r",
+            0.15,
+            EventKind::VoltageStep,
+        ),
+        (
+            "governor_speed_filter.toml",
+            "speed_filter.t_f",
+            0.45,
+            EventKind::FrequencyExcursion,
+        ),
+    ] {
+        let cause =
+            UserCause::read(&data(&format!("causes/{file}"))).unwrap_or_else(|e| panic!("{e}"));
+        let profile = VoltageProfile::preset(kind, 20.0, 60.0, 11);
+        let ev = synthesize(
+            "probe",
+            &base,
+            &profile,
+            737.0,
+            &PmuNoise::none(),
+            &SimOptions::default(),
+        )
+        .unwrap();
+        let ctx = context(&base, &ev).unwrap();
+        let run = |u: &Unit| simulate(u, &ev, &SimOptions::default()).unwrap();
+        let plain = run(&base);
+        let change = |u: &Unit| {
+            let t = run(u);
+            ["pe", "qe"]
+                .map(|s| max_diff(t.get(s).unwrap(), plain.get(s).unwrap()))
+                .into_iter()
+                .fold(0.0, f64::max)
+        };
+        let start = cause
+            .hide(&base, &ctx, &[])
+            .unwrap_or_else(|e| panic!("{e}"));
+        let hidden = cause
+            .hide(&base, &ctx, &[(param, value)])
+            .unwrap_or_else(|e| panic!("{e}"));
+        let (at_start, when_hidden) = (change(&start), change(&hidden));
+        println!("{file}: largest change of P, Q {at_start:.2e} at the start, {when_hidden:.4} at {param} = {value}");
+        assert!(at_start < 2e-4, "{file}: {at_start} at the neutral start");
+        assert!(when_hidden > 5e-3, "{file}: {when_hidden} when hidden");
+    }
+}
