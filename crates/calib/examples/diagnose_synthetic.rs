@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use itaipu_calib::diagnose::{catalog, context, diagnose, DiagnoseOptions};
+use itaipu_calib::diagnose::{catalog, diagnose, trial, DiagnoseOptions};
 use itaipu_calib::fit::Progress;
 use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
@@ -42,19 +42,11 @@ fn main() {
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data");
     let base = read_unit(&data.join("synthetic/unit_gensae_sexs_stab3_hygov.toml")).unwrap();
     let profile = VoltageProfile::preset(kind, 20.0, 60.0, seed);
-    let probe = synthesize(
-        "probe",
-        &base,
-        &profile,
-        737.0,
-        &PmuNoise::none(),
-        &SimOptions::default(),
-    )
-    .unwrap();
     let truth = if cause == "none" {
         base.clone()
     } else {
-        catalog::hide(&cause, &base, &context(&base, &probe).unwrap(), &values)
+        let (_, ctx) = trial::probe(&base, &profile).unwrap();
+        catalog::hide(&cause, &base, &ctx, &values)
             .map_err(|e| e.to_string())
             .unwrap()
             .0

@@ -14,13 +14,13 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use itaipu_calib::diagnose::trial::{base_unit, trial_noise};
+use itaipu_calib::diagnose::trial::{base_unit, probe, trial_noise};
 use itaipu_calib::diagnose::user_cause::UserCause;
-use itaipu_calib::diagnose::{catalog, context, diagnose};
+use itaipu_calib::diagnose::{catalog, diagnose};
 use itaipu_calib::fit::{FitOptions, Silent};
 use itaipu_calib::practice::{diagnose_options, fit_and_diagnose, practice_spec, PracticeCase};
 use itaipu_dynamics::simulate::{simulate, SimOptions, Traces};
-use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
+use itaipu_dynamics::synthetic::{synthesize, EventKind, VoltageProfile};
 
 /// One effect hidden in the truth: the cause file, the parameter set, its value, the event.
 struct Trial {
@@ -95,9 +95,7 @@ fn main() {
         let t0 = Instant::now();
         let cause = UserCause::read(&causes_dir().join(t.file)).unwrap_or_else(|e| panic!("{e}"));
         let profile = VoltageProfile::preset(t.kind, DURATION_S, RATE_HZ, SEED);
-        let noiseless = synthesize("probe", &base, &profile, BASE_MVA, &PmuNoise::none(), &sim)
-            .expect("the base unit plays back the preset");
-        let ctx = context(&base, &noiseless).expect("a context of the base unit");
+        let (noiseless, ctx) = probe(&base, &profile).unwrap_or_else(|e| panic!("{e}"));
         let truth = cause
             .hide(&base, &ctx, &[(t.param, t.value)])
             .unwrap_or_else(|e| panic!("{e}"));

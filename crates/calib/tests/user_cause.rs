@@ -6,13 +6,13 @@
 use std::path::{Path, PathBuf};
 
 use itaipu_calib::diagnose::catalog::CauseError;
-use itaipu_calib::diagnose::trial::{base_unit, trial_noise};
+use itaipu_calib::diagnose::trial::{base_unit, probe, trial_noise};
 use itaipu_calib::diagnose::user_cause::{read_all, UserCause};
 use itaipu_calib::diagnose::{context, diagnose, DiagnoseOptions};
 use itaipu_calib::fit::Silent;
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::{simulate, SimOptions};
-use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
+use itaipu_dynamics::synthetic::{synthesize, EventKind, VoltageProfile};
 use itaipu_dynamics::unit::Unit;
 
 fn data(rel: &str) -> PathBuf {
@@ -42,16 +42,7 @@ fn dip_event(truth: &Unit, seed: u64) -> Event {
 fn truth(x_c: f64) -> Unit {
     let base = base_unit();
     let profile = VoltageProfile::preset(EventKind::FaultDip, 20.0, 60.0, 1);
-    let probe = synthesize(
-        "probe",
-        &base,
-        &profile,
-        737.0,
-        &PmuNoise::none(),
-        &SimOptions::default(),
-    )
-    .unwrap();
-    let ctx = context(&base, &probe).unwrap();
+    let (_, ctx) = probe(&base, &profile).unwrap();
     droop()
         .hide(&base, &ctx, &[("droop.x_c", x_c)])
         .unwrap_or_else(|e| panic!("{e}"))
@@ -346,16 +337,7 @@ fn the_bundled_lag_causes_are_near_neutral_at_their_start_and_act_when_hidden() 
         let cause =
             UserCause::read(&data(&format!("causes/{file}"))).unwrap_or_else(|e| panic!("{e}"));
         let profile = VoltageProfile::preset(kind, 20.0, 60.0, 11);
-        let ev = synthesize(
-            "probe",
-            &base,
-            &profile,
-            737.0,
-            &PmuNoise::none(),
-            &SimOptions::default(),
-        )
-        .unwrap();
-        let ctx = context(&base, &ev).unwrap();
+        let (ev, ctx) = probe(&base, &profile).unwrap();
         let run = |u: &Unit| simulate(u, &ev, &SimOptions::default()).unwrap();
         let plain = run(&base);
         let change = |u: &Unit| {

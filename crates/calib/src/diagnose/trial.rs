@@ -163,6 +163,26 @@ impl TrialError {
     }
 }
 
+/// The noiseless playback of `profile` through `base` (737 MVA base, the trials' own) and the
+/// context a cause is hidden in ([`catalog::hide`], [`super::user_cause::UserCause::hide`]):
+/// the event kind, the rate, the operating point.
+pub fn probe(
+    base: &Unit,
+    profile: &VoltageProfile,
+) -> Result<(Event, catalog::Context), TrialError> {
+    let probe = synthesize(
+        "probe",
+        base,
+        profile,
+        737.0,
+        &PmuNoise::none(),
+        &SimOptions::default(),
+    )
+    .map_err(|e| TrialError::Synthesis(e.to_string()))?;
+    let ctx = context(base, &probe)?;
+    Ok((probe, ctx))
+}
+
 /// The truth unit of a trial and its event.
 pub fn truth_and_event(t: &Trial) -> Result<(Unit, Event), TrialError> {
     let base = base_unit();
@@ -171,9 +191,7 @@ pub fn truth_and_event(t: &Trial) -> Result<(Unit, Event), TrialError> {
     let truth = if t.cause == "none" {
         base
     } else {
-        let probe = synthesize("probe", &base, &profile, 737.0, &PmuNoise::none(), &sim)
-            .map_err(|e| TrialError::Synthesis(e.to_string()))?;
-        catalog::hide(&t.cause, &base, &context(&base, &probe)?, &t.values)?.0
+        catalog::hide(&t.cause, &base, &probe(&base, &profile)?.1, &t.values)?.0
     };
     let event = synthesize(
         &format!("trial-{}-{}", t.cause, t.seed),

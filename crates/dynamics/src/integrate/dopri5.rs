@@ -158,12 +158,13 @@ impl Dopri5 {
     {
         let rule = Adaptive {
             opts: &self.opts,
+            // The first step is set by `begin` (Hairer's `hinit` needs f at the start).
             ctl: Controller {
                 h: 0.0,
                 err_old: 1e-4,
                 rejected: false,
             },
-            span: 0.0,
+            span: ends_of(knots).map_or(0.0, |(t0, t1)| t1 - t0),
             shortened: false,
             log,
         };
@@ -177,13 +178,7 @@ impl Dopri5 {
 trait StepRule {
     /// Called once the start point and `k1` are set (may evaluate the system, counted in
     /// `stats`).
-    fn begin<S: OdeSystem>(
-        &mut self,
-        sys: &mut S,
-        step: &mut Dopri5Step,
-        stats: &mut Stats,
-        knots: &[f64],
-    );
+    fn begin<S: OdeSystem>(&mut self, _sys: &mut S, _step: &mut Dopri5Step, _stats: &mut Stats) {}
     /// End of the next attempt from `t`, at most `t_knot`; an error stops the run (the step
     /// budget spent, a step too short to advance).
     fn next_end(&mut self, t: f64, t_knot: f64, stats: &Stats) -> Result<f64, SolveError>;
@@ -206,15 +201,8 @@ struct Adaptive<'a> {
 }
 
 impl StepRule for Adaptive<'_> {
-    fn begin<S: OdeSystem>(
-        &mut self,
-        sys: &mut S,
-        step: &mut Dopri5Step,
-        stats: &mut Stats,
-        knots: &[f64],
-    ) {
+    fn begin<S: OdeSystem>(&mut self, sys: &mut S, step: &mut Dopri5Step, stats: &mut Stats) {
         let o = self.opts;
-        self.span = knots[knots.len() - 1] - knots[0];
         self.ctl.h = if o.h_init > 0.0 {
             o.h_init.min(o.h_max)
         } else {
@@ -270,13 +258,6 @@ struct Replayed<'a> {
 }
 
 impl StepRule for Replayed<'_> {
-    fn begin<S: OdeSystem>(&mut self, _: &mut S, _: &mut Dopri5Step, _: &mut Stats, knots: &[f64]) {
-        let t0 = knots[0];
-        let span = (knots[knots.len() - 1] - t0).abs().max(t0.abs());
-        self.tiny = 1e3 * f64::EPSILON * span.max(1.0);
-        self.max_steps = 2 * self.ends.len() + 2 * knots.len() + 1000;
-    }
-
     fn next_end(&mut self, t: f64, t_knot: f64, stats: &Stats) -> Result<f64, SolveError> {
         let max_steps = self.max_steps;
         if stats.steps_accepted >= max_steps {
@@ -325,7 +306,7 @@ where
     step.start(sys, t, x);
     events.restart(sys, t, x);
     stats.rhs_evals += 1;
-    rule.begin(sys, &mut step, &mut stats, knots);
+    rule.begin(sys, &mut step, &mut stats);
     for (k, &t_knot) in knots.iter().enumerate().skip(1) {
         while t < t_knot {
             let t1 = rule.next_end(t, t_knot, &stats)?;
@@ -411,13 +392,19 @@ where
     S: OdeSystem,
     O: FnMut(usize, f64, &[f64], &mut S),
 {
+    let span = ends_of(knots).map_or(0.0, |(t0, t1)| (t1 - t0).abs().max(t0.abs()));
     let rule = Replayed {
         ends,
         next: 0,
-        tiny: 0.0,
-        max_steps: 0,
+        tiny: 1e3 * f64::EPSILON * span.max(1.0),
+        max_steps: 2 * ends.len() + 2 * knots.len() + 1000,
     };
     drive(sys, x, knots, observer, rule)
+}
+
+/// The first and last knot (`None` without knots: [`drive`] refuses them before any step).
+fn ends_of(knots: &[f64]) -> Option<(f64, f64)> {
+    Some((*knots.first()?, *knots.last()?))
 }
 
 /// PI step-size controller state.
