@@ -32,7 +32,9 @@
 //!    by at least `min_fit_drop` and its held-out χ² by at least `min_held_drop`. Among the
 //!    significant ones, the extended model with the lowest `χ²_ext + k ln N` (k = every
 //!    parameter it re-fitted) is the best; an extension pressed against the upper end of its
-//!    range is not significant (the residual asks for more than the cause can be). The best is
+//!    range is not significant (the residual asks for more than the cause can be), nor is one
+//!    that leaves most of a misfit above the noise floor in place (it removed a part of another
+//!    effect's). The best is
 //!    named only when every other significant candidate's extended model is at least
 //!    `bic_threshold` above it (VIF-deflated); otherwise the verdict is `inconclusive` with the
 //!    competitors. A named cause carries its posterior probability and a grade ([`Grade`]).
