@@ -10,7 +10,9 @@
 //! `VERBOSE`) each stage's first failure messages, `REUSE_FITS` re-uses the calibrated units of
 //! an earlier run (`out/practice/<case>.toml`), `NO_REFIT` diagnoses without re-fitting the
 //! calibrated set, `CAUSES=a,b` tries those causes of the catalog only (for experiments: the
-//! verdict then weighs fewer rivals).
+//! verdict then weighs fewer rivals), `FIT_SEED=n` runs the fits' swarms with seed `n` instead
+//! of the spec's (another calibration of the same record: how much does a verdict depend on
+//! where the fit landed?).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -79,7 +81,10 @@ fn main() {
             );
             continue;
         }
-        let spec = practice_spec(&case.unit).unwrap_or_else(|e| panic!("{e}"));
+        let mut spec = practice_spec(&case.unit).unwrap_or_else(|e| panic!("{e}"));
+        if let Some(seed) = std::env::var("FIT_SEED").ok().and_then(|s| s.parse().ok()) {
+            spec.seed = seed;
+        }
         let opts = FitOptions::from_spec(&spec);
         let t0 = Instant::now();
         // REUSE_FITS=1 takes the calibrated unit of an earlier run (out/practice/<case>.toml;
