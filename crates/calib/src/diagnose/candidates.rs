@@ -529,16 +529,15 @@ fn with_calibrated_set(mut ext: Extension, opts: &DiagnoseOptions) -> Extension 
 /// (A datasheet start for every cause was measured on the practice set: it let a deadband
 /// un-bend a clean record's calibration, a false alarm.)
 ///
-/// Why a limit gets both starts: from the datasheet values its parameters have a gradient to
-/// follow where a calibration that mimicked it bent the unit so far that it never reaches the
-/// limit; but the datasheet start alone is one start of a multimodal search, and on a less
-/// converged calibration (`data/practice/swarm50/p13.toml`) it ended in a corner (AVR gain and
-/// the limiter's I²t capacity on their lower bounds, 2.6 % of χ²) where the calibrated start
-/// found the OEL (80 %). A cause's gain must not depend on which one start its search was given.
-/// When the calibrated start wins, a third (a polish: the limit where the calibrated start put
-/// it, the rest of the unit at its datasheet values) is kept if it fits better still: the
-/// calibrated start reads the limit's settings against the bent unit (p13's OEL pickup 2.98 pu
-/// for 1.88 from there, 1.83 after the third; χ² 58 343 -> 19 712).
+/// Why a limit gets more than one start: its re-fit is a search over a multimodal objective
+/// (a limiter that acts too early, too late or never gives separate valleys), and a gain that
+/// depends on which single start the search was given measures the search, not the cause. The
+/// datasheet start gives the limit a gradient where a calibration that mimicked it bent the unit
+/// so far that it never reaches it; the calibrated start is where the rest of the unit fits the
+/// record. When the calibrated start wins, its limit settings are read against the bent unit (an
+/// OEL's current against a field current that a bent X_d raised), so a third start, the limit
+/// where it ended and the rest at the datasheet, polished, is kept if it fits better: the same
+/// posterior (χ² with the priors) decides among all three.
 fn fit_extension(
     env: &RefitEnv,
     ext: &Extension,
@@ -565,17 +564,15 @@ fn fit_extension(
             .collect();
         let second = label.then("from the calibrated values");
         match refit(&env.with(&deep), &ext.unit, &datasheet, &ext.ties, label) {
-            Ok(r) => match from_calibrated(&second) {
-                Ok(r2) if r2.chi2_fit < r.chi2_fit => {
-                    // The calibrated start found the limit, but with the unit as bent as the
-                    // calibration left it, and the limit's settings read against that unit
-                    // (an OEL's current against a field current the bent X_d raised): the
-                    // limit from there with the rest of the unit back at its datasheet values,
-                    // polished, is kept when it fits better.
+            Ok(r) => {
+                let r2 = from_calibrated(&second);
+                let calibrated_won = matches!(&r2, Ok(r2) if r2.chi2_fit < r.chi2_fit);
+                let r = r.best_of(r2);
+                if calibrated_won {
                     let third: Vec<FreeBound> = ext
                         .extension_free
                         .iter()
-                        .map(|b| b.starting_in(&r2.unit))
+                        .map(|b| b.starting_in(&r.unit))
                         .chain(datasheet[ext.extension_free.len()..].iter().cloned())
                         .collect();
                     let polish = DiagnoseOptions {
@@ -584,30 +581,17 @@ fn fit_extension(
                     };
                     let third_label = label
                         .then("the limit from the calibrated start, the rest from the datasheet");
-                    let r = r.replaced_by(r2);
-                    match refit(
+                    r.best_of(refit(
                         &env.with(&polish),
                         &ext.unit,
                         &third,
                         &ext.ties,
                         &third_label,
-                    ) {
-                        Ok(r3) if r3.chi2_fit < r.chi2_fit => r.replaced_by(r3),
-                        Ok(r3) => {
-                            let mut r = r;
-                            r.simulations += r3.simulations;
-                            r
-                        }
-                        Err(_) => r,
-                    }
-                }
-                Ok(r2) => {
-                    let mut r = r;
-                    r.simulations += r2.simulations;
+                    ))
+                } else {
                     r
                 }
-                Err(_) => r,
-            },
+            }
             // The datasheet values together with the calibrated ones may break a physical
             // relation (a datasheet X_d below a calibrated X'_d held by its own bounds): then
             // from the calibrated values alone.
@@ -639,19 +623,13 @@ fn fit_extension(
                     .map(|b| b.starting_in(&baseline.unit)),
             )
             .collect();
-        if let Ok(r2) = refit(
+        r = r.best_of(refit(
             &env,
             &ext.unit,
             &from_base,
             &ext.ties,
             &label.then("from the baseline"),
-        ) {
-            if r2.chi2_fit < r.chi2_fit {
-                r = r.replaced_by(r2);
-            } else {
-                r.simulations += r2.simulations;
-            }
-        }
+        ));
     }
     Ok(r)
 }

@@ -90,6 +90,19 @@ impl Refit {
         }
     }
 
+    /// The better (lower fitted χ²) of this re-fit and `other` when `other` ran, with both
+    /// re-fits' simulations counted; this one when `other` failed.
+    pub(super) fn best_of(mut self, other: Result<Refit, String>) -> Refit {
+        match other {
+            Ok(o) if o.chi2_fit < self.chi2_fit => self.replaced_by(o),
+            Ok(o) => {
+                self.simulations += o.simulations;
+                self
+            }
+            Err(_) => self,
+        }
+    }
+
     pub(super) fn clone_scores(&self) -> Scores {
         Scores {
             chi2_fit: self.chi2_fit,

@@ -433,14 +433,10 @@ pub(super) fn grade(probability: f64, g: &Gains, opts: &DiagnoseOptions) -> Grad
 /// the noise than it left (`χ²_base − χ²_ext < χ²_ext − N`). A cause is named as *the* cause of
 /// a misfit; one that removes a minority of it while most stays has fitted a part of another
 /// effect's (an effect outside the catalog, or a catalog cause whose own re-fit failed to find
-/// it), and naming it would send an engineer after the smaller part. The floor gate keeps the
-/// rule off residuals at the noise level, where `N` as the noise's χ² is only as exact as the
-/// pre-event σ (on the practice sets the extended residuals of the right causes range 0.7-1.3
-/// × N there). On both practice sets (default fit) every named cause passes it: the three right
-/// causes whose residual stays above the floor (two OELs, a skew) take 76-99 % of the excess;
-/// the rule turns away only rivals there, and on a less converged fit
-/// (`data/practice/swarm50/p13.toml`) the governor, which took 8 % of an OEL's misfit of
-/// 143 × N.
+/// it), and naming it would send an engineer after the smaller part. "Most" is the majority
+/// of the excess over the noise's χ². The floor gate keeps the rule off residuals at the noise
+/// level, where `N` as the noise's χ² is only as exact as the pre-event σ; above the floor the
+/// excess is far larger than that uncertainty.
 pub(super) fn explains_too_little(g: &Gains, noise_factor: f64) -> Option<String> {
     let n = g.n_fit.max(1) as f64;
     let (base, ext) = (g.chi2_fit_base, g.chi2_fit_ext);
@@ -638,10 +634,11 @@ mod tests {
             g
         };
         // N = 1000: the noise's χ²; the floor at noise_factor 1.5 is 2250.
-        // 143 N -> 131 N: 8 % of the excess taken, 130 N left (the governor on swarm50/p13).
+        // 143 N -> 131 N: 8 % of the excess taken, 130 N left.
         let why = explains_too_little(&with(143_000.0, 131_000.0), 1.5).expect("too little");
         assert!(why.contains("8 % of the misfit above the noise"), "{why}");
-        // 97 N -> 12.4 N: 88 % taken (an OEL whose model differs from the recording's).
+        // 97 N -> 12.4 N: 88 % taken, the rest above the floor (a cause whose model differs a
+        // little from the recording's).
         assert!(explains_too_little(&with(97_000.0, 12_400.0), 1.5).is_none());
         // Exactly half of the excess taken and half left: named (the majority is not less).
         assert!(explains_too_little(&with(9_000.0, 5_000.0), 1.5).is_none());

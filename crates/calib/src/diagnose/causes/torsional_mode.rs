@@ -129,12 +129,11 @@ impl Cause for TorsionalMode {
     }
 
     /// A mode fitted at the lower edge of the torsional band is pressed against the slowest a
-    /// shaft mode can be: the residual asks for a slower effect, in the electromechanical band
-    /// (the swing, the governor: a deadband's steps, a slow filter), which a heavily or lightly
-    /// damped "shaft" at 2 Hz only mimics. "At the edge" as for any bound: within 0.1 % of the
-    /// band's width ([`crate::problem::FreeParam::at_bound`]). The practice cases with a hidden
-    /// shaft mode fit it between 5 and 12 Hz; the mode pressed at 2 Hz appeared on a governor
-    /// deadband's record once its calibration converged less (`data/practice/swarm50/p09.toml`).
+    /// shaft mode can be (`models.md` §12.1: hydro torsional modes lie above the 0.2-2 Hz
+    /// electromechanical band): the residual asks for a slower effect, in the electromechanical
+    /// band (the swing, the governor: a deadband's steps, a slow filter), which a "shaft" at the
+    /// band's edge only mimics. "At the edge" as for any bound: within 0.1 % of the band's width
+    /// ([`crate::problem::FreeParam::at_bound`]).
     fn unphysical(&self, fitted: &[(String, f64)], ctx: &Context) -> Option<String> {
         let f = fitted.iter().find(|(p, _)| p == "shaft.f_torsion_hz")?.1;
         let (f_lo, f_hi) = torsional_band(ctx);
