@@ -522,7 +522,7 @@ fn with_calibrated_set(mut ext: Extension, opts: &DiagnoseOptions) -> Extension 
 }
 
 /// The extension's re-fit. It starts from the calibrated values (the extension may need the
-/// interacting parameters back where the calibration found them), or for a limit
+/// interacting parameters back where the calibration found them), or for a limit or a skew
 /// ([`Extension::from_datasheet`]) from the datasheet values and from the calibrated ones, the
 /// better kept; when it ends worse than the baseline, it is polished again from where the
 /// baseline ended, so that with the extension at its neutral start it is at least the baseline.
@@ -537,7 +537,8 @@ fn with_calibrated_set(mut ext: Extension, opts: &DiagnoseOptions) -> Extension 
 /// record. When the calibrated start wins, its limit settings are read against the bent unit (an
 /// OEL's current against a field current that a bent X_d raised), so a third start, the limit
 /// where it ended and the rest at the datasheet, polished, is kept if it fits better: the same
-/// posterior (χ² with the priors) decides among all three.
+/// posterior (χ² with the priors) decides among all three. A skew's delay gets the same starts:
+/// from the calibrated unit, bent to lag like the skew, its re-fit stops at a fraction of it.
 fn fit_extension(
     env: &RefitEnv,
     ext: &Extension,
@@ -579,8 +580,9 @@ fn fit_extension(
                         pso_iterations: 0,
                         ..env.opts.clone()
                     };
-                    let third_label = label
-                        .then("the limit from the calibrated start, the rest from the datasheet");
+                    let third_label = label.then(
+                        "the extension from the calibrated start, the rest from the datasheet",
+                    );
                     r.best_of(refit(
                         &env.with(&polish),
                         &ext.unit,

@@ -348,9 +348,13 @@ pub struct Extension {
     /// Multiplier of the swarm's iterations for this candidate (a structural change that moves
     /// many interacting parameters at once needs a longer search).
     pub search_factor: usize,
-    /// The re-fit starts every parameter with a prior at its datasheet value instead of its
-    /// calibrated one (limits: a calibration that mimicked a limit bent the unit so that it
-    /// never reaches the limit, and there the limit's parameters have no gradient to follow).
+    /// The re-fit also starts every parameter with a prior at its datasheet value, not only at
+    /// its calibrated one, the better kept ([`super::candidates`]'s `fit_extension`). Limits: a
+    /// calibration that mimicked a limit bent the unit so that it never reaches the limit, and
+    /// there the limit's parameters have no gradient to follow. A measurement skew: the delay
+    /// belongs to the PMU, not to the unit, and a calibration that mimicked it bent the unit's
+    /// fast dynamics to lag; from the bent unit the delay's re-fit stops in the nearest valley,
+    /// at a fraction of the skew, with the bent values still paying their prior.
     pub from_datasheet: bool,
 }
 

@@ -57,6 +57,7 @@ impl Cause for MeasurementSkew {
             fb("measurement.pq_delay_s", 0.0, 3.0 / rate, 0.5 / rate)?,
             13,
         )];
+        x.from_datasheet = true;
         Ok(())
     }
 
