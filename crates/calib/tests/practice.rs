@@ -209,10 +209,6 @@ fn a_clean_record_of_the_second_set_is_diagnosed_none() {
 
 /// The diagnosis of a calibrated unit bundled in `data/practice/swarm50/` (the default fit of
 /// the case with its swarms halved: it converged less), as the practice runner diagnoses it.
-fn diagnose_less_converged(name: &str) -> (itaipu_calib::diagnose::DiagnoseResult, AnswerKey) {
-    diagnose_bundled_unit("swarm50", name)
-}
-
 /// The diagnosis, as the practice runner makes it, of the calibrated unit `folder/name.toml`
 /// (bundled) on the case's record; with the case's answer key, for scoring only.
 fn diagnose_bundled_unit(
@@ -243,29 +239,15 @@ fn diagnose_bundled_unit(
 /// test; a governor deadband may be missed (`none`) but never given another cause's name.
 #[test]
 fn a_less_converged_calibration_names_no_wrong_cause() {
-    let (d, key) = diagnose_less_converged("p13");
+    let (d, key) = diagnose_bundled_unit("swarm50", "p13");
     let report = &d.report;
     assert_eq!(key.cause, "oel");
-    assert_eq!(
-        report.verdict.cause, key.cause,
-        "{}",
-        report.verdict.statement
-    );
+    // Named, with the OEL's pickup read in the extended unit within the key's 5 %.
+    assert_named_with_its_key("p13", &d, &key);
     let governor = candidate(report, "governor");
     assert!(!governor.significant, "{}", governor.note);
-    // The OEL's pickup read in the extended unit, scored against the key (5 %).
-    let scored = itaipu_calib::practice::score(
-        "p13",
-        &key,
-        &d.extended_unit.clone().unwrap(),
-        0.0,
-        0.0,
-        Some((&report.verdict.cause, d.extended_unit.as_ref(), 0.0)),
-    );
-    let (what, truth, found, within) = scored.key.unwrap();
-    assert!(within, "{what}: {found:?} for {truth}");
 
-    let (d, key) = diagnose_less_converged("p09");
+    let (d, key) = diagnose_bundled_unit("swarm50", "p09");
     let report = &d.report;
     assert_eq!(key.cause, "governor");
     assert!(
@@ -284,23 +266,33 @@ fn a_less_converged_calibration_names_no_wrong_cause() {
 #[test]
 fn a_skew_the_calibration_absorbed_is_read_at_its_whole_delay() {
     let (d, key) = diagnose_bundled_unit("default_fit", "q05");
-    let report = &d.report;
     assert_eq!(key.cause, "measurement_skew");
+    assert_named_with_its_key("q05", &d, &key);
+}
+
+/// The diagnosis names the key's cause, and its key parameter, read in the extended unit, is
+/// within the key's tolerance (the practice runner's scoring).
+fn assert_named_with_its_key(
+    case: &str,
+    d: &itaipu_calib::diagnose::DiagnoseResult,
+    key: &AnswerKey,
+) {
+    let report = &d.report;
     assert_eq!(
         report.verdict.cause, key.cause,
         "{}",
         report.verdict.statement
     );
     let scored = itaipu_calib::practice::score(
-        "q05",
-        &key,
-        &d.extended_unit.clone().unwrap(),
+        case,
+        key,
+        d.extended_unit.as_ref().unwrap(),
         0.0,
         0.0,
         Some((&report.verdict.cause, d.extended_unit.as_ref(), 0.0)),
     );
     let (what, truth, found, within) = scored.key.unwrap();
-    assert!(within, "{what}: {found:?} for {truth}");
+    assert!(within, "{case}: {what}: {found:?} for {truth}");
 }
 
 /// The report of the cause `id` among a diagnosis' candidates.
