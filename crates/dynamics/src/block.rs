@@ -16,6 +16,7 @@
 //! references. [`PortInit`] says, per port, which side of that exchange the block is on.
 
 use crate::params::ParamSet;
+use crate::sens::D;
 
 /// Direction of a port at run time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -100,24 +101,25 @@ impl Port {
     }
 }
 
-/// A block's view of the bus: port `i` reads or writes signal `map[i]`.
-pub struct Io<'a> {
-    bus: &'a mut [f64],
+/// A block's view of the bus: port `i` reads or writes signal `map[i]`. The bus holds `f64`
+/// in a simulation and [`D`] in a sensitivity pass ([`Block::outputs_dual`]).
+pub struct Io<'a, S = f64> {
+    bus: &'a mut [S],
     map: &'a [usize],
 }
 
-impl<'a> Io<'a> {
-    pub fn new(bus: &'a mut [f64], map: &'a [usize]) -> Self {
+impl<'a, S: Copy> Io<'a, S> {
+    pub fn new(bus: &'a mut [S], map: &'a [usize]) -> Self {
         Self { bus, map }
     }
     /// Value on port `port`.
     #[inline(always)]
-    pub fn get(&self, port: usize) -> f64 {
+    pub fn get(&self, port: usize) -> S {
         self.bus[self.map[port]]
     }
     /// Writes port `port`.
     #[inline(always)]
-    pub fn set(&mut self, port: usize, value: f64) {
+    pub fn set(&mut self, port: usize, value: S) {
         self.bus[self.map[port]] = value;
     }
 }
@@ -192,6 +194,29 @@ pub trait Block: Send + Sync {
     fn update_modes(&mut self, _x: &mut [f64], _io: &Io) -> bool {
         false
     }
+
+    /// Constants [`Block::init`] computed from the operating point and the parameters that the
+    /// equations then hold fixed (an internal reference, GENCLS's E'). A sensitivity pass
+    /// differentiates them with the initial state and gives them back to
+    /// [`Block::seed_dual`]. Default: none.
+    fn init_constants(&self) -> Vec<f64> {
+        Vec::new()
+    }
+
+    /// Forward sensitivities: prepares the dual equations with respect to this block's
+    /// parameters after [`Block::init`]: `lanes[i]` is the tangent lane of parameter `i` (spec
+    /// order; `None`: held), `consts` the [`Block::init_constants`] with their derivatives.
+    /// `false` when the block has no dual equations: the caller then falls back to
+    /// differences.
+    fn seed_dual(&mut self, _lanes: &[Option<usize>], _consts: &[D]) -> bool {
+        false
+    }
+
+    /// [`Block::outputs`] on dual numbers (after [`Block::seed_dual`] returned `true`).
+    fn outputs_dual(&self, _t: f64, _x: &[D], _io: &mut Io<D>) {}
+
+    /// [`Block::derivatives`] on dual numbers (after [`Block::seed_dual`] returned `true`).
+    fn derivatives_dual(&self, _t: f64, _x: &[D], _io: &Io<D>, _dx: &mut [D]) {}
 
     /// Post-processes the recorded terminal P and Q series (sample times `t`) as a measuring
     /// device would before they are compared with the recording (PMU skew, phase and ratio

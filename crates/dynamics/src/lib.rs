@@ -31,6 +31,7 @@ pub mod plausibility;
 pub mod pmu_import;
 pub mod registry;
 pub mod rng;
+pub mod sens;
 pub mod simulate;
 pub mod synthetic;
 pub mod unit;

@@ -58,7 +58,7 @@ pub trait ParamSet {
     }
 }
 
-/// Declares a parameter struct with `f64` fields and its [`ParamSpec`] table.
+/// Declares a parameter struct (`f64` fields by default) and its [`ParamSpec`] table.
 ///
 /// ```text
 /// param_set! {
@@ -77,9 +77,13 @@ macro_rules! param_set {
         }
     ) => {
         $(#[$meta])*
+        ///
+        /// Generic over the number type ([`Scalar`]($crate::sens::Scalar)): `f64` for the
+        /// simulation; a [`Dual`]($crate::sens::Dual) copy ([`Self::lift`]) carries the
+        /// derivatives of forward sensitivities.
         #[derive(Debug, Clone, PartialEq)]
-        pub struct $name {
-            $( #[doc = concat!($doc, " [", $unit, "] (PSS/E `", $alias, "`)")] pub $field: f64, )*
+        pub struct $name<S = f64> {
+            $( #[doc = concat!($doc, " [", $unit, "] (PSS/E `", $alias, "`)")] pub $field: S, )*
         }
 
         impl $name {
@@ -90,6 +94,15 @@ macro_rules! param_set {
                     typical: $typical, range: ($lo, $hi),
                 } ),*
             ];
+
+            /// The same values on the number type `S`, parameter `i` (spec order) as
+            /// `seed(i, value)`: a [`Dual`]($crate::sens::Dual) seeded on the parameters whose
+            /// sensitivities are wanted, a constant for the others.
+            #[allow(unused_assignments, unused_mut, unused_variables)]
+            pub fn lift<S: $crate::sens::Scalar>(&self, seed: impl Fn(usize, f64) -> S) -> $name<S> {
+                let mut k = 0usize;
+                $name { $( $field: { let v = seed(k, self.$field); k += 1; v }, )* }
+            }
         }
 
         impl Default for $name {

@@ -682,6 +682,71 @@ impl Unit {
     }
 }
 
+/// Forward sensitivities ([`crate::sens`]): the same right-hand side on dual numbers.
+impl Unit {
+    /// The bus indices of `v_term` and `theta_term`.
+    pub(crate) fn terminal_signals(&self) -> (usize, usize) {
+        (self.sig_v, self.sig_theta)
+    }
+
+    /// Every block's [`Block::init_constants`], in instance order (after an initialisation).
+    pub(crate) fn init_constants(&self) -> Vec<Vec<f64>> {
+        self.instances
+            .iter()
+            .map(|i| i.block.init_constants())
+            .collect()
+    }
+
+    /// Seeds every block's dual equations: `lanes[b][i]` is the tangent lane of parameter `i`
+    /// of block `b`, `consts[b]` its initialisation constants with their derivatives. `Err`
+    /// names the first block without dual equations.
+    pub(crate) fn seed_dual(
+        &mut self,
+        lanes: &[Vec<Option<usize>>],
+        consts: &[Vec<crate::sens::D>],
+    ) -> Result<(), String> {
+        for (b, inst) in self.instances.iter_mut().enumerate() {
+            if !inst.block.seed_dual(&lanes[b], &consts[b]) {
+                return Err(format!("{} ({})", inst.name, inst.block.model()));
+            }
+        }
+        Ok(())
+    }
+
+    /// [`Unit::eval_outputs`] on dual numbers, on the dual bus `bus`.
+    #[inline]
+    pub(crate) fn eval_outputs_dual(
+        &self,
+        t: f64,
+        x: &[crate::sens::D],
+        bus: &mut [crate::sens::D],
+    ) {
+        for &b in &self.eval_order {
+            let inst = &self.instances[b];
+            let (o, n) = (inst.x_offset, inst.x_len);
+            let mut io = Io::new(bus, &inst.map);
+            inst.block.outputs_dual(t, &x[o..o + n], &mut io);
+        }
+    }
+
+    /// [`Unit::eval_derivatives`] on dual numbers (after [`Unit::eval_outputs_dual`]).
+    #[inline]
+    pub(crate) fn eval_derivatives_dual(
+        &self,
+        t: f64,
+        x: &[crate::sens::D],
+        bus: &mut [crate::sens::D],
+        dx: &mut [crate::sens::D],
+    ) {
+        for inst in &self.instances {
+            let (o, n) = (inst.x_offset, inst.x_len);
+            let io = Io::new(bus, &inst.map);
+            inst.block
+                .derivatives_dual(t, &x[o..o + n], &io, &mut dx[o..o + n]);
+        }
+    }
+}
+
 /// Kahn's algorithm; on a cycle returns the blocks left over.
 fn topo_order(deps: &[Vec<usize>]) -> Result<Vec<usize>, Vec<usize>> {
     let n = deps.len();

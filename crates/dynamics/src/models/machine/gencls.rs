@@ -7,10 +7,11 @@
 //! departure: OpenIPSL's form is only consistent when the machine base equals the system base).
 //! GENCLS has no field winding: an exciter cannot be attached (the unit rejects it).
 
-use super::{Electrical, ElectricalInit, Field, Phasor, Stator, StatorImpedance};
+use super::{Electrical, ElectricalEq, ElectricalInit, Field, Phasor, Stator, StatorImpedance};
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
+use crate::sens::{seeded, Scalar, D};
 
 param_set! {
     /// GENCLS parameters (machine base).
@@ -22,13 +23,30 @@ param_set! {
     }
 }
 
-/// GENCLS electrical model.
-#[derive(Debug, Clone, Default)]
-pub struct Gencls {
-    pub p: GenclsParams,
+/// GENCLS electrical model (on `f64`; on [`D`] for forward sensitivities).
+#[derive(Debug, Clone)]
+pub struct Gencls<S = f64> {
+    pub p: GenclsParams<S>,
     /// Internal voltage E' [pu], set at initialisation.
-    e_prime: f64,
-    z: StatorImpedance,
+    e_prime: S,
+    z: StatorImpedance<S>,
+}
+
+impl<S: Scalar> ElectricalEq<S> for Gencls<S> {
+    fn inertia_damping(&self) -> (S, S) {
+        (self.p.h, self.p.d)
+    }
+    #[inline(always)]
+    fn stator(&self, _x: &[S], vd: S, vq: S) -> Stator<S> {
+        Stator::solve(S::cst(0.0), self.e_prime, vd, vq, &self.z)
+    }
+    fn field(&self, _x: &[S], _st: &Stator<S>) -> Field<S> {
+        Field {
+            xadifd: self.e_prime,
+            sat: S::cst(0.0),
+        }
+    }
+    fn derivatives(&self, _x: &[S], _efd: S, _field: Field<S>, _st: &Stator<S>, _dx: &mut [S]) {}
 }
 
 impl Gencls {
@@ -44,15 +62,13 @@ impl Gencls {
 impl Electrical for Gencls {
     const MODEL: &'static str = "GENCLS";
     const STATE_NAMES: &'static [&'static str] = &["delta", "speed"];
+    type Lifted = Gencls<D>;
 
     fn params(&self) -> &dyn ParamSet {
         &self.p
     }
     fn params_mut(&mut self) -> &mut dyn ParamSet {
         &mut self.p
-    }
-    fn inertia_damping(&self) -> (f64, f64) {
-        (self.p.h, self.p.d)
     }
     fn armature_resistance(&self) -> f64 {
         self.p.r_a
@@ -63,6 +79,17 @@ impl Electrical for Gencls {
     fn prepare(&mut self) -> Result<(), ModelError> {
         self.z = StatorImpedance::new(self.p.r_a, self.p.x_d_prime, self.p.x_d_prime);
         Ok(())
+    }
+    fn init_constants(&self) -> Vec<f64> {
+        vec![self.e_prime]
+    }
+    fn lift(&self, lanes: &[Option<usize>], consts: &[D]) -> Option<Gencls<D>> {
+        let p = self
+            .p
+            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let z = StatorImpedance::new(p.r_a, p.x_d_prime, p.x_d_prime);
+        let e_prime = consts.first().copied().unwrap_or(D::cst(self.e_prime));
+        Some(Gencls { p, e_prime, z })
     }
     fn init_electrical(
         &mut self,
@@ -77,15 +104,10 @@ impl Electrical for Gencls {
             efd: self.e_prime,
         })
     }
-    #[inline(always)]
-    fn stator(&self, _x: &[f64], vd: f64, vq: f64) -> Stator {
-        Stator::solve(0.0, self.e_prime, vd, vq, &self.z)
+}
+
+impl Default for Gencls {
+    fn default() -> Self {
+        Self::new(Default::default())
     }
-    fn field(&self, _x: &[f64], _st: &Stator) -> Field {
-        Field {
-            xadifd: self.e_prime,
-            sat: 0.0,
-        }
-    }
-    fn derivatives(&self, _x: &[f64], _efd: f64, _field: Field, _st: &Stator, _dx: &mut [f64]) {}
 }

@@ -19,11 +19,13 @@
 
 use super::saturation::QuadraticSaturation;
 use super::{
-    check_d_axis, norm2, DAxis, Electrical, ElectricalInit, Field, Phasor, Stator, StatorImpedance,
+    check_d_axis, norm2, DAxis, Electrical, ElectricalEq, ElectricalInit, Field, Phasor, Stator,
+    StatorImpedance,
 };
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
+use crate::sens::{seeded, Scalar, D};
 
 param_set! {
     /// GENROU parameters (machine base).
@@ -47,21 +49,36 @@ param_set! {
 }
 
 #[derive(Debug, Clone, Copy, Default)]
-struct Consts {
-    z: StatorImpedance,
-    d: DAxis,
-    k1q: f64,
-    k3q: f64,
-    k4q: f64,
-    gamma: f64,
-    sat: QuadraticSaturation,
+struct Consts<S = f64> {
+    z: StatorImpedance<S>,
+    d: DAxis<S>,
+    k1q: S,
+    k3q: S,
+    k4q: S,
+    gamma: S,
+    sat: QuadraticSaturation<S>,
 }
 
-/// GENROU electrical model.
-#[derive(Debug, Clone, Default)]
-pub struct Genrou {
-    pub p: GenrouParams,
-    k: Consts,
+impl<S: Scalar> Consts<S> {
+    fn of(p: &GenrouParams<S>) -> Result<Self, ModelError> {
+        let xql = p.x_q_prime - p.x_l;
+        Ok(Self {
+            z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_d_pp),
+            d: DAxis::new(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l),
+            k1q: (p.x_q_prime - p.x_d_pp) * (p.x_q - p.x_q_prime) / (xql * xql),
+            k3q: (p.x_d_pp - p.x_l) / xql,
+            k4q: (p.x_q_prime - p.x_d_pp) / xql,
+            gamma: (p.x_q - p.x_l) / (p.x_d - p.x_l),
+            sat: QuadraticSaturation::new(p.s10, p.s12)?,
+        })
+    }
+}
+
+/// GENROU electrical model (on `f64`; on [`D`] for forward sensitivities).
+#[derive(Debug, Clone)]
+pub struct Genrou<S = f64> {
+    pub p: GenrouParams<S>,
+    k: Consts<S>,
 }
 
 impl Genrou {
@@ -71,15 +88,57 @@ impl Genrou {
             k: Consts::default(),
         }
     }
+}
+
+impl<S: Scalar> Genrou<S> {
     #[inline(always)]
-    fn subtransient(&self, x: &[f64]) -> (f64, f64) {
+    fn subtransient(&self, x: &[S]) -> (S, S) {
         let k = &self.k;
         (k.k3q * x[1] + k.k4q * x[3], k.d.k3d * x[0] + k.d.k4d * x[2])
     }
 }
 
+impl<S: Scalar> ElectricalEq<S> for Genrou<S> {
+    fn inertia_damping(&self) -> (S, S) {
+        (self.p.h, self.p.d)
+    }
+
+    #[inline(always)]
+    fn stator(&self, x: &[S], vd: S, vq: S) -> Stator<S> {
+        let (e_d_pp, e_q_pp) = self.subtransient(x);
+        Stator::solve(e_d_pp, e_q_pp, vd, vq, &self.k.z)
+    }
+
+    #[inline(always)]
+    fn field(&self, x: &[S], st: &Stator<S>) -> Field<S> {
+        let (p, k) = (&self.p, &self.k);
+        let (e_d_pp, e_q_pp) = self.subtransient(x);
+        let se = k.sat.eval(norm2(e_q_pp, e_d_pp));
+        let xadifd = x[0]
+            + k.d.k1d * (x[0] - x[2] - (p.x_d_prime - p.x_l) * st.id)
+            + (p.x_d - p.x_d_prime) * st.id
+            + se * e_q_pp;
+        Field { xadifd, sat: se }
+    }
+
+    #[inline(always)]
+    fn derivatives(&self, x: &[S], efd: S, field: Field<S>, st: &Stator<S>, dx: &mut [S]) {
+        let (p, k) = (&self.p, &self.k);
+        let (e_d_pp, _) = self.subtransient(x);
+        let (xadifd, se) = (field.xadifd, field.sat);
+        let xaqi1q = x[1] + k.k1q * (x[1] - x[3] + (p.x_q_prime - p.x_l) * st.iq)
+            - (p.x_q - p.x_q_prime) * st.iq
+            + k.gamma * se * e_d_pp;
+        dx[0] = (efd - xadifd) / p.t_d0_prime;
+        dx[1] = -xaqi1q / p.t_q0_prime;
+        dx[2] = (x[0] - x[2] - (p.x_d_prime - p.x_l) * st.id) / p.t_d0_pp;
+        dx[3] = (x[1] - x[3] + (p.x_q_prime - p.x_l) * st.iq) / p.t_q0_pp;
+    }
+}
+
 impl Electrical for Genrou {
     const MODEL: &'static str = "GENROU";
+    type Lifted = Genrou<D>;
     const STATE_NAMES: &'static [&'static str] = &[
         "delta",
         "speed",
@@ -94,9 +153,6 @@ impl Electrical for Genrou {
     }
     fn params_mut(&mut self) -> &mut dyn ParamSet {
         &mut self.p
-    }
-    fn inertia_damping(&self) -> (f64, f64) {
-        (self.p.h, self.p.d)
     }
     fn armature_resistance(&self) -> f64 {
         self.p.r_a
@@ -117,18 +173,16 @@ impl Electrical for Genrou {
     }
 
     fn prepare(&mut self) -> Result<(), ModelError> {
-        let p = &self.p;
-        let xql = p.x_q_prime - p.x_l;
-        self.k = Consts {
-            z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_d_pp),
-            d: DAxis::new(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l),
-            k1q: (p.x_q_prime - p.x_d_pp) * (p.x_q - p.x_q_prime) / (xql * xql),
-            k3q: (p.x_d_pp - p.x_l) / xql,
-            k4q: (p.x_q_prime - p.x_d_pp) / xql,
-            gamma: (p.x_q - p.x_l) / (p.x_d - p.x_l),
-            sat: QuadraticSaturation::new(p.s10, p.s12)?,
-        };
+        self.k = Consts::of(&self.p)?;
         Ok(())
+    }
+
+    fn lift(&self, lanes: &[Option<usize>], _consts: &[D]) -> Option<Genrou<D>> {
+        let p = self
+            .p
+            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let k = Consts::of(&p).ok()?;
+        Some(Genrou { p, k })
     }
 
     fn init_electrical(
@@ -163,36 +217,10 @@ impl Electrical for Genrou {
         let efd = (1.0 + se0) * e_q_pp + (p.x_d - xpp) * id;
         Ok(ElectricalInit { delta, efd })
     }
+}
 
-    #[inline(always)]
-    fn stator(&self, x: &[f64], vd: f64, vq: f64) -> Stator {
-        let (e_d_pp, e_q_pp) = self.subtransient(x);
-        Stator::solve(e_d_pp, e_q_pp, vd, vq, &self.k.z)
-    }
-
-    #[inline(always)]
-    fn field(&self, x: &[f64], st: &Stator) -> Field {
-        let (p, k) = (&self.p, &self.k);
-        let (e_d_pp, e_q_pp) = self.subtransient(x);
-        let se = k.sat.eval(norm2(e_q_pp, e_d_pp));
-        let xadifd = x[0]
-            + k.d.k1d * (x[0] - x[2] - (p.x_d_prime - p.x_l) * st.id)
-            + (p.x_d - p.x_d_prime) * st.id
-            + se * e_q_pp;
-        Field { xadifd, sat: se }
-    }
-
-    #[inline(always)]
-    fn derivatives(&self, x: &[f64], efd: f64, field: Field, st: &Stator, dx: &mut [f64]) {
-        let (p, k) = (&self.p, &self.k);
-        let (e_d_pp, _) = self.subtransient(x);
-        let (xadifd, se) = (field.xadifd, field.sat);
-        let xaqi1q = x[1] + k.k1q * (x[1] - x[3] + (p.x_q_prime - p.x_l) * st.iq)
-            - (p.x_q - p.x_q_prime) * st.iq
-            + k.gamma * se * e_d_pp;
-        dx[0] = (efd - xadifd) / p.t_d0_prime;
-        dx[1] = -xaqi1q / p.t_q0_prime;
-        dx[2] = (x[0] - x[2] - (p.x_d_prime - p.x_l) * st.id) / p.t_d0_pp;
-        dx[3] = (x[1] - x[3] + (p.x_q_prime - p.x_l) * st.iq) / p.t_q0_pp;
+impl Default for Genrou {
+    fn default() -> Self {
+        Self::new(Default::default())
     }
 }

@@ -27,11 +27,13 @@
 
 use super::saturation::QuadraticSaturation;
 use super::{
-    check_d_axis, DAxis, Electrical, ElectricalInit, Field, Phasor, Stator, StatorImpedance,
+    check_d_axis, DAxis, Electrical, ElectricalEq, ElectricalInit, Field, Phasor, Stator,
+    StatorImpedance,
 };
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
+use crate::sens::{seeded, Scalar, D};
 
 param_set! {
     /// GENSAL parameters (machine base). Typical values: large hydro unit (`models.md` §4.1).
@@ -54,20 +56,63 @@ param_set! {
 }
 
 #[derive(Debug, Clone, Copy, Default)]
-struct Consts {
-    z: StatorImpedance,
-    inv_t_d0_prime: f64,
-    inv_t_d0_pp: f64,
-    inv_t_q0_pp: f64,
-    d: DAxis,
-    sat: QuadraticSaturation,
+struct Consts<S = f64> {
+    z: StatorImpedance<S>,
+    inv_t_d0_prime: S,
+    inv_t_d0_pp: S,
+    inv_t_q0_pp: S,
+    d: DAxis<S>,
+    sat: QuadraticSaturation<S>,
 }
 
-/// GENSAL electrical model.
-#[derive(Debug, Clone, Default)]
-pub struct Gensal {
-    pub p: GensalParams,
-    k: Consts,
+impl<S: Scalar> Consts<S> {
+    fn of(p: &GensalParams<S>) -> Result<Self, ModelError> {
+        Ok(Self {
+            z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_q_pp),
+            inv_t_d0_prime: p.t_d0_prime.recip(),
+            inv_t_d0_pp: p.t_d0_pp.recip(),
+            inv_t_q0_pp: p.t_q0_pp.recip(),
+            d: DAxis::new(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l),
+            sat: QuadraticSaturation::new(p.s10, p.s12)?,
+        })
+    }
+}
+
+/// GENSAL electrical model (on `f64`; on [`D`] for forward sensitivities).
+#[derive(Debug, Clone)]
+pub struct Gensal<S = f64> {
+    pub p: GensalParams<S>,
+    k: Consts<S>,
+}
+
+impl<S: Scalar> ElectricalEq<S> for Gensal<S> {
+    fn inertia_damping(&self) -> (S, S) {
+        (self.p.h, self.p.d)
+    }
+
+    #[inline(always)]
+    fn stator(&self, x: &[S], vd: S, vq: S) -> Stator<S> {
+        let e_q_pp = self.k.d.k3d * x[0] + self.k.d.k4d * x[1];
+        Stator::solve(x[2], e_q_pp, vd, vq, &self.k.z)
+    }
+
+    #[inline(always)]
+    fn field(&self, x: &[S], st: &Stator<S>) -> Field<S> {
+        let (p, k) = (&self.p, &self.k);
+        let se = k.sat.eval(x[0]);
+        let xadifd = k.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id)
+            + (p.x_d - p.x_d_prime) * st.id
+            + (se + 1.0) * x[0];
+        Field { xadifd, sat: se }
+    }
+
+    #[inline(always)]
+    fn derivatives(&self, x: &[S], efd: S, field: Field<S>, st: &Stator<S>, dx: &mut [S]) {
+        let (p, k) = (&self.p, &self.k);
+        dx[0] = (efd - field.xadifd) * k.inv_t_d0_prime;
+        dx[1] = (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) * k.inv_t_d0_pp;
+        dx[2] = ((p.x_q - p.x_q_pp) * st.iq - x[2]) * k.inv_t_q0_pp;
+    }
 }
 
 impl Gensal {
@@ -83,15 +128,13 @@ impl Electrical for Gensal {
     const MODEL: &'static str = "GENSAL";
     const STATE_NAMES: &'static [&'static str] =
         &["delta", "speed", "e_q_prime", "psi_kd", "e_d_pp"];
+    type Lifted = Gensal<D>;
 
     fn params(&self) -> &dyn ParamSet {
         &self.p
     }
     fn params_mut(&mut self) -> &mut dyn ParamSet {
         &mut self.p
-    }
-    fn inertia_damping(&self) -> (f64, f64) {
-        (self.p.h, self.p.d)
     }
     fn armature_resistance(&self) -> f64 {
         self.p.r_a
@@ -111,16 +154,16 @@ impl Electrical for Gensal {
     }
 
     fn prepare(&mut self) -> Result<(), ModelError> {
-        let p = &self.p;
-        self.k = Consts {
-            z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_q_pp),
-            inv_t_d0_prime: 1.0 / p.t_d0_prime,
-            inv_t_d0_pp: 1.0 / p.t_d0_pp,
-            inv_t_q0_pp: 1.0 / p.t_q0_pp,
-            d: DAxis::new(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l),
-            sat: QuadraticSaturation::new(p.s10, p.s12)?,
-        };
+        self.k = Consts::of(&self.p)?;
         Ok(())
+    }
+
+    fn lift(&self, lanes: &[Option<usize>], _consts: &[D]) -> Option<Gensal<D>> {
+        let p = self
+            .p
+            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let k = Consts::of(&p).ok()?;
+        Some(Gensal { p, k })
     }
 
     fn init_electrical(
@@ -141,28 +184,10 @@ impl Electrical for Gensal {
         let efd = (1.0 + self.k.sat.eval(e_q_p)) * e_q_p + (p.x_d - p.x_d_prime) * id;
         Ok(ElectricalInit { delta, efd })
     }
+}
 
-    #[inline(always)]
-    fn stator(&self, x: &[f64], vd: f64, vq: f64) -> Stator {
-        let e_q_pp = self.k.d.k3d * x[0] + self.k.d.k4d * x[1];
-        Stator::solve(x[2], e_q_pp, vd, vq, &self.k.z)
-    }
-
-    #[inline(always)]
-    fn field(&self, x: &[f64], st: &Stator) -> Field {
-        let (p, k) = (&self.p, &self.k);
-        let se = k.sat.eval(x[0]);
-        let xadifd = k.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id)
-            + (p.x_d - p.x_d_prime) * st.id
-            + (1.0 + se) * x[0];
-        Field { xadifd, sat: se }
-    }
-
-    #[inline(always)]
-    fn derivatives(&self, x: &[f64], efd: f64, field: Field, st: &Stator, dx: &mut [f64]) {
-        let (p, k) = (&self.p, &self.k);
-        dx[0] = (efd - field.xadifd) * k.inv_t_d0_prime;
-        dx[1] = (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) * k.inv_t_d0_pp;
-        dx[2] = (-x[2] + (p.x_q - p.x_q_pp) * st.iq) * k.inv_t_q0_pp;
+impl Default for Gensal {
+    fn default() -> Self {
+        Self::new(Default::default())
     }
 }

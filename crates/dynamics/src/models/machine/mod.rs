@@ -26,6 +26,7 @@ pub mod saturation;
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::params::ParamSet;
+use crate::sens::{Scalar, D};
 
 /// Minimal complex number for the phasor algebra of initialisation.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,49 +97,49 @@ impl std::ops::Add for Phasor {
 
 /// Stator quantities in the dq frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Stator {
-    pub vd: f64,
-    pub vq: f64,
-    pub id: f64,
-    pub iq: f64,
-    pub psi_d: f64,
-    pub psi_q: f64,
+pub struct Stator<S = f64> {
+    pub vd: S,
+    pub vq: S,
+    pub id: S,
+    pub iq: S,
+    pub psi_d: S,
+    pub psi_q: S,
 }
 
 /// Stator impedance with the inverse determinant of the 2×2 solve, computed once per
 /// initialisation.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct StatorImpedance {
-    pub r_a: f64,
-    pub x_d_pp: f64,
-    pub x_q_pp: f64,
+pub struct StatorImpedance<S = f64> {
+    pub r_a: S,
+    pub x_d_pp: S,
+    pub x_q_pp: S,
     /// 1/(R_a² + X''_d X''_q).
-    pub inv_det: f64,
+    pub inv_det: S,
 }
 
-impl StatorImpedance {
-    pub fn new(r_a: f64, x_d_pp: f64, x_q_pp: f64) -> Self {
+impl<S: Scalar> StatorImpedance<S> {
+    pub fn new(r_a: S, x_d_pp: S, x_q_pp: S) -> Self {
         Self {
             r_a,
             x_d_pp,
             x_q_pp,
-            inv_det: 1.0 / (r_a * r_a + x_d_pp * x_q_pp),
+            inv_det: (r_a * r_a + x_d_pp * x_q_pp).recip(),
         }
     }
 }
 
-impl Stator {
+impl<S: Scalar> Stator<S> {
     /// Solves the stator algebraic equations (§1.2) for the currents given the subtransient
     /// voltages `E''_d`, `E''_q` and the terminal voltage in dq:
     /// `Δ = R_a² + X''_d X''_q`,
     /// `i_d = [R_a (E''_d − v_d) + X''_q (E''_q − v_q)]/Δ`,
     /// `i_q = [X''_d (v_d − E''_d) + R_a (E''_q − v_q)]/Δ`.
     #[inline(always)]
-    pub fn solve(e_d_pp: f64, e_q_pp: f64, vd: f64, vq: f64, z: &StatorImpedance) -> Self {
+    pub fn solve(e_d_pp: S, e_q_pp: S, vd: S, vq: S, z: &StatorImpedance<S>) -> Self {
         let dd = e_d_pp - vd;
         let dq = e_q_pp - vq;
         let id = (z.r_a * dd + z.x_q_pp * dq) * z.inv_det;
-        let iq = (-z.x_d_pp * dd + z.r_a * dq) * z.inv_det;
+        let iq = (z.r_a * dq - z.x_d_pp * dd) * z.inv_det;
         Self {
             vd,
             vq,
@@ -149,31 +150,31 @@ impl Stator {
         }
     }
     #[inline(always)]
-    pub fn torque(&self) -> f64 {
+    pub fn torque(&self) -> S {
         self.psi_d * self.iq - self.psi_q * self.id
     }
     #[inline(always)]
-    pub fn p(&self) -> f64 {
+    pub fn p(&self) -> S {
         self.vd * self.id + self.vq * self.iq
     }
     #[inline(always)]
-    pub fn q(&self) -> f64 {
+    pub fn q(&self) -> S {
         self.vq * self.id - self.vd * self.iq
     }
 }
 
 /// Field current and saturation factor at one point.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Field {
+pub struct Field<S = f64> {
     /// X_ad I_fd [pu].
-    pub xadifd: f64,
+    pub xadifd: S,
     /// Saturation factor Se (0 when unsaturated or not modelled).
-    pub sat: f64,
+    pub sat: S,
 }
 
 /// Magnitude of (a, b) without `hypot`'s overflow guards (arguments are O(1) pu).
 #[inline(always)]
-pub fn norm2(a: f64, b: f64) -> f64 {
+pub fn norm2<S: Scalar>(a: S, b: S) -> S {
     (a * a + b * b).sqrt()
 }
 
@@ -186,15 +187,29 @@ pub struct ElectricalInit {
     pub efd: f64,
 }
 
+/// The rotor-circuit equations of a machine model on the number type `S` (`f64`, or [`D`] for
+/// forward sensitivities: one implementation serves both).
+pub trait ElectricalEq<S: Scalar> {
+    /// Inertia constant H [s] and damping D [pu P / pu speed].
+    fn inertia_damping(&self) -> (S, S);
+    /// Stator solution for electrical states `x_el` and terminal voltage `(v_d, v_q)`.
+    fn stator(&self, x_el: &[S], vd: S, vq: S) -> Stator<S>;
+    /// Field current X_ad I_fd [pu, non-reciprocal] and the saturation factor Se at this point.
+    fn field(&self, x_el: &[S], st: &Stator<S>) -> Field<S>;
+    /// Electrical state derivatives; `field` is what [`ElectricalEq::field`] returned at this
+    /// point (read back from the bus, so saturation is evaluated once per right-hand side).
+    fn derivatives(&self, x_el: &[S], efd: S, field: Field<S>, st: &Stator<S>, dx_el: &mut [S]);
+}
+
 /// The rotor-circuit part of a machine model. States after `δ` and `Δω`.
-pub trait Electrical: Clone + Send + Sync + 'static {
+pub trait Electrical: ElectricalEq<f64> + Clone + Send + Sync + 'static {
     const MODEL: &'static str;
     /// All state names, starting with `delta`, `speed`.
     const STATE_NAMES: &'static [&'static str];
+    /// The model on dual numbers ([`Electrical::lift`]).
+    type Lifted: ElectricalEq<D> + Clone + std::fmt::Debug + Send + Sync + 'static;
     fn params(&self) -> &dyn ParamSet;
     fn params_mut(&mut self) -> &mut dyn ParamSet;
-    /// Inertia constant H [s] and damping D [pu P / pu speed].
-    fn inertia_damping(&self) -> (f64, f64);
     fn armature_resistance(&self) -> f64;
     fn validate(&self) -> Result<(), ModelError>;
     /// Recomputes derived constants from the parameters (called before every initialisation).
@@ -207,13 +222,15 @@ pub trait Electrical: Clone + Send + Sync + 'static {
         i: Phasor,
         x_el: &mut [f64],
     ) -> Result<ElectricalInit, ModelError>;
-    /// Stator solution for electrical states `x_el` and terminal voltage `(v_d, v_q)`.
-    fn stator(&self, x_el: &[f64], vd: f64, vq: f64) -> Stator;
-    /// Field current X_ad I_fd [pu, non-reciprocal] and the saturation factor Se at this point.
-    fn field(&self, x_el: &[f64], st: &Stator) -> Field;
-    /// Electrical state derivatives; `field` is what [`Electrical::field`] returned at this
-    /// point (read back from the bus, so saturation is evaluated once per right-hand side).
-    fn derivatives(&self, x_el: &[f64], efd: f64, field: Field, st: &Stator, dx_el: &mut [f64]);
+    /// Constants the initialisation computed from the operating point (GENCLS's E'), which
+    /// the equations hold fixed; a sensitivity pass differentiates them with the initial state.
+    fn init_constants(&self) -> Vec<f64> {
+        Vec::new()
+    }
+    /// The model on dual numbers after [`Electrical::prepare`] and the initialisation:
+    /// parameter `i` seeded on `lanes[i]`, the [`Electrical::init_constants`] as `consts`.
+    /// `None` if the derived constants cannot be formed (they could for the `f64` values).
+    fn lift(&self, lanes: &[Option<usize>], consts: &[D]) -> Option<Self::Lifted>;
 }
 
 /// Which mechanical-torque convention the swing equation uses.
@@ -289,6 +306,8 @@ pub struct Machine<E: Electrical> {
     /// 1/(2H) and D, refreshed at every initialisation.
     inv_2h: f64,
     damping: f64,
+    /// The model on dual numbers, 1/(2H) and D, after [`Block::seed_dual`].
+    dual: Option<(E::Lifted, D, D)>,
 }
 
 impl<E: Electrical> Machine<E> {
@@ -299,15 +318,64 @@ impl<E: Electrical> Machine<E> {
             omega_b: 2.0 * std::f64::consts::PI * 60.0,
             inv_2h: 0.0,
             damping: 0.0,
+            dual: None,
         }
     }
+}
 
-    #[inline(always)]
-    fn stator_at(&self, x: &[f64], io: &Io) -> Stator {
-        let (s, c) = (x[0] - io.get(port::THETA_TERM)).sin_cos();
-        let v = io.get(port::V_TERM);
-        self.el.stator(&x[2..], v * s, v * c)
-    }
+/// The stator at the terminal voltage on the bus (the Park transform at δ).
+#[inline(always)]
+fn stator_at<S: Scalar, M: ElectricalEq<S>>(el: &M, x: &[S], io: &Io<S>) -> Stator<S> {
+    let (s, c) = (x[0] - io.get(port::THETA_TERM)).sin_cos();
+    let v = io.get(port::V_TERM);
+    el.stator(&x[2..], v * s, v * c)
+}
+
+/// Every output port at `x` with the stator solved there.
+#[inline(always)]
+fn write_outputs<S: Scalar, M: ElectricalEq<S>>(el: &M, x: &[S], st: &Stator<S>, io: &mut Io<S>) {
+    io.set(port::DELTA, x[0]);
+    io.set(port::SPEED, x[1]);
+    io.set(port::PE, st.p());
+    io.set(port::QE, st.q());
+    io.set(port::TE, st.torque());
+    let field = el.field(&x[2..], st);
+    io.set(port::XADIFD, field.xadifd);
+    io.set(port::SAT, field.sat);
+    io.set(port::ID, st.id);
+    io.set(port::IQ, st.iq);
+}
+
+/// The swing equation and the electrical derivatives (after [`write_outputs`] at this point:
+/// the currents, torque and field are read back from the bus).
+#[inline(always)]
+fn derivatives_at<S: Scalar, M: ElectricalEq<S>>(
+    el: &M,
+    swing: Swing,
+    omega_b: f64,
+    (inv_2h, damping): (S, S),
+    x: &[S],
+    io: &Io<S>,
+    dx: &mut [S],
+) {
+    let st = Stator {
+        id: io.get(port::ID),
+        iq: io.get(port::IQ),
+        ..Stator::default()
+    };
+    let w = x[1];
+    let pm = io.get(port::PM);
+    let tm = match swing {
+        Swing::PmOverSpeed => (pm - damping * w) / (w + 1.0),
+        Swing::PmIsTorque => pm - damping * w,
+    };
+    dx[0] = w * omega_b;
+    dx[1] = (tm - io.get(port::TE)) * inv_2h;
+    let field = Field {
+        xadifd: io.get(port::XADIFD),
+        sat: io.get(port::SAT),
+    };
+    el.derivatives(&x[2..], io.get(port::EFD), field, &st, &mut dx[2..]);
 }
 
 impl<E: Electrical> Block for Machine<E> {
@@ -327,7 +395,7 @@ impl<E: Electrical> Block for Machine<E> {
         self.el.params_mut()
     }
     fn validate(&self) -> Result<(), ModelError> {
-        let (h, d) = self.el.inertia_damping();
+        let (h, d) = ElectricalEq::<f64>::inertia_damping(&self.el);
         guard::positive("h", h)?;
         guard::non_negative("d", d)?;
         guard::non_negative("r_a", self.el.armature_resistance())?;
@@ -337,7 +405,7 @@ impl<E: Electrical> Block for Machine<E> {
     fn init(&mut self, op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
         self.validate()?;
         self.el.prepare()?;
-        let (h, d) = self.el.inertia_damping();
+        let (h, d) = ElectricalEq::<f64>::inertia_damping(&self.el);
         self.inv_2h = 1.0 / (2.0 * h);
         self.damping = d;
         if !(op.v_mag > 0.0) || !op.p.is_finite() || !op.q.is_finite() {
@@ -352,7 +420,7 @@ impl<E: Electrical> Block for Machine<E> {
         x[0] = ei.delta;
         x[1] = op.speed_dev;
         let (vd, vq) = v.to_dq(ei.delta);
-        let st = self.el.stator(&x[2..], vd, vq);
+        let st = ElectricalEq::<f64>::stator(&self.el, &x[2..], vd, vq);
         // Self-check: the electrical steady state must reproduce the measured P and Q.
         let (dp, dq) = (st.p() - op.p, st.q() - op.q);
         if !(dp.abs() < 1e-8 && dq.abs() < 1e-8) {
@@ -361,7 +429,7 @@ impl<E: Electrical> Block for Machine<E> {
                 E::MODEL
             )));
         }
-        let (_, d) = self.el.inertia_damping();
+        let (_, d) = ElectricalEq::<f64>::inertia_damping(&self.el);
         let te = st.torque();
         let w0 = op.speed_dev;
         let pm = match self.swing {
@@ -370,7 +438,7 @@ impl<E: Electrical> Block for Machine<E> {
         };
         io.set(port::EFD, ei.efd);
         io.set(port::PM, pm);
-        self.write_outputs(x, &st, io);
+        write_outputs(&self.el, x, &st, io);
         if !ei.efd.is_finite() || !pm.is_finite() || x.iter().any(|v| !v.is_finite()) {
             return Err(ModelError::Init(format!(
                 "{} initial state is not finite",
@@ -382,33 +450,40 @@ impl<E: Electrical> Block for Machine<E> {
 
     #[inline]
     fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
-        let st = self.stator_at(x, io);
-        self.write_outputs(x, &st, io);
+        let st = stator_at(&self.el, x, io);
+        write_outputs(&self.el, x, &st, io);
     }
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
         // `outputs` has just solved the stator at this (t, x): reuse its currents and torque.
-        let st = Stator {
-            id: io.get(port::ID),
-            iq: io.get(port::IQ),
-            ..Stator::default()
-        };
-        let d = self.damping;
-        let w = x[1];
-        let pm = io.get(port::PM);
-        let tm = match self.swing {
-            Swing::PmOverSpeed => (pm - d * w) / (1.0 + w),
-            Swing::PmIsTorque => pm - d * w,
-        };
-        dx[0] = self.omega_b * w;
-        dx[1] = (tm - io.get(port::TE)) * self.inv_2h;
-        let field = Field {
-            xadifd: io.get(port::XADIFD),
-            sat: io.get(port::SAT),
-        };
-        self.el
-            .derivatives(&x[2..], io.get(port::EFD), field, &st, &mut dx[2..]);
+        let hd = (self.inv_2h, self.damping);
+        derivatives_at(&self.el, self.swing, self.omega_b, hd, x, io, dx);
+    }
+
+    fn init_constants(&self) -> Vec<f64> {
+        self.el.init_constants()
+    }
+
+    fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
+        self.dual = self.el.lift(lanes, consts).map(|el| {
+            let (h, d) = el.inertia_damping();
+            (el, (h * 2.0).recip(), d)
+        });
+        self.dual.is_some()
+    }
+
+    fn outputs_dual(&self, _t: f64, x: &[D], io: &mut Io<D>) {
+        if let Some((el, _, _)) = &self.dual {
+            let st = stator_at(el, x, io);
+            write_outputs(el, x, &st, io);
+        }
+    }
+
+    fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
+        if let Some((el, inv_2h, d)) = &self.dual {
+            derivatives_at(el, self.swing, self.omega_b, (*inv_2h, *d), x, io, dx);
+        }
     }
 
     fn set_nominal_frequency(&mut self, hz: f64) {
@@ -448,34 +523,18 @@ impl<E: Electrical> Block for Machine<E> {
     }
 }
 
-impl<E: Electrical> Machine<E> {
-    #[inline(always)]
-    fn write_outputs(&self, x: &[f64], st: &Stator, io: &mut Io) {
-        io.set(port::DELTA, x[0]);
-        io.set(port::SPEED, x[1]);
-        io.set(port::PE, st.p());
-        io.set(port::QE, st.q());
-        io.set(port::TE, st.torque());
-        let field = self.el.field(&x[2..], st);
-        io.set(port::XADIFD, field.xadifd);
-        io.set(port::SAT, field.sat);
-        io.set(port::ID, st.id);
-        io.set(port::IQ, st.iq);
-    }
-}
-
 /// The d-axis constants shared by GENSAL, GENSAE and GENROU (`models.md` §4.2):
 /// `K3d = (X''d − Xl)/(X'd − Xl)`, `K4d = (X'd − X''d)/(X'd − Xl)` (K3d + K4d = 1),
 /// `K1d = (X'd − X''d)(Xd − X'd)/(X'd − Xl)²`.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub(crate) struct DAxis {
-    pub k1d: f64,
-    pub k3d: f64,
-    pub k4d: f64,
+pub(crate) struct DAxis<S = f64> {
+    pub k1d: S,
+    pub k3d: S,
+    pub k4d: S,
 }
 
-impl DAxis {
-    pub fn new(x_d: f64, x_d_prime: f64, x_d_pp: f64, x_l: f64) -> Self {
+impl<S: Scalar> DAxis<S> {
+    pub fn new(x_d: S, x_d_prime: S, x_d_pp: S, x_l: S) -> Self {
         let xdl = x_d_prime - x_l;
         Self {
             k1d: (x_d_prime - x_d_pp) * (x_d - x_d_prime) / (xdl * xdl),

@@ -5,6 +5,7 @@
 //! `Se(1.2) = S12`.
 
 use crate::block::ModelError;
+use crate::sens::Scalar;
 
 /// Quadratic saturation (GENSAL, GENROU; OpenIPSL `SE.mo`):
 ///
@@ -13,37 +14,38 @@ use crate::block::ModelError;
 /// Se(ψ) = B (ψ − A)² / ψ  for ψ > A,   0 otherwise (and 0 when S10 = 0 or S12 = 0)
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct QuadraticSaturation {
-    knee: f64,
-    b: f64,
+pub struct QuadraticSaturation<S = f64> {
+    knee: S,
+    b: S,
     active: bool,
 }
 
-impl QuadraticSaturation {
-    pub fn new(s10: f64, s12: f64) -> Result<Self, ModelError> {
-        if s10 < 0.0 || s12 < 0.0 || !s10.is_finite() || !s12.is_finite() {
+impl<S: Scalar> QuadraticSaturation<S> {
+    pub fn new(s10: S, s12: S) -> Result<Self, ModelError> {
+        let (s10v, s12v) = (s10.val(), s12.val());
+        if s10v < 0.0 || s12v < 0.0 || !s10v.is_finite() || !s12v.is_finite() {
             return Err(ModelError::param(
                 "s10",
-                format!("S10 = {s10} and S12 = {s12} must be finite and >= 0"),
+                format!("S10 = {s10v} and S12 = {s12v} must be finite and >= 0"),
             ));
         }
-        if s10 == 0.0 || s12 == 0.0 {
+        if s10v == 0.0 || s12v == 0.0 {
             return Ok(Self {
-                knee: 0.0,
-                b: 0.0,
+                knee: S::cst(0.0),
+                b: S::cst(0.0),
                 active: false,
             });
         }
         // A sensible curve needs S12 > S10/1.2 (then a < 1 and the knee lies below 1 pu).
-        if 1.2 * s12 <= s10 {
+        if 1.2 * s12v <= s10v {
             return Err(ModelError::param(
                 "s12",
-                format!("quadratic saturation needs S12 > S10/1.2 (S10 = {s10}, S12 = {s12})"),
+                format!("quadratic saturation needs S12 > S10/1.2 (S10 = {s10v}, S12 = {s12v})"),
             ));
         }
-        let a = (s10 / (1.2 * s12)).sqrt();
-        let knee = 1.2 + 0.2 / (a - 1.0);
-        let b = 1.2 * s12 * (a - 1.0).powi(2) / 0.04;
+        let a = (s10 / (s12 * 1.2)).sqrt();
+        let knee = (a - 1.0).rdiv(0.2) + 1.2;
+        let b = s12 * 1.2 * (a - 1.0).powi(2) / 0.04;
         Ok(Self {
             knee,
             b,
@@ -52,9 +54,9 @@ impl QuadraticSaturation {
     }
 
     #[inline]
-    pub fn eval(&self, psi: f64) -> f64 {
-        if !self.active || psi <= 0.0 || psi <= self.knee {
-            0.0
+    pub fn eval(&self, psi: S) -> S {
+        if !self.active || psi.val() <= 0.0 || psi.val() <= self.knee.val() {
+            S::cst(0.0)
         } else {
             self.b * (psi - self.knee).powi(2) / psi
         }
@@ -67,23 +69,27 @@ impl QuadraticSaturation {
 /// n = ln(S12/S10) / ln(1.2),   Se(ψ) = S10 · ψⁿ      (0 when ψ <= 0 or S10 = 0)
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct ExponentialSaturation {
-    s10: f64,
-    n: f64,
+pub struct ExponentialSaturation<S = f64> {
+    s10: S,
+    n: S,
 }
 
-impl ExponentialSaturation {
-    pub fn new(s10: f64, s12: f64) -> Result<Self, ModelError> {
-        if s10 < 0.0 || s12 < 0.0 || !s10.is_finite() || !s12.is_finite() {
+impl<S: Scalar> ExponentialSaturation<S> {
+    pub fn new(s10: S, s12: S) -> Result<Self, ModelError> {
+        let (s10v, s12v) = (s10.val(), s12.val());
+        if s10v < 0.0 || s12v < 0.0 || !s10v.is_finite() || !s12v.is_finite() {
             return Err(ModelError::param(
                 "s10",
-                format!("S10 = {s10} and S12 = {s12} must be finite and >= 0"),
+                format!("S10 = {s10v} and S12 = {s12v} must be finite and >= 0"),
             ));
         }
-        if s10 == 0.0 {
-            return Ok(Self { s10: 0.0, n: 0.0 });
+        if s10v == 0.0 {
+            return Ok(Self {
+                s10: S::cst(0.0),
+                n: S::cst(0.0),
+            });
         }
-        if s12 == 0.0 {
+        if s12v == 0.0 {
             return Err(ModelError::param(
                 "s12",
                 "exponential saturation needs S12 > 0 when S10 > 0",
@@ -96,9 +102,9 @@ impl ExponentialSaturation {
     }
 
     #[inline]
-    pub fn eval(&self, psi: f64) -> f64 {
-        if self.s10 == 0.0 || psi <= 0.0 {
-            0.0
+    pub fn eval(&self, psi: S) -> S {
+        if self.s10.val() == 0.0 || psi.val() <= 0.0 {
+            S::cst(0.0)
         } else {
             // S10·ψⁿ as exp(n ln ψ): same value to rounding, cheaper than powf.
             self.s10 * (self.n * psi.ln()).exp()

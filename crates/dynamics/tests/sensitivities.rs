@@ -1,0 +1,159 @@
+//! Forward sensitivities (`itaipu_dynamics::sens`) against central differences of the same
+//! discretised playback: for every machine model and every one of its parameters, `∂P/∂p` and
+//! `∂Q/∂p` at every sample agree to 1e-5 of the column's largest value. The event is the
+//! synthetic fault dip with M-class PMU noise on the played-back voltage (fixed seed).
+//!
+//! The differences are taken on the steps of the unperturbed adaptive playback (a replay), so
+//! both sides differentiate the same discrete map and step-size noise does not enter.
+
+use itaipu_dynamics::event::Event;
+use itaipu_dynamics::integrate::{Method, StepLog};
+use itaipu_dynamics::registry;
+use itaipu_dynamics::sens::{simulate_pq_sensitivities, SensError};
+use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
+use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
+use itaipu_dynamics::unit::{ParamRef, Unit};
+
+fn unit(machine: &str, exciter: Option<&str>) -> Unit {
+    let mut u = Unit::new("sens", 737.0, 60.0);
+    u.add("machine", registry::find(machine).unwrap().create(), &[])
+        .unwrap();
+    if let Some(e) = exciter {
+        u.add("exciter", registry::find(e).unwrap().create(), &[])
+            .unwrap();
+    }
+    u.finish().unwrap();
+    // Damping inside its domain: at D = 0 the differences would be one-sided and their
+    // rounding error (1e-13 / h) of the order of the tolerance.
+    let d = u.param("machine.d").unwrap();
+    u.set(d, 0.5);
+    u
+}
+
+/// A 10 s fault dip with PMU noise on |V| and the angle, made by `truth`.
+fn event(truth: &Unit) -> Event {
+    let profile = VoltageProfile {
+        duration_s: 10.0,
+        ..Default::default()
+    };
+    let opts = SimOptions::default();
+    synthesize("dip", truth, &profile, 737.0, &PmuNoise::typical(7), &opts).unwrap()
+}
+
+/// The default adaptive method's step schedule for `u` on `ev`.
+fn steps(u: &Unit, ev: &PreparedEvent) -> Method {
+    let Method::Dopri5(o) = SimOptions::default().method else {
+        unreachable!()
+    };
+    let log = StepLog::default();
+    let logged = SimOptions {
+        method: Method::Dopri5Logged(o, log.clone()),
+    };
+    simulate_pq(&mut u.clone(), ev, &logged).unwrap();
+    Method::Replay(log.times())
+}
+
+/// `(∂P/∂p, ∂Q/∂p)` by central differences of the replayed playback (second-order one-sided
+/// where the lower point is outside the parameter's domain, as for D = 0).
+fn differences(u: &Unit, ev: &PreparedEvent, r: ParamRef, m: &Method) -> (Vec<f64>, Vec<f64>, f64) {
+    let opts = SimOptions { method: m.clone() };
+    let p0 = u.get(r);
+    // A step the parameter's plausible range measures (D's value is 0).
+    let (lo, hi) = u.param_spec(r).range;
+    let h = 1e-5 * p0.abs().max(0.1 * (hi - lo));
+    let at = |v: f64| {
+        let mut w = u.clone();
+        w.set(r, v);
+        simulate_pq(&mut w, ev, &opts).ok()
+    };
+    let (up, dn) = (at(p0 + h).unwrap(), at(p0 - h));
+    let col = |f: &dyn Fn(usize) -> f64, n: usize| (0..n).map(f).collect::<Vec<_>>();
+    let n = up.0.len();
+    match dn {
+        Some(dn) => (
+            col(&|k| (up.0[k] - dn.0[k]) / (2.0 * h), n),
+            col(&|k| (up.1[k] - dn.1[k]) / (2.0 * h), n),
+            h,
+        ),
+        None => {
+            let (f0, f2) = (at(p0).unwrap(), at(p0 + 2.0 * h).unwrap());
+            (
+                col(
+                    &|k| (-3.0 * f0.0[k] + 4.0 * up.0[k] - f2.0[k]) / (2.0 * h),
+                    n,
+                ),
+                col(
+                    &|k| (-3.0 * f0.1[k] + 4.0 * up.1[k] - f2.1[k]) / (2.0 * h),
+                    n,
+                ),
+                h,
+            )
+        }
+    }
+}
+
+/// Whether a sensitivity column matches the differences: within 1e-5 of the column's largest
+/// value, plus the differences' own rounding floor (a playback's values carry ~1e-14 of
+/// accumulated rounding, divided by the step `h`), which decides only for near-zero columns.
+fn mismatch(s: &[f64], fd: &[f64], h: f64) -> f64 {
+    let scale = fd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let err = s
+        .iter()
+        .zip(fd)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    err / (1e-5 * scale + 1e-13 / h)
+}
+
+#[test]
+fn every_machine_parameter_s_sensitivity_matches_differences() {
+    for machine in ["GENROU", "GENSAL", "GENSAE", "GENCLS"] {
+        let u = unit(machine, None);
+        let ev = PreparedEvent::new(&event(&u));
+        let m = steps(&u, &ev);
+        let refs: Vec<ParamRef> = u
+            .params()
+            .iter()
+            .map(|(path, _, _)| u.param(path).unwrap())
+            .collect();
+        let s = simulate_pq_sensitivities(&u, &ev, &refs, &SimOptions { method: m.clone() })
+            .unwrap_or_else(|e| panic!("{machine}: {e}"));
+        // The values are the replayed playback's.
+        let (p, q) = simulate_pq(&mut u.clone(), &ev, &SimOptions { method: m.clone() }).unwrap();
+        let dv = p.iter().zip(&s.p).chain(q.iter().zip(&s.q));
+        assert!(
+            dv.fold(0.0f64, |a, (x, y)| a.max((x - y).abs())) < 1e-12,
+            "{machine}: values"
+        );
+        let mut moved = 0;
+        for (j, &r) in refs.iter().enumerate() {
+            let (fp, fq, h) = differences(&u, &ev, r, &m);
+            let (ep, eq) = (mismatch(&s.dp[j], &fp, h), mismatch(&s.dq[j], &fq, h));
+            let name = u.param_path(r);
+            assert!(
+                ep < 1.0 && eq < 1.0,
+                "{machine} {name}: ∂P/∂p off by {ep:.2} × the tolerance, ∂Q/∂p by {eq:.2}"
+            );
+            let big = |c: &[f64]| c.iter().any(|v| v.abs() > 1e-4);
+            moved += usize::from(big(&fp) || big(&fq));
+        }
+        // Most parameters move P or Q on this event: the comparison is not of zeros.
+        assert!(
+            moved * 2 > refs.len(),
+            "{machine}: only {moved} of {} parameters move P or Q",
+            refs.len()
+        );
+    }
+}
+
+#[test]
+fn a_block_without_dual_equations_is_refused_so_the_caller_falls_back() {
+    let u = unit("GENROU", Some("SEXS"));
+    let ev = PreparedEvent::new(&event(&u));
+    let r = u.param("machine.x_d").unwrap();
+    match simulate_pq_sensitivities(&u, &ev, &[r], &SimOptions::default()) {
+        Err(SensError::Unsupported(why)) => {
+            assert!(why.contains("exciter") || why.contains("modes"), "{why}")
+        }
+        other => panic!("expected Unsupported, got {other:?}"),
+    }
+}
