@@ -218,6 +218,11 @@ pub trait Block: Send + Sync {
     /// [`Block::derivatives`] on dual numbers (after [`Block::seed_dual`] returned `true`).
     fn derivatives_dual(&self, _t: f64, _x: &[D], _io: &Io<D>, _dx: &mut [D]) {}
 
+    /// After [`Block::update_modes`] in a sensitivity pass: every state the current modes pin
+    /// to a limit takes the limit's value and derivatives (the sensitivity of a pinned state is
+    /// that of its limit). Default: no pinned states.
+    fn pin_dual(&self, _x: &mut [D], _io: &Io<D>) {}
+
     /// Post-processes the recorded terminal P and Q series (sample times `t`) as a measuring
     /// device would before they are compared with the recording (PMU skew, phase and ratio
     /// errors). Default: no change.

@@ -729,6 +729,19 @@ impl Unit {
         }
     }
 
+    /// Every block's [`Block::pin_dual`] (after [`Unit::update_modes`] and
+    /// [`Unit::eval_outputs_dual`] at the same point).
+    pub(crate) fn pin_dual(&self, x: &mut [crate::sens::D], bus: &mut [crate::sens::D]) {
+        for inst in &self.instances {
+            if inst.ev_len == 0 {
+                continue;
+            }
+            let (o, n) = (inst.x_offset, inst.x_len);
+            let io = Io::new(bus, &inst.map);
+            inst.block.pin_dual(&mut x[o..o + n], &io);
+        }
+    }
+
     /// [`Unit::eval_derivatives`] on dual numbers (after [`Unit::eval_outputs_dual`]).
     #[inline]
     pub(crate) fn eval_derivatives_dual(

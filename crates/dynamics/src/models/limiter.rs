@@ -13,6 +13,8 @@
 //! event function (positive while the mode holds) and calls [`NonWindup::update`] there, which
 //! pins the state exactly on the limit. No overshoot, no chattering.
 
+use crate::sens::Scalar;
+
 /// Relative distance from a limit within which a state counts as on it at an event.
 pub const AT_LIMIT_TOL: f64 = 1e-7;
 
@@ -34,10 +36,36 @@ pub struct NonWindup {
 impl NonWindup {
     /// Derivative under the current mode, given the unconstrained derivative `f`.
     #[inline(always)]
-    pub fn derivative(&self, f: f64) -> f64 {
+    pub fn derivative<S: Scalar>(&self, f: S) -> S {
         match self.mode {
             LimitMode::Free => f,
-            _ => 0.0,
+            _ => S::cst(0.0),
+        }
+    }
+
+    /// The output of a state under a constant non-windup limit: `clamp(x, lo, hi)` in value,
+    /// with the derivatives of the mode's branch. While free the state is inside its limits by
+    /// construction (the mode pins it at a crossing), so the clamp only guards the value against
+    /// an integrator stage a hair beyond the limit; the derivative stays that of `x`. (Taking
+    /// the clamp's branch there would drop `∂x/∂p` for that stage alone, an O(1) error in the
+    /// stage times the step: 1 % of the sensitivities after a ceiling is reached, measured.)
+    #[inline(always)]
+    pub fn output<S: Scalar>(&self, x: S, lo: S, hi: S) -> S {
+        match self.mode {
+            LimitMode::Free => x.with_value(clamp(x.val(), lo.val(), hi.val())),
+            LimitMode::AtMax => hi.with_value(clamp(x.val(), lo.val(), hi.val())),
+            LimitMode::AtMin => lo.with_value(clamp(x.val(), lo.val(), hi.val())),
+        }
+    }
+
+    /// A state pinned by the current mode takes the limit's value and derivatives (a
+    /// sensitivity pass, after [`NonWindup::update`] pinned its value).
+    #[inline]
+    pub fn pin<S: Scalar>(&self, x: &mut S, lo: S, hi: S) {
+        match self.mode {
+            LimitMode::Free => {}
+            LimitMode::AtMax => *x = hi,
+            LimitMode::AtMin => *x = lo,
         }
     }
 
@@ -111,7 +139,7 @@ impl NonWindup {
 impl NonWindup {
     /// The state the block must use (`hi`/`lo` while pinned).
     #[inline(always)]
-    pub fn effective(&self, x: f64, lo: f64, hi: f64) -> f64 {
+    pub fn effective<S: Scalar>(&self, x: S, lo: S, hi: S) -> S {
         match self.mode {
             LimitMode::Free => x,
             LimitMode::AtMax => hi,
@@ -121,7 +149,7 @@ impl NonWindup {
 
     /// Derivative of the stored state with moving limits (`inv_t_track` = 1/T_track).
     #[inline(always)]
-    pub fn derivative_moving(&self, f: f64, x: f64, lo: f64, hi: f64, inv_t_track: f64) -> f64 {
+    pub fn derivative_moving<S: Scalar>(&self, f: S, x: S, lo: S, hi: S, inv_t_track: S) -> S {
         match self.mode {
             LimitMode::Free => f,
             LimitMode::AtMax => (hi - x) * inv_t_track,
@@ -162,10 +190,10 @@ impl NonWindup {
 /// Clamp that never panics: `lo > hi` gives `hi` for `v > hi`, else `lo` for `v < lo`; a NaN
 /// limit is ignored (comparisons with NaN are false) and a NaN `v` stays NaN.
 #[inline(always)]
-pub fn clamp(v: f64, lo: f64, hi: f64) -> f64 {
-    if v > hi {
+pub fn clamp<S: Scalar>(v: S, lo: S, hi: S) -> S {
+    if v.val() > hi.val() {
         hi
-    } else if v < lo {
+    } else if v.val() < lo.val() {
         lo
     } else {
         v

@@ -52,19 +52,19 @@ pub trait Scalar:
     fn abs(self) -> Self;
     fn recip(self) -> Self;
     fn tanh(self) -> Self;
-    /// The smaller by value (the derivative of the smaller).
+    /// The smaller by value (the derivative of the smaller; a NaN loses, as in `f64::min`).
     #[inline(always)]
     fn min_s(self, o: Self) -> Self {
-        if o.val() < self.val() {
+        if o.val() < self.val() || self.val().is_nan() {
             o
         } else {
             self
         }
     }
-    /// The larger by value (the derivative of the larger).
+    /// The larger by value (the derivative of the larger; a NaN loses, as in `f64::max`).
     #[inline(always)]
     fn max_s(self, o: Self) -> Self {
-        if o.val() > self.val() {
+        if o.val() > self.val() || self.val().is_nan() {
             o
         } else {
             self
@@ -75,6 +75,9 @@ pub trait Scalar:
     fn rsub(self, c: f64) -> Self {
         -self + c
     }
+    /// The value `v` with this number's derivatives (a safety clamp on the value that must
+    /// not switch the branch the derivative follows).
+    fn with_value(self, v: f64) -> Self;
     /// `c / self` for a constant `c`.
     #[inline(always)]
     fn rdiv(self, c: f64) -> Self {
@@ -132,8 +135,20 @@ impl Scalar for f64 {
         f64::tanh(self)
     }
     #[inline(always)]
+    fn min_s(self, o: Self) -> Self {
+        f64::min(self, o)
+    }
+    #[inline(always)]
+    fn max_s(self, o: Self) -> Self {
+        f64::max(self, o)
+    }
+    #[inline(always)]
     fn rsub(self, c: f64) -> Self {
         c - self
+    }
+    #[inline(always)]
+    fn with_value(self, v: f64) -> Self {
+        v
     }
     #[inline(always)]
     fn rdiv(self, c: f64) -> Self {
@@ -404,6 +419,10 @@ impl<const N: usize> Scalar for Dual<N> {
     fn rdiv(self, c: f64) -> Self {
         let v = c / self.v;
         self.chain(v, -v / self.v)
+    }
+    #[inline(always)]
+    fn with_value(self, v: f64) -> Self {
+        Self { v, d: self.d }
     }
 }
 

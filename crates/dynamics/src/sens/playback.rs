@@ -19,9 +19,13 @@
 //! forms and converged Newton solves, microseconds each: truncation error ~1e-10 relative;
 //! where the lower point is outside a parameter's domain, a second-order one-sided difference).
 //!
-//! **Limits of this version.** A unit whose blocks do not all have dual equations, with
-//! discrete modes (limiters, deadbands), a terminal load, or an event with set-point steps is
-//! refused with [`SensError::Unsupported`]; the caller falls back to differences.
+//! **Discrete modes.** The modes (a non-windup limit pinned or free) switch where the plain
+//! playback's do, on the values; while a mode holds, the derivative is that of the active
+//! branch, and a state pinned to a limit takes the limit's derivatives ([`crate::Block::pin_dual`]).
+//!
+//! **Limits of this version.** A unit whose blocks do not all have dual equations, with a
+//! terminal load, or an event with set-point steps is refused with
+//! [`SensError::Unsupported`]; the caller falls back to differences.
 
 use super::{Scalar, D, LANES};
 use crate::block::InitPoint;
@@ -75,11 +79,6 @@ pub fn simulate_pq_sensitivities(
             "event '{}' has set-point steps (a mode playback)",
             ev.name
         )));
-    }
-    if unit.n_events() > 0 {
-        return Err(SensError::Unsupported(
-            "the unit has discrete modes (limits, deadbands)".into(),
-        ));
     }
     // The step sequence: the plain adaptive playback's, logged.
     let method = match &opts.method {
@@ -250,7 +249,7 @@ fn pass(
     let np = params.len();
     let (mut p, mut q) = (vec![0.0; ns], vec![0.0; ns]);
     let (mut dp, mut dq) = (vec![vec![0.0; ns]; np], vec![vec![0.0; ns]; np]);
-    let mut sys = Augmented::new(&u, &ev.input, bus);
+    let mut sys = Augmented::new(&mut u, &ev.input, bus);
     integrate::solve(
         method,
         &mut sys,
@@ -278,7 +277,7 @@ fn pass(
 
 /// The unit's states and sensitivities as one ODE.
 struct Augmented<'a> {
-    unit: &'a Unit,
+    unit: &'a mut Unit,
     input: &'a PlaybackInput,
     cursor: usize,
     sig: (usize, usize),
@@ -288,13 +287,14 @@ struct Augmented<'a> {
 }
 
 impl<'a> Augmented<'a> {
-    fn new(unit: &'a Unit, input: &'a PlaybackInput, bus: Vec<D>) -> Self {
+    fn new(unit: &'a mut Unit, input: &'a PlaybackInput, bus: Vec<D>) -> Self {
         let n = unit.n_states();
+        let sig = unit.terminal_signals();
         Self {
             unit,
             input,
             cursor: 0,
-            sig: unit.terminal_signals(),
+            sig,
             bus,
             x: vec![D::cst(0.0); n],
             dx: vec![D::cst(0.0); n],
@@ -315,6 +315,13 @@ impl<'a> Augmented<'a> {
         self.bus[self.sig.1] = D::cst(th);
         self.unit.eval_outputs_dual(t, &self.x, &mut self.bus);
     }
+
+    /// The plain unit's signals at `(t, x)` (for its event functions and modes).
+    fn eval_plain(&mut self, t: f64, x: &[f64]) {
+        let (v, th) = self.input.at(t, &mut self.cursor);
+        self.unit.set_terminal_voltage(v, th);
+        self.unit.eval_outputs(t, x);
+    }
 }
 
 impl OdeSystem for Augmented<'_> {
@@ -330,5 +337,29 @@ impl OdeSystem for Augmented<'_> {
             dxa[i] = self.dx[i].v;
             dxa[n + i * LANES..n + (i + 1) * LANES].copy_from_slice(&self.dx[i].d);
         }
+    }
+    fn n_events(&self) -> usize {
+        self.unit.n_events()
+    }
+    fn events(&mut self, t: f64, xa: &[f64], g: &mut [f64]) {
+        let n = self.x.len();
+        self.eval_plain(t, &xa[..n]);
+        self.unit.eval_events(&xa[..n], g);
+    }
+    /// The modes switch on the values alone; a state a mode pins to its limit then takes the
+    /// limit's derivatives (its value is the limit's, whatever the parameters). The other
+    /// states' sensitivities are continuous across the switch: a non-windup limit only stops
+    /// its own state's derivative, whose jump the pin accounts for.
+    fn handle_event(&mut self, t: f64, xa: &mut [f64]) -> bool {
+        let n = self.x.len();
+        self.eval_plain(t, &xa[..n]);
+        let changed = self.unit.update_modes(&mut xa[..n]);
+        self.eval(t, xa);
+        self.unit.pin_dual(&mut self.x, &mut self.bus);
+        for i in 0..n {
+            xa[i] = self.x[i].v;
+            xa[n + i * LANES..n + (i + 1) * LANES].copy_from_slice(&self.x[i].d);
+        }
+        changed
     }
 }

@@ -23,6 +23,7 @@ use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::exciter::roles::{ExciterRoles, LeadLagRole, ParamRole};
 use crate::models::limiter::{clamp, NonWindup};
 use crate::params::ParamSet;
+use crate::sens::{seeded, Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -72,17 +73,25 @@ pub const PORTS: &[Port] = &[
 
 /// The parameters every SEXS variant shares, read from its parameter set.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SexsGains {
-    pub ta_tb: f64,
-    pub tb: f64,
-    pub k: f64,
-    pub te: f64,
-    pub v_ref_offset: f64,
+pub struct SexsGains<S = f64> {
+    pub ta_tb: S,
+    pub tb: S,
+    pub k: S,
+    pub te: S,
+    pub v_ref_offset: S,
+}
+
+/// A SEXS variant's gains and E_fd limits on the number type `S` (`f64`, or [`D`] for
+/// forward sensitivities).
+pub trait SexsEq<S: Scalar> {
+    fn gains(&self) -> SexsGains<S>;
+    /// `(E_fd,min, E_fd,max)` at the current point.
+    fn limits(&self, io: &Io<S>) -> (S, S);
 }
 
 /// What distinguishes one SEXS variant from another: its parameters, ports and E_fd limits.
 pub trait SexsVariant:
-    ParamSet + Clone + Default + std::fmt::Debug + Send + Sync + 'static
+    SexsEq<f64> + ParamSet + Clone + Default + std::fmt::Debug + Send + Sync + 'static
 {
     /// Model name in unit files.
     const MODEL: &'static str;
@@ -91,11 +100,12 @@ pub trait SexsVariant:
     /// `true` when the limits depend on signals (then the moving-limit logic of
     /// [`NonWindup::derivative_moving`] applies); `false` keeps the plain non-windup logic.
     const MOVING_LIMITS: bool;
-    fn gains(&self) -> SexsGains;
+    /// The parameters on dual numbers.
+    type Lifted: SexsEq<D> + Clone + std::fmt::Debug + Send + Sync + 'static;
+    /// Parameter `i` seeded on `lanes[i]`.
+    fn lift_dual(&self, lanes: &[Option<usize>]) -> Self::Lifted;
     /// Guards on the limit parameters.
     fn validate_limits(&self) -> Result<(), ModelError>;
-    /// `(E_fd,min, E_fd,max)` at the current point.
-    fn limits(&self, io: &Io) -> (f64, f64);
     /// How the limits read in an error message, e.g. `[E_MIN, E_MAX] = [0, 4]`.
     fn describe_limits(&self, io: &Io) -> String;
     /// Which parameter plays each exciter role ([`Block::exciter_roles`]).
@@ -120,12 +130,9 @@ pub fn sexs_roles(model: &str) -> ExciterRoles {
     r
 }
 
-impl SexsVariant for SexsParams {
-    const MODEL: &'static str = "SEXS";
-    const PORTS: &'static [Port] = PORTS;
-    const MOVING_LIMITS: bool = false;
+impl<S: Scalar> SexsEq<S> for SexsParams<S> {
     #[inline(always)]
-    fn gains(&self) -> SexsGains {
+    fn gains(&self) -> SexsGains<S> {
         SexsGains {
             ta_tb: self.ta_tb,
             tb: self.tb,
@@ -134,12 +141,22 @@ impl SexsVariant for SexsParams {
             v_ref_offset: self.v_ref_offset,
         }
     }
+    #[inline(always)]
+    fn limits(&self, _io: &Io<S>) -> (S, S) {
+        (self.e_min, self.e_max)
+    }
+}
+
+impl SexsVariant for SexsParams {
+    const MODEL: &'static str = "SEXS";
+    const PORTS: &'static [Port] = PORTS;
+    const MOVING_LIMITS: bool = false;
+    type Lifted = SexsParams<D>;
+    fn lift_dual(&self, lanes: &[Option<usize>]) -> SexsParams<D> {
+        self.lift(|i, v| seeded(v, lanes.get(i).copied().flatten()))
+    }
     fn validate_limits(&self) -> Result<(), ModelError> {
         guard::greater("e_max", self.e_max, "e_min", self.e_min)
-    }
-    #[inline(always)]
-    fn limits(&self, _io: &Io) -> (f64, f64) {
-        (self.e_min, self.e_max)
     }
     fn describe_limits(&self, _io: &Io) -> String {
         format!("[E_MIN, E_MAX] = [{}, {}]", self.e_min, self.e_max)
@@ -157,7 +174,7 @@ impl SexsVariant for SexsParams {
 }
 
 /// A SEXS exciter block with the limits of variant `V`.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct SexsModel<V: SexsVariant> {
     pub p: V,
     v_ref: f64,
@@ -165,6 +182,14 @@ pub struct SexsModel<V: SexsVariant> {
     /// 1/T_B and 1/T_E (refreshed at initialisation).
     inv_tb: f64,
     inv_te: f64,
+    /// The parameters on dual numbers with V_ref, 1/T_B, 1/T_E, after [`Block::seed_dual`].
+    dual: Option<(V::Lifted, [D; 3])>,
+}
+
+impl<V: SexsVariant> Default for SexsModel<V> {
+    fn default() -> Self {
+        Self::new(V::default())
+    }
 }
 
 /// SEXS with constant limits `[E_MIN, E_MAX]`.
@@ -178,6 +203,7 @@ impl<V: SexsVariant> SexsModel<V> {
             limit: NonWindup::default(),
             inv_tb: 0.0,
             inv_te: 0.0,
+            dual: None,
         }
     }
 
@@ -189,17 +215,66 @@ impl<V: SexsVariant> SexsModel<V> {
     /// `(v_err, y_ll)` at the current point.
     #[inline(always)]
     fn lead_lag(&self, g: &SexsGains, x: &[f64], io: &Io) -> (f64, f64) {
-        let v_err = self.v_ref + g.v_ref_offset - io.get(port::V_TERM)
-            + io.get(port::VS)
-            + io.get(port::VOEL)
-            + io.get(port::VUEL);
-        (v_err, g.ta_tb * v_err + (1.0 - g.ta_tb) * x[0])
+        lead_lag(g, self.v_ref, x, io)
     }
 
     /// Unconstrained `dx_e/dt` with the exciter state at `x_e`.
     #[inline(always)]
     fn exciter_rate(&self, g: &SexsGains, x: &[f64], io: &Io, x_e: f64) -> f64 {
         (g.k * self.lead_lag(g, x, io).1 - x_e) * self.inv_te
+    }
+}
+
+/// `(v_err, y_ll)` at the current point.
+#[inline(always)]
+fn lead_lag<S: Scalar>(g: &SexsGains<S>, v_ref: S, x: &[S], io: &Io<S>) -> (S, S) {
+    let v_err = v_ref + g.v_ref_offset - io.get(port::V_TERM)
+        + io.get(port::VS)
+        + io.get(port::VOEL)
+        + io.get(port::VUEL);
+    (v_err, g.ta_tb * v_err + g.ta_tb.rsub(1.0) * x[0])
+}
+
+/// E_fd at the current point.
+#[inline(always)]
+fn outputs<S: Scalar>(
+    p: &impl SexsEq<S>,
+    moving: bool,
+    limit: &NonWindup,
+    x: &[S],
+    io: &mut Io<S>,
+) {
+    let (lo, hi) = p.limits(io);
+    // Never panics (unlike `f64::clamp`): a trial stage of the integrator may compute the
+    // moving limits from non-finite signals; the step is then rejected, not the process.
+    let efd = if moving {
+        clamp(limit.effective(x[1], lo, hi), lo, hi)
+    } else {
+        limit.output(x[1], lo, hi)
+    };
+    io.set(port::EFD, efd);
+}
+
+/// The state derivatives; `[v_ref, 1/T_B, 1/T_E]`.
+#[inline(always)]
+fn derivatives<S: Scalar>(
+    p: &impl SexsEq<S>,
+    moving: bool,
+    limit: &NonWindup,
+    [v_ref, inv_tb, inv_te]: [S; 3],
+    x: &[S],
+    io: &Io<S>,
+    dx: &mut [S],
+) {
+    let g = p.gains();
+    let (v_err, y_ll) = lead_lag(&g, v_ref, x, io);
+    dx[0] = (v_err - x[0]) * inv_tb;
+    if moving {
+        let (lo, hi) = p.limits(io);
+        let f = (g.k * y_ll - limit.effective(x[1], lo, hi)) * inv_te;
+        dx[1] = limit.derivative_moving(f, x[1], lo, hi, inv_te);
+    } else {
+        dx[1] = limit.derivative((g.k * y_ll - x[1]) * inv_te);
     }
 }
 
@@ -253,28 +328,43 @@ impl<V: SexsVariant> Block for SexsModel<V> {
 
     #[inline]
     fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
-        let (lo, hi) = self.p.limits(io);
-        let x_e = if V::MOVING_LIMITS {
-            self.limit.effective(x[1], lo, hi)
-        } else {
-            x[1]
-        };
-        // Never panics (unlike `f64::clamp`): a trial stage of the integrator may compute the
-        // moving limits from non-finite signals; the step is then rejected, not the process.
-        io.set(port::EFD, clamp(x_e, lo, hi));
+        outputs(&self.p, V::MOVING_LIMITS, &self.limit, x, io);
     }
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        let g = self.p.gains();
-        let (v_err, y_ll) = self.lead_lag(&g, x, io);
-        dx[0] = (v_err - x[0]) * self.inv_tb;
-        if V::MOVING_LIMITS {
-            let (lo, hi) = self.p.limits(io);
-            let f = (g.k * y_ll - self.limit.effective(x[1], lo, hi)) * self.inv_te;
-            dx[1] = self.limit.derivative_moving(f, x[1], lo, hi, self.inv_te);
-        } else {
-            dx[1] = self.limit.derivative((g.k * y_ll - x[1]) * self.inv_te);
+        let c = [self.v_ref, self.inv_tb, self.inv_te];
+        derivatives(&self.p, V::MOVING_LIMITS, &self.limit, c, x, io, dx);
+    }
+
+    fn init_constants(&self) -> Vec<f64> {
+        vec![self.v_ref]
+    }
+
+    fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
+        let p = self.p.lift_dual(lanes);
+        let g = p.gains();
+        let v_ref = consts.first().copied().unwrap_or(D::cst(self.v_ref));
+        self.dual = Some((p, [v_ref, g.tb.recip(), g.te.recip()]));
+        true
+    }
+
+    fn outputs_dual(&self, _t: f64, x: &[D], io: &mut Io<D>) {
+        if let Some((p, _)) = &self.dual {
+            outputs(p, V::MOVING_LIMITS, &self.limit, x, io);
+        }
+    }
+
+    fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
+        if let Some((p, c)) = &self.dual {
+            derivatives(p, V::MOVING_LIMITS, &self.limit, *c, x, io, dx);
+        }
+    }
+
+    fn pin_dual(&self, x: &mut [D], io: &Io<D>) {
+        if let Some((p, _)) = &self.dual {
+            let (lo, hi) = p.limits(io);
+            self.limit.pin(&mut x[1], lo, hi);
         }
     }
 

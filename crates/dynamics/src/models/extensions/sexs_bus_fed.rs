@@ -28,9 +28,10 @@
 use crate::block::{guard, Io, ModelError, Port, PortInit};
 use crate::models::exciter::roles::{ExciterRoles, ParamRole};
 use crate::models::exciter::sexs::{
-    port, sexs_roles, SexsGains, SexsModel, SexsVariant, PORTS as SEXS_PORTS,
+    port, sexs_roles, SexsEq, SexsGains, SexsModel, SexsVariant, PORTS as SEXS_PORTS,
 };
 use crate::param_set;
+use crate::sens::{seeded, Scalar, D};
 
 param_set! {
     /// SEXS_bus_fed parameters.
@@ -64,12 +65,9 @@ const PORTS: &[Port] = &[
     Port::input_ft("xadifd", PortInit::Needs, "field current X_ad I_fd [pu]"),
 ];
 
-impl SexsVariant for SexsBusFedParams {
-    const MODEL: &'static str = "SEXS_bus_fed";
-    const PORTS: &'static [Port] = PORTS;
-    const MOVING_LIMITS: bool = true;
+impl<S: Scalar> SexsEq<S> for SexsBusFedParams<S> {
     #[inline(always)]
-    fn gains(&self) -> SexsGains {
+    fn gains(&self) -> SexsGains<S> {
         SexsGains {
             ta_tb: self.ta_tb,
             tb: self.tb,
@@ -78,20 +76,30 @@ impl SexsVariant for SexsBusFedParams {
             v_ref_offset: self.v_ref_offset,
         }
     }
-    fn validate_limits(&self) -> Result<(), ModelError> {
-        guard::finite("vr_min", self.vr_min)?;
-        guard::non_negative("k_c", self.k_c)?;
-        guard::greater("vr_max", self.vr_max, "vr_min", self.vr_min)
-    }
     /// `(E_fd,min, E_fd,max)`, never upside down: in a deep dip with a high field current the
     /// commutation drop can take the ceiling `V_t·V_RMAX − K_C·X_adI_fd` below the floor
     /// `V_t·V_RMIN`; the bridge then delivers the ceiling (the drop acts whatever the firing
     /// angle, so no angle reaches the floor), i.e. the floor follows the ceiling down.
     #[inline(always)]
-    fn limits(&self, io: &Io) -> (f64, f64) {
+    fn limits(&self, io: &Io<S>) -> (S, S) {
         let v = io.get(V_SUPPLY);
         let hi = v * self.vr_max - self.k_c * io.get(XADIFD);
-        ((v * self.vr_min).min(hi), hi)
+        ((v * self.vr_min).min_s(hi), hi)
+    }
+}
+
+impl SexsVariant for SexsBusFedParams {
+    const MODEL: &'static str = "SEXS_bus_fed";
+    const PORTS: &'static [Port] = PORTS;
+    const MOVING_LIMITS: bool = true;
+    type Lifted = SexsBusFedParams<D>;
+    fn lift_dual(&self, lanes: &[Option<usize>]) -> SexsBusFedParams<D> {
+        self.lift(|i, v| seeded(v, lanes.get(i).copied().flatten()))
+    }
+    fn validate_limits(&self) -> Result<(), ModelError> {
+        guard::finite("vr_min", self.vr_min)?;
+        guard::non_negative("k_c", self.k_c)?;
+        guard::greater("vr_max", self.vr_max, "vr_min", self.vr_min)
     }
     fn describe_limits(&self, io: &Io) -> String {
         let (lo, hi) = self.limits(io);

@@ -4,6 +4,7 @@
 //! `ΔP_m` (`pm_offset`, default 0) is a nuisance parameter a fit may free.
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
+use crate::sens::{seeded, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -24,11 +25,17 @@ const PORTS: &[Port] = &[Port::output(
 pub struct ConstantPm {
     pub p: ConstantPmParams,
     pm0: f64,
+    /// P_m0 + ΔP_m on dual numbers, after [`Block::seed_dual`].
+    dual: Option<D>,
 }
 
 impl ConstantPm {
     pub fn new(p: ConstantPmParams) -> Self {
-        Self { p, pm0: 0.0 }
+        Self {
+            p,
+            pm0: 0.0,
+            dual: None,
+        }
     }
 }
 
@@ -55,4 +62,18 @@ impl Block for ConstantPm {
         io.set(0, self.pm0 + self.p.pm_offset);
     }
     fn derivatives(&self, _t: f64, _x: &[f64], _io: &Io, _dx: &mut [f64]) {}
+
+    fn init_constants(&self) -> Vec<f64> {
+        vec![self.pm0]
+    }
+    fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
+        let pm0 = consts.first().copied().unwrap_or(seeded(self.pm0, None));
+        self.dual = Some(pm0 + seeded(self.p.pm_offset, lanes.first().copied().flatten()));
+        true
+    }
+    fn outputs_dual(&self, _t: f64, _x: &[D], io: &mut Io<D>) {
+        if let Some(pm) = self.dual {
+            io.set(0, pm);
+        }
+    }
 }

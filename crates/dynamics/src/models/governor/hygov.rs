@@ -19,6 +19,7 @@
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::{clamp, NonWindup};
+use crate::sens::{seeded, Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -62,6 +63,60 @@ pub struct Hygov {
     gate_limit: NonWindup,
     /// 1/T_f, 1/(r T_r), 1/r, 1/T_g, 1/T_w (refreshed at initialisation).
     inv: [f64; 5],
+    /// The parameters, n_ref and the inverses on dual numbers, after [`Block::seed_dual`].
+    dual: Option<(HygovParams<D>, D, [D; 5])>,
+}
+
+/// 1/T_f, 1/(r T_r), 1/r, 1/T_g, 1/T_w.
+fn inverses<S: Scalar>(p: &HygovParams<S>) -> [S; 5] {
+    [
+        p.t_f.recip(),
+        (p.r_temp * p.t_r).recip(),
+        p.r_temp.recip(),
+        p.t_g.recip(),
+        p.t_w.recip(),
+    ]
+}
+
+/// `(de/dt, rate-limited dc/dt before the gate limit)`.
+#[inline(always)]
+fn rates<S: Scalar>(p: &HygovParams<S>, n_ref: S, inv: &[S; 5], x: &[S], speed: S) -> (S, S) {
+    let [inv_tf, inv_rtr, inv_r, _, _] = *inv;
+    let de = (n_ref + p.n_ref_offset - speed - p.r_perm * x[1] - x[0]) * inv_tf;
+    let v = x[0] * inv_rtr + de * inv_r;
+    (de, clamp(v, -p.velm, p.velm))
+}
+
+/// Turbine head for flow `q` and gate `g`.
+#[inline(always)]
+fn head<S: Scalar>(q: S, g: S) -> S {
+    let r = q / g.max_s(S::cst(1e-6));
+    r * r
+}
+
+#[inline(always)]
+fn outputs<S: Scalar>(p: &HygovParams<S>, x: &[S], io: &mut Io<S>) {
+    let h = head(x[3], x[2]);
+    io.set(
+        port::PM,
+        p.a_t * h * (x[3] - p.q_nl) - p.d_turb * x[2] * io.get(port::SPEED),
+    );
+}
+
+#[inline(always)]
+fn derivatives<S: Scalar>(
+    p: &HygovParams<S>,
+    (n_ref, inv): (S, &[S; 5]),
+    gate: &NonWindup,
+    x: &[S],
+    io: &Io<S>,
+    dx: &mut [S],
+) {
+    let (de, dc) = rates(p, n_ref, inv, x, io.get(port::SPEED));
+    dx[0] = de;
+    dx[1] = gate.derivative(dc);
+    dx[2] = (x[1] - x[2]) * inv[3];
+    dx[3] = head(x[3], x[2]).rsub(1.0) * inv[4];
 }
 
 impl Hygov {
@@ -75,18 +130,7 @@ impl Hygov {
     /// `(de/dt, rate-limited dc/dt before the gate limit)`.
     #[inline(always)]
     fn rates(&self, x: &[f64], speed: f64) -> (f64, f64) {
-        let p = &self.p;
-        let [inv_tf, inv_rtr, inv_r, _, _] = self.inv;
-        let de = (self.n_ref + p.n_ref_offset - speed - p.r_perm * x[1] - x[0]) * inv_tf;
-        let v = x[0] * inv_rtr + de * inv_r;
-        (de, clamp(v, -p.velm, p.velm))
-    }
-
-    /// Turbine head for flow `q` and gate `g`.
-    #[inline(always)]
-    fn head(q: f64, g: f64) -> f64 {
-        let r = q / g.max(1e-6);
-        r * r
+        rates(&self.p, self.n_ref, &self.inv, x, speed)
     }
 }
 
@@ -135,34 +179,52 @@ impl Block for Hygov {
         x[2] = q0;
         x[3] = q0;
         self.n_ref = p.r_perm * q0 + w0;
-        self.inv = [
-            1.0 / p.t_f,
-            1.0 / (p.r_temp * p.t_r),
-            1.0 / p.r_temp,
-            1.0 / p.t_g,
-            1.0 / p.t_w,
-        ];
+        self.inv = inverses(p);
         self.gate_limit = NonWindup::default();
         Ok(())
     }
 
     #[inline]
     fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
-        let p = &self.p;
-        let h = Self::head(x[3], x[2]);
-        io.set(
-            port::PM,
-            p.a_t * h * (x[3] - p.q_nl) - p.d_turb * x[2] * io.get(port::SPEED),
-        );
+        outputs(&self.p, x, io);
     }
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        let (de, dc) = self.rates(x, io.get(port::SPEED));
-        dx[0] = de;
-        dx[1] = self.gate_limit.derivative(dc);
-        dx[2] = (x[1] - x[2]) * self.inv[3];
-        dx[3] = (1.0 - Self::head(x[3], x[2])) * self.inv[4];
+        let c = (self.n_ref, &self.inv);
+        derivatives(&self.p, c, &self.gate_limit, x, io, dx);
+    }
+
+    fn init_constants(&self) -> Vec<f64> {
+        vec![self.n_ref]
+    }
+
+    fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
+        let p = self
+            .p
+            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let n_ref = consts.first().copied().unwrap_or(D::cst(self.n_ref));
+        let inv = inverses(&p);
+        self.dual = Some((p, n_ref, inv));
+        true
+    }
+
+    fn outputs_dual(&self, _t: f64, x: &[D], io: &mut Io<D>) {
+        if let Some((p, _, _)) = &self.dual {
+            outputs(p, x, io);
+        }
+    }
+
+    fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
+        if let Some((p, n_ref, inv)) = &self.dual {
+            derivatives(p, (*n_ref, inv), &self.gate_limit, x, io, dx);
+        }
+    }
+
+    fn pin_dual(&self, x: &mut [D], _io: &Io<D>) {
+        if let Some((p, _, _)) = &self.dual {
+            self.gate_limit.pin(&mut x[1], p.g_min, p.g_max);
+        }
     }
 
     fn n_events(&self) -> usize {

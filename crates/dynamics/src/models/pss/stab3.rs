@@ -12,6 +12,7 @@
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::clamp;
+use crate::sens::{seeded, Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -47,12 +48,38 @@ const T_MIN: f64 = 1e-9;
 pub struct Stab3 {
     pub p: Stab3Params,
     p_ref: f64,
+    /// The parameters and P_REF on dual numbers, after [`Block::seed_dual`].
+    dual: Option<(Stab3Params<D>, D)>,
 }
 
 impl Stab3 {
     pub fn new(p: Stab3Params) -> Self {
-        Self { p, p_ref: 0.0 }
+        Self {
+            p,
+            p_ref: 0.0,
+            dual: None,
+        }
     }
+}
+
+#[inline(always)]
+fn outputs<S: Scalar>(p: &Stab3Params<S>, x: &[S], io: &mut Io<S>) {
+    let vs = -(p.k_x / p.t_x2) * (x[1] - x[2]);
+    io.set(port::VS, clamp(vs, -p.v_lim, p.v_lim));
+}
+
+#[inline(always)]
+fn derivatives<S: Scalar>(p: &Stab3Params<S>, p_ref: S, x: &[S], io: &Io<S>, dx: &mut [S]) {
+    let pe = io.get(port::PE);
+    let p_f = if p.t_t.val() > T_MIN {
+        dx[0] = (pe - x[0]) / p.t_t;
+        x[0]
+    } else {
+        dx[0] = S::cst(0.0);
+        pe
+    };
+    dx[1] = (p_f - p_ref - x[1]) / p.t_x1;
+    dx[2] = (x[1] - x[2]) / p.t_x2;
 }
 
 impl Block for Stab3 {
@@ -86,20 +113,31 @@ impl Block for Stab3 {
     }
     #[inline]
     fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
-        let vs = -(self.p.k_x / self.p.t_x2) * (x[1] - x[2]);
-        io.set(port::VS, clamp(vs, -self.p.v_lim, self.p.v_lim));
+        outputs(&self.p, x, io);
     }
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        let pe = io.get(port::PE);
-        let p_f = if self.p.t_t > T_MIN {
-            dx[0] = (pe - x[0]) / self.p.t_t;
-            x[0]
-        } else {
-            dx[0] = 0.0;
-            pe
-        };
-        dx[1] = (p_f - self.p_ref - x[1]) / self.p.t_x1;
-        dx[2] = (x[1] - x[2]) / self.p.t_x2;
+        derivatives(&self.p, self.p_ref, x, io, dx);
+    }
+    fn init_constants(&self) -> Vec<f64> {
+        vec![self.p_ref]
+    }
+    fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
+        let p = self
+            .p
+            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let p_ref = consts.first().copied().unwrap_or(D::cst(self.p_ref));
+        self.dual = Some((p, p_ref));
+        true
+    }
+    fn outputs_dual(&self, _t: f64, x: &[D], io: &mut Io<D>) {
+        if let Some((p, _)) = &self.dual {
+            outputs(p, x, io);
+        }
+    }
+    fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
+        if let Some((p, p_ref)) = &self.dual {
+            derivatives(p, *p_ref, x, io, dx);
+        }
     }
 }
