@@ -217,7 +217,6 @@ impl<const N: usize> Mul for Dual<N> {
     type Output = Self;
     #[inline(always)]
     #[allow(clippy::suspicious_arithmetic_impl)] // the product rule: d(uv) = u'v + uv'
-
     fn mul(self, o: Self) -> Self {
         Self {
             v: self.v * o.v,
@@ -440,7 +439,8 @@ mod tests {
 
     #[test]
     fn every_function_carries_its_derivative() {
-        let cases: Vec<(&str, fn(D) -> D, fn(f64) -> f64)> = vec![
+        type Case = (&'static str, fn(D) -> D, fn(f64) -> f64);
+        let cases: Vec<Case> = vec![
             ("sqrt", |x| x.sqrt(), f64::sqrt),
             ("sin", |x| x.sin_cos().0, f64::sin),
             ("cos", |x| x.sin_cos().1, f64::cos),
