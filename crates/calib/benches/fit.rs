@@ -7,8 +7,9 @@
 //! * `diagnose_full_catalog_20s`: `diagnose` with the whole catalog (default options) on a 20 s
 //!   synthetic fault-dip event at 60 samples/s with PMU noise, on the generic hydro unit (the
 //!   issue's target: within 60 s on this 2-core machine);
-//! * `jacobian_adaptive_differences` / `jacobian_replayed`: one Levenberg-Marquardt Jacobian
-//!   (12 parameters, a 20 s synthetic dip) by differences of adaptive runs and on replays;
+//! * `jacobian_adaptive_differences` / `jacobian_replayed` / `jacobian_sensitivities`: one
+//!   Levenberg-Marquardt Jacobian (12 parameters, a 20 s synthetic dip) by differences of
+//!   adaptive runs, on replays, and by forward sensitivities;
 //! * `practice_fit_and_diagnose`: the default fit and the diagnosis of the bundled practice case
 //!   p01 with every uncertain parameter free (target: within 60 s).
 
@@ -177,5 +178,26 @@ fn jacobian_replayed(bencher: Bencher) {
         let r = problem.residuals_logged(&x, &sim).unwrap();
         let (_, steps) = problem.residuals_with_steps(&x, &coarse).unwrap();
         jacobian_columns(&problem, &u, &r, &steps, &sim)
+    });
+}
+
+/// The same Jacobian by forward sensitivities, as [`itaipu_calib::local::LmStop::sensitivities`]
+/// takes it: the residuals at rtol 1e-7 with their steps logged, then the states and the twelve
+/// columns' sensitivities on those steps (two passes of eight lanes, in parallel).
+#[divan::bench(sample_count = 5, sample_size = 1)]
+fn jacobian_sensitivities(bencher: Bencher) {
+    use itaipu_calib::local::{lm_integrator, LM_RTOL};
+    use itaipu_dynamics::integrate::Method;
+    let problem = jacobian_problem();
+    let u = problem.to_unit(&problem.start());
+    let sim = lm_integrator(LM_RTOL);
+    let Method::Dopri5(o) = &sim.method else {
+        unreachable!()
+    };
+    bencher.bench_local(|| {
+        let x = problem.from_unit(&u);
+        let (_, steps) = problem.residuals_with_steps(&x, o).unwrap();
+        let sims: Vec<_> = steps.iter().collect();
+        problem.sensitivity_jacobian(&u, &sims).unwrap()
     });
 }

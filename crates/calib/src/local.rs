@@ -325,6 +325,10 @@ pub struct LmStop {
     /// from differences of adaptive runs (off in both [`Self::CALIBRATION`] and
     /// [`Self::COMPARISON`]: each says why).
     pub replay: bool,
+    /// Jacobians by forward sensitivities ([`Problem::sensitivity_jacobian`]) on the steps of
+    /// the accepted point's own simulations, where every block has dual equations; otherwise
+    /// (and where they fail) the columns of [`Self::replay`]'s choice.
+    pub sensitivities: bool,
 }
 
 impl LmStop {
@@ -345,6 +349,7 @@ impl LmStop {
         small_steps: 3,
         rtol: LM_RTOL,
         replay: false,
+        sensitivities: false,
     };
     /// A diagnosis re-fit, which only compares χ² values: two steps below 1e-5 (0.02 of a χ² of
     /// 2 000, nothing a ΔBIC of 10 can see), simulated at rtol 1e-6 (every re-fit's χ² is taken
@@ -374,6 +379,7 @@ impl LmStop {
         small_steps: 2,
         rtol: 1e-6,
         replay: false,
+        sensitivities: false,
     };
 }
 
@@ -433,6 +439,9 @@ pub fn levenberg_marquardt(
     });
     let evaluate = |u: &[f64]| {
         let x = problem.from_unit(u);
+        if stop.sensitivities && problem.compare.is_none() {
+            return problem.residuals_with_steps(&x, opts);
+        }
         if !stop.replay {
             return Some((problem.residuals_logged(&x, &sim)?, vec![]));
         }
@@ -468,10 +477,18 @@ pub fn levenberg_marquardt(
     let mut small_steps = 0;
     while it < iterations {
         it += 1;
-        let cols = if stop.replay {
-            jacobian_columns(problem, &u, &r, &steps, &sim)
-        } else {
-            jacobian_columns(problem, &u, &r, &[], &sim)
+        let exact = stop
+            .sensitivities
+            .then(|| {
+                let sims: Vec<&SimOptions> = steps.iter().collect();
+                problem.sensitivity_jacobian(&u, &sims)
+            })
+            .flatten()
+            .filter(|c| c.iter().all(|c| c.len() == r.len()));
+        let cols = match exact {
+            Some(c) => c.into_iter().map(Some).collect(),
+            None if stop.replay => jacobian_columns(problem, &u, &r, &steps, &sim),
+            None => jacobian_columns(problem, &u, &r, &[], &sim),
         };
         let m = r.len();
         let jac = nalgebra::DMatrix::from_fn(m, n, |k, j| cols[j].as_ref().map_or(0.0, |c| c[k]));

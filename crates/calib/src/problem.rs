@@ -746,6 +746,131 @@ impl Problem {
         Ok(r)
     }
 
+    /// The Jacobian of [`Problem::residuals`] at box point `u` with respect to the box
+    /// coordinates ([`Problem::sensitivity_jacobian_x`] chained with `dx/du`).
+    pub fn sensitivity_jacobian(&self, u: &[f64], sims: &[&SimOptions]) -> Option<Vec<Vec<f64>>> {
+        let x = self.from_unit(u);
+        let mut cols = self.sensitivity_jacobian_x(&x, sims)?;
+        for ((c, f), &xv) in cols.iter_mut().zip(&self.free).zip(&x) {
+            let dxdu = if f.log {
+                xv * (f.hi / f.lo).ln()
+            } else {
+                f.hi - f.lo
+            };
+            c.iter_mut().for_each(|v| *v *= dxdu);
+        }
+        Some(cols)
+    }
+
+    /// The Jacobian of [`Problem::residuals`] at physical values `x`, one column per free
+    /// parameter, by forward sensitivities ([`itaipu_dynamics::sens`]): each event's playback on
+    /// `sims[i]` (a replay of the steps the residuals' simulation took, or the options
+    /// themselves) with `∂P/∂p`, `∂Q/∂p` integrated along (the passes of
+    /// [`itaipu_dynamics::sens::LANES`] parameters in parallel), the tied parameters moving
+    /// with their source, the priors' rows analytically. Exact for the discretised playback,
+    /// where differences carry their step's truncation and, between adaptive runs, the
+    /// integrator's noise. `None` when the stage plays back in a mode, a block has no dual
+    /// equations or a simulation fails: the caller then takes differences.
+    pub fn sensitivity_jacobian_x(&self, x: &[f64], sims: &[&SimOptions]) -> Option<Vec<Vec<f64>>> {
+        if self.compare.is_some() || self.cancelled() {
+            return None;
+        }
+        let unit = self.unit_at(x);
+        // Every free parameter and the parameters tied to it move together.
+        let mut refs: Vec<ParamRef> = Vec::new();
+        let groups: Vec<Vec<usize>> = self
+            .free
+            .iter()
+            .map(|f| {
+                std::iter::once(f.r)
+                    .chain(self.ties.iter().filter(|t| t.0 == f.r).map(|t| t.1))
+                    .map(|r| {
+                        refs.iter().position(|&q| q == r).unwrap_or_else(|| {
+                            refs.push(r);
+                            refs.len() - 1
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+        let (sp, sq) = (self.weights.0.sqrt(), self.weights.1.sqrt());
+        let n = self.free.len();
+        let mut cols: Vec<Vec<f64>> = vec![Vec::new(); n];
+        // Every event's passes (LANES parameters each) in parallel.
+        let lanes = itaipu_dynamics::sens::LANES;
+        let jobs: Vec<(usize, &[ParamRef])> = (0..self.events.len())
+            .flat_map(|e| refs.chunks(lanes).map(move |c| (e, c)))
+            .collect();
+        let passes: Vec<Option<itaipu_dynamics::sens::PqSensitivities>> = jobs
+            .par_iter()
+            .map(|&(e, chunk)| {
+                let ev = &self.events[e];
+                itaipu_dynamics::sens::simulate_pq_sensitivities(
+                    &unit,
+                    &ev.prepared,
+                    chunk,
+                    sims[e],
+                )
+                .ok()
+            })
+            .collect();
+        self.evaluations.fetch_add(jobs.len(), Ordering::Relaxed);
+        for (e, (ev, _)) in self.events.iter().zip(sims).enumerate() {
+            // The event's passes, their columns in `refs` order.
+            let mut s = itaipu_dynamics::sens::PqSensitivities {
+                p: vec![],
+                q: vec![],
+                dp: vec![],
+                dq: vec![],
+            };
+            for (&(je, _), pass) in jobs.iter().zip(&passes) {
+                if je != e {
+                    continue;
+                }
+                let pass = pass.as_ref()?;
+                if s.p.is_empty() {
+                    (s.p, s.q) = (pass.p.clone(), pass.q.clone());
+                }
+                s.dp.extend(pass.dp.iter().cloned());
+                s.dq.extend(pass.dq.iter().cloned());
+            }
+            if s.p.is_empty() {
+                return None;
+            }
+            for (k, _, _) in ev.window_residuals(&s.p, &s.q) {
+                if !(s.p[k].abs() < DIVERGED_PU && s.q[k].abs() < DIVERGED_PU) {
+                    return None;
+                }
+                for (j, g) in groups.iter().enumerate() {
+                    let (dp, dq) = g
+                        .iter()
+                        .fold((0.0, 0.0), |(a, b), &i| (a + s.dp[i][k], b + s.dq[i][k]));
+                    if sp > 0.0 {
+                        cols[j].push(sp * dp);
+                    }
+                    if sq > 0.0 {
+                        cols[j].push(sq * dq);
+                    }
+                }
+            }
+        }
+        // The priors' rows: d(σ ln(x/c)/spread)/dx = σ/(x spread), in the order of
+        // [`Problem::prior_residuals`].
+        if self.prior_weight > 0.0 {
+            let sw = self.prior_weight.sqrt();
+            for (i, (f, &xv)) in self.free.iter().zip(x).enumerate() {
+                if let Some(p) = f.prior.filter(|p| p.z(xv).is_some()) {
+                    for (j, c) in cols.iter_mut().enumerate() {
+                        c.push(if i == j { sw / (xv * p.spread) } else { 0.0 });
+                    }
+                }
+            }
+        }
+        cols.iter()
+            .all(|c| c.iter().all(|v| v.is_finite()))
+            .then_some(cols)
+    }
+
     /// Variance of one weighted residual of the measured events: the mean over the signals
     /// with a non-zero weight of `w · σ²`, σ² from [`noise_variance`] over each event's window.
     pub fn measured_noise_variance(&self) -> f64 {

@@ -2,7 +2,8 @@
 //!
 //! * a 20 s synthetic event at 60 samples/s (dip, grid swing, 0.2 Hz frequency fall, PMU
 //!   noise) into GENSAE + SEXS + STAB3 + HYGOV, with RK4 at 1 ms and Dormand-Prince at rtol 1e-6;
-//! * the bundled Itaipu record (4.65 s, 280 samples) into its GENSAE + SEXS + STAB3 unit.
+//! * the bundled Itaipu record (4.65 s, 280 samples) into its GENSAE + SEXS + STAB3 unit;
+//! * the forward sensitivities of the synthetic event to eight parameters (one pass).
 //!
 //! Each iteration is one complete playback: initialisation, integration, P and Q at every sample.
 
@@ -132,4 +133,31 @@ fn itaipu_rk4_1ms_diagram_sexs(bencher: Bencher) {
             method: Method::Rk4 { h: 1e-3 },
         },
     );
+}
+
+/// Forward sensitivities of P and Q to eight parameters of the synthetic unit (one pass of the
+/// tangent lanes), on the steps of a Dormand-Prince rtol-1e-6 playback: the plain playback that
+/// logs the steps, then the states and sensitivities together on them. Compare with
+/// [`synthetic_20s_dopri5_rtol_1e6`] × 9 (forward differences) or × 17 (central).
+#[divan::bench(sample_count = 30)]
+fn synthetic_20s_sensitivities_8_parameters(bencher: Bencher) {
+    let (unit, ev) = synthetic();
+    let refs: Vec<_> = [
+        "machine.h",
+        "machine.x_d",
+        "machine.t_d0_prime",
+        "exciter.k",
+        "exciter.te",
+        "pss.k_x",
+        "governor.t_w",
+        "governor.r_temp",
+    ]
+    .iter()
+    .map(|p| unit.param(p).unwrap())
+    .collect();
+    let opts = dopri5();
+    bencher.bench_local(|| {
+        itaipu_dynamics::sens::simulate_pq_sensitivities(divan::black_box(&unit), &ev, &refs, &opts)
+            .unwrap()
+    });
 }

@@ -132,19 +132,30 @@ pub(crate) fn search(
 }
 
 /// Jacobian of the residuals in physical units, for the identifiability report and the standard
-/// errors: forward differences between replays of the steps of one run on the accurate
-/// integrator ([`Problem::residuals_with_steps`]), each column the derivative of that
-/// discretised playback (free of step-size noise, so the step can be 1e-6 of the parameter's
-/// scale, where two adaptive runs needed central differences at 1e-4), backwards where a
-/// parameter sits on its upper bound (the model may reject values beyond it) or where the model
-/// refuses the forward step (a parameter pressed against another, X'_d on X_d). The residuals
-/// replayed at `x` are the base of the differences; `None` when a simulation fails.
+/// errors, on the steps of one run on the accurate integrator
+/// ([`Problem::residuals_with_steps`]): by forward sensitivities
+/// ([`Problem::sensitivity_jacobian_x`], exact for that discretised playback) where every block
+/// has dual equations; otherwise forward differences between replays of those steps, each
+/// column the derivative of the discretised playback (free of step-size noise, so the step can
+/// be 1e-6 of the parameter's scale, where two adaptive runs needed central differences at
+/// 1e-4), backwards where a parameter sits on its upper bound (the model may reject values
+/// beyond it) or where the model refuses the forward step (a parameter pressed against another,
+/// X'_d on X_d). The residuals replayed at `x` are the base of the differences; `None` when a
+/// simulation fails.
 pub(crate) fn jacobian(problem: &Problem, x: &[f64]) -> Option<Vec<Vec<f64>>> {
     let Method::Dopri5(acc) = accurate_integrator().method else {
         unreachable!("the accurate integrator is Dormand-Prince")
     };
     let (_, steps) = problem.residuals_with_steps(x, &acc)?;
     let replays: Vec<&SimOptions> = steps.iter().collect();
+    if let Some(cols) = problem.sensitivity_jacobian_x(x, &replays) {
+        let rows = cols.first().map_or(0, |c| c.len());
+        return Some(
+            (0..rows)
+                .map(|k| cols.iter().map(|c| c[k]).collect())
+                .collect(),
+        );
+    }
     let r0 = problem.residuals_each(x, &replays).ok()?;
     let cols: Vec<Option<Vec<f64>>> = (0..x.len())
         .into_par_iter()
@@ -227,13 +238,16 @@ mod tests {
     /// The Jacobians on replayed steps are the derivatives the finite differences of a tight
     /// integrator approximate: on a 6 s dip into the synthetic unit with PMU noise, six
     /// parameters of its four blocks (machine, exciter, stabiliser, governor), each column of the
-    /// identifiability Jacobian (replays of the accurate integrator's steps) within 2e-4, and of
-    /// the calibration's Levenberg-Marquardt Jacobian (replays of steps at
-    /// [`crate::local::JACOBIAN_RTOL`]) within 5e-2, of central differences at rtol 1e-10 (step
-    /// 1e-4 of the box), in the column's norm. Measured: 1e-7 to 9e-5, and 2e-6 to 1.8e-2, the
-    /// largest both times the exciter's T_E, whose frozen steps' own error changes with it (a
-    /// Gauss-Newton direction needs far less than 5e-2: each step is checked on the objective).
-    /// A replay that lost the initialisation's or a block's dependence on a parameter would be
+    /// identifiability Jacobian (forward sensitivities on the accurate integrator's steps) within
+    /// 1e-6, of the calibration's Levenberg-Marquardt Jacobian (replayed differences on steps at
+    /// [`crate::local::JACOBIAN_RTOL`]) within 5e-2, and of the sensitivities on those same
+    /// coarse steps within 1e-5, of central differences at rtol 1e-10 (step 1e-4 of the box), in
+    /// the column's norm. Measured: 8e-9 to 1.7e-7 (replayed differences, before the
+    /// sensitivities: 1e-7 to 9e-5); 2e-6 to 1.8e-2, the largest the exciter's T_E (a stage of
+    /// a replayed step a hair past the ceiling takes the clamp's branch, dropping the state's
+    /// dependence there; a Gauss-Newton direction needs far less than 5e-2: each step is
+    /// checked on the objective); the sensitivities on the coarse steps 3e-7 to 3e-6.
+    /// A Jacobian that lost the initialisation's or a block's dependence on a parameter would be
     /// off by its whole effect.
     #[test]
     fn replayed_columns_agree_with_accurate_central_differences() {
@@ -247,7 +261,7 @@ mod tests {
                 ("pss.k_x", 0.1, 5.0),
                 ("governor.t_g", 0.1, 1.0),
             ],
-            (2e-4, 5e-2),
+            (1e-6, 5e-2, Some(1e-5)),
         );
     }
 
@@ -319,17 +333,18 @@ mod tests {
                 ("pss.t_f", 0.01, 0.5),
                 ("pss.t_p", 0.5, 10.0),
             ],
-            (5e-2, 5e-2),
+            (5e-2, 5e-2, None),
         );
     }
 
-    /// Checks each column of the identifiability and the Levenberg-Marquardt Jacobians at 10 %
-    /// above `unit`'s values of `params` against central differences at rtol 1e-10, to the
-    /// relative errors `tol` (in the column's norm).
+    /// Checks each column of the identifiability and the Levenberg-Marquardt Jacobians (and of
+    /// the sensitivity Jacobian on the latter's steps, where the unit has dual equations: `None`
+    /// requires that it has not) at 10 % above `unit`'s values of `params` against central
+    /// differences at rtol 1e-10, to the relative errors `tol` (in the column's norm).
     fn check_replayed_columns(
         unit: itaipu_dynamics::unit::Unit,
         params: &[(&str, f64, f64)],
-        tol: (f64, f64),
+        tol: (f64, f64, Option<f64>),
     ) {
         use crate::local::{jacobian_columns, JACOBIAN_RTOL};
         use itaipu_dynamics::integrate::Dopri5Options;
@@ -373,6 +388,9 @@ mod tests {
         };
         let (r, steps) = problem.residuals_with_steps(&x, &coarse).unwrap();
         let lm = jacobian_columns(&problem, &u, &r, &steps, &tight);
+        let sims: Vec<&SimOptions> = steps.iter().collect();
+        let sens = problem.sensitivity_jacobian(&u, &sims);
+        assert_eq!(sens.is_some(), tol.2.is_some(), "sensitivities available");
         for (j, refc) in reference.iter().enumerate() {
             // d r / d u = d r / d x · d x / d u (the box may be linear or logarithmic).
             let mut v = u.clone();
@@ -385,6 +403,11 @@ mod tests {
             eprintln!("{path}: identifiability {e:.1e}, Levenberg-Marquardt {e_lm:.1e}");
             assert!(e < tol.0, "{path}: {e:e}");
             assert!(e_lm < tol.1, "{path}: {e_lm:e}");
+            if let (Some(c), Some(t)) = (&sens, tol.2) {
+                let e_s = rel(&c[j], refc, 1.0);
+                eprintln!("{path}: sensitivities on the same steps {e_s:.1e}");
+                assert!(e_s < t, "{path}: sensitivities {e_s:e}");
+            }
         }
     }
 
