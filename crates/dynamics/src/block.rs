@@ -16,7 +16,7 @@
 //! references. [`PortInit`] says, per port, which side of that exchange the block is on.
 
 use crate::params::ParamSet;
-use crate::sens::D;
+use crate::sens::{Scalar, D};
 
 /// Direction of a port at run time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -217,6 +217,17 @@ pub trait Block: Send + Sync {
 
     /// [`Block::derivatives`] on dual numbers (after [`Block::seed_dual`] returned `true`).
     fn derivatives_dual(&self, _t: f64, _x: &[D], _io: &Io<D>, _dx: &mut [D]) {}
+
+    /// [`Block::transform_pq`] on dual numbers (after [`Block::seed_dual`]): the transform of
+    /// the simulated series' derivatives and its own parameters' part. A block with a transform
+    /// must give it here. Default: none.
+    fn transform_pq_dual(&self, _t: &[f64], _p: &mut [D], _q: &mut [D]) {}
+
+    /// [`Block::terminal_load`] on dual numbers (after [`Block::seed_dual`]): a block with a
+    /// terminal load must give its derivatives here. Default: none.
+    fn terminal_load_dual(&self, _v: f64) -> (D, D) {
+        (D::cst(0.0), D::cst(0.0))
+    }
 
     /// After [`Block::update_modes`] in a sensitivity pass: every state the current modes pin
     /// to a limit takes the limit's value and derivatives (the sensitivity of a pinned state is

@@ -398,6 +398,116 @@ fn delayed_uniform(y: &[f64], d: f64) -> Vec<f64> {
         .collect()
 }
 
+/// [`delayed`] on dual numbers: the values are [`delayed`]'s; the derivatives are those of the
+/// same interpolation, with respect to the series (a linear map: the delay applied to each
+/// tangent lane) and to `tau` (the kernel's slope in the fraction, at whole samples too: a
+/// whole-sample shift is the kernel at u = 0, whose slope is the band-limited signal's).
+pub(crate) fn delayed_dual(
+    t: &[f64],
+    y: &[crate::sens::D],
+    tau: crate::sens::D,
+) -> Vec<crate::sens::D> {
+    use crate::sens::{Scalar, D, LANES};
+    let n = y.len();
+    let values: Vec<f64> = y.iter().map(|v| v.v).collect();
+    let out_v = delayed(t, &values, tau.v);
+    // The series' lanes, delayed as the values.
+    let mut out: Vec<D> = out_v.iter().map(|&v| D::cst(v)).collect();
+    for lane in 0..LANES {
+        let col: Vec<f64> = y.iter().map(|v| v.d[lane]).collect();
+        if col.iter().all(|&c| c == 0.0) {
+            continue;
+        }
+        for (o, c) in out.iter_mut().zip(delayed(t, &col, tau.v)) {
+            o.d[lane] = c;
+        }
+    }
+    if tau.d.iter().all(|&d| d == 0.0) || n < 2 {
+        return out;
+    }
+    // ∂/∂τ: the interpolation's slope at t_k − τ, times −1, chained with τ's tangent.
+    let slope: Vec<f64> = match uniform_step(t) {
+        Some(dt) => {
+            let d = tau.v / dt;
+            let shift = (-d).floor();
+            let u = -d - shift;
+            // A whole-sample delay is the kernel at u = 0 or, from the previous sample, at u = 1:
+            // the two differ at the record's end (held samples) and their slopes are one-sided.
+            // A delay grows with τ, the position k − d falls: the slope from below, u = 1.
+            let (shift, u) = if u < 1e-12 {
+                (shift - 1.0, u + 1.0)
+            } else {
+                (shift, u)
+            };
+            let m = DELAY_HALF_WIDTH as i64;
+            let pi = std::f64::consts::PI;
+            // h(j − u) and dh/du for the Hann-windowed sinc (sinc's series below 1e-6).
+            let h = |x: f64| -> (f64, f64) {
+                let (s, c) = (pi * x).sin_cos();
+                let (sinc, dsinc) = if x.abs() < 1e-6 {
+                    (1.0 - (pi * x).powi(2) / 6.0, -pi * pi * x / 3.0)
+                } else {
+                    (s / (pi * x), (c * pi * x - s) / (pi * x * x))
+                };
+                let (ws, wc) = (pi * x / m as f64).sin_cos();
+                let w = 0.5 * (1.0 + wc);
+                let dw = -0.5 * ws * pi / m as f64;
+                (sinc * w, dsinc * w + sinc * dw)
+            };
+            let taps: Vec<(i64, f64, f64)> = (-m + 1..=m)
+                .map(|j| {
+                    let (hv, dhx) = h(j as f64 - u);
+                    (j, hv, -dhx) // x = j − u: d/du = −d/dx
+                })
+                .collect();
+            let gain: f64 = taps.iter().map(|t| t.1).sum();
+            let dgain: f64 = taps.iter().map(|t| t.2).sum();
+            let ni = n as i64;
+            let at = |i: i64| values[i.clamp(0, ni - 1) as usize];
+            let first = shift as i64;
+            (0..ni)
+                .map(|k| {
+                    let i = k + first;
+                    if i < 0 || i >= ni - 1 {
+                        return 0.0;
+                    }
+                    let (num, dnum) = taps.iter().fold((0.0, 0.0), |(a, b), (j, hv, dh)| {
+                        (a + hv * at(i + j), b + dh * at(i + j))
+                    });
+                    // y(u) = num/gain; du/dτ = −1/dt.
+                    let dydu = (dnum * gain - num * dgain) / (gain * gain);
+                    -dydu / dt
+                })
+                .collect()
+        }
+        None => {
+            // Linear interpolation: the slope of the segment holding t_k − τ.
+            let mut cursor = 0usize;
+            t.iter()
+                .map(|&tk| {
+                    let ts = tk - tau.v;
+                    if ts <= t[0] || ts >= t[n - 1] {
+                        return 0.0;
+                    }
+                    while t[cursor + 1] < ts {
+                        cursor += 1;
+                    }
+                    while t[cursor] > ts {
+                        cursor -= 1;
+                    }
+                    -(values[cursor + 1] - values[cursor]) / (t[cursor + 1] - t[cursor])
+                })
+                .collect()
+        }
+    };
+    for (o, s) in out.iter_mut().zip(slope) {
+        for lane in 0..LANES {
+            o.d[lane] += s * tau.d[lane];
+        }
+    }
+    out
+}
+
 /// `y` delayed by `tau` seconds by linear interpolation on the times `t` (a non-uniform grid).
 fn delayed_linear(t: &[f64], y: &[f64], tau: f64) -> Vec<f64> {
     let mut cursor = 0usize;
@@ -555,5 +665,42 @@ mod tests {
             (slope / (2.0 * std::f64::consts::PI) + 0.2).abs() < 0.01,
             "slope {slope}"
         );
+    }
+}
+#[cfg(test)]
+mod delay_dual_tests {
+    use super::*;
+    use crate::sens::D;
+
+    /// The delay's derivative against differences of [`delayed`], at a fraction of a sample
+    /// and at no delay (one-sided: the delay cannot be negative).
+    #[test]
+    fn the_delay_s_derivative_is_the_interpolation_s_slope() {
+        let t: Vec<f64> = (0..300).map(|k| k as f64 / 60.0).collect();
+        let y: Vec<f64> = t
+            .iter()
+            .map(|t| (2.0 * t).sin() + 0.3 * (7.0 * t).cos())
+            .collect();
+        let yd: Vec<D> = y
+            .iter()
+            .map(|&v| D::new(v, [0.0; crate::sens::LANES]))
+            .collect();
+        for tau0 in [0.0, 0.004, 1.0 / 60.0, 0.025] {
+            let out = delayed_dual(&t, &yd, D::var(tau0, 0));
+            let h = 1e-7;
+            let (f0, f1, f2) = (
+                delayed(&t, &y, tau0),
+                delayed(&t, &y, tau0 + h),
+                delayed(&t, &y, tau0 + 2.0 * h),
+            );
+            for k in 0..300 {
+                let fd = (-3.0 * f0[k] + 4.0 * f1[k] - f2[k]) / (2.0 * h);
+                assert!(
+                    (out[k].d[0] - fd).abs() < 1e-5 * 2.0,
+                    "tau {tau0} k {k}: {} for {fd}",
+                    out[k].d[0]
+                );
+            }
+        }
     }
 }

@@ -713,6 +713,29 @@ impl Unit {
         Ok(())
     }
 
+    /// [`Unit::transform_pq`] on dual numbers (after [`Unit::seed_dual`]).
+    pub(crate) fn transform_pq_dual(
+        &self,
+        t: &[f64],
+        p: &mut [crate::sens::D],
+        q: &mut [crate::sens::D],
+    ) {
+        for inst in &self.instances {
+            inst.block.transform_pq_dual(t, p, q);
+        }
+    }
+
+    /// [`Unit::terminal_load`] on dual numbers (after [`Unit::seed_dual`]).
+    pub(crate) fn terminal_load_dual(&self, v: f64) -> (crate::sens::D, crate::sens::D) {
+        use crate::sens::{Scalar, D};
+        self.instances
+            .iter()
+            .fold((D::cst(0.0), D::cst(0.0)), |(p, q), i| {
+                let (pl, ql) = i.block.terminal_load_dual(v);
+                (p + pl, q + ql)
+            })
+    }
+
     /// [`Unit::eval_outputs`] on dual numbers, on the dual bus `bus`.
     #[inline]
     pub(crate) fn eval_outputs_dual(

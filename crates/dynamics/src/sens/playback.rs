@@ -23,9 +23,9 @@
 //! playback's do, on the values; while a mode holds, the derivative is that of the active
 //! branch, and a state pinned to a limit takes the limit's derivatives ([`crate::Block::pin_dual`]).
 //!
-//! **Limits of this version.** A unit whose blocks do not all have dual equations, with a
-//! terminal load, or an event with set-point steps is refused with
-//! [`SensError::Unsupported`]; the caller falls back to differences.
+//! **Limits of this version.** A unit whose blocks do not all have dual equations or an event
+//! with set-point steps is refused with [`SensError::Unsupported`]; the caller falls back to
+//! differences.
 
 use super::{Scalar, D, LANES};
 use crate::block::InitPoint;
@@ -190,12 +190,6 @@ fn pass(
 ) -> Result<Pass, SensError> {
     let mut u = unit.clone();
     let init = Init::of(&mut u, ev)?;
-    let (pl, ql) = u.terminal_load(ev.op_system.v_mag_pu);
-    if pl != 0.0 || ql != 0.0 {
-        return Err(SensError::Unsupported(
-            "the unit has a terminal load".into(),
-        ));
-    }
     // Tangents of the initialisation, one lane per parameter.
     let tangents: Vec<Vec<f64>> = params
         .iter()
@@ -247,8 +241,7 @@ fn pass(
     let ns = ev.input.time_s.len();
     let to_sys = u.machine_mva / ev.system_mva;
     let np = params.len();
-    let (mut p, mut q) = (vec![0.0; ns], vec![0.0; ns]);
-    let (mut dp, mut dq) = (vec![vec![0.0; ns]; np], vec![vec![0.0; ns]; np]);
+    let (mut pd, mut qd) = (vec![D::cst(0.0); ns], vec![D::cst(0.0); ns]);
     let mut sys = Augmented::new(&mut u, &ev.input, bus);
     integrate::solve(
         method,
@@ -257,21 +250,25 @@ fn pass(
         &ev.input.time_s,
         |k, t, xa, sys| {
             sys.eval(t, xa);
-            let (pe, qe) = (sys.bus[ip], sys.bus[iq]);
-            p[k] = pe.v * to_sys;
-            q[k] = qe.v * to_sys;
-            for j in 0..np {
-                dp[j][k] = pe.d[j] * to_sys;
-                dq[j][k] = qe.d[j] * to_sys;
-            }
+            // What the PMU records: the machine's output less any terminal load at the bus
+            // voltage.
+            let (pl, ql) = sys.unit.terminal_load_dual(sys.bus[sys.sig.0].v);
+            pd[k] = (sys.bus[ip] - pl) * to_sys;
+            qd[k] = (sys.bus[iq] - ql) * to_sys;
         },
     )
     .map_err(SimError::from)?;
-    u.transform_pq(&ev.input.time_s, &mut p, &mut q);
-    for j in 0..np {
-        let (a, b) = (&mut dp[j], &mut dq[j]);
-        u.transform_pq(&ev.input.time_s, a, b);
-    }
+    // The measuring device's transform (skew, phase and ratio errors), its parameters' part
+    // included.
+    u.transform_pq_dual(&ev.input.time_s, &mut pd, &mut qd);
+    let p = pd.iter().map(|v| v.v).collect();
+    let q = qd.iter().map(|v| v.v).collect();
+    let dp = (0..np)
+        .map(|j| pd.iter().map(|v| v.d[j]).collect())
+        .collect();
+    let dq = (0..np)
+        .map(|j| qd.iter().map(|v| v.d[j]).collect())
+        .collect();
     Ok((p, q, dp, dq))
 }
 

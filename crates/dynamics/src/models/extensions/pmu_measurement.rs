@@ -20,6 +20,7 @@
 //! AVR gains when left free (§12.5).
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port};
+use crate::sens::{seeded, Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -36,6 +37,18 @@ param_set! {
 #[derive(Debug, Clone, Default)]
 pub struct PmuMeasurement {
     pub p: PmuMeasurementParams,
+    /// The parameters on dual numbers, after [`Block::seed_dual`].
+    dual: Option<PmuMeasurementParams<D>>,
+}
+
+/// The phase and ratio errors on a (delayed) series.
+fn rotate_scale<S: Scalar>(pp: &PmuMeasurementParams<S>, p: &mut [S], q: &mut [S]) {
+    let (s, c) = (pp.phase_deg * (std::f64::consts::PI / 180.0)).sin_cos();
+    for (pk, qk) in p.iter_mut().zip(q.iter_mut()) {
+        let (p0, q0) = (*pk, *qk);
+        *pk = pp.p_ratio * (p0 * c + q0 * s);
+        *qk = pp.q_ratio * (q0 * c - p0 * s);
+    }
 }
 
 impl Block for PmuMeasurement {
@@ -70,11 +83,24 @@ impl Block for PmuMeasurement {
             p.copy_from_slice(&dp);
             q.copy_from_slice(&dq);
         }
-        let (s, c) = pp.phase_deg.to_radians().sin_cos();
-        for (pk, qk) in p.iter_mut().zip(q.iter_mut()) {
-            let (p0, q0) = (*pk, *qk);
-            *pk = pp.p_ratio * (p0 * c + q0 * s);
-            *qk = pp.q_ratio * (q0 * c - p0 * s);
+        rotate_scale(pp, p, q);
+    }
+    fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
+        self.dual = Some(
+            self.p
+                .lift(|i, v| seeded(v, lanes.get(i).copied().flatten())),
+        );
+        true
+    }
+    fn transform_pq_dual(&self, t: &[f64], p: &mut [D], q: &mut [D]) {
+        let Some(pp) = &self.dual else { return };
+        let tau = pp.pq_delay_s;
+        if tau.v > 0.0 || tau.d.iter().any(|&d| d != 0.0) {
+            let dp = crate::synthetic::delayed_dual(t, p, tau);
+            let dq = crate::synthetic::delayed_dual(t, q, tau);
+            p.copy_from_slice(&dp);
+            q.copy_from_slice(&dq);
         }
+        rotate_scale(pp, p, q);
     }
 }

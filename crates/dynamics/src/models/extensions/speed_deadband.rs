@@ -14,6 +14,7 @@
 //! absorbs it), so the unit starts in steady state at any frequency. `db = 0` is the identity.
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
+use crate::sens::{seeded, Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -41,18 +42,20 @@ const PORTS: &[Port] = &[
 #[derive(Debug, Clone, Default)]
 pub struct SpeedDeadband {
     pub p: SpeedDeadbandParams,
+    /// The half-width on dual numbers, after [`Block::seed_dual`].
+    dual: Option<D>,
 }
 
 impl SpeedDeadband {
-    /// The type-1 deadband characteristic.
+    /// The type-1 deadband characteristic (on duals: the derivative of the active piece).
     #[inline(always)]
-    pub fn apply(u: f64, db: f64) -> f64 {
-        if u > db {
+    pub fn apply<S: Scalar>(u: S, db: S) -> S {
+        if u.val() > db.val() {
             u - db
-        } else if u < -db {
+        } else if u.val() < -db.val() {
             u + db
         } else {
-            0.0
+            S::cst(0.0)
         }
     }
 }
@@ -82,6 +85,17 @@ impl Block for SpeedDeadband {
         io.set(port::SPEED_DB, Self::apply(io.get(port::SPEED), self.p.db));
     }
     fn derivatives(&self, _t: f64, _x: &[f64], _io: &Io, _dx: &mut [f64]) {}
+
+    fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
+        self.dual = Some(seeded(self.p.db, lanes.first().copied().flatten()));
+        true
+    }
+
+    fn outputs_dual(&self, _t: f64, _x: &[D], io: &mut Io<D>) {
+        if let Some(db) = self.dual {
+            io.set(port::SPEED_DB, Self::apply(io.get(port::SPEED), db));
+        }
+    }
 }
 
 #[cfg(test)]

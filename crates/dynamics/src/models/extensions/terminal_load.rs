@@ -14,6 +14,7 @@
 //! With `P_L0 = Q_L0 = 0` (the defaults) it changes nothing.
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port};
+use crate::sens::{seeded, Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -30,6 +31,23 @@ param_set! {
 #[derive(Debug, Clone, Default)]
 pub struct TerminalLoad {
     pub p: TerminalLoadParams,
+    /// The parameters on dual numbers, after [`Block::seed_dual`].
+    dual: Option<TerminalLoadParams<D>>,
+}
+
+/// `(P_L(V), Q_L(V))`; on duals `V^n = exp(n ln V)` carries `∂/∂n` (the value is `powf`'s, as
+/// in the simulation).
+fn load<S: Scalar>(p: &TerminalLoadParams<S>, v: f64) -> (S, S) {
+    let v = v.max(0.0);
+    let pow = |n: S| {
+        let value = v.powf(n.val());
+        if v > 0.0 {
+            (n * v.ln()).exp().with_value(value)
+        } else {
+            S::cst(value)
+        }
+    };
+    (p.p_load * pow(p.n_p), p.q_load * pow(p.n_q))
 }
 
 impl Block for TerminalLoad {
@@ -57,11 +75,19 @@ impl Block for TerminalLoad {
     fn derivatives(&self, _t: f64, _x: &[f64], _io: &Io, _dx: &mut [f64]) {}
 
     fn terminal_load(&self, v: f64) -> (f64, f64) {
-        let v = v.max(0.0);
-        (
-            self.p.p_load * v.powf(self.p.n_p),
-            self.p.q_load * v.powf(self.p.n_q),
-        )
+        load(&self.p, v)
+    }
+    fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
+        self.dual = Some(
+            self.p
+                .lift(|i, v| seeded(v, lanes.get(i).copied().flatten())),
+        );
+        true
+    }
+    fn terminal_load_dual(&self, v: f64) -> (D, D) {
+        self.dual
+            .as_ref()
+            .map_or((D::cst(0.0), D::cst(0.0)), |p| load(p, v))
     }
 }
 

@@ -57,6 +57,7 @@
 use std::f64::consts::PI;
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
+use crate::sens::{seeded, Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -109,6 +110,39 @@ pub struct TwoMassShaft {
     k_s: f64,
     d_s: f64,
     inv_2ht: f64,
+    /// The parameters and `[K_s, D_s, 1/(2H_t)]` on dual numbers, after [`Block::seed_dual`].
+    dual: Option<(TwoMassShaftParams<D>, [D; 3])>,
+}
+
+/// `(K_s, D_s)` from the parameters and the nominal frequency `ω_b`.
+fn stiffness_damping<S: Scalar>(p: &TwoMassShaftParams<S>, omega_b: f64) -> (S, S) {
+    let j = p.h_turbine * 2.0 * p.h_generator / (p.h_turbine + p.h_generator);
+    let w_n = p.f_torsion_hz * (2.0 * PI);
+    (w_n * w_n * j / omega_b, p.zeta * 2.0 * w_n * j)
+}
+
+#[inline(always)]
+fn outputs<S: Scalar>([k_s, d_s, _]: [S; 3], x: &[S], io: &mut Io<S>) {
+    let w_g = io.get(port::SPEED);
+    let t_s = k_s * x[1] + d_s * (x[0] - w_g);
+    io.set(port::P_SHAFT, t_s * (w_g + 1.0));
+    io.set(port::SPEED_TURBINE, x[0]);
+}
+
+#[inline(always)]
+fn derivatives<S: Scalar>(
+    p: &TwoMassShaftParams<S>,
+    [k_s, d_s, inv_2ht]: [S; 3],
+    omega_b: f64,
+    x: &[S],
+    io: &Io<S>,
+    dx: &mut [S],
+) {
+    let w_g = io.get(port::SPEED);
+    let t_m = io.get(port::PM) / (x[0] + 1.0);
+    let t_s = k_s * x[1] + d_s * (x[0] - w_g);
+    dx[0] = (t_m - t_s - p.d_turbine * x[0]) * inv_2ht;
+    dx[1] = (x[0] - w_g) * omega_b;
 }
 
 impl Default for TwoMassShaft {
@@ -119,6 +153,7 @@ impl Default for TwoMassShaft {
             k_s: 0.0,
             d_s: 0.0,
             inv_2ht: 0.0,
+            dual: None,
         }
     }
 }
@@ -126,15 +161,7 @@ impl Default for TwoMassShaft {
 impl TwoMassShaft {
     /// `(K_s, D_s)` from the parameters and the nominal frequency.
     pub fn stiffness_damping(&self) -> (f64, f64) {
-        let p = &self.p;
-        let j = 2.0 * p.h_turbine * p.h_generator / (p.h_turbine + p.h_generator);
-        let w_n = 2.0 * PI * p.f_torsion_hz;
-        (w_n * w_n * j / self.omega_b, 2.0 * p.zeta * w_n * j)
-    }
-
-    #[inline(always)]
-    fn shaft_torque(&self, x: &[f64], w_g: f64) -> f64 {
-        self.k_s * x[1] + self.d_s * (x[0] - w_g)
+        stiffness_damping(&self.p, self.omega_b)
     }
 }
 
@@ -181,17 +208,35 @@ impl Block for TwoMassShaft {
 
     #[inline]
     fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
-        let w_g = io.get(port::SPEED);
-        io.set(port::P_SHAFT, self.shaft_torque(x, w_g) * (1.0 + w_g));
-        io.set(port::SPEED_TURBINE, x[0]);
+        outputs([self.k_s, self.d_s, self.inv_2ht], x, io);
     }
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        let w_g = io.get(port::SPEED);
-        let t_m = io.get(port::PM) / (1.0 + x[0]);
-        dx[0] = (t_m - self.shaft_torque(x, w_g) - self.p.d_turbine * x[0]) * self.inv_2ht;
-        dx[1] = self.omega_b * (x[0] - w_g);
+        let c = [self.k_s, self.d_s, self.inv_2ht];
+        derivatives(&self.p, c, self.omega_b, x, io, dx);
+    }
+
+    fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
+        let p = self
+            .p
+            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let (k_s, d_s) = stiffness_damping(&p, self.omega_b);
+        let inv_2ht = (p.h_turbine * 2.0).recip();
+        self.dual = Some((p, [k_s, d_s, inv_2ht]));
+        true
+    }
+
+    fn outputs_dual(&self, _t: f64, x: &[D], io: &mut Io<D>) {
+        if let Some((_, c)) = &self.dual {
+            outputs(*c, x, io);
+        }
+    }
+
+    fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
+        if let Some((p, c)) = &self.dual {
+            derivatives(p, *c, self.omega_b, x, io, dx);
+        }
     }
 
     fn set_nominal_frequency(&mut self, hz: f64) {
