@@ -7,27 +7,28 @@
 //! integrated as given (and makes the system stiff).
 
 use crate::models::limiter::{clamp, NonWindup};
+use crate::sens::Scalar;
 
 /// Below this a time constant is zero [s].
 pub const ZERO_T: f64 = f64::EPSILON;
 
 /// `1/(1 + sT)` with state `x`: `T dx/dt = u − x`, `y = x`; `T = 0`: `y = u`, state held.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Lag {
-    inv_t: f64,
+pub struct Lag<S = f64> {
+    inv_t: S,
     bypass: bool,
 }
 
-impl Lag {
-    pub fn new(t: f64) -> Self {
-        let bypass = t < ZERO_T;
+impl<S: Scalar> Lag<S> {
+    pub fn new(t: S) -> Self {
+        let bypass = t.val() < ZERO_T;
         Self {
-            inv_t: if bypass { 0.0 } else { 1.0 / t },
+            inv_t: if bypass { S::cst(0.0) } else { t.recip() },
             bypass,
         }
     }
     #[inline(always)]
-    pub fn output(&self, x: f64, u: f64) -> f64 {
+    pub fn output(&self, x: S, u: S) -> S {
         if self.bypass {
             u
         } else {
@@ -35,7 +36,7 @@ impl Lag {
         }
     }
     #[inline(always)]
-    pub fn derivative(&self, x: f64, u: f64) -> f64 {
+    pub fn derivative(&self, x: S, u: S) -> S {
         (u - x) * self.inv_t
     }
 }
@@ -43,23 +44,23 @@ impl Lag {
 /// `(1 + sT_C)/(1 + sT_B)` with state `x`: `T_B dx/dt = u − x`, `y = x + (T_C/T_B)(u − x)`;
 /// `T_B = 0`: bypassed, `y = u`, state held. Steady state: `x = u`.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct LeadLag {
-    ratio: f64,
-    inv_tb: f64,
+pub struct LeadLag<S = f64> {
+    ratio: S,
+    inv_tb: S,
     bypass: bool,
 }
 
-impl LeadLag {
-    pub fn new(tc: f64, tb: f64) -> Self {
-        let bypass = tb < ZERO_T;
+impl<S: Scalar> LeadLag<S> {
+    pub fn new(tc: S, tb: S) -> Self {
+        let bypass = tb.val() < ZERO_T;
         Self {
-            ratio: if bypass { 1.0 } else { tc / tb },
-            inv_tb: if bypass { 0.0 } else { 1.0 / tb },
+            ratio: if bypass { S::cst(1.0) } else { tc / tb },
+            inv_tb: if bypass { S::cst(0.0) } else { tb.recip() },
             bypass,
         }
     }
     #[inline(always)]
-    pub fn output(&self, x: f64, u: f64) -> f64 {
+    pub fn output(&self, x: S, u: S) -> S {
         if self.bypass {
             u
         } else {
@@ -67,7 +68,7 @@ impl LeadLag {
         }
     }
     #[inline(always)]
-    pub fn derivative(&self, x: f64, u: f64) -> f64 {
+    pub fn derivative(&self, x: S, u: S) -> S {
         (u - x) * self.inv_tb
     }
 }
@@ -166,30 +167,34 @@ impl LeadLagLim {
 ///
 /// `SE_1 = 0` or `SE_2 = 0` (or `E_1 = E_2`) switches saturation off, as in OpenIPSL.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct QuadraticExciterSaturation {
-    a: f64,
-    b: f64,
+pub struct QuadraticExciterSaturation<S = f64> {
+    a: S,
+    b: S,
 }
 
-impl QuadraticExciterSaturation {
+impl<S: Scalar> QuadraticExciterSaturation<S> {
     /// Fits the curve; an error (the offending pair of parameter names and a message) when the
     /// two points admit no such curve (`SE_1 E_1 = SE_2 E_2 ≠ 0`, or negative data).
-    pub fn new(e1: f64, se1: f64, e2: f64, se2: f64) -> Result<Self, (&'static str, String)> {
+    pub fn new(e1: S, se1: S, e2: S, se2: S) -> Result<Self, (&'static str, String)> {
         for (n, v) in [("e1", e1), ("se1", se1), ("e2", e2), ("se2", se2)] {
+            let v = v.val();
             if !(v.is_finite() && v >= 0.0) {
                 return Err((n, format!("must be finite and >= 0 (got {v})")));
             }
         }
-        if se1 == 0.0 || se2 == 0.0 || e1 == e2 {
-            return Ok(Self { a: 0.0, b: 0.0 });
+        if se1.val() == 0.0 || se2.val() == 0.0 || e1.val() == e2.val() {
+            return Ok(Self {
+                a: S::cst(0.0),
+                b: S::cst(0.0),
+            });
         }
         let r = (se1 * e1 / (se2 * e2)).sqrt();
-        if (r - 1.0).abs() < 1e-12 {
+        if (r.val() - 1.0).abs() < 1e-12 {
             return Err((
                 "se2",
                 format!(
                     "SE(E1)·E1 = SE(E2)·E2 = {:.6}: no quadratic saturation curve passes through both points",
-                    se1 * e1
+                    se1.val() * e1.val()
                 ),
             ));
         }
@@ -200,17 +205,17 @@ impl QuadraticExciterSaturation {
     /// `S_E(E)·E = B (E − A)²` for `E > max(A, 0)`, else 0: the saturation term the exciter
     /// subtracts.
     #[inline(always)]
-    pub fn times_e(&self, e: f64) -> f64 {
-        if self.b == 0.0 || e <= 0.0 || e <= self.a {
-            0.0
+    pub fn times_e(&self, e: S) -> S {
+        if self.b.val() == 0.0 || e.val() <= 0.0 || e.val() <= self.a.val() {
+            S::cst(0.0)
         } else {
             self.b * (e - self.a) * (e - self.a)
         }
     }
     /// The saturation factor `S_E(E)`.
-    pub fn factor(&self, e: f64) -> f64 {
-        if e <= 0.0 {
-            0.0
+    pub fn factor(&self, e: S) -> S {
+        if e.val() <= 0.0 {
+            S::cst(0.0)
         } else {
             self.times_e(e) / e
         }

@@ -43,6 +43,7 @@ use crate::models::exciter::blocks::{Lag, QuadraticExciterSaturation, ZERO_T};
 use crate::models::exciter::roles::{ExciterRoles, LeadLagRole, ParamRole};
 use crate::models::exciter::sexs::{port, PORTS};
 use crate::models::limiter::{clamp, NonWindup};
+use crate::sens::{seeded, Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -86,6 +87,64 @@ pub struct Ieeet1 {
     inv_te: f64,
     inv_tf: f64,
     limit: NonWindup,
+    /// The equations' numbers on duals, after [`Block::seed_dual`].
+    dual: Option<Eq<D>>,
+}
+
+/// Every number the equations read, on the number type `S` (the block's own fields on `f64`;
+/// the lifted parameters and the initialisation's constants on duals).
+#[derive(Debug, Clone)]
+struct Eq<S> {
+    k_a: S,
+    k_f: S,
+    v_ref: S,
+    v_ref_offset: S,
+    ke: S,
+    vr_max: S,
+    vr_min: S,
+    sat: QuadraticExciterSaturation<S>,
+    transducer: Lag<S>,
+    inv_ta: S,
+    inv_te: S,
+    inv_tf: S,
+    /// `T_A = 0`: V_R is algebraic.
+    no_ta: bool,
+}
+
+impl<S: Scalar> Eq<S> {
+    /// Regulator input `K_A v_err` (the unconstrained target of V_R).
+    #[inline(always)]
+    fn regulator_target(&self, x: &[S], io: &Io<S>) -> S {
+        let v_m = self.transducer.output(x[V_M], io.get(port::V_TERM));
+        let v_f = self.k_f * self.inv_tf * (x[E_FD] - x[X_F]);
+        let v_err = self.v_ref + self.v_ref_offset - v_m
+            + io.get(port::VS)
+            + io.get(port::VUEL)
+            + io.get(port::VOEL)
+            - v_f;
+        self.k_a * v_err
+    }
+    /// V_R at the current point.
+    #[inline(always)]
+    fn v_r(&self, x: &[S], io: &Io<S>) -> S {
+        if self.no_ta {
+            clamp(self.regulator_target(x, io), self.vr_min, self.vr_max)
+        } else {
+            x[V_R]
+        }
+    }
+    #[inline(always)]
+    fn derivatives(&self, limit: &NonWindup, x: &[S], io: &Io<S>, dx: &mut [S]) {
+        dx[V_M] = self.transducer.derivative(x[V_M], io.get(port::V_TERM));
+        dx[V_R] = if self.no_ta {
+            S::cst(0.0)
+        } else {
+            limit.derivative((self.regulator_target(x, io) - x[V_R]) * self.inv_ta)
+        };
+        let e = x[E_FD];
+        dx[E_FD] = (self.v_r(x, io) - self.ke * e - self.sat.times_e(e)) * self.inv_te;
+        dx[X_F] = (e - x[X_F]) * self.inv_tf;
+    }
 }
 
 impl Ieeet1 {
@@ -108,27 +167,29 @@ impl Ieeet1 {
         (self.vr_min, self.vr_max)
     }
 
+    /// The equations' numbers on `f64`.
+    #[inline(always)]
+    fn eq(&self) -> Eq<f64> {
+        Eq {
+            k_a: self.p.k_a,
+            k_f: self.p.k_f,
+            v_ref: self.v_ref,
+            v_ref_offset: self.p.v_ref_offset,
+            ke: self.ke,
+            vr_max: self.vr_max,
+            vr_min: self.vr_min,
+            sat: self.sat,
+            transducer: self.transducer,
+            inv_ta: self.inv_ta,
+            inv_te: self.inv_te,
+            inv_tf: self.inv_tf,
+            no_ta: self.inv_ta == 0.0,
+        }
+    }
     /// Regulator input `K_A v_err` (the unconstrained target of V_R).
     #[inline(always)]
     fn regulator_target(&self, x: &[f64], io: &Io) -> f64 {
-        let v_m = self.transducer.output(x[V_M], io.get(port::V_TERM));
-        let v_f = self.p.k_f * self.inv_tf * (x[E_FD] - x[X_F]);
-        let v_err = self.v_ref + self.p.v_ref_offset - v_m
-            + io.get(port::VS)
-            + io.get(port::VUEL)
-            + io.get(port::VOEL)
-            - v_f;
-        self.p.k_a * v_err
-    }
-
-    /// V_R at the current point.
-    #[inline(always)]
-    fn v_r(&self, x: &[f64], io: &Io) -> f64 {
-        if self.inv_ta == 0.0 {
-            clamp(self.regulator_target(x, io), self.vr_min, self.vr_max)
-        } else {
-            x[V_R]
-        }
+        self.eq().regulator_target(x, io)
     }
 }
 
@@ -228,16 +289,56 @@ impl Block for Ieeet1 {
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        dx[V_M] = self.transducer.derivative(x[V_M], io.get(port::V_TERM));
-        dx[V_R] = if self.inv_ta == 0.0 {
-            0.0
-        } else {
-            self.limit
-                .derivative((self.regulator_target(x, io) - x[V_R]) * self.inv_ta)
+        self.eq().derivatives(&self.limit, x, io, dx);
+    }
+
+    fn init_constants(&self) -> Vec<f64> {
+        vec![self.v_ref, self.ke, self.vr_max, self.vr_min]
+    }
+
+    fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
+        let p = self
+            .p
+            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let c = |i: usize, v: f64| consts.get(i).copied().unwrap_or(D::cst(v));
+        let Ok(sat) = QuadraticExciterSaturation::new(p.e1, p.se1, p.e2, p.se2) else {
+            return false;
         };
-        let e = x[E_FD];
-        dx[E_FD] = (self.v_r(x, io) - self.ke * e - self.sat.times_e(e)) * self.inv_te;
-        dx[X_F] = (e - x[X_F]) * self.inv_tf;
+        let no_ta = self.inv_ta == 0.0;
+        self.dual = Some(Eq {
+            k_a: p.k_a,
+            k_f: p.k_f,
+            v_ref: c(0, self.v_ref),
+            v_ref_offset: p.v_ref_offset,
+            ke: c(1, self.ke),
+            vr_max: c(2, self.vr_max),
+            vr_min: c(3, self.vr_min),
+            sat,
+            transducer: Lag::new(p.t_r),
+            inv_ta: if no_ta { D::cst(0.0) } else { p.t_a.recip() },
+            inv_te: p.t_e.recip(),
+            inv_tf: p.t_f.recip(),
+            no_ta,
+        });
+        true
+    }
+
+    fn outputs_dual(&self, _t: f64, x: &[D], io: &mut Io<D>) {
+        io.set(port::EFD, x[E_FD]);
+    }
+
+    fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
+        if let Some(eq) = &self.dual {
+            eq.derivatives(&self.limit, x, io, dx);
+        }
+    }
+
+    fn pin_dual(&self, x: &mut [D], _io: &Io<D>) {
+        if let Some(eq) = &self.dual {
+            if !eq.no_ta {
+                self.limit.pin(&mut x[V_R], eq.vr_min, eq.vr_max);
+            }
+        }
     }
 
     fn n_events(&self) -> usize {
