@@ -179,10 +179,30 @@ fn every_parameter_of_a_whole_unit_matches_differences() {
         ("governor", "HYGOV"),
     ]);
     check_every_parameter("GENROU+IEEET1+HYGOV", &ieeet1, 0.9);
+    // IEEEST with its notch filter of order 4 (A1..A4 and A5 non-zero: the canonical form's
+    // coefficients move with them) reading the speed.
+    let mut ieeest = unit(&[
+        ("machine", "GENSAE"),
+        ("exciter", "SEXS"),
+        ("pss", "IEEEST"),
+        ("governor", "HYGOV"),
+    ]);
+    for (p, v) in [
+        ("pss.a1", 0.05),
+        ("pss.a2", 0.002),
+        ("pss.a3", 0.04),
+        ("pss.a4", 0.001),
+        ("pss.a5", 0.02),
+    ] {
+        let r = ieeest.param(p).unwrap();
+        ieeest.set(r, v);
+    }
+    check_every_parameter("GENSAE+SEXS+IEEEST+HYGOV", &ieeest, 0.9);
 }
 
 #[test]
 fn a_block_without_dual_equations_is_refused_so_the_caller_falls_back() {
+    // ESST1A has none yet.
     let u = unit(&[("machine", "GENROU"), ("exciter", "ESST1A")]);
     let ev = PreparedEvent::new(&event(&u));
     let r = u.param("machine.x_d").unwrap();

@@ -14,6 +14,7 @@
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::clamp;
+use crate::sens::{seeded, Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -62,28 +63,26 @@ const PORTS: &[Port] = &[
 
 /// Controllable-canonical realisation of F(s) (derived constants).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-struct Filter {
+struct Filter<S = f64> {
     order: usize,
-    /// Monic denominator coefficients a_0..a_{n−1}.
-    a: [f64; 4],
-    /// Strictly proper numerator coefficients c_0..c_{n−1}.
-    c: [f64; 4],
-    /// Direct feed-through.
-    dff: f64,
+    dff: S,
+    a: [S; 4],
+    c: [S; 4],
 }
 
-impl Filter {
-    fn new(p: &IeeestParams) -> Result<Self, ModelError> {
+impl<S: Scalar> Filter<S> {
+    fn new(p: &IeeestParams<S>) -> Result<Self, ModelError> {
+        let one = S::cst(1.0);
         let d = [
-            1.0,
+            one,
             p.a1 + p.a3,
             p.a2 + p.a4 + p.a1 * p.a3,
             p.a1 * p.a4 + p.a2 * p.a3,
             p.a2 * p.a4,
         ];
-        let num = [1.0, p.a5, p.a6, 0.0, 0.0];
-        let order = (0..5).rev().find(|&i| d[i] != 0.0).unwrap_or(0);
-        let num_order = (0..5).rev().find(|&i| num[i] != 0.0).unwrap_or(0);
+        let num = [one, p.a5, p.a6, S::cst(0.0), S::cst(0.0)];
+        let order = (0..5).rev().find(|&i| d[i].val() != 0.0).unwrap_or(0);
+        let num_order = (0..5).rev().find(|&i| num[i].val() != 0.0).unwrap_or(0);
         if num_order > order {
             return Err(ModelError::param(
                 "a5",
@@ -92,8 +91,9 @@ impl Filter {
         }
         let mut f = Filter {
             order,
-            dff: 1.0,
-            ..Default::default()
+            dff: one,
+            a: [S::cst(0.0); 4],
+            c: [S::cst(0.0); 4],
         };
         if order == 0 {
             return Ok(f);
@@ -107,44 +107,86 @@ impl Filter {
         Ok(f)
     }
     #[inline(always)]
-    fn output(&self, z: &[f64], u: f64) -> f64 {
-        self.dff * u
-            + self.c[..self.order]
-                .iter()
-                .zip(z)
-                .map(|(c, z)| c * z)
-                .sum::<f64>()
+    fn output(&self, z: &[S], u: S) -> S {
+        // Summed from −0 as `f64`'s `Sum` does.
+        let sum = self.c[..self.order]
+            .iter()
+            .zip(z)
+            .fold(S::cst(-0.0), |acc, (c, z)| acc + *c * *z);
+        self.dff * u + sum
     }
     #[inline(always)]
-    fn derivatives(&self, z: &[f64], u: f64, dz: &mut [f64]) {
-        dz[..4].fill(0.0);
+    fn derivatives(&self, z: &[S], u: S, dz: &mut [S]) {
+        dz[..4].fill(S::cst(0.0));
         let n = self.order;
         if n == 0 {
             return;
         }
         dz[..n - 1].copy_from_slice(&z[1..n]);
-        dz[n - 1] = u - self.a[..n].iter().zip(z).map(|(a, z)| a * z).sum::<f64>();
+        let sum = self.a[..n]
+            .iter()
+            .zip(z)
+            .fold(S::cst(-0.0), |acc, (a, z)| acc + *a * *z);
+        dz[n - 1] = u - sum;
     }
 }
 
 /// Lead-lag `(1 + s t_lead)/(1 + s t_lag)` output with state `x` (`t_lag = 0` means a gain of 1).
 #[inline(always)]
-fn lead_lag(u: f64, x: f64, t_lead: f64, t_lag: f64) -> f64 {
-    if t_lag > 0.0 {
+fn lead_lag<S: Scalar>(u: S, x: S, t_lead: S, t_lag: S) -> S {
+    if t_lag.val() > 0.0 {
         let r = t_lead / t_lag;
-        r * u + (1.0 - r) * x
+        r * u + r.rsub(1.0) * x
     } else {
         u
     }
 }
 
 #[inline(always)]
-fn lag_rate(u: f64, x: f64, t: f64) -> f64 {
-    if t > 0.0 {
+fn lag_rate<S: Scalar>(u: S, x: S, t: S) -> S {
+    if t.val() > 0.0 {
         (u - x) / t
     } else {
-        0.0
+        S::cst(0.0)
     }
+}
+
+/// Signals along the chain: (filter out, lead-lag 1 out, lead-lag 2 out, washout out).
+#[inline(always)]
+fn chain<S: Scalar>(p: &IeeestParams<S>, filter: &Filter<S>, x: &[S], u: S) -> (S, S, S, S) {
+    let yf = filter.output(&x[0..4], u);
+    let y1 = lead_lag(yf, x[4], p.t1, p.t2);
+    let y2 = lead_lag(y1, x[5], p.t3, p.t4);
+    let yw = (p.t5 / p.t6) * (y2 - x[6]);
+    (yf, y1, y2, yw)
+}
+
+#[inline(always)]
+fn outputs<S: Scalar>(p: &IeeestParams<S>, filter: &Filter<S>, x: &[S], io: &mut Io<S>) {
+    let (_, _, _, yw) = chain(p, filter, x, io.get(port::U));
+    let mut vs = clamp(p.ks * yw, p.ls_min, p.ls_max);
+    let vct = io.get(port::V_TERM).val();
+    let (vcu, vcl) = (p.vcu.val(), p.vcl.val());
+    if (vcu != 0.0 && vct > vcu) || (vcl != 0.0 && vct < vcl) {
+        vs = S::cst(0.0);
+    }
+    io.set(port::VS, vs);
+}
+
+#[inline(always)]
+fn derivatives<S: Scalar>(
+    p: &IeeestParams<S>,
+    filter: &Filter<S>,
+    x: &[S],
+    io: &Io<S>,
+    dx: &mut [S],
+) {
+    let u = io.get(port::U);
+    let (yf, y1, y2, _) = chain(p, filter, x, u);
+    filter.derivatives(&x[0..4], u, &mut dx[0..4]);
+    dx[4] = lag_rate(yf, x[4], p.t2);
+    dx[5] = lag_rate(y1, x[5], p.t4);
+    dx[6] = (y2 - x[6]) / p.t6;
 }
 
 /// IEEEST block.
@@ -152,6 +194,8 @@ fn lag_rate(u: f64, x: f64, t: f64) -> f64 {
 pub struct Ieeest {
     pub p: IeeestParams,
     filter: Filter,
+    /// The parameters and the filter on dual numbers, after [`Block::seed_dual`].
+    dual: Option<(IeeestParams<D>, Filter<D>)>,
 }
 
 impl Ieeest {
@@ -159,17 +203,8 @@ impl Ieeest {
         Self {
             p,
             filter: Filter::default(),
+            dual: None,
         }
-    }
-    /// Signals along the chain: (filter out, lead-lag 1 out, lead-lag 2 out, washout out).
-    #[inline(always)]
-    fn chain(&self, x: &[f64], u: f64) -> (f64, f64, f64, f64) {
-        let p = &self.p;
-        let yf = self.filter.output(&x[0..4], u);
-        let y1 = lead_lag(yf, x[4], p.t1, p.t2);
-        let y2 = lead_lag(y1, x[5], p.t3, p.t4);
-        let yw = (p.t5 / p.t6) * (y2 - x[6]);
-        (yf, y1, y2, yw)
     }
 }
 
@@ -237,23 +272,30 @@ impl Block for Ieeest {
     }
     #[inline]
     fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
-        let p = &self.p;
-        let (_, _, _, yw) = self.chain(x, io.get(port::U));
-        let mut vs = clamp(p.ks * yw, p.ls_min, p.ls_max);
-        let vct = io.get(port::V_TERM);
-        if (p.vcu != 0.0 && vct > p.vcu) || (p.vcl != 0.0 && vct < p.vcl) {
-            vs = 0.0;
-        }
-        io.set(port::VS, vs);
+        outputs(&self.p, &self.filter, x, io);
     }
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        let p = &self.p;
-        let u = io.get(port::U);
-        let (yf, y1, y2, _) = self.chain(x, u);
-        self.filter.derivatives(&x[0..4], u, &mut dx[0..4]);
-        dx[4] = lag_rate(yf, x[4], p.t2);
-        dx[5] = lag_rate(y1, x[5], p.t4);
-        dx[6] = (y2 - x[6]) / p.t6;
+        derivatives(&self.p, &self.filter, x, io, dx);
+    }
+    fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
+        let p = self
+            .p
+            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let Ok(filter) = Filter::new(&p) else {
+            return false;
+        };
+        self.dual = Some((p, filter));
+        true
+    }
+    fn outputs_dual(&self, _t: f64, x: &[D], io: &mut Io<D>) {
+        if let Some((p, f)) = &self.dual {
+            outputs(p, f, x, io);
+        }
+    }
+    fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
+        if let Some((p, f)) = &self.dual {
+            derivatives(p, f, x, io, dx);
+        }
     }
 }
