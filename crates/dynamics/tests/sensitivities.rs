@@ -83,11 +83,11 @@ fn differences(u: &Unit, ev: &PreparedEvent, r: ParamRef, m: &Method) -> (Vec<f6
             let (f0, f2) = (at(p0).unwrap(), at(p0 + 2.0 * h).unwrap());
             (
                 col(
-                    &|k| (-3.0 * f0.0[k] + 4.0 * up.0[k] - f2.0[k]) / (2.0 * h),
+                    &|k| (4.0 * (up.0[k] - f0.0[k]) - (f2.0[k] - f0.0[k])) / (2.0 * h),
                     n,
                 ),
                 col(
-                    &|k| (-3.0 * f0.1[k] + 4.0 * up.1[k] - f2.1[k]) / (2.0 * h),
+                    &|k| (4.0 * (up.1[k] - f0.1[k]) - (f2.1[k] - f0.1[k])) / (2.0 * h),
                     n,
                 ),
                 h,
@@ -198,16 +198,34 @@ fn every_parameter_of_a_whole_unit_matches_differences() {
         ieeest.set(r, v);
     }
     check_every_parameter("GENSAE+SEXS+IEEEST+HYGOV", &ieeest, 0.9);
+    // ESST1A (two lead-lags, the rate feedback, the field current limiter and the bus-fed
+    // ceiling with its commutation term).
+    let mut esst1a = unit(&[
+        ("machine", "GENROU"),
+        ("exciter", "ESST1A"),
+        ("governor", "HYGOV"),
+    ]);
+    for (p, v) in [
+        ("exciter.k_f", 0.02),
+        ("exciter.k_lr", 1.0),
+        ("exciter.i_lr", 2.0),
+        ("exciter.t_c1", 0.5),
+        ("exciter.t_b1", 1.0),
+    ] {
+        let r = esst1a.param(p).unwrap();
+        esst1a.set(r, v);
+    }
+    check_every_parameter("GENROU+ESST1A+HYGOV", &esst1a, 0.9);
 }
 
 #[test]
 fn a_block_without_dual_equations_is_refused_so_the_caller_falls_back() {
-    // ESST1A has none yet.
-    let u = unit(&[("machine", "GENROU"), ("exciter", "ESST1A")]);
+    // ST5B has none yet.
+    let u = unit(&[("machine", "GENROU"), ("exciter", "ST5B")]);
     let ev = PreparedEvent::new(&event(&u));
     let r = u.param("machine.x_d").unwrap();
     match simulate_pq_sensitivities(&u, &ev, &[r], &SimOptions::default()) {
-        Err(SensError::Unsupported(why)) => assert!(why.contains("ESST1A"), "{why}"),
+        Err(SensError::Unsupported(why)) => assert!(why.contains("ST5B"), "{why}"),
         other => panic!("expected Unsupported, got {other:?}"),
     }
 }

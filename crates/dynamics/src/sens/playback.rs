@@ -157,7 +157,9 @@ impl Init {
 /// or the second-order one-sided one when the lower point does not initialise.
 fn init_tangent(unit: &Unit, ev: &PreparedEvent, r: ParamRef) -> Result<Vec<f64>, SensError> {
     let p0 = unit.get(r);
-    let h = 1e-6 * p0.abs().max(1e-2);
+    // A step the parameter's plausible range measures (a parameter may be 0: D, T_C1).
+    let (lo, hi) = unit.param_spec(r).range;
+    let h = 1e-6 * p0.abs().max(0.1 * (hi - lo)).max(1e-6);
     let at = |v: f64| -> Result<Vec<f64>, UnitError> {
         let mut u = unit.clone();
         u.set(r, v);
@@ -172,8 +174,9 @@ fn init_tangent(unit: &Unit, ev: &PreparedEvent, r: ParamRef) -> Result<Vec<f64>
             .collect()),
         Err(_) => {
             let (f0, f2) = (at(p0)?, at(p0 + 2.0 * h)?);
+            // (4 (f1 − f0) − (f2 − f0))/(2h): exactly 0 where the initialisation does not move.
             Ok((0..f0.len())
-                .map(|i| (-3.0 * f0[i] + 4.0 * up[i] - f2[i]) / (2.0 * h))
+                .map(|i| (4.0 * (up[i] - f0[i]) - (f2[i] - f0[i])) / (2.0 * h))
                 .collect())
         }
     }

@@ -40,6 +40,7 @@ use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::exciter::blocks::{Lag, LeadLag, ZERO_T};
 use crate::models::exciter::roles::{ExciterRoles, LeadLagRole, ParamRole};
 use crate::models::limiter::{clamp, NonWindup};
+use crate::sens::{seeded, Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -135,6 +136,31 @@ pub struct Esst1a {
     inv_ta: f64,
     inv_tf: f64,
     limit: NonWindup,
+    /// The parameters and the derived numbers on duals, after [`Block::seed_dual`].
+    dual: Option<(Esst1aParams<D>, Consts<D>)>,
+}
+
+/// The numbers the initialisation derives, on the number type `S`.
+#[derive(Debug, Clone, Copy)]
+struct Consts<S> {
+    v_ref: S,
+    transducer: Lag<S>,
+    ll1: LeadLag<S>,
+    ll2: LeadLag<S>,
+    inv_ta: S,
+    inv_tf: S,
+}
+
+/// The options and the modes of the evaluation (no number in them).
+#[derive(Debug, Clone, Copy)]
+struct Opts {
+    uel: u8,
+    vos: u8,
+    oel_gate: bool,
+    uel_undriven: bool,
+    oel_undriven: bool,
+    /// `T_A = 0`: V_A is algebraic.
+    no_ta: bool,
 }
 
 impl Default for Esst1a {
@@ -144,14 +170,111 @@ impl Default for Esst1a {
 }
 
 /// The signals of one evaluation.
-struct Eval {
+struct Eval<S> {
     /// Lead-lag inputs and the regulator's input K_A·V_2 target.
-    v1: f64,
-    y1: f64,
-    v2: f64,
+    v1: S,
+    y1: S,
+    v2: S,
     /// V_X (rate feedback input) and E_fd.
-    v_x: f64,
-    efd: f64,
+    v_x: S,
+    efd: S,
+}
+
+/// `(E_fd,min, E_fd,max)`.
+#[inline(always)]
+fn limits<S: Scalar>(p: &Esst1aParams<S>, io: &Io<S>) -> (S, S) {
+    let v = io.get(port::V_SUPPLY);
+    (v * p.vr_min, v * p.vr_max - p.k_c * io.get(port::XADIFD))
+}
+
+/// Field current limiter term `max(0, K_LR (X_adI_fd − I_LR))`.
+#[inline(always)]
+fn current_limit<S: Scalar>(p: &Esst1aParams<S>, io: &Io<S>) -> S {
+    (p.k_lr * (io.get(port::XADIFD) - p.i_lr)).max_s(S::cst(0.0))
+}
+
+#[inline(always)]
+fn eval<S: Scalar>(p: &Esst1aParams<S>, k: &Consts<S>, o: &Opts, x: &[S], io: &Io<S>) -> Eval<S> {
+    let (vs, vuel, voel) = (io.get(port::VS), io.get(port::VUEL), io.get(port::VOEL));
+    let uel_gate = o.uel != 1 && !o.uel_undriven;
+    let oel_gate = o.oel_gate && !o.oel_undriven;
+    let v_m = k.transducer.output(x[V_M], io.get(port::V_TERM));
+    // V_X from the states (V_A held by its state unless T_A = 0, handled below).
+    let v_f_of = |v_x: S| p.k_f * k.inv_tf * (v_x - x[X_F]);
+    let mut v_i = k.v_ref + p.v_ref_offset - v_m;
+    if o.vos == 1 {
+        v_i += vs;
+    }
+    if o.uel == 1 {
+        v_i += vuel;
+    }
+    if !o.oel_gate {
+        v_i += voel;
+    }
+    let after_va = |v_a: S| {
+        let mut v_x = v_a - current_limit(p, io);
+        if o.vos == 2 {
+            v_x += vs;
+        }
+        v_x
+    };
+    let lead_lags = |v_i: S| {
+        let v_i = clamp(v_i, p.vi_min, p.vi_max);
+        let v1 = if uel_gate && o.uel == 2 {
+            v_i.max_s(vuel)
+        } else {
+            v_i
+        };
+        let y1 = k.ll1.output(x[X_LL1], v1);
+        (v1, y1, k.ll2.output(x[X_LL2], y1))
+    };
+    let (v1, y1, v2, v_x) = if o.no_ta {
+        // V_A algebraic; no rate feedback then (validated), so no loop through V_F.
+        let (v1, y1, v2) = lead_lags(v_i);
+        (v1, y1, v2, after_va(clamp(p.k_a * v2, p.va_min, p.va_max)))
+    } else {
+        let v_x = after_va(x[V_A]);
+        let (v1, y1, v2) = lead_lags(v_i - v_f_of(v_x));
+        (v1, y1, v2, v_x)
+    };
+    let mut v = v_x;
+    if uel_gate && o.uel == 3 {
+        v = v.max_s(vuel);
+    }
+    if oel_gate {
+        v = v.min_s(voel);
+    }
+    let (lo, hi) = limits(p, io);
+    Eval {
+        v1,
+        y1,
+        v2,
+        v_x,
+        efd: clamp(v, lo, hi),
+    }
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn derivatives<S: Scalar>(
+    p: &Esst1aParams<S>,
+    k: &Consts<S>,
+    o: &Opts,
+    limit: &NonWindup,
+    x: &[S],
+    io: &Io<S>,
+    dx: &mut [S],
+) {
+    let e = eval(p, k, o, x, io);
+    dx[V_M] = k.transducer.derivative(x[V_M], io.get(port::V_TERM));
+    dx[X_LL1] = k.ll1.derivative(x[X_LL1], e.v1);
+    dx[X_LL2] = k.ll2.derivative(x[X_LL2], e.y1);
+    dx[V_A] = if o.no_ta {
+        S::cst(0.0)
+    } else {
+        limit.derivative((p.k_a * e.v2 - x[V_A]) * k.inv_ta)
+    };
+    dx[X_F] = (e.v_x - x[X_F]) * k.inv_tf;
 }
 
 impl Esst1a {
@@ -170,6 +293,7 @@ impl Esst1a {
             inv_ta: 0.0,
             inv_tf: 0.0,
             limit: NonWindup::default(),
+            dual: None,
         }
     }
     /// Voltage reference found at initialisation [pu].
@@ -180,79 +304,42 @@ impl Esst1a {
     /// `(E_fd,min, E_fd,max)`.
     #[inline(always)]
     fn limits(&self, io: &Io) -> (f64, f64) {
-        let v = io.get(port::V_SUPPLY);
-        (
-            v * self.p.vr_min,
-            v * self.p.vr_max - self.p.k_c * io.get(port::XADIFD),
-        )
+        limits(&self.p, io)
     }
 
     /// Field current limiter term `max(0, K_LR (X_adI_fd − I_LR))`.
     #[inline(always)]
     fn current_limit(&self, io: &Io) -> f64 {
-        (self.p.k_lr * (io.get(port::XADIFD) - self.p.i_lr)).max(0.0)
+        current_limit(&self.p, io)
     }
 
     #[inline(always)]
-    fn eval(&self, x: &[f64], io: &Io) -> Eval {
-        let p = &self.p;
-        let (vs, vuel, voel) = (io.get(port::VS), io.get(port::VUEL), io.get(port::VOEL));
-        let uel_gate = self.uel != 1 && !self.uel_undriven;
-        let oel_gate = self.oel_gate && !self.oel_undriven;
-        let v_m = self.transducer.output(x[V_M], io.get(port::V_TERM));
-        // V_X from the states (V_A held by its state unless T_A = 0, handled below).
-        let v_f_of = |v_x: f64| p.k_f * self.inv_tf * (v_x - x[X_F]);
-        let mut v_i = self.v_ref + p.v_ref_offset - v_m;
-        if self.vos == 1 {
-            v_i += vs;
+    fn consts(&self) -> Consts<f64> {
+        Consts {
+            v_ref: self.v_ref,
+            transducer: self.transducer,
+            ll1: self.ll1,
+            ll2: self.ll2,
+            inv_ta: self.inv_ta,
+            inv_tf: self.inv_tf,
         }
-        if self.uel == 1 {
-            v_i += vuel;
+    }
+
+    #[inline(always)]
+    fn opts(&self) -> Opts {
+        Opts {
+            uel: self.uel,
+            vos: self.vos,
+            oel_gate: self.oel_gate,
+            uel_undriven: self.uel_undriven,
+            oel_undriven: self.oel_undriven,
+            no_ta: self.inv_ta == 0.0,
         }
-        if !self.oel_gate {
-            v_i += voel;
-        }
-        let after_va = |v_a: f64| {
-            let mut v_x = v_a - self.current_limit(io);
-            if self.vos == 2 {
-                v_x += vs;
-            }
-            v_x
-        };
-        let lead_lags = |v_i: f64| {
-            let v_i = clamp(v_i, p.vi_min, p.vi_max);
-            let v1 = if uel_gate && self.uel == 2 {
-                v_i.max(vuel)
-            } else {
-                v_i
-            };
-            let y1 = self.ll1.output(x[X_LL1], v1);
-            (v1, y1, self.ll2.output(x[X_LL2], y1))
-        };
-        let (v1, y1, v2, v_x) = if self.inv_ta == 0.0 {
-            // V_A algebraic; no rate feedback then (validated), so no loop through V_F.
-            let (v1, y1, v2) = lead_lags(v_i);
-            (v1, y1, v2, after_va(clamp(p.k_a * v2, p.va_min, p.va_max)))
-        } else {
-            let v_x = after_va(x[V_A]);
-            let (v1, y1, v2) = lead_lags(v_i - v_f_of(v_x));
-            (v1, y1, v2, v_x)
-        };
-        let mut v = v_x;
-        if uel_gate && self.uel == 3 {
-            v = v.max(vuel);
-        }
-        if oel_gate {
-            v = v.min(voel);
-        }
-        let (lo, hi) = self.limits(io);
-        Eval {
-            v1,
-            y1,
-            v2,
-            v_x,
-            efd: clamp(v, lo, hi),
-        }
+    }
+
+    #[inline(always)]
+    fn eval(&self, x: &[f64], io: &Io) -> Eval<f64> {
+        eval(&self.p, &self.consts(), &self.opts(), x, io)
     }
 }
 
@@ -382,17 +469,52 @@ impl Block for Esst1a {
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        let e = self.eval(x, io);
-        dx[V_M] = self.transducer.derivative(x[V_M], io.get(port::V_TERM));
-        dx[X_LL1] = self.ll1.derivative(x[X_LL1], e.v1);
-        dx[X_LL2] = self.ll2.derivative(x[X_LL2], e.y1);
-        dx[V_A] = if self.inv_ta == 0.0 {
-            0.0
-        } else {
-            self.limit
-                .derivative((self.p.k_a * e.v2 - x[V_A]) * self.inv_ta)
+        let (k, o) = (self.consts(), self.opts());
+        derivatives(&self.p, &k, &o, &self.limit, x, io, dx);
+    }
+
+    fn init_constants(&self) -> Vec<f64> {
+        vec![self.v_ref]
+    }
+
+    fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
+        let p = self
+            .p
+            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let k = Consts {
+            v_ref: consts.first().copied().unwrap_or(D::cst(self.v_ref)),
+            transducer: Lag::new(p.t_r),
+            ll1: LeadLag::new(p.t_c, p.t_b),
+            ll2: LeadLag::new(p.t_c1, p.t_b1),
+            inv_ta: if self.inv_ta == 0.0 {
+                D::cst(0.0)
+            } else {
+                p.t_a.recip()
+            },
+            inv_tf: p.t_f.recip(),
         };
-        dx[X_F] = (e.v_x - x[X_F]) * self.inv_tf;
+        self.dual = Some((p, k));
+        true
+    }
+
+    fn outputs_dual(&self, _t: f64, x: &[D], io: &mut Io<D>) {
+        if let Some((p, k)) = &self.dual {
+            io.set(port::EFD, eval(p, k, &self.opts(), x, io).efd);
+        }
+    }
+
+    fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
+        if let Some((p, k)) = &self.dual {
+            derivatives(p, k, &self.opts(), &self.limit, x, io, dx);
+        }
+    }
+
+    fn pin_dual(&self, x: &mut [D], _io: &Io<D>) {
+        if let Some((p, _)) = &self.dual {
+            if self.inv_ta != 0.0 {
+                self.limit.pin(&mut x[V_A], p.va_min, p.va_max);
+            }
+        }
     }
 
     fn n_events(&self) -> usize {
