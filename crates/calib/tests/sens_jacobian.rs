@@ -92,13 +92,13 @@ fn the_sensitivity_jacobian_is_the_derivative_of_the_residuals() {
     }
 }
 
-/// A unit with a block without dual equations (ESST1A here) has no sensitivity Jacobian: the
+/// A unit with a block without dual equations (ST5B here) has no sensitivity Jacobian: the
 /// Levenberg-Marquardt then takes differences.
 #[test]
 fn without_dual_equations_there_is_no_sensitivity_jacobian() {
     use itaipu_dynamics::registry;
-    let mut unit = itaipu_dynamics::unit::Unit::new("esst1a", 737.0, 60.0);
-    for (name, model) in [("machine", "GENROU"), ("exciter", "ESST1A")] {
+    let mut unit = itaipu_dynamics::unit::Unit::new("st5b", 737.0, 60.0);
+    for (name, model) in [("machine", "GENROU"), ("exciter", "ST5B")] {
         unit.add(name, registry::find(model).unwrap().create(), &[])
             .unwrap();
     }
