@@ -404,14 +404,7 @@ impl ModeUnit {
     /// Prepares `unit` for playing `ev` back in `mode` and finds its initial operating point
     /// (see the module documentation; errors name what is missing).
     pub fn new(unit: &Unit, ev: &PreparedEvent, mode: PlaybackMode) -> Result<ModeUnit, SimError> {
-        if (unit.nominal_hz - ev.nominal_hz).abs() > 1e-9 {
-            return Err(SimError::Frequency {
-                unit: unit.name.clone(),
-                unit_hz: unit.nominal_hz,
-                event: ev.name.clone(),
-                event_hz: ev.nominal_hz,
-            });
-        }
+        ev.check_frequency(unit)?;
         if mode == PlaybackMode::Phasor && !ev.has_angle {
             return Err(SimError::NoAngle {
                 event: ev.name.clone(),
@@ -517,8 +510,7 @@ impl ModeUnit {
         } else {
             idx("vref_step")
         };
-        let ip = idx("pe").ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?;
-        let iq = idx("qe").ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?;
+        let (ip, iq) = u.pq_signals()?;
         // E_fd as compared: the exciter's output, or the played-back one the machine reads.
         let iefd = if mode == PlaybackMode::MachineFromEfd {
             ext_efd
@@ -529,13 +521,10 @@ impl ModeUnit {
         let iifd = idx("xadifd");
 
         // The operating point.
-        let mut op = ev.init_point(&u);
+        let mut op = ev.machine_point(&u);
         if !ev.has_angle {
             op.v_ang = 0.0;
         }
-        let (pl, ql) = u.terminal_load(op.v_mag);
-        op.p += pl;
-        op.q += ql;
         let mut preset = vec![];
         if let (Some(i), Some(e)) = (ext_efd, ev.efd0) {
             preset.push((i, e));
@@ -1289,9 +1278,10 @@ pub fn simulate_mode(
         let mut u = unit.clone();
         u.ensure_finished()?;
         let idx = |n: &str| u.signal_index(n);
+        let (ip, iq) = u.pq_signals()?;
         let r = Reader {
-            ip: idx("pe").ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?,
-            iq: idx("qe").ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?,
+            ip,
+            iq,
             iefd: instance(&u, "machine")
                 .and_then(|m| port_signal(m, "efd", Dir::In))
                 .and_then(|s| idx(&s))

@@ -138,7 +138,31 @@ impl PreparedEvent {
         }
     }
 
-    /// Initial operating point on the machine base of `unit`.
+    /// A unit for another nominal frequency than the record's is refused.
+    pub fn check_frequency(&self, unit: &Unit) -> Result<(), SimError> {
+        if (unit.nominal_hz - self.nominal_hz).abs() > 1e-9 {
+            return Err(SimError::Frequency {
+                unit: unit.name.clone(),
+                unit_hz: unit.nominal_hz,
+                event: self.name.clone(),
+                event_hz: self.nominal_hz,
+            });
+        }
+        Ok(())
+    }
+
+    /// The point the machine of `unit` initialises at: [`PreparedEvent::init_point`] (what
+    /// the measuring device saw) plus any load between the machine and the measurement point,
+    /// which the machine delivers as well ([`Unit::terminal_load`] at the measured voltage).
+    pub fn machine_point(&self, unit: &Unit) -> InitPoint {
+        let mut op = self.init_point(unit);
+        let (pl, ql) = unit.terminal_load(op.v_mag);
+        op.p += pl;
+        op.q += ql;
+        op
+    }
+
+    /// Initial operating point on the machine base of `unit`, at the measurement point.
     pub fn init_point(&self, unit: &Unit) -> InitPoint {
         let k = self.system_mva / unit.machine_mva;
         let op = &self.op_system;
@@ -176,20 +200,8 @@ where
         let mut mu = crate::mode::ModeUnit::new(unit, ev, crate::mode::PlaybackMode::Phasor)?;
         return crate::mode::run_mode_unit(&mut mu, ev, opts, record);
     }
-    if (unit.nominal_hz - ev.nominal_hz).abs() > 1e-9 {
-        return Err(SimError::Frequency {
-            unit: unit.name.clone(),
-            unit_hz: unit.nominal_hz,
-            event: ev.name.clone(),
-            event_hz: ev.nominal_hz,
-        });
-    }
-    let mut op = ev.init_point(unit);
-    // A load between the machine and the measurement point: the machine delivers it as well.
-    let (pl, ql) = unit.terminal_load(op.v_mag);
-    op.p += pl;
-    op.q += ql;
-    let mut x = unit.initialise(&op)?;
+    ev.check_frequency(unit)?;
+    let mut x = unit.initialise(&ev.machine_point(unit))?;
     let mut sys = Playback::new(unit, &ev.input);
     let stats = integrate::solve(
         &opts.method,
@@ -217,12 +229,7 @@ pub fn simulate_pq(
     let n = ev.input.time_s.len();
     let (mut p, mut q) = (vec![0.0; n], vec![0.0; n]);
     let to_sys = unit.machine_mva / ev.system_mva;
-    let ip = unit
-        .signal_index("pe")
-        .ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?;
-    let iq = unit
-        .signal_index("qe")
-        .ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?;
+    let (ip, iq) = unit.pq_signals()?;
     run_playback(unit, ev, opts, |k, u, _| {
         let (pk, qk) = u.measured_pq_now(ip, iq);
         p[k] = pk * to_sys;
@@ -318,12 +325,7 @@ pub fn simulate_prepared(
     unit.ensure_finished()?;
     let signals: Vec<String> = unit.signal_names().to_vec();
     let states = unit.state_names();
-    let ip = unit
-        .signal_index("pe")
-        .ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?;
-    let iq = unit
-        .signal_index("qe")
-        .ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?;
+    let (ip, iq) = unit.pq_signals()?;
     let names = trace_names(&signals, &states);
     let mut cols: Vec<Vec<f64>> = vec![Vec::with_capacity(n); names.len()];
     let stats = run_playback(unit, ev, opts, |_, u, x| {

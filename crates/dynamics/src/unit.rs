@@ -459,6 +459,15 @@ impl Unit {
     pub fn signal_index(&self, name: &str) -> Option<usize> {
         self.signals.iter().position(|s| s == name)
     }
+    /// The bus indices of the machine's electrical output `pe` and `qe` (what P and Q are
+    /// computed from); a wiring error if the unit has no machine providing them.
+    pub fn pq_signals(&self) -> Result<(usize, usize), UnitError> {
+        let idx = |name: &str| {
+            self.signal_index(name)
+                .ok_or_else(|| UnitError::Wiring(format!("no signal '{name}'")))
+        };
+        Ok((idx("pe")?, idx("qe")?))
+    }
     /// Names `block.state` of all states, in state-vector order.
     pub fn state_names(&self) -> Vec<String> {
         self.instances

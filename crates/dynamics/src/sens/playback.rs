@@ -28,7 +28,6 @@
 //! differences.
 
 use super::{Scalar, D, LANES};
-use crate::block::InitPoint;
 use crate::integrate::{self, Dopri5Options, Method, OdeSystem, StepLog};
 use crate::simulate::{simulate_pq, PreparedEvent, SimError, SimOptions};
 use crate::unit::{ParamRef, PlaybackInput, Unit, UnitError};
@@ -80,6 +79,7 @@ pub fn simulate_pq_sensitivities(
             ev.name
         )));
     }
+    ev.check_frequency(unit)?;
     // The step sequence: the plain adaptive playback's, logged.
     let method = match &opts.method {
         Method::Rk4 { .. } | Method::Replay(_) => opts.method.clone(),
@@ -116,15 +116,6 @@ fn logged_steps(unit: &Unit, ev: &PreparedEvent, o: &Dopri5Options) -> Result<Me
     Ok(Method::Replay(log.times()))
 }
 
-/// The operating point the playback initialises at (the machine delivers a terminal load too).
-fn init_point(unit: &Unit, ev: &PreparedEvent) -> InitPoint {
-    let mut op = ev.init_point(unit);
-    let (pl, ql) = unit.terminal_load(op.v_mag);
-    op.p += pl;
-    op.q += ql;
-    op
-}
-
 /// The initialisation's outputs: the state, the bus, every block's constants.
 struct Init {
     x: Vec<f64>,
@@ -134,7 +125,7 @@ struct Init {
 
 impl Init {
     fn of(unit: &mut Unit, ev: &PreparedEvent) -> Result<Self, UnitError> {
-        let x = unit.initialise(&init_point(unit, ev))?;
+        let x = unit.initialise(&ev.machine_point(unit))?;
         Ok(Self {
             x,
             bus: unit.bus().to_vec(),
@@ -235,12 +226,7 @@ fn pass(
         xa[i] = xi.v;
         xa[n + i * LANES..n + (i + 1) * LANES].copy_from_slice(&xi.d);
     }
-    let ip = u
-        .signal_index("pe")
-        .ok_or_else(|| UnitError::Wiring("no signal 'pe'".into()))?;
-    let iq = u
-        .signal_index("qe")
-        .ok_or_else(|| UnitError::Wiring("no signal 'qe'".into()))?;
+    let (ip, iq) = u.pq_signals()?;
     let ns = ev.input.time_s.len();
     let to_sys = u.machine_mva / ev.system_mva;
     let np = params.len();
@@ -284,6 +270,11 @@ struct Augmented<'a> {
     bus: Vec<D>,
     x: Vec<D>,
     dx: Vec<D>,
+    /// The point `(t, [x, S])` the dual bus was last evaluated at (the sample observer reads
+    /// the bus the step's last stage evaluated, as the plain [`crate::unit::Playback`] does).
+    bus_t: f64,
+    bus_xa: Vec<f64>,
+    bus_valid: bool,
 }
 
 impl<'a> Augmented<'a> {
@@ -298,12 +289,18 @@ impl<'a> Augmented<'a> {
             bus,
             x: vec![D::cst(0.0); n],
             dx: vec![D::cst(0.0); n],
+            bus_t: 0.0,
+            bus_xa: vec![0.0; n * (1 + LANES)],
+            bus_valid: false,
         }
     }
 
     /// The dual bus at `(t, [x, S])`.
     #[inline]
     fn eval(&mut self, t: f64, xa: &[f64]) {
+        if self.bus_valid && t == self.bus_t && xa == self.bus_xa.as_slice() {
+            return;
+        }
         let n = self.x.len();
         for i in 0..n {
             let mut d = [0.0; LANES];
@@ -314,6 +311,9 @@ impl<'a> Augmented<'a> {
         self.bus[self.sig.0] = D::cst(v);
         self.bus[self.sig.1] = D::cst(th);
         self.unit.eval_outputs_dual(t, &self.x, &mut self.bus);
+        self.bus_t = t;
+        self.bus_xa.copy_from_slice(xa);
+        self.bus_valid = true;
     }
 
     /// The plain unit's signals at `(t, x)` (for its event functions and modes).
@@ -354,12 +354,15 @@ impl OdeSystem for Augmented<'_> {
         let n = self.x.len();
         self.eval_plain(t, &xa[..n]);
         let changed = self.unit.update_modes(&mut xa[..n]);
+        // The modes (and perhaps x) changed: the outputs are evaluated again.
+        self.bus_valid = false;
         self.eval(t, xa);
         self.unit.pin_dual(&mut self.x, &mut self.bus);
         for i in 0..n {
             xa[i] = self.x[i].v;
             xa[n + i * LANES..n + (i + 1) * LANES].copy_from_slice(&self.x[i].d);
         }
+        self.bus_valid = false;
         changed
     }
 }
