@@ -120,6 +120,15 @@ impl FreeParam {
         };
         crate::bounds::clamp_into(x, self.lo, self.hi)
     }
+    /// `dx/du` of [`FreeParam::from_unit`] at the physical value `x` it gave: `x ln(hi/lo)` on
+    /// a log scale, `hi − lo` on a linear one.
+    pub fn dx_du(&self, x: f64) -> f64 {
+        if self.log {
+            x * (self.hi / self.lo).ln()
+        } else {
+            self.hi - self.lo
+        }
+    }
     /// Box coordinate of physical value `x`.
     pub fn to_unit(&self, x: f64) -> f64 {
         let x = crate::bounds::clamp_into(x, self.lo, self.hi);
@@ -752,11 +761,7 @@ impl Problem {
         let x = self.from_unit(u);
         let mut cols = self.sensitivity_jacobian_x(&x, sims)?;
         for ((c, f), &xv) in cols.iter_mut().zip(&self.free).zip(&x) {
-            let dxdu = if f.log {
-                xv * (f.hi / f.lo).ln()
-            } else {
-                f.hi - f.lo
-            };
+            let dxdu = f.dx_du(xv);
             c.iter_mut().for_each(|v| *v *= dxdu);
         }
         Some(cols)

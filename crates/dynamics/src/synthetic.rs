@@ -363,7 +363,6 @@ fn uniform_step(t: &[f64]) -> Option<f64> {
 /// `y` delayed by `d` samples with the band-limited kernel of [`delayed`].
 fn delayed_uniform(y: &[f64], d: f64) -> Vec<f64> {
     let n = y.len() as i64;
-    let m = DELAY_HALF_WIDTH as i64;
     // Sample k reads position k − d = i + u with the same fraction u for every k.
     let shift = (-d).floor();
     let u = -d - shift;
@@ -372,15 +371,8 @@ fn delayed_uniform(y: &[f64], d: f64) -> Vec<f64> {
         let whole = shift as i64 + i64::from(u > 0.5);
         return (0..n).map(|k| at(k + whole)).collect();
     }
-    let sinc = |x: f64| (std::f64::consts::PI * x).sin() / (std::f64::consts::PI * x);
-    let taps: Vec<(i64, f64)> = (-m + 1..=m)
-        .map(|j| {
-            let x = j as f64 - u;
-            let window = 0.5 * (1.0 + (std::f64::consts::PI * x / m as f64).cos());
-            (j, sinc(x) * window)
-        })
-        .collect();
-    let gain: f64 = taps.iter().map(|(_, h)| h).sum();
+    let taps = delay_taps(u);
+    let gain: f64 = taps.iter().map(|t| t.1).sum();
     let first = shift as i64;
     (0..n)
         .map(|k| {
@@ -393,7 +385,32 @@ fn delayed_uniform(y: &[f64], d: f64) -> Vec<f64> {
             if i >= n - 1 {
                 return y[(n - 1) as usize];
             }
-            taps.iter().map(|(j, h)| h * at(i + j)).sum::<f64>() / gain
+            taps.iter().map(|(j, h, _)| h * at(i + j)).sum::<f64>() / gain
+        })
+        .collect()
+}
+
+/// The taps of [`delayed`]'s kernel at the fraction `u`: `(j, h(j − u), ∂h(j − u)/∂u)` for
+/// `j = −M+1 … M` (M = [`DELAY_HALF_WIDTH`]), `h(x) = sinc(x) · ½ (1 + cos(π x / M))`; the
+/// slope near x = 0 from sinc's series (the quotient cancels there).
+fn delay_taps(u: f64) -> Vec<(i64, f64, f64)> {
+    let m = DELAY_HALF_WIDTH as i64;
+    let pi = std::f64::consts::PI;
+    (-m + 1..=m)
+        .map(|j| {
+            let x = j as f64 - u;
+            let (s, c) = (pi * x).sin_cos();
+            let sinc = if x == 0.0 { 1.0 } else { s / (pi * x) };
+            let dsinc = if x.abs() < 1e-6 {
+                -pi * pi * x / 3.0
+            } else {
+                (c * pi * x - s) / (pi * x * x)
+            };
+            let (ws, wc) = (pi * x / m as f64).sin_cos();
+            let w = 0.5 * (1.0 + wc);
+            let dw = -0.5 * ws * pi / m as f64;
+            // x = j − u: d/du = −d/dx.
+            (j, sinc * w, -(dsinc * w + sinc * dw))
         })
         .collect()
 }
@@ -439,27 +456,7 @@ pub(crate) fn delayed_dual(
             } else {
                 (shift, u)
             };
-            let m = DELAY_HALF_WIDTH as i64;
-            let pi = std::f64::consts::PI;
-            // h(j − u) and dh/du for the Hann-windowed sinc (sinc's series below 1e-6).
-            let h = |x: f64| -> (f64, f64) {
-                let (s, c) = (pi * x).sin_cos();
-                let (sinc, dsinc) = if x.abs() < 1e-6 {
-                    (1.0 - (pi * x).powi(2) / 6.0, -pi * pi * x / 3.0)
-                } else {
-                    (s / (pi * x), (c * pi * x - s) / (pi * x * x))
-                };
-                let (ws, wc) = (pi * x / m as f64).sin_cos();
-                let w = 0.5 * (1.0 + wc);
-                let dw = -0.5 * ws * pi / m as f64;
-                (sinc * w, dsinc * w + sinc * dw)
-            };
-            let taps: Vec<(i64, f64, f64)> = (-m + 1..=m)
-                .map(|j| {
-                    let (hv, dhx) = h(j as f64 - u);
-                    (j, hv, -dhx) // x = j − u: d/du = −d/dx
-                })
-                .collect();
+            let taps = delay_taps(u);
             let gain: f64 = taps.iter().map(|t| t.1).sum();
             let dgain: f64 = taps.iter().map(|t| t.2).sum();
             let ni = n as i64;
