@@ -58,6 +58,15 @@ pub trait ParamSet {
     }
 }
 
+/// A parameter struct on the dual numbers of a sensitivity pass, for code generic over the
+/// parameter set (implemented by [`param_set!`] with its inherent `lift_dual`).
+pub trait LiftDual {
+    /// The struct on [`D`](crate::sens::D).
+    type Dual;
+    /// Parameter `i` (spec order) seeded on `lanes[i]`, a constant where it has no lane.
+    fn lift_dual(&self, lanes: &[Option<usize>]) -> Self::Dual;
+}
+
 /// Declares a parameter struct (`f64` fields by default) and its [`ParamSpec`] table.
 ///
 /// ```text
@@ -102,6 +111,20 @@ macro_rules! param_set {
             pub fn lift<S: $crate::sens::Scalar>(&self, seed: impl Fn(usize, f64) -> S) -> $name<S> {
                 let mut k = 0usize;
                 $name { $( $field: { let v = seed(k, self.$field); k += 1; v }, )* }
+            }
+
+            /// The values on the dual numbers of a sensitivity pass: parameter `i` (spec order)
+            /// seeded on `lanes[i]`, a constant where it has no lane (or `lanes` is shorter).
+            pub fn lift_dual(&self, lanes: &[Option<usize>]) -> $name<$crate::sens::D> {
+                self.lift(|i, v| $crate::sens::seeded(v, lanes.get(i).copied().flatten()))
+            }
+        }
+
+        impl $crate::params::LiftDual for $name {
+            type Dual = $name<$crate::sens::D>;
+            #[inline]
+            fn lift_dual(&self, lanes: &[Option<usize>]) -> Self::Dual {
+                <$name>::lift_dual(self, lanes)
             }
         }
 

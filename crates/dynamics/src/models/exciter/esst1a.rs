@@ -40,7 +40,7 @@ use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::exciter::blocks::{Lag, LeadLag, ZERO_T};
 use crate::models::exciter::roles::{ExciterRoles, LeadLagRole, ParamRole};
 use crate::models::limiter::{clamp, NonWindup};
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -478,9 +478,7 @@ impl Block for Esst1a {
     }
 
     fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
-        let p = self
-            .p
-            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let p = self.p.lift_dual(lanes);
         let k = Consts {
             v_ref: consts.first().copied().unwrap_or(D::cst(self.v_ref)),
             transducer: Lag::new(p.t_r),

@@ -43,7 +43,7 @@ use crate::models::exciter::blocks::{Lag, QuadraticExciterSaturation, ZERO_T};
 use crate::models::exciter::roles::{ExciterRoles, LeadLagRole, ParamRole};
 use crate::models::exciter::sexs::{port, PORTS};
 use crate::models::limiter::{clamp, NonWindup};
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -297,9 +297,7 @@ impl Block for Ieeet1 {
     }
 
     fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
-        let p = self
-            .p
-            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let p = self.p.lift_dual(lanes);
         let c = |i: usize, v: f64| consts.get(i).copied().unwrap_or(D::cst(v));
         let Ok(sat) = QuadraticExciterSaturation::new(p.e1, p.se1, p.e2, p.se2) else {
             return false;

@@ -20,7 +20,7 @@
 //! AVR gains when left free (§12.5).
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port};
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -86,10 +86,7 @@ impl Block for PmuMeasurement {
         rotate_scale(pp, p, q);
     }
     fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
-        self.dual = Some(
-            self.p
-                .lift(|i, v| seeded(v, lanes.get(i).copied().flatten())),
-        );
+        self.dual = Some(self.p.lift_dual(lanes));
         true
     }
     fn transform_pq_dual(&self, t: &[f64], p: &mut [D], q: &mut [D]) {

@@ -31,7 +31,7 @@ use crate::models::exciter::sexs::{
     port, sexs_roles, SexsEq, SexsGains, SexsModel, SexsVariant, PORTS as SEXS_PORTS,
 };
 use crate::param_set;
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::Scalar;
 
 param_set! {
     /// SEXS_bus_fed parameters.
@@ -92,10 +92,6 @@ impl SexsVariant for SexsBusFedParams {
     const MODEL: &'static str = "SEXS_bus_fed";
     const PORTS: &'static [Port] = PORTS;
     const MOVING_LIMITS: bool = true;
-    type Lifted = SexsBusFedParams<D>;
-    fn lift_dual(&self, lanes: &[Option<usize>]) -> SexsBusFedParams<D> {
-        self.lift(|i, v| seeded(v, lanes.get(i).copied().flatten()))
-    }
     fn validate_limits(&self) -> Result<(), ModelError> {
         guard::finite("vr_min", self.vr_min)?;
         guard::non_negative("k_c", self.k_c)?;

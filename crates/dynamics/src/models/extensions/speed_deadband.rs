@@ -14,7 +14,7 @@
 //! absorbs it), so the unit starts in steady state at any frequency. `db = 0` is the identity.
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -87,7 +87,7 @@ impl Block for SpeedDeadband {
     fn derivatives(&self, _t: f64, _x: &[f64], _io: &Io, _dx: &mut [f64]) {}
 
     fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
-        self.dual = Some(seeded(self.p.db, lanes.first().copied().flatten()));
+        self.dual = Some(self.p.lift_dual(lanes).db);
         true
     }
 

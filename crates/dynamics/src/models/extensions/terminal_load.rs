@@ -14,7 +14,7 @@
 //! With `P_L0 = Q_L0 = 0` (the defaults) it changes nothing.
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port};
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -78,10 +78,7 @@ impl Block for TerminalLoad {
         load(&self.p, v)
     }
     fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
-        self.dual = Some(
-            self.p
-                .lift(|i, v| seeded(v, lanes.get(i).copied().flatten())),
-        );
+        self.dual = Some(self.p.lift_dual(lanes));
         true
     }
     fn terminal_load_dual(&self, v: f64) -> (D, D) {

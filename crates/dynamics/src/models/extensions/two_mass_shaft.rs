@@ -57,7 +57,7 @@
 use std::f64::consts::PI;
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -218,9 +218,7 @@ impl Block for TwoMassShaft {
     }
 
     fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
-        let p = self
-            .p
-            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let p = self.p.lift_dual(lanes);
         let (k_s, d_s) = stiffness_damping(&p, self.omega_b);
         let inv_2ht = (p.h_turbine * 2.0).recip();
         self.dual = Some((p, [k_s, d_s, inv_2ht]));

@@ -68,7 +68,7 @@ impl Block for ConstantPm {
     }
     fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
         let pm0 = consts.first().copied().unwrap_or(seeded(self.pm0, None));
-        self.dual = Some(pm0 + seeded(self.p.pm_offset, lanes.first().copied().flatten()));
+        self.dual = Some(pm0 + self.p.lift_dual(lanes).pm_offset);
         true
     }
     fn outputs_dual(&self, _t: f64, _x: &[D], io: &mut Io<D>) {

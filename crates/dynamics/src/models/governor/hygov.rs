@@ -19,7 +19,7 @@
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::{clamp, NonWindup};
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -200,9 +200,7 @@ impl Block for Hygov {
     }
 
     fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
-        let p = self
-            .p
-            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let p = self.p.lift_dual(lanes);
         let n_ref = consts.first().copied().unwrap_or(D::cst(self.n_ref));
         let inv = inverses(&p);
         self.dual = Some((p, n_ref, inv));

@@ -11,7 +11,7 @@ use super::{Electrical, ElectricalEq, ElectricalInit, Field, Phasor, Stator, Sta
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 
 param_set! {
     /// GENCLS parameters (machine base).
@@ -84,9 +84,7 @@ impl Electrical for Gencls {
         vec![self.e_prime]
     }
     fn lift(&self, lanes: &[Option<usize>], consts: &[D]) -> Option<Gencls<D>> {
-        let p = self
-            .p
-            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let p = self.p.lift_dual(lanes);
         let z = StatorImpedance::new(p.r_a, p.x_d_prime, p.x_d_prime);
         let e_prime = consts.first().copied().unwrap_or(D::cst(self.e_prime));
         Some(Gencls { p, e_prime, z })

@@ -25,7 +25,7 @@ use super::{
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 
 param_set! {
     /// GENROU parameters (machine base).
@@ -178,9 +178,7 @@ impl Electrical for Genrou {
     }
 
     fn lift(&self, lanes: &[Option<usize>], _consts: &[D]) -> Option<Genrou<D>> {
-        let p = self
-            .p
-            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let p = self.p.lift_dual(lanes);
         let k = Consts::of(&p).ok()?;
         Some(Genrou { p, k })
     }

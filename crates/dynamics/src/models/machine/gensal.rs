@@ -33,7 +33,7 @@ use super::{
 use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 
 param_set! {
     /// GENSAL parameters (machine base). Typical values: large hydro unit (`models.md` §4.1).
@@ -159,9 +159,7 @@ impl Electrical for Gensal {
     }
 
     fn lift(&self, lanes: &[Option<usize>], _consts: &[D]) -> Option<Gensal<D>> {
-        let p = self
-            .p
-            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let p = self.p.lift_dual(lanes);
         let k = Consts::of(&p).ok()?;
         Some(Gensal { p, k })
     }

@@ -14,7 +14,7 @@
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::clamp;
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -279,9 +279,7 @@ impl Block for Ieeest {
         derivatives(&self.p, &self.filter, x, io, dx);
     }
     fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
-        let p = self
-            .p
-            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let p = self.p.lift_dual(lanes);
         let Ok(filter) = Filter::new(&p) else {
             return false;
         };

@@ -12,7 +12,7 @@
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::clamp;
-use crate::sens::{seeded, Scalar, D};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -123,9 +123,7 @@ impl Block for Stab3 {
         vec![self.p_ref]
     }
     fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
-        let p = self
-            .p
-            .lift(|i, v| seeded(v, lanes.get(i).copied().flatten()));
+        let p = self.p.lift_dual(lanes);
         let p_ref = consts.first().copied().unwrap_or(D::cst(self.p_ref));
         self.dual = Some((p, p_ref));
         true
