@@ -231,8 +231,18 @@ pub trait Block: Send + Sync {
 
     /// After [`Block::update_modes`] in a sensitivity pass: every state the current modes pin
     /// to a limit takes the limit's value and derivatives (the sensitivity of a pinned state is
-    /// that of its limit). Default: no pinned states.
+    /// that of its limit: the derivative of the mode switch's reset map). Default: no pinned
+    /// states.
     fn pin_dual(&self, _x: &mut [D], _io: &Io<D>) {}
+
+    /// [`Block::events`] on dual numbers (after [`Block::seed_dual`]): the guards' derivatives
+    /// `∂g/∂x S + ∂g/∂p`, from which a sensitivity pass takes the shift of a crossing's time
+    /// with the parameters (the saltation of [`crate::sens`]). `false`: the block's guards have
+    /// no dual form (the pass then keeps the sensitivities continuous across its switches,
+    /// which [`Block::pin_dual`] makes exact for a non-windup limit on a constant limit).
+    fn events_dual(&self, _x: &[D], _io: &Io<D>, _g: &mut [D]) -> bool {
+        false
+    }
 
     /// Post-processes the recorded terminal P and Q series (sample times `t`) as a measuring
     /// device would before they are compared with the recording (PMU skew, phase and ratio

@@ -774,6 +774,28 @@ impl Unit {
         }
     }
 
+    /// [`Unit::eval_events`] on dual numbers (after [`Unit::eval_outputs_dual`]); the guards of
+    /// a block without their dual form ([`crate::Block::events_dual`]) are NaN.
+    pub(crate) fn eval_events_dual(
+        &self,
+        x: &[crate::sens::D],
+        bus: &mut [crate::sens::D],
+        g: &mut [crate::sens::D],
+    ) {
+        for inst in &self.instances {
+            let ne = inst.ev_len;
+            if ne == 0 {
+                continue;
+            }
+            let (o, n) = (inst.x_offset, inst.x_len);
+            let io = Io::new(bus, &inst.map);
+            let gs = &mut g[inst.ev_offset..inst.ev_offset + ne];
+            if !inst.block.events_dual(&x[o..o + n], &io, gs) {
+                gs.fill(<crate::sens::D as crate::sens::Scalar>::cst(f64::NAN));
+            }
+        }
+    }
+
     /// [`Unit::eval_derivatives`] on dual numbers (after [`Unit::eval_outputs_dual`]).
     #[inline]
     pub(crate) fn eval_derivatives_dual(

@@ -69,9 +69,10 @@ impl NonWindup {
         }
     }
 
-    /// The two event functions (positive while the mode holds).
+    /// The two event functions (positive while the mode holds); on dual numbers, their
+    /// derivatives too (the crossing time's, [`crate::sens`]).
     #[inline]
-    pub fn events(&self, x: f64, f: f64, lo: f64, hi: f64, g: &mut [f64]) {
+    pub fn events<S: Scalar>(&self, x: S, f: S, lo: S, hi: S, g: &mut [S]) {
         match self.mode {
             LimitMode::Free => {
                 g[0] = hi - x;
@@ -79,11 +80,11 @@ impl NonWindup {
             }
             LimitMode::AtMax => {
                 g[0] = f;
-                g[1] = 1.0;
+                g[1] = S::cst(1.0);
             }
             LimitMode::AtMin => {
                 g[0] = -f;
-                g[1] = 1.0;
+                g[1] = S::cst(1.0);
             }
         }
     }

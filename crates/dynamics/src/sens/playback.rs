@@ -275,6 +275,8 @@ struct Augmented<'a> {
     bus_t: f64,
     bus_xa: Vec<f64>,
     bus_valid: bool,
+    /// Whether the driver's first call of `handle_event` (before the first step) is done.
+    started: bool,
 }
 
 impl<'a> Augmented<'a> {
@@ -292,6 +294,7 @@ impl<'a> Augmented<'a> {
             bus_t: 0.0,
             bus_xa: vec![0.0; n * (1 + LANES)],
             bus_valid: false,
+            started: false,
         }
     }
 
@@ -346,16 +349,48 @@ impl OdeSystem for Augmented<'_> {
         self.eval_plain(t, &xa[..n]);
         self.unit.eval_events(&xa[..n], g);
     }
-    /// The modes switch on the values alone; a state a mode pins to its limit then takes the
-    /// limit's derivatives (its value is the limit's, whatever the parameters). The other
-    /// states' sensitivities are continuous across the switch: a non-windup limit only stops
-    /// its own state's derivative, whose jump the pin accounts for.
+    /// The modes switch on the values alone, where the plain playback's do. The sensitivities
+    /// jump there (the saltation of a hybrid system): with `t*(p)` the time the guard `g` that
+    /// fired crosses zero,
+    ///
+    /// ```text
+    /// ∂t*/∂p = −(∂g/∂x S⁻ + ∂g/∂p) / (∂g/∂x f⁻ + ∂g/∂t)
+    /// S⁺     = S⁻ + (f⁻ − f⁺) ∂t*/∂p,   then a state the new mode pins: its limit's derivatives
+    /// ```
+    ///
+    /// (`f⁻`, `f⁺` the right-hand sides before and after the switch). The numerator is the
+    /// guard on dual numbers ([`crate::Block::events_dual`]); the denominator, the guard's rate
+    /// along the trajectory, a central difference on the plain system in the old modes (δ =
+    /// 1e-6 s: truncation δ²·g‴/6 and rounding ~1e-16/δ, both below 1e-8 of the rate). A
+    /// state pinned to a limit then takes the limit's value and derivatives
+    /// ([`crate::Block::pin_dual`], the reset's derivative), which for a non-windup limit on a
+    /// constant limit is the whole of the jump (the other states' right-hand sides are
+    /// continuous across it): where a block's guards have no dual form only the pin is applied.
     fn handle_event(&mut self, t: f64, xa: &mut [f64]) -> bool {
         let n = self.x.len();
+        // The guard that fired (the driver calls here when one went ≤ 0; the call before the
+        // first step is not a crossing).
+        let shift = if std::mem::replace(&mut self.started, true) {
+            self.crossing_shift(t, xa)
+        } else {
+            None
+        };
+        let f_minus = shift.as_ref().map(|_| self.plain_rhs(t, &xa[..n]));
         self.eval_plain(t, &xa[..n]);
         let changed = self.unit.update_modes(&mut xa[..n]);
         // The modes (and perhaps x) changed: the outputs are evaluated again.
         self.bus_valid = false;
+        if let (Some(tau), Some(fm)) = (shift, f_minus) {
+            let fp = self.plain_rhs(t, &xa[..n]);
+            for i in 0..n {
+                let jump = fm[i] - fp[i];
+                if jump != 0.0 {
+                    for (l, tl) in tau.iter().enumerate() {
+                        xa[n + i * LANES + l] += jump * tl;
+                    }
+                }
+            }
+        }
         self.eval(t, xa);
         self.unit.pin_dual(&mut self.x, &mut self.bus);
         for i in 0..n {
@@ -364,5 +399,56 @@ impl OdeSystem for Augmented<'_> {
         }
         self.bus_valid = false;
         changed
+    }
+}
+
+impl Augmented<'_> {
+    /// The plain right-hand side at `(t, x)` in the current modes.
+    fn plain_rhs(&mut self, t: f64, x: &[f64]) -> Vec<f64> {
+        let mut f = vec![0.0; x.len()];
+        self.eval_plain(t, x);
+        self.unit.eval_derivatives(t, x, &mut f);
+        f
+    }
+
+    /// `∂t*/∂p` on every lane for the guard that went ≤ 0 at `(t, [x, S])` (the most negative
+    /// one), in the modes before the switch; `None` when none did, its block has no dual
+    /// guards, or the trajectory grazes it (a rate of 0: no finite shift).
+    fn crossing_shift(&mut self, t: f64, xa: &[f64]) -> Option<[f64; LANES]> {
+        let n = self.x.len();
+        let ne = self.unit.n_events();
+        if ne == 0 {
+            return None;
+        }
+        let mut g = vec![0.0; ne];
+        self.eval_plain(t, &xa[..n]);
+        self.unit.eval_events(&xa[..n], &mut g);
+        let k = (0..ne)
+            .filter(|&k| g[k] <= 0.0)
+            .min_by(|&a, &b| g[a].total_cmp(&g[b]))?;
+        self.eval(t, xa);
+        let mut gd = vec![D::cst(0.0); ne];
+        self.unit.eval_events_dual(&self.x, &mut self.bus, &mut gd);
+        if !gd[k].v.is_finite() {
+            return None;
+        }
+        // The guard's rate along the trajectory, modes frozen.
+        let f = self.plain_rhs(t, &xa[..n]);
+        let delta = 1e-6;
+        let mut at = |s: f64| {
+            let x: Vec<f64> = (0..n).map(|i| xa[i] + s * delta * f[i]).collect();
+            self.eval_plain(t + s * delta, &x);
+            self.unit.eval_events(&x, &mut g);
+            g[k]
+        };
+        let rate = (at(1.0) - at(-1.0)) / (2.0 * delta);
+        if !(rate.abs() > 0.0 && rate.is_finite()) {
+            return None;
+        }
+        let mut tau = [0.0; LANES];
+        for (l, v) in tau.iter_mut().enumerate() {
+            *v = -gd[k].d[l] / rate;
+        }
+        Some(tau)
     }
 }

@@ -42,6 +42,7 @@
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::{LimitMode, NonWindup};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -78,6 +79,8 @@ pub struct Oel {
     heating: bool,
     active: bool,
     limit: NonWindup,
+    /// The parameters on dual numbers, after [`Block::seed_dual`].
+    dual: Option<OelParams<D>>,
 }
 
 impl Oel {
@@ -90,7 +93,40 @@ impl Oel {
     /// Unconstrained dV_OEL/dt while active.
     #[inline(always)]
     fn integrator_rate(&self, i: f64) -> f64 {
-        self.p.k_i * (self.p.i_limit - i)
+        rate(&self.p, i)
+    }
+
+    /// `dA/dt` and `dV_OEL/dt` in the current modes, at field current `i` [pu of rated].
+    #[inline(always)]
+    fn rates<S: Scalar>(&self, p: &OelParams<S>, x: &[S], i: S) -> (S, S) {
+        let da = if self.heating {
+            i * i - p.i_pickup * p.i_pickup
+        } else {
+            -p.k_cool * x[0]
+        };
+        let dv = if self.active {
+            self.limit.derivative(rate(p, i))
+        } else {
+            S::cst(0.0)
+        };
+        (da, dv)
+    }
+
+    /// The three guards in the current modes (see the module documentation).
+    #[inline]
+    fn guards<S: Scalar>(&self, p: &OelParams<S>, x: &[S], i: S, g: &mut [S]) {
+        g[0] = if self.heating {
+            i - p.i_pickup
+        } else {
+            p.i_pickup - i
+        };
+        if self.active {
+            self.limit
+                .events(x[1], rate(p, i), p.voel_min, S::cst(0.0), &mut g[1..3]);
+        } else {
+            g[1] = (p.a_max - x[0]).max_s(p.i_pickup - i);
+            g[2] = S::cst(1.0);
+        }
     }
 
     /// Whether the limiter is active (for tests and traces).
@@ -150,44 +186,67 @@ impl Block for Oel {
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        let p = &self.p;
-        let i = self.current(io);
-        dx[0] = if self.heating {
-            i * i - p.i_pickup * p.i_pickup
-        } else {
-            -p.k_cool * x[0]
-        };
-        dx[1] = if self.active {
-            self.limit.derivative(self.integrator_rate(i))
-        } else {
-            0.0
-        };
+        (dx[0], dx[1]) = self.rates(&self.p, x, self.current(io));
+    }
+
+    fn seed_dual(&mut self, lanes: &[Option<usize>], _consts: &[D]) -> bool {
+        self.dual = Some(self.p.lift_dual(lanes));
+        true
+    }
+
+    fn outputs_dual(&self, _t: f64, x: &[D], io: &mut Io<D>) {
+        if let Some(p) = &self.dual {
+            io.set(port::VOEL, self.limit.output(x[1], p.voel_min, D::cst(0.0)));
+        }
+    }
+
+    fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
+        if let Some(p) = &self.dual {
+            (dx[0], dx[1]) = self.rates(p, x, io.get(port::XADIFD) / p.ifd_rated);
+        }
+    }
+
+    /// V_OEL pinned at a limit takes its derivatives; inactive, it is 0 whatever the
+    /// parameters (the release's reset).
+    fn pin_dual(&self, x: &mut [D], _io: &Io<D>) {
+        if let Some(p) = &self.dual {
+            if self.active {
+                self.limit.pin(&mut x[1], p.voel_min, D::cst(0.0));
+            } else {
+                x[1] = D::cst(0.0);
+            }
+        }
+    }
+
+    fn events_dual(&self, x: &[D], io: &Io<D>, g: &mut [D]) -> bool {
+        match &self.dual {
+            Some(p) => {
+                self.guards(p, x, io.get(port::XADIFD) / p.ifd_rated, g);
+                true
+            }
+            None => false,
+        }
     }
 
     fn n_events(&self) -> usize {
         3
     }
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
-        let p = &self.p;
-        let i = self.current(io);
-        g[0] = if self.heating {
-            i - p.i_pickup
-        } else {
-            p.i_pickup - i
-        };
-        if self.active {
-            self.limit
-                .events(x[1], self.integrator_rate(i), p.voel_min, 0.0, &mut g[1..3]);
-        } else {
-            g[1] = (p.a_max - x[0]).max(p.i_pickup - i);
-            g[2] = 1.0;
-        }
+        self.guards(&self.p, x, self.current(io), g);
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {
         let p = self.p.clone();
         let i = self.current(io);
         let old = (self.heating, self.active, self.limit, x[0], x[1]);
-        self.heating = i > p.i_pickup;
+        // Switch where the current mode's guard is ≤ 0, as the integrator located it: the
+        // located crossing may sit exactly on I = I_pu, and a cooling mode kept there would
+        // leave its guard at 0, whose later fall below 0 the driver cannot see (a guard must
+        // go from > 0 to ≤ 0): the overload would never heat the accumulator.
+        self.heating = if self.heating {
+            i > p.i_pickup
+        } else {
+            i >= p.i_pickup
+        };
         // The crossing is located to ~1e-12 s: accept an accumulator a hair short of A_max.
         if !self.active && self.heating && x[0] >= p.a_max * (1.0 - 1e-9) {
             self.active = true;
@@ -205,4 +264,10 @@ impl Block for Oel {
         }
         old != (self.heating, self.active, self.limit, x[0], x[1])
     }
+}
+
+/// The limiter's unconstrained integrator rate `K_i (I_lim − I)`.
+#[inline(always)]
+fn rate<S: Scalar>(p: &OelParams<S>, i: S) -> S {
+    p.k_i * (p.i_limit - i)
 }
