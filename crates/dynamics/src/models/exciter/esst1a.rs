@@ -129,20 +129,16 @@ pub struct Esst1a {
     oel_gate: bool,
     uel_undriven: bool,
     oel_undriven: bool,
-    v_ref: f64,
-    transducer: Lag,
-    ll1: LeadLag,
-    ll2: LeadLag,
-    inv_ta: f64,
-    inv_tf: f64,
+    /// The numbers the initialisation derives (built by [`Block::init`], read with `p`).
+    k: Consts,
     limit: NonWindup,
     /// The parameters and the derived numbers on duals, after [`Block::seed_dual`].
     dual: Option<(Esst1aParams<D>, Consts<D>)>,
 }
 
 /// The numbers the initialisation derives, on the number type `S`.
-#[derive(Debug, Clone, Copy)]
-struct Consts<S> {
+#[derive(Debug, Clone, Copy, Default)]
+struct Consts<S = f64> {
     v_ref: S,
     transducer: Lag<S>,
     ll1: LeadLag<S>,
@@ -286,19 +282,14 @@ impl Esst1a {
             oel_gate: false,
             uel_undriven: false,
             oel_undriven: false,
-            v_ref: 0.0,
-            transducer: Lag::default(),
-            ll1: LeadLag::default(),
-            ll2: LeadLag::default(),
-            inv_ta: 0.0,
-            inv_tf: 0.0,
+            k: Consts::default(),
             limit: NonWindup::default(),
             dual: None,
         }
     }
     /// Voltage reference found at initialisation [pu].
     pub fn v_ref(&self) -> f64 {
-        self.v_ref
+        self.k.v_ref
     }
 
     /// `(E_fd,min, E_fd,max)`.
@@ -314,18 +305,6 @@ impl Esst1a {
     }
 
     #[inline(always)]
-    fn consts(&self) -> Consts<f64> {
-        Consts {
-            v_ref: self.v_ref,
-            transducer: self.transducer,
-            ll1: self.ll1,
-            ll2: self.ll2,
-            inv_ta: self.inv_ta,
-            inv_tf: self.inv_tf,
-        }
-    }
-
-    #[inline(always)]
     fn opts(&self) -> Opts {
         Opts {
             uel: self.uel,
@@ -333,13 +312,13 @@ impl Esst1a {
             oel_gate: self.oel_gate,
             uel_undriven: self.uel_undriven,
             oel_undriven: self.oel_undriven,
-            no_ta: self.inv_ta == 0.0,
+            no_ta: self.k.inv_ta == 0.0,
         }
     }
 
     #[inline(always)]
     fn eval(&self, x: &[f64], io: &Io) -> Eval<f64> {
-        eval(&self.p, &self.consts(), &self.opts(), x, io)
+        eval(&self.p, &self.k, &self.opts(), x, io)
     }
 }
 
@@ -390,11 +369,11 @@ impl Block for Esst1a {
     fn init(&mut self, _op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
         self.validate()?;
         let p = self.p.clone();
-        self.transducer = Lag::new(p.t_r);
-        self.ll1 = LeadLag::new(p.t_c, p.t_b);
-        self.ll2 = LeadLag::new(p.t_c1, p.t_b1);
-        self.inv_ta = if p.t_a < ZERO_T { 0.0 } else { 1.0 / p.t_a };
-        self.inv_tf = 1.0 / p.t_f;
+        self.k.transducer = Lag::new(p.t_r);
+        self.k.ll1 = LeadLag::new(p.t_c, p.t_b);
+        self.k.ll2 = LeadLag::new(p.t_c1, p.t_b1);
+        self.k.inv_ta = if p.t_a < ZERO_T { 0.0 } else { 1.0 / p.t_a };
+        self.k.inv_tf = 1.0 / p.t_f;
         self.limit = NonWindup::default();
         let efd0 = io.get(port::EFD);
         let (lo, hi) = self.limits(io);
@@ -452,7 +431,7 @@ impl Block for Esst1a {
         if !self.oel_gate {
             v_ref -= voel;
         }
-        self.v_ref = v_ref;
+        self.k.v_ref = v_ref;
         x[V_M] = ecomp0;
         x[X_LL1] = u0;
         x[X_LL2] = u0;
@@ -469,22 +448,21 @@ impl Block for Esst1a {
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        let (k, o) = (self.consts(), self.opts());
-        derivatives(&self.p, &k, &o, &self.limit, x, io, dx);
+        derivatives(&self.p, &self.k, &self.opts(), &self.limit, x, io, dx);
     }
 
     fn init_constants(&self) -> Vec<f64> {
-        vec![self.v_ref]
+        vec![self.k.v_ref]
     }
 
     fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
         let p = self.p.lift_dual(lanes);
         let k = Consts {
-            v_ref: consts.first().copied().unwrap_or(D::cst(self.v_ref)),
+            v_ref: consts.first().copied().unwrap_or(D::cst(self.k.v_ref)),
             transducer: Lag::new(p.t_r),
             ll1: LeadLag::new(p.t_c, p.t_b),
             ll2: LeadLag::new(p.t_c1, p.t_b1),
-            inv_ta: if self.inv_ta == 0.0 {
+            inv_ta: if self.k.inv_ta == 0.0 {
                 D::cst(0.0)
             } else {
                 p.t_a.recip()
@@ -509,7 +487,7 @@ impl Block for Esst1a {
 
     fn pin_dual(&self, x: &mut [D], _io: &Io<D>) {
         if let Some((p, _)) = &self.dual {
-            if self.inv_ta != 0.0 {
+            if self.k.inv_ta != 0.0 {
                 self.limit.pin(&mut x[V_A], p.va_min, p.va_max);
             }
         }
@@ -519,20 +497,20 @@ impl Block for Esst1a {
         2
     }
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
-        if self.inv_ta == 0.0 {
+        if self.k.inv_ta == 0.0 {
             g[0] = 1.0;
             g[1] = 1.0;
         } else {
-            let f = (self.p.k_a * self.eval(x, io).v2 - x[V_A]) * self.inv_ta;
+            let f = (self.p.k_a * self.eval(x, io).v2 - x[V_A]) * self.k.inv_ta;
             self.limit
                 .events(x[V_A], f, self.p.va_min, self.p.va_max, g);
         }
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {
-        if self.inv_ta == 0.0 {
+        if self.k.inv_ta == 0.0 {
             return false;
         }
-        let f = (self.p.k_a * self.eval(x, io).v2 - x[V_A]) * self.inv_ta;
+        let f = (self.p.k_a * self.eval(x, io).v2 - x[V_A]) * self.k.inv_ta;
         let (lo, hi) = (self.p.va_min, self.p.va_max);
         self.limit.update(&mut x[V_A], f, lo, hi)
     }

@@ -76,29 +76,20 @@ const X_F: usize = 3;
 #[derive(Debug, Clone, Default)]
 pub struct Ieeet1 {
     pub p: Ieeet1Params,
-    v_ref: f64,
-    /// K_E, V_RMAX, V_RMIN in use (after PSS/E's automatic rules).
-    ke: f64,
-    vr_max: f64,
-    vr_min: f64,
-    sat: QuadraticExciterSaturation,
-    transducer: Lag,
-    inv_ta: f64,
-    inv_te: f64,
-    inv_tf: f64,
+    /// The numbers the initialisation derives (built by [`Block::init`], read with `p`).
+    k: Consts,
     limit: NonWindup,
-    /// The equations' numbers on duals, after [`Block::seed_dual`].
-    dual: Option<Eq<D>>,
+    /// The parameters and the derived numbers on duals, after [`Block::seed_dual`].
+    dual: Option<(Ieeet1Params<D>, Consts<D>)>,
 }
 
-/// Every number the equations read, on the number type `S` (the block's own fields on `f64`;
-/// the lifted parameters and the initialisation's constants on duals).
-#[derive(Debug, Clone)]
-struct Eq<S> {
-    k_a: S,
-    k_f: S,
+/// The numbers the initialisation derives, on the number type `S` (the block's own on `f64`;
+/// from the lifted parameters and the initialisation's constants on duals). The equations read
+/// them with the parameters.
+#[derive(Debug, Clone, Default)]
+struct Consts<S = f64> {
     v_ref: S,
-    v_ref_offset: S,
+    /// K_E, V_RMAX, V_RMIN in use (after PSS/E's automatic rules).
     ke: S,
     vr_max: S,
     vr_min: S,
@@ -111,38 +102,45 @@ struct Eq<S> {
     no_ta: bool,
 }
 
-impl<S: Scalar> Eq<S> {
+impl<S: Scalar> Consts<S> {
     /// Regulator input `K_A v_err` (the unconstrained target of V_R).
     #[inline(always)]
-    fn regulator_target(&self, x: &[S], io: &Io<S>) -> S {
+    fn regulator_target(&self, p: &Ieeet1Params<S>, x: &[S], io: &Io<S>) -> S {
         let v_m = self.transducer.output(x[V_M], io.get(port::V_TERM));
-        let v_f = self.k_f * self.inv_tf * (x[E_FD] - x[X_F]);
-        let v_err = self.v_ref + self.v_ref_offset - v_m
+        let v_f = p.k_f * self.inv_tf * (x[E_FD] - x[X_F]);
+        let v_err = self.v_ref + p.v_ref_offset - v_m
             + io.get(port::VS)
             + io.get(port::VUEL)
             + io.get(port::VOEL)
             - v_f;
-        self.k_a * v_err
+        p.k_a * v_err
     }
     /// V_R at the current point.
     #[inline(always)]
-    fn v_r(&self, x: &[S], io: &Io<S>) -> S {
+    fn v_r(&self, p: &Ieeet1Params<S>, x: &[S], io: &Io<S>) -> S {
         if self.no_ta {
-            clamp(self.regulator_target(x, io), self.vr_min, self.vr_max)
+            clamp(self.regulator_target(p, x, io), self.vr_min, self.vr_max)
         } else {
             x[V_R]
         }
     }
     #[inline(always)]
-    fn derivatives(&self, limit: &NonWindup, x: &[S], io: &Io<S>, dx: &mut [S]) {
+    fn derivatives(
+        &self,
+        p: &Ieeet1Params<S>,
+        limit: &NonWindup,
+        x: &[S],
+        io: &Io<S>,
+        dx: &mut [S],
+    ) {
         dx[V_M] = self.transducer.derivative(x[V_M], io.get(port::V_TERM));
         dx[V_R] = if self.no_ta {
             S::cst(0.0)
         } else {
-            limit.derivative((self.regulator_target(x, io) - x[V_R]) * self.inv_ta)
+            limit.derivative((self.regulator_target(p, x, io) - x[V_R]) * self.inv_ta)
         };
         let e = x[E_FD];
-        dx[E_FD] = (self.v_r(x, io) - self.ke * e - self.sat.times_e(e)) * self.inv_te;
+        dx[E_FD] = (self.v_r(p, x, io) - self.ke * e - self.sat.times_e(e)) * self.inv_te;
         dx[X_F] = (e - x[X_F]) * self.inv_tf;
     }
 }
@@ -156,40 +154,21 @@ impl Ieeet1 {
     }
     /// Voltage reference found at initialisation [pu].
     pub fn v_ref(&self) -> f64 {
-        self.v_ref
+        self.k.v_ref
     }
     /// K_E in use after initialisation (computed when the parameter is 0).
     pub fn effective_ke(&self) -> f64 {
-        self.ke
+        self.k.ke
     }
     /// `(V_RMIN, V_RMAX)` in use after initialisation (computed when VRMAX is 0).
     pub fn effective_vr_limits(&self) -> (f64, f64) {
-        (self.vr_min, self.vr_max)
+        (self.k.vr_min, self.k.vr_max)
     }
 
-    /// The equations' numbers on `f64`.
-    #[inline(always)]
-    fn eq(&self) -> Eq<f64> {
-        Eq {
-            k_a: self.p.k_a,
-            k_f: self.p.k_f,
-            v_ref: self.v_ref,
-            v_ref_offset: self.p.v_ref_offset,
-            ke: self.ke,
-            vr_max: self.vr_max,
-            vr_min: self.vr_min,
-            sat: self.sat,
-            transducer: self.transducer,
-            inv_ta: self.inv_ta,
-            inv_te: self.inv_te,
-            inv_tf: self.inv_tf,
-            no_ta: self.inv_ta == 0.0,
-        }
-    }
     /// Regulator input `K_A v_err` (the unconstrained target of V_R).
     #[inline(always)]
     fn regulator_target(&self, x: &[f64], io: &Io) -> f64 {
-        self.eq().regulator_target(x, io)
+        self.k.regulator_target(&self.p, x, io)
     }
 }
 
@@ -229,10 +208,10 @@ impl Block for Ieeet1 {
     fn init(&mut self, _op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
         self.validate()?;
         let p = self.p.clone();
-        self.sat = QuadraticExciterSaturation::new(p.e1, p.se1, p.e2, p.se2)
+        self.k.sat = QuadraticExciterSaturation::new(p.e1, p.se1, p.e2, p.se2)
             .map_err(|(n, m)| ModelError::param(n, m))?;
         let efd0 = io.get(port::EFD);
-        (self.vr_max, self.vr_min) = if p.vr_max == 0.0 {
+        (self.k.vr_max, self.k.vr_min) = if p.vr_max == 0.0 {
             let se2 = p.se2;
             let vmax = if p.k_e > 0.0 {
                 (p.k_e + se2) * p.e2
@@ -243,36 +222,37 @@ impl Block for Ieeet1 {
         } else {
             (p.vr_max, p.vr_min)
         };
-        if !(self.vr_max > self.vr_min) {
+        if !(self.k.vr_max > self.k.vr_min) {
             return Err(ModelError::Init(format!(
                 "IEEET1: VRMAX = 0 computed from the saturation data gives V_RMAX = {:.4}, no range for the regulator",
-                self.vr_max
+                self.k.vr_max
             )));
         }
-        let se0 = self.sat.factor(efd0);
-        self.ke = if p.k_e == 0.0 {
+        let se0 = self.k.sat.factor(efd0);
+        self.k.ke = if p.k_e == 0.0 {
             if !(efd0 > 0.0) {
                 return Err(ModelError::Init(format!(
                     "IEEET1: KE = 0 asks for K_E = VRMAX/(10·E_fd0) − SE(E_fd0), undefined at E_fd0 = {efd0:.4}"
                 )));
             }
-            self.vr_max / (10.0 * efd0) - se0
+            self.k.vr_max / (10.0 * efd0) - se0
         } else {
             p.k_e
         };
-        let vr0 = (self.ke + se0) * efd0;
-        if !(vr0 >= self.vr_min && vr0 <= self.vr_max) {
+        let vr0 = (self.k.ke + se0) * efd0;
+        if !(vr0 >= self.k.vr_min && vr0 <= self.k.vr_max) {
             return Err(ModelError::Init(format!(
                 "IEEET1: the regulator output needed to hold E_fd0 = {efd0:.4} pu, V_R0 = (KE + SE)·E_fd0 = {vr0:.4} pu, lies outside [VRMIN, VRMAX] = [{}, {}]",
-                self.vr_min, self.vr_max
+                self.k.vr_min, self.k.vr_max
             )));
         }
-        self.transducer = Lag::new(p.t_r);
-        self.inv_ta = if p.t_a < ZERO_T { 0.0 } else { 1.0 / p.t_a };
-        self.inv_te = 1.0 / p.t_e;
-        self.inv_tf = 1.0 / p.t_f;
+        self.k.transducer = Lag::new(p.t_r);
+        self.k.inv_ta = if p.t_a < ZERO_T { 0.0 } else { 1.0 / p.t_a };
+        self.k.no_ta = self.k.inv_ta == 0.0;
+        self.k.inv_te = 1.0 / p.t_e;
+        self.k.inv_tf = 1.0 / p.t_f;
         let ecomp0 = io.get(port::V_TERM);
-        self.v_ref =
+        self.k.v_ref =
             ecomp0 + vr0 / p.k_a - io.get(port::VS) - io.get(port::VUEL) - io.get(port::VOEL);
         x[V_M] = ecomp0;
         x[V_R] = vr0;
@@ -289,11 +269,12 @@ impl Block for Ieeet1 {
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        self.eq().derivatives(&self.limit, x, io, dx);
+        self.k.derivatives(&self.p, &self.limit, x, io, dx);
     }
 
     fn init_constants(&self) -> Vec<f64> {
-        vec![self.v_ref, self.ke, self.vr_max, self.vr_min]
+        let k = &self.k;
+        vec![k.v_ref, k.ke, k.vr_max, k.vr_min]
     }
 
     fn seed_dual(&mut self, lanes: &[Option<usize>], consts: &[D]) -> bool {
@@ -302,22 +283,20 @@ impl Block for Ieeet1 {
         let Ok(sat) = QuadraticExciterSaturation::new(p.e1, p.se1, p.e2, p.se2) else {
             return false;
         };
-        let no_ta = self.inv_ta == 0.0;
-        self.dual = Some(Eq {
-            k_a: p.k_a,
-            k_f: p.k_f,
-            v_ref: c(0, self.v_ref),
-            v_ref_offset: p.v_ref_offset,
-            ke: c(1, self.ke),
-            vr_max: c(2, self.vr_max),
-            vr_min: c(3, self.vr_min),
+        let (k, no_ta) = (&self.k, self.k.no_ta);
+        let kd = Consts {
+            v_ref: c(0, k.v_ref),
+            ke: c(1, k.ke),
+            vr_max: c(2, k.vr_max),
+            vr_min: c(3, k.vr_min),
             sat,
             transducer: Lag::new(p.t_r),
             inv_ta: if no_ta { D::cst(0.0) } else { p.t_a.recip() },
             inv_te: p.t_e.recip(),
             inv_tf: p.t_f.recip(),
             no_ta,
-        });
+        };
+        self.dual = Some((p, kd));
         true
     }
 
@@ -326,15 +305,15 @@ impl Block for Ieeet1 {
     }
 
     fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
-        if let Some(eq) = &self.dual {
-            eq.derivatives(&self.limit, x, io, dx);
+        if let Some((p, k)) = &self.dual {
+            k.derivatives(p, &self.limit, x, io, dx);
         }
     }
 
     fn pin_dual(&self, x: &mut [D], _io: &Io<D>) {
-        if let Some(eq) = &self.dual {
-            if !eq.no_ta {
-                self.limit.pin(&mut x[V_R], eq.vr_min, eq.vr_max);
+        if let Some((_, k)) = &self.dual {
+            if !k.no_ta {
+                self.limit.pin(&mut x[V_R], k.vr_min, k.vr_max);
             }
         }
     }
@@ -343,20 +322,22 @@ impl Block for Ieeet1 {
         2
     }
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
-        if self.inv_ta == 0.0 {
+        let k = &self.k;
+        if k.inv_ta == 0.0 {
             g[0] = 1.0;
             g[1] = 1.0;
         } else {
-            let f = (self.regulator_target(x, io) - x[V_R]) * self.inv_ta;
-            self.limit.events(x[V_R], f, self.vr_min, self.vr_max, g);
+            let f = (self.regulator_target(x, io) - x[V_R]) * k.inv_ta;
+            self.limit.events(x[V_R], f, k.vr_min, k.vr_max, g);
         }
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {
-        if self.inv_ta == 0.0 {
+        if self.k.inv_ta == 0.0 {
             return false;
         }
-        let f = (self.regulator_target(x, io) - x[V_R]) * self.inv_ta;
-        self.limit.update(&mut x[V_R], f, self.vr_min, self.vr_max)
+        let f = (self.regulator_target(x, io) - x[V_R]) * self.k.inv_ta;
+        self.limit
+            .update(&mut x[V_R], f, self.k.vr_min, self.k.vr_max)
     }
 
     fn exciter_roles(&self) -> Option<ExciterRoles> {

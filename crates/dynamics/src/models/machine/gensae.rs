@@ -19,8 +19,8 @@
 
 use super::saturation::ExponentialSaturation;
 use super::{
-    check_d_axis, norm2, DAxis, Electrical, ElectricalEq, ElectricalInit, Field, Phasor, Stator,
-    StatorImpedance,
+    check_d_axis, norm2, Electrical, ElectricalEq, ElectricalInit, Field, Phasor, SalientConsts,
+    Stator,
 };
 use crate::block::{guard, ModelError};
 use crate::param_set;
@@ -49,11 +49,8 @@ param_set! {
 
 #[derive(Debug, Clone, Copy, Default)]
 struct Consts<S = f64> {
-    z: StatorImpedance<S>,
-    inv_t_d0_prime: S,
-    inv_t_d0_pp: S,
-    inv_t_q0_pp: S,
-    d: DAxis<S>,
+    /// The stator and d-axis constants (shared with GENSAL).
+    s: SalientConsts<S>,
     gamma: S,
     sat: ExponentialSaturation<S>,
 }
@@ -61,11 +58,7 @@ struct Consts<S = f64> {
 impl<S: Scalar> Consts<S> {
     fn of(p: &GensaeParams<S>) -> Result<Self, ModelError> {
         Ok(Self {
-            z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_q_pp),
-            inv_t_d0_prime: p.t_d0_prime.recip(),
-            inv_t_d0_pp: p.t_d0_pp.recip(),
-            inv_t_q0_pp: p.t_q0_pp.recip(),
-            d: DAxis::new(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l),
+            s: SalientConsts::of(p.into()),
             gamma: (p.x_q - p.x_l) / (p.x_d - p.x_l),
             sat: ExponentialSaturation::new(p.s10, p.s12)?,
         })
@@ -86,17 +79,17 @@ impl<S: Scalar> ElectricalEq<S> for Gensae<S> {
 
     #[inline(always)]
     fn stator(&self, x: &[S], vd: S, vq: S) -> Stator<S> {
-        let e_q_pp = self.k.d.k3d * x[0] + self.k.d.k4d * x[1];
-        Stator::solve(x[2], e_q_pp, vd, vq, &self.k.z)
+        let e_q_pp = self.k.s.d.k3d * x[0] + self.k.s.d.k4d * x[1];
+        Stator::solve(x[2], e_q_pp, vd, vq, &self.k.s.z)
     }
 
     #[inline(always)]
     fn field(&self, x: &[S], st: &Stator<S>) -> Field<S> {
         let (p, k) = (&self.p, &self.k);
-        let e_q_pp = k.d.k3d * x[0] + k.d.k4d * x[1];
+        let e_q_pp = k.s.d.k3d * x[0] + k.s.d.k4d * x[1];
         let se = k.sat.eval(norm2(e_q_pp, x[2]));
         let xadifd = x[0]
-            + k.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id)
+            + k.s.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id)
             + (p.x_d - p.x_d_prime) * st.id
             + se * e_q_pp;
         Field { xadifd, sat: se }
@@ -106,9 +99,9 @@ impl<S: Scalar> ElectricalEq<S> for Gensae<S> {
     fn derivatives(&self, x: &[S], efd: S, field: Field<S>, st: &Stator<S>, dx: &mut [S]) {
         let (p, k) = (&self.p, &self.k);
         let (xadifd, se) = (field.xadifd, field.sat);
-        dx[0] = (efd - xadifd) * k.inv_t_d0_prime;
-        dx[1] = (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) * k.inv_t_d0_pp;
-        dx[2] = ((p.x_q - p.x_q_pp) * st.iq - x[2] - k.gamma * se * x[2]) * k.inv_t_q0_pp;
+        dx[0] = (efd - xadifd) * k.s.inv_t_d0_prime;
+        dx[1] = (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) * k.s.inv_t_d0_pp;
+        dx[2] = ((p.x_q - p.x_q_pp) * st.iq - x[2] - k.gamma * se * x[2]) * k.s.inv_t_q0_pp;
     }
 }
 

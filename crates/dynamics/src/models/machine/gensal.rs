@@ -27,8 +27,7 @@
 
 use super::saturation::QuadraticSaturation;
 use super::{
-    check_d_axis, DAxis, Electrical, ElectricalEq, ElectricalInit, Field, Phasor, Stator,
-    StatorImpedance,
+    check_d_axis, Electrical, ElectricalEq, ElectricalInit, Field, Phasor, SalientConsts, Stator,
 };
 use crate::block::{guard, ModelError};
 use crate::param_set;
@@ -57,22 +56,15 @@ param_set! {
 
 #[derive(Debug, Clone, Copy, Default)]
 struct Consts<S = f64> {
-    z: StatorImpedance<S>,
-    inv_t_d0_prime: S,
-    inv_t_d0_pp: S,
-    inv_t_q0_pp: S,
-    d: DAxis<S>,
+    /// The stator and d-axis constants (shared with GENSAE).
+    s: SalientConsts<S>,
     sat: QuadraticSaturation<S>,
 }
 
 impl<S: Scalar> Consts<S> {
     fn of(p: &GensalParams<S>) -> Result<Self, ModelError> {
         Ok(Self {
-            z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_q_pp),
-            inv_t_d0_prime: p.t_d0_prime.recip(),
-            inv_t_d0_pp: p.t_d0_pp.recip(),
-            inv_t_q0_pp: p.t_q0_pp.recip(),
-            d: DAxis::new(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l),
+            s: SalientConsts::of(p.into()),
             sat: QuadraticSaturation::new(p.s10, p.s12)?,
         })
     }
@@ -92,15 +84,15 @@ impl<S: Scalar> ElectricalEq<S> for Gensal<S> {
 
     #[inline(always)]
     fn stator(&self, x: &[S], vd: S, vq: S) -> Stator<S> {
-        let e_q_pp = self.k.d.k3d * x[0] + self.k.d.k4d * x[1];
-        Stator::solve(x[2], e_q_pp, vd, vq, &self.k.z)
+        let e_q_pp = self.k.s.d.k3d * x[0] + self.k.s.d.k4d * x[1];
+        Stator::solve(x[2], e_q_pp, vd, vq, &self.k.s.z)
     }
 
     #[inline(always)]
     fn field(&self, x: &[S], st: &Stator<S>) -> Field<S> {
         let (p, k) = (&self.p, &self.k);
         let se = k.sat.eval(x[0]);
-        let xadifd = k.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id)
+        let xadifd = k.s.d.k1d * (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id)
             + (p.x_d - p.x_d_prime) * st.id
             + (se + 1.0) * x[0];
         Field { xadifd, sat: se }
@@ -109,9 +101,9 @@ impl<S: Scalar> ElectricalEq<S> for Gensal<S> {
     #[inline(always)]
     fn derivatives(&self, x: &[S], efd: S, field: Field<S>, st: &Stator<S>, dx: &mut [S]) {
         let (p, k) = (&self.p, &self.k);
-        dx[0] = (efd - field.xadifd) * k.inv_t_d0_prime;
-        dx[1] = (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) * k.inv_t_d0_pp;
-        dx[2] = ((p.x_q - p.x_q_pp) * st.iq - x[2]) * k.inv_t_q0_pp;
+        dx[0] = (efd - field.xadifd) * k.s.inv_t_d0_prime;
+        dx[1] = (x[0] - x[1] - (p.x_d_prime - p.x_l) * st.id) * k.s.inv_t_d0_pp;
+        dx[2] = ((p.x_q - p.x_q_pp) * st.iq - x[2]) * k.s.inv_t_q0_pp;
     }
 }
 

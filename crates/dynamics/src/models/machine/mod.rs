@@ -24,6 +24,9 @@ pub mod gensae;
 pub mod gensal;
 pub mod saturation;
 
+use gensae::GensaeParams;
+use gensal::GensalParams;
+
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::params::ParamSet;
 use crate::sens::{Scalar, D};
@@ -540,6 +543,66 @@ impl<S: Scalar> DAxis<S> {
             k1d: (x_d_prime - x_d_pp) * (x_d - x_d_prime) / (xdl * xdl),
             k3d: (x_d_pp - x_l) / xdl,
             k4d: (x_d_prime - x_d_pp) / xdl,
+        }
+    }
+}
+
+/// The parameters GENSAL and GENSAE share, by name: their parameter sets have the same fields
+/// (`From` implemented for both below), which [`SalientConsts::of`] reads.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SalientPole<S> {
+    pub r_a: S,
+    pub x_d: S,
+    pub x_d_prime: S,
+    pub x_d_pp: S,
+    pub x_q_pp: S,
+    pub x_l: S,
+    pub t_d0_prime: S,
+    pub t_d0_pp: S,
+    pub t_q0_pp: S,
+}
+
+macro_rules! salient_pole_from {
+    ($($params:ident),*) => {$(
+        impl<S: Copy> From<&$params<S>> for SalientPole<S> {
+            fn from(p: &$params<S>) -> Self {
+                Self {
+                    r_a: p.r_a,
+                    x_d: p.x_d,
+                    x_d_prime: p.x_d_prime,
+                    x_d_pp: p.x_d_pp,
+                    x_q_pp: p.x_q_pp,
+                    x_l: p.x_l,
+                    t_d0_prime: p.t_d0_prime,
+                    t_d0_pp: p.t_d0_pp,
+                    t_q0_pp: p.t_q0_pp,
+                }
+            }
+        }
+    )*};
+}
+salient_pole_from!(GensaeParams, GensalParams);
+
+/// The stator and d-axis constants of the salient-pole models GENSAL and GENSAE, built once
+/// for both (each keeps its own saturation and q-axis terms): the stator impedance with X''_d
+/// and X''_q, the reciprocal open-circuit time constants and the [`DAxis`] constants.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct SalientConsts<S = f64> {
+    pub z: StatorImpedance<S>,
+    pub inv_t_d0_prime: S,
+    pub inv_t_d0_pp: S,
+    pub inv_t_q0_pp: S,
+    pub d: DAxis<S>,
+}
+
+impl<S: Scalar> SalientConsts<S> {
+    pub fn of(p: SalientPole<S>) -> Self {
+        Self {
+            z: StatorImpedance::new(p.r_a, p.x_d_pp, p.x_q_pp),
+            inv_t_d0_prime: p.t_d0_prime.recip(),
+            inv_t_d0_pp: p.t_d0_pp.recip(),
+            inv_t_q0_pp: p.t_q0_pp.recip(),
+            d: DAxis::new(p.x_d, p.x_d_prime, p.x_d_pp, p.x_l),
         }
     }
 }
