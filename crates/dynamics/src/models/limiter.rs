@@ -161,11 +161,11 @@ impl NonWindup {
     /// Event functions with moving limits; `f` is the unconstrained derivative at the effective
     /// state.
     #[inline]
-    pub fn events_moving(&self, x: f64, f: f64, lo: f64, hi: f64, g: &mut [f64]) {
+    pub fn events_moving<S: Scalar>(&self, x: S, f: S, lo: S, hi: S, g: &mut [S]) {
         match self.mode {
             LimitMode::Free => {
-                g[0] = (hi - x).max(-f);
-                g[1] = (x - lo).max(f);
+                g[0] = (hi - x).max_s(-f);
+                g[1] = (x - lo).max_s(f);
             }
             _ => self.events(x, f, lo, hi, g),
         }

@@ -273,6 +273,26 @@ fn derivatives<S: Scalar>(
     dx[X_F] = (e.v_x - x[X_F]) * k.inv_tf;
 }
 
+/// V_A's limit guards (none with `T_A = 0`: positive constants).
+#[inline(always)]
+fn guards<S: Scalar>(
+    p: &Esst1aParams<S>,
+    k: &Consts<S>,
+    o: &Opts,
+    limit: &NonWindup,
+    x: &[S],
+    io: &Io<S>,
+    g: &mut [S],
+) {
+    if o.no_ta {
+        g[0] = S::cst(1.0);
+        g[1] = S::cst(1.0);
+    } else {
+        let f = (p.k_a * eval(p, k, o, x, io).v2 - x[V_A]) * k.inv_ta;
+        limit.events(x[V_A], f, p.va_min, p.va_max, g);
+    }
+}
+
 impl Esst1a {
     pub fn new(p: Esst1aParams) -> Self {
         Self {
@@ -497,13 +517,15 @@ impl Block for Esst1a {
         2
     }
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
-        if self.k.inv_ta == 0.0 {
-            g[0] = 1.0;
-            g[1] = 1.0;
-        } else {
-            let f = (self.p.k_a * self.eval(x, io).v2 - x[V_A]) * self.k.inv_ta;
-            self.limit
-                .events(x[V_A], f, self.p.va_min, self.p.va_max, g);
+        guards(&self.p, &self.k, &self.opts(), &self.limit, x, io, g);
+    }
+    fn events_dual(&self, x: &[D], io: &Io<D>, g: &mut [D]) -> bool {
+        match &self.dual {
+            Some((p, k)) => {
+                guards(p, k, &self.opts(), &self.limit, x, io, g);
+                true
+            }
+            None => false,
         }
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {

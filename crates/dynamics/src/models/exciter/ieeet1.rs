@@ -115,6 +115,17 @@ impl<S: Scalar> Consts<S> {
             - v_f;
         p.k_a * v_err
     }
+    /// The regulator limit's guards (none with `T_A = 0`: positive constants).
+    #[inline(always)]
+    fn guards(&self, p: &Ieeet1Params<S>, limit: &NonWindup, x: &[S], io: &Io<S>, g: &mut [S]) {
+        if self.no_ta {
+            g[0] = S::cst(1.0);
+            g[1] = S::cst(1.0);
+        } else {
+            let f = (self.regulator_target(p, x, io) - x[V_R]) * self.inv_ta;
+            limit.events(x[V_R], f, self.vr_min, self.vr_max, g);
+        }
+    }
     /// V_R at the current point.
     #[inline(always)]
     fn v_r(&self, p: &Ieeet1Params<S>, x: &[S], io: &Io<S>) -> S {
@@ -322,13 +333,15 @@ impl Block for Ieeet1 {
         2
     }
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
-        let k = &self.k;
-        if k.inv_ta == 0.0 {
-            g[0] = 1.0;
-            g[1] = 1.0;
-        } else {
-            let f = (self.regulator_target(x, io) - x[V_R]) * k.inv_ta;
-            self.limit.events(x[V_R], f, k.vr_min, k.vr_max, g);
+        self.k.guards(&self.p, &self.limit, x, io, g);
+    }
+    fn events_dual(&self, x: &[D], io: &Io<D>, g: &mut [D]) -> bool {
+        match &self.dual {
+            Some((p, k)) => {
+                k.guards(p, &self.limit, x, io, g);
+                true
+            }
+            None => false,
         }
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {

@@ -280,6 +280,28 @@ fn derivatives<S: Scalar>(
     }
 }
 
+/// The exciter limit's guards (`[v_ref, 1/T_B, 1/T_E]` as for [`derivatives`]).
+#[inline(always)]
+fn guards<S: Scalar>(
+    p: &impl SexsEq<S>,
+    moving: bool,
+    limit: &NonWindup,
+    [v_ref, _, inv_te]: [S; 3],
+    x: &[S],
+    io: &Io<S>,
+    g: &mut [S],
+) {
+    let gains = p.gains();
+    let (lo, hi) = p.limits(io);
+    let y_ll = lead_lag(&gains, v_ref, x, io).1;
+    if moving {
+        let f = (gains.k * y_ll - limit.effective(x[1], lo, hi)) * inv_te;
+        limit.events_moving(x[1], f, lo, hi, g);
+    } else {
+        limit.events(x[1], (gains.k * y_ll - x[1]) * inv_te, lo, hi, g);
+    }
+}
+
 impl<V: SexsVariant> Block for SexsModel<V> {
     block_common!();
 
@@ -374,14 +396,16 @@ impl<V: SexsVariant> Block for SexsModel<V> {
         2
     }
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
-        let gains = self.p.gains();
-        let (lo, hi) = self.p.limits(io);
-        if V::MOVING_LIMITS {
-            let f = self.exciter_rate(&gains, x, io, self.limit.effective(x[1], lo, hi));
-            self.limit.events_moving(x[1], f, lo, hi, g);
-        } else {
-            self.limit
-                .events(x[1], self.exciter_rate(&gains, x, io, x[1]), lo, hi, g);
+        let c = [self.v_ref, self.inv_tb, self.inv_te];
+        guards(&self.p, V::MOVING_LIMITS, &self.limit, c, x, io, g);
+    }
+    fn events_dual(&self, x: &[D], io: &Io<D>, g: &mut [D]) -> bool {
+        match &self.dual {
+            Some((p, c)) => {
+                guards(p, V::MOVING_LIMITS, &self.limit, *c, x, io, g);
+                true
+            }
+            None => false,
         }
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {

@@ -119,6 +119,20 @@ fn derivatives<S: Scalar>(
     dx[3] = head(x[3], x[2]).rsub(1.0) * inv[4];
 }
 
+/// The gate limit's guards.
+#[inline(always)]
+fn guards<S: Scalar>(
+    p: &HygovParams<S>,
+    (n_ref, inv): (S, &[S; 5]),
+    gate: &NonWindup,
+    x: &[S],
+    io: &Io<S>,
+    g: &mut [S],
+) {
+    let (_, dc) = rates(p, n_ref, inv, x, io.get(port::SPEED));
+    gate.events(x[1], dc, p.g_min, p.g_max, g);
+}
+
 impl Hygov {
     pub fn new(p: HygovParams) -> Self {
         Self {
@@ -229,9 +243,16 @@ impl Block for Hygov {
         2
     }
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
-        let (_, dc) = self.rates(x, io.get(port::SPEED));
-        self.gate_limit
-            .events(x[1], dc, self.p.g_min, self.p.g_max, g);
+        guards(&self.p, (self.n_ref, &self.inv), &self.gate_limit, x, io, g);
+    }
+    fn events_dual(&self, x: &[D], io: &Io<D>, g: &mut [D]) -> bool {
+        match &self.dual {
+            Some((p, n_ref, inv)) => {
+                guards(p, (*n_ref, inv), &self.gate_limit, x, io, g);
+                true
+            }
+            None => false,
+        }
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {
         let (_, dc) = self.rates(x, io.get(port::SPEED));
