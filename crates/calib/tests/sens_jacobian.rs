@@ -121,9 +121,8 @@ fn levenberg_marquardt_on_sensitivities_reaches_the_differences_optimum() {
     use itaipu_calib::local::{levenberg_marquardt, LmStop};
     let pb = problem();
     let x0 = pb.start();
-    let j0 = itaipu_calib::problem::sum_of_squares(
-        &pb.residuals(&x0, &lm_integrator(1e-7)).unwrap(),
-    );
+    let j0 =
+        itaipu_calib::problem::sum_of_squares(&pb.residuals(&x0, &lm_integrator(1e-7)).unwrap());
     let on = |sensitivities: bool| {
         levenberg_marquardt(
             &pb,
@@ -141,7 +140,11 @@ fn levenberg_marquardt_on_sensitivities_reaches_the_differences_optimum() {
         exact.best_cost, exact.iterations, exact.stopped_by, diff.best_cost, diff.iterations, diff.stopped_by
     );
     assert!(exact.iterations > 0);
-    assert!(exact.best_cost < 0.2 * j0, "J {} from {j0}", exact.best_cost);
+    assert!(
+        exact.best_cost < 0.2 * j0,
+        "J {} from {j0}",
+        exact.best_cost
+    );
     assert!(
         (exact.best_cost / diff.best_cost - 1.0).abs() < 0.01,
         "J {} on sensitivities, {} on differences",

@@ -324,7 +324,10 @@ fn through_a_limit_on(u: &Unit, ev: &PreparedEvent, names: &[&str], h_rel: f64, 
             worst = worst.max(rel);
         }
     }
-    eprintln!("{}: worst column off by {worst:.2e} of its largest value", u.name);
+    eprintln!(
+        "{}: worst column off by {worst:.2e} of its largest value",
+        u.name
+    );
     assert!(
         worst < tol,
         "{}: worst column off by {worst:.2e} of its largest value",
@@ -465,7 +468,10 @@ fn sensitivities_across_the_oel_s_switches_match_the_converged_derivative() {
     let tr = itaipu_dynamics::simulate::simulate(&u, &ev, &SimOptions::default()).unwrap();
     let voel = tr.get("voel").unwrap();
     let t = &tr.time_s;
-    let k_act = voel.iter().position(|&v| v < 0.0).expect("the OEL activates");
+    let k_act = voel
+        .iter()
+        .position(|&v| v < 0.0)
+        .expect("the OEL activates");
     let k_rel = (k_act..voel.len())
         .rev()
         .find(|&k| voel[k] < 0.0)
