@@ -268,9 +268,15 @@ fn derivatives<S: Scalar>(
     dx[V_A] = if o.no_ta {
         S::cst(0.0)
     } else {
-        limit.derivative((p.k_a * e.v2 - x[V_A]) * k.inv_ta)
+        limit.derivative(va_rate(p, k, &e, x))
     };
     dx[X_F] = (e.v_x - x[X_F]) * k.inv_tf;
+}
+
+/// V_A's unconstrained rate `(K_A v2 − V_A)/T_A` at the evaluated point `e`.
+#[inline(always)]
+fn va_rate<S: Scalar>(p: &Esst1aParams<S>, k: &Consts<S>, e: &Eval<S>, x: &[S]) -> S {
+    (p.k_a * e.v2 - x[V_A]) * k.inv_ta
 }
 
 /// V_A's limit guards (none with `T_A = 0`: positive constants).
@@ -288,7 +294,7 @@ fn guards<S: Scalar>(
         g[0] = S::cst(1.0);
         g[1] = S::cst(1.0);
     } else {
-        let f = (p.k_a * eval(p, k, o, x, io).v2 - x[V_A]) * k.inv_ta;
+        let f = va_rate(p, k, &eval(p, k, o, x, io), x);
         limit.events(x[V_A], f, p.va_min, p.va_max, g);
     }
 }
@@ -532,7 +538,7 @@ impl Block for Esst1a {
         if self.k.inv_ta == 0.0 {
             return false;
         }
-        let f = (self.p.k_a * self.eval(x, io).v2 - x[V_A]) * self.k.inv_ta;
+        let f = va_rate(&self.p, &self.k, &self.eval(x, io), x);
         let (lo, hi) = (self.p.va_min, self.p.va_max);
         self.limit.update(&mut x[V_A], f, lo, hi)
     }

@@ -223,7 +223,7 @@ impl<V: SexsVariant> SexsModel<V> {
     /// Unconstrained `dx_e/dt` with the exciter state at `x_e`.
     #[inline(always)]
     fn exciter_rate(&self, g: &SexsGains, x: &[f64], io: &Io, x_e: f64) -> f64 {
-        (g.k * self.lead_lag(g, x, io).1 - x_e) * self.inv_te
+        exciter_rate(g, self.lead_lag(g, x, io).1, x_e, self.inv_te)
     }
 }
 
@@ -235,6 +235,12 @@ fn lead_lag<S: Scalar>(g: &SexsGains<S>, v_ref: S, x: &[S], io: &Io<S>) -> (S, S
         + io.get(port::VOEL)
         + io.get(port::VUEL);
     (v_err, g.ta_tb * v_err + g.ta_tb.rsub(1.0) * x[0])
+}
+
+/// Unconstrained `dx_e/dt = (K y_ll − x_e)/T_E` with the exciter state at `x_e`.
+#[inline(always)]
+fn exciter_rate<S: Scalar>(g: &SexsGains<S>, y_ll: S, x_e: S, inv_te: S) -> S {
+    (g.k * y_ll - x_e) * inv_te
 }
 
 /// E_fd at the current point.
@@ -273,10 +279,10 @@ fn derivatives<S: Scalar>(
     dx[0] = (v_err - x[0]) * inv_tb;
     if moving {
         let (lo, hi) = p.limits(io);
-        let f = (g.k * y_ll - limit.effective(x[1], lo, hi)) * inv_te;
+        let f = exciter_rate(&g, y_ll, limit.effective(x[1], lo, hi), inv_te);
         dx[1] = limit.derivative_moving(f, x[1], lo, hi, inv_te);
     } else {
-        dx[1] = limit.derivative((g.k * y_ll - x[1]) * inv_te);
+        dx[1] = limit.derivative(exciter_rate(&g, y_ll, x[1], inv_te));
     }
 }
 
@@ -295,10 +301,10 @@ fn guards<S: Scalar>(
     let (lo, hi) = p.limits(io);
     let y_ll = lead_lag(&gains, v_ref, x, io).1;
     if moving {
-        let f = (gains.k * y_ll - limit.effective(x[1], lo, hi)) * inv_te;
+        let f = exciter_rate(&gains, y_ll, limit.effective(x[1], lo, hi), inv_te);
         limit.events_moving(x[1], f, lo, hi, g);
     } else {
-        limit.events(x[1], (gains.k * y_ll - x[1]) * inv_te, lo, hi, g);
+        limit.events(x[1], exciter_rate(&gains, y_ll, x[1], inv_te), lo, hi, g);
     }
 }
 
