@@ -3,7 +3,8 @@
 //! * a 20 s synthetic event at 60 samples/s (dip, grid swing, 0.2 Hz frequency fall, PMU
 //!   noise) into GENSAE + SEXS + STAB3 + HYGOV, with RK4 at 1 ms and Dormand-Prince at rtol 1e-6;
 //! * the bundled Itaipu record (4.65 s, 280 samples) into its GENSAE + SEXS + STAB3 unit;
-//! * the forward sensitivities of the synthetic event to eight parameters (one pass).
+//! * the forward sensitivities of the synthetic event to eight parameters (one pass), and of
+//!   the Itaipu record with its SEXS built in or as a user-defined diagram.
 //!
 //! Each iteration is one complete playback: initialisation, integration, P and Q at every sample.
 
@@ -160,4 +161,39 @@ fn synthetic_20s_sensitivities_8_parameters(bencher: Bencher) {
         itaipu_dynamics::sens::simulate_pq_sensitivities(divan::black_box(&unit), &ev, &refs, &opts)
             .unwrap()
     });
+}
+
+/// Forward sensitivities of the Itaipu record to eight parameters (machine and exciter), the
+/// exciter built in or the user-defined SEXS diagram (its dual equations evaluate the compiled
+/// nodes on dual numbers): one pass of the tangent lanes on the Dormand-Prince rtol-1e-6 steps.
+/// Compare with [`itaipu_record_dopri5_rtol_1e6`] × 9 (forward differences).
+fn itaipu_sensitivities(bencher: Bencher, (unit, ev): (Unit, PreparedEvent)) {
+    let refs: Vec<_> = [
+        "machine.h",
+        "machine.x_d",
+        "machine.x_d_prime",
+        "machine.t_d0_prime",
+        "exciter.k",
+        "exciter.te",
+        "exciter.ta_tb",
+        "exciter.tb",
+    ]
+    .iter()
+    .map(|p| unit.param(p).unwrap())
+    .collect();
+    let opts = dopri5();
+    bencher.bench_local(|| {
+        itaipu_dynamics::sens::simulate_pq_sensitivities(divan::black_box(&unit), &ev, &refs, &opts)
+            .unwrap()
+    });
+}
+
+#[divan::bench(sample_count = 50)]
+fn itaipu_sensitivities_8_parameters_builtin_sexs(bencher: Bencher) {
+    itaipu_sensitivities(bencher, itaipu());
+}
+
+#[divan::bench(sample_count = 50)]
+fn itaipu_sensitivities_8_parameters_diagram_sexs(bencher: Bencher) {
+    itaipu_sensitivities(bencher, itaipu_sexs_diagram());
 }

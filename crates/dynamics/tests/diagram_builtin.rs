@@ -190,3 +190,23 @@ fn the_diagrams_reproduce_the_builtin_blocks_on_synthetic_events_with_limits_hit
         }
     }
 }
+
+/// Set-point offsets are nuisances added after the initialisation, in a diagram's `reference`
+/// block as in the built-in models: with `v_ref_offset` and `n_ref_offset` non-zero the
+/// diagrams initialise (before, the steady-state check included the offset and refused every
+/// non-zero value, so a fit could not free it) and reproduce the built-in blocks, whose offsets
+/// act from t = 0.
+#[test]
+fn the_diagrams_reference_offsets_act_after_initialisation_like_the_builtin_ones() {
+    let ev = Event::from_toml_file(&data("itaipu/event.toml")).unwrap();
+    let base = itaipu_text()
+        .replacen("[exciter]\n", "[exciter]\nv_ref_offset = 0.004\n", 1)
+        .replacen("[governor]\n", "[governor]\nn_ref_offset = 0.002\n", 1);
+    assert!(base.contains("v_ref_offset = 0.004") && base.contains("n_ref_offset = 0.002"));
+    check(&base, &ev, "itaipu with offsets");
+    // The offsets move the playback: the comparison is not of the offset-free runs.
+    let plain = simulate(&unit(&itaipu_text()), &ev, &SimOptions::default()).unwrap();
+    let shifted = simulate(&unit(&base), &ev, &SimOptions::default()).unwrap();
+    let (d, at) = max_dev(&plain, &shifted, &["q_pu", "pm"]);
+    assert!(d > 1e-3, "the offsets move Q or P_m by only {d:.2e} ({at})");
+}

@@ -6,6 +6,7 @@
 use super::prim::{self, Kind, Node};
 use super::{Diagram, NodeDef};
 use crate::block::ModelError;
+use crate::sens::Scalar;
 
 impl Diagram {
     /// Nodes with their fields evaluated at the current parameter values and checked.
@@ -30,12 +31,9 @@ impl Diagram {
         }
         let mut nodes = def.skeleton.clone();
         for (nd, node) in def.nodes.iter().zip(nodes.iter_mut()) {
-            let mut v = [0.0; prim::NV];
+            let (v, list) = node_values(nd, p);
             for (k, f) in nd.info.fields.iter().enumerate() {
-                let val = match &nd.fields[k] {
-                    Some(e) => e.eval(p),
-                    None => f.default.unwrap_or(f64::NAN),
-                };
+                let val = v[k];
                 // `guess` and `x0` NaN mean "choose" and "solve".
                 if !((f.name == "guess" || f.name == "x0") && nd.fields[k].is_none()) {
                     f.dom.check(val).map_err(|m| {
@@ -51,7 +49,6 @@ impl Diagram {
                         )
                     })?;
                 }
-                v[k] = val;
             }
             // Limits in order.
             let lim_at = nd.info.fields.iter().position(|f| f.name == "min");
@@ -64,48 +61,61 @@ impl Diagram {
                     ));
                 }
             }
-            use prim::slot::*;
-            match nd.info.kind {
-                Kind::Lag => v[LAG_INV_T] = 1.0 / v[LAG_T],
-                Kind::LeadLag => {
-                    v[LL_RATIO] = v[1] / v[2];
-                    v[LL_INV_TB] = 1.0 / v[2];
+            if matches!(nd.info.kind, Kind::Sum | Kind::Pwl) {
+                if let Some(k) = list.iter().position(|val| !val.is_finite()) {
+                    return Err(ModelError::param(
+                        &format!("{}.{}", nd.label(), list_field(nd, k)),
+                        format!("must be finite (got {})", list[k]),
+                    ));
                 }
-                Kind::Washout | Kind::Derivative => v[W_INV_T] = 1.0 / v[1],
-                Kind::Pid => v[PID_INV_TD] = 1.0 / v[3],
-                Kind::RateLimiter => v[RL_INV_T] = 1.0 / v[0],
-                _ => {}
+                if nd.info.kind == Kind::Pwl {
+                    let n = list.len() / 2;
+                    if list[..n].windows(2).any(|w| !(w[1] > w[0])) {
+                        return Err(ModelError::param(
+                            &format!("{}.x", nd.label()),
+                            "breakpoints must increase strictly",
+                        ));
+                    }
+                }
             }
             node.v = v;
-            node.list.clear();
-            match nd.info.kind {
-                Kind::Sum | Kind::Pwl => {
-                    for (k, e) in nd.list.iter().enumerate() {
-                        let val = e.eval(p);
-                        if !val.is_finite() {
-                            return Err(ModelError::param(
-                                &format!("{}.{}", nd.label(), list_field(nd, k)),
-                                format!("must be finite (got {val})"),
-                            ));
-                        }
-                        node.list.push(val);
-                    }
-                    if nd.info.kind == Kind::Pwl {
-                        let n = node.list.len() / 2;
-                        if node.list[..n].windows(2).any(|w| !(w[1] > w[0])) {
-                            return Err(ModelError::param(
-                                &format!("{}.x", nd.label()),
-                                "breakpoints must increase strictly",
-                            ));
-                        }
-                    }
-                }
-                Kind::Product => node.list.extend_from_slice(&nd.exps),
-                _ => {}
-            }
+            node.list = list;
         }
         Ok(nodes)
     }
+}
+
+/// One node's values at the parameter values `p`: its fields in order (an omitted one at its
+/// default) with the derived constants after them (inverse time constants, the lead-lag's
+/// ratio; [`prim::slot`]), and its list values (sum gains, pwl breakpoints then values,
+/// product exponents). Unchecked ([`Diagram::compile`] checks them). On dual numbers (a
+/// sensitivity pass) the values carry their derivatives with respect to the parameters.
+pub(super) fn node_values<S: Scalar>(nd: &NodeDef, p: &[S]) -> ([S; prim::NV], Vec<S>) {
+    use prim::slot::*;
+    let mut v = [S::cst(0.0); prim::NV];
+    for (k, f) in nd.info.fields.iter().enumerate() {
+        v[k] = match &nd.fields[k] {
+            Some(e) => e.eval(p),
+            None => S::cst(f.default.unwrap_or(f64::NAN)),
+        };
+    }
+    match nd.info.kind {
+        Kind::Lag => v[LAG_INV_T] = v[LAG_T].recip(),
+        Kind::LeadLag => {
+            v[LL_RATIO] = v[1] / v[2];
+            v[LL_INV_TB] = v[2].recip();
+        }
+        Kind::Washout | Kind::Derivative => v[W_INV_T] = v[1].recip(),
+        Kind::Pid => v[PID_INV_TD] = v[3].recip(),
+        Kind::RateLimiter => v[RL_INV_T] = v[0].recip(),
+        _ => {}
+    }
+    let list = match nd.info.kind {
+        Kind::Sum | Kind::Pwl => nd.list.iter().map(|e| e.eval(p)).collect(),
+        Kind::Product => nd.exps.iter().map(|&e| S::cst(e)).collect(),
+        _ => Vec::new(),
+    };
+    (v, list)
 }
 
 fn list_field(nd: &NodeDef, k: usize) -> String {

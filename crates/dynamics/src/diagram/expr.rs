@@ -7,6 +7,8 @@
 //! diagram is loaded (names resolved to parameter indices) and evaluated when the block is
 //! compiled at initialisation, never in the step loop.
 
+use crate::sens::Scalar;
+
 /// A parsed expression; parameter names resolved to indices.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Expr {
@@ -25,10 +27,11 @@ pub enum Op {
 }
 
 impl Expr {
-    /// Value with parameter values `p`.
-    pub fn eval(&self, p: &[f64]) -> f64 {
+    /// Value with parameter values `p` (`f64`, or dual numbers carrying the derivatives with
+    /// respect to the parameters in a sensitivity pass).
+    pub fn eval<S: Scalar>(&self, p: &[S]) -> S {
         match self {
-            Expr::Num(v) => *v,
+            Expr::Num(v) => S::cst(*v),
             Expr::Param(i) => p[*i],
             Expr::Neg(e) => -e.eval(p),
             Expr::Bin(op, a, b) => {

@@ -65,7 +65,15 @@
 //! consistency and the target outputs = their values. Newton's method with a finite-difference
 //! Jacobian solves them (a linear diagram in one step). A singular Jacobian names the block
 //! whose state is not determined (an integrator in a loop with no free reference); a steady
-//! state outside a limit names the block and the limit.
+//! state outside a limit names the block and the limit. A `reference`'s `offset` (a set-point
+//! nuisance) is left out of the solve and of its check, and acts from t = 0, as the built-in
+//! models' offsets do. Once the tolerance is met, up to two more Newton steps polish the
+//! solution to rounding: the sensitivities take the initial state's derivatives as central
+//! differences of this solve.
+//!
+//! **Sensitivities.** A diagram has dual equations ([`crate::sens`]): its fields are evaluated
+//! on the seeded parameters by the function the compilation uses, the nodes by the same generic
+//! evaluation as the simulation ([`prim`]).
 //!
 //! **Layout.** `def.rs` holds the types of a parsed definition; `parse.rs` reads the
 //! TOML (parameters, inputs, blocks); `graph.rs` wires the signals, checks the graph (writers,

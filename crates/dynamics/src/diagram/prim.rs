@@ -34,8 +34,15 @@
 //! initialisation's solve; a steady state outside the limits is an error naming the block.
 //! Static discontinuities (`switch`, `pulso`, `deadband` corners, `limiter`, `min`/`max`) are
 //! not located by the integrator's event logic; the adaptive step handles them by rejection.
+//!
+//! The evaluation is written once for any [`Scalar`] ([`Node::output_in`],
+//! [`Node::free_rate_in`], [`Node::derivatives_in`]): on `f64` with the node's own values (the
+//! simulation), on dual numbers with values that carry their derivatives with respect to the
+//! diagram's parameters (the forward sensitivities, [`crate::sens`]; the derivative of a
+//! piecewise primitive is that of its active piece, a `pwl`'s breakpoints included).
 
-use crate::models::limiter::NonWindup;
+use crate::models::limiter::{clamp, NonWindup};
+use crate::sens::Scalar;
 
 /// Domain a field's value must lie in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -614,119 +621,157 @@ pub struct Node {
     pub list: Vec<f64>,
 }
 
-/// Read access to the scratch signals.
-pub trait Sig {
-    fn s(&self, i: u32) -> f64;
+/// Read access to the scratch signals: `f64` in the simulation, dual numbers in a sensitivity
+/// pass ([`crate::sens`]).
+pub trait Sig<S = f64> {
+    fn s(&self, i: u32) -> S;
 }
 
+/// A slice of signal values (the sensitivity pass's scratch).
+impl<S: Copy> Sig<S> for [S] {
+    #[inline(always)]
+    fn s(&self, i: u32) -> S {
+        self[i as usize]
+    }
+}
+
+/// The non-windup limits of a kind from its values `v` (±∞ for a kind without limits).
 #[inline(always)]
-fn clampv(v: f64, lo: f64, hi: f64) -> f64 {
-    crate::models::limiter::clamp(v, lo, hi)
+pub fn limits_of<S: Scalar>(kind: Kind, v: &[S]) -> (S, S) {
+    use slot::*;
+    match kind {
+        Kind::Lag => (v[LAG_MIN], v[LAG_MAX]),
+        Kind::Integrator => (v[I_MIN], v[I_MAX]),
+        Kind::Pi => (v[PI_MIN], v[PI_MAX]),
+        Kind::Pid => (v[PID_MIN], v[PID_MAX]),
+        Kind::Limiter => (v[0], v[1]),
+        _ => (S::cst(f64::NEG_INFINITY), S::cst(f64::INFINITY)),
+    }
 }
 
 impl Node {
-    #[inline(always)]
-    fn u<S: Sig>(&self, s: &S) -> f64 {
-        s.s(self.ins[0])
-    }
-
-    /// `(lo, hi, state index)` of the non-windup limited state, when the node has one.
+    /// The limits of the node's limited state (or of a `limiter`), ±∞ for other nodes.
     #[inline(always)]
     pub fn limits(&self) -> (f64, f64) {
-        use slot::*;
-        match self.kind {
-            Kind::Lag => (self.v[LAG_MIN], self.v[LAG_MAX]),
-            Kind::Integrator => (self.v[I_MIN], self.v[I_MAX]),
-            Kind::Pi => (self.v[PI_MIN], self.v[PI_MAX]),
-            Kind::Pid => (self.v[PID_MIN], self.v[PID_MAX]),
-            Kind::Limiter => (self.v[0], self.v[1]),
-            _ => (f64::NEG_INFINITY, f64::INFINITY),
-        }
+        limits_of(self.kind, &self.v)
     }
 
     /// The output at time `t` from the states `x` (the node's slice) and the inputs.
     /// `clamp_states = false` (initialisation's solve) leaves the state clamps out.
     #[inline(always)]
-    pub fn output<S: Sig>(&self, t: f64, x: &[f64], s: &S, clamp_states: bool) -> f64 {
+    pub fn output<G: Sig + ?Sized>(&self, t: f64, x: &[f64], s: &G, clamp_states: bool) -> f64 {
+        self.output_in(&self.v, &self.list, None, t, x, s, clamp_states)
+    }
+
+    /// [`Node::output`] on any [`Scalar`], with the node's values `v` and list values `list`
+    /// given (dual numbers in a sensitivity pass). `lim`: the node's non-windup limit, whose
+    /// mode gives a `lag`'s or an `integrator`'s clamped output the derivatives of the limit it
+    /// is pinned to ([`NonWindup::output`]); `None`: the clamp's active branch (the same value).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn output_in<S: Scalar, G: Sig<S> + ?Sized>(
+        &self,
+        v: &[S],
+        list: &[S],
+        lim: Option<&NonWindup>,
+        t: f64,
+        x: &[S],
+        s: &G,
+        clamp_states: bool,
+    ) -> S {
         use slot::*;
-        let v = &self.v;
-        let c = |y: f64, lo: f64, hi: f64| if clamp_states { clampv(y, lo, hi) } else { y };
+        let u = || s.s(self.ins[0]);
+        let c = |y: S, lo: S, hi: S| {
+            if clamp_states {
+                clamp(y, lo, hi)
+            } else {
+                y
+            }
+        };
+        // A state that is the output itself: under a non-windup limit, the mode's branch.
+        let c_state = |y: S, lo: S, hi: S| match (lim, clamp_states) {
+            (Some(l), true) => l.output(y, lo, hi),
+            _ => c(y, lo, hi),
+        };
         match self.kind {
             Kind::Constant => v[0],
             Kind::Reference => v[REF_R] + v[0],
             Kind::Initial => v[0],
-            Kind::Time => t,
-            Kind::Gain => v[K] * self.u(s),
+            Kind::Time => S::cst(t),
+            Kind::Gain => v[K] * u(),
             Kind::Sum => {
-                let mut y = 0.0;
-                for (i, g) in self.ins.iter().zip(&self.list) {
+                let mut y = S::cst(0.0);
+                for (i, &g) in self.ins.iter().zip(list) {
                     y += g * s.s(*i);
                 }
                 y
             }
             Kind::Product => {
-                let mut y = 1.0;
-                for (i, e) in self.ins.iter().zip(&self.list) {
-                    if *e > 0.0 {
+                let mut y = S::cst(1.0);
+                for (i, e) in self.ins.iter().zip(list) {
+                    if e.val() > 0.0 {
                         y *= s.s(*i);
                     } else {
-                        y /= s.s(*i);
+                        y = y / s.s(*i);
                     }
                 }
                 y
             }
-            Kind::Abs => self.u(s).abs(),
-            Kind::Lag => c(x[0], v[LAG_MIN], v[LAG_MAX]),
+            Kind::Abs => u().abs(),
+            Kind::Lag => c_state(x[0], v[LAG_MIN], v[LAG_MAX]),
             Kind::LeadLag => {
                 let r = v[LL_RATIO];
-                v[K] * (r * self.u(s) + (1.0 - r) * x[0])
+                v[K] * (r * u() + r.rsub(1.0) * x[0])
             }
-            Kind::Washout => v[K] * (self.u(s) - x[0]),
-            Kind::Derivative => v[K] * (self.u(s) - x[0]) * v[W_INV_T],
-            Kind::Integrator => c(x[0], v[I_MIN], v[I_MAX]),
-            Kind::Pi => c(v[K] * self.u(s) + x[0], v[PI_MIN], v[PI_MAX]),
+            Kind::Washout => v[K] * (u() - x[0]),
+            Kind::Derivative => v[K] * (u() - x[0]) * v[W_INV_T],
+            Kind::Integrator => c_state(x[0], v[I_MIN], v[I_MAX]),
+            Kind::Pi => c(v[K] * u() + x[0], v[PI_MIN], v[PI_MAX]),
             Kind::Pid => {
-                let u = self.u(s);
+                let u = u();
                 c(
                     v[K] * u + x[0] + v[PID_KD] * (u - x[1]) * v[PID_INV_TD],
                     v[PID_MIN],
                     v[PID_MAX],
                 )
             }
-            Kind::Limiter => c(self.u(s), v[0], v[1]),
+            Kind::Limiter => c(u(), v[0], v[1]),
             Kind::RateLimiter => x[0],
             Kind::Deadband => {
-                let (u, w) = (self.u(s), v[0]);
-                if u > w {
+                let (u, w) = (u(), v[0]);
+                if u.val() > w.val() {
                     u - w
-                } else if u < -w {
+                } else if u.val() < -w.val() {
                     u + w
                 } else {
-                    0.0
+                    S::cst(0.0)
                 }
             }
-            Kind::Min => self.ins.iter().fold(f64::INFINITY, |m, i| m.min(s.s(*i))),
+            Kind::Min => self
+                .ins
+                .iter()
+                .fold(S::cst(f64::INFINITY), |m, i| m.min_s(s.s(*i))),
             Kind::Max => self
                 .ins
                 .iter()
-                .fold(f64::NEG_INFINITY, |m, i| m.max(s.s(*i))),
+                .fold(S::cst(f64::NEG_INFINITY), |m, i| m.max_s(s.s(*i))),
             Kind::Switch => {
-                if s.s(self.ins[0]) >= v[0] {
+                if s.s(self.ins[0]).val() >= v[0].val() {
                     s.s(self.ins[1])
                 } else {
                     s.s(self.ins[2])
                 }
             }
             Kind::Pwl => {
-                let n = self.list.len() / 2;
-                let (xs, ys) = self.list.split_at(n);
-                pwl(xs, ys, self.u(s))
+                let n = list.len() / 2;
+                let (xs, ys) = list.split_at(n);
+                pwl(xs, ys, u())
             }
             Kind::Pulso => {
-                let u = if self.ins.is_empty() { t } else { self.u(s) };
-                let (p1, p2, p3, p4) = (v[0], v[1], v[2], v[3]);
+                let u = if self.ins.is_empty() { t } else { u().val() };
+                let (p1, p2, p3, p4) = (v[0].val(), v[1], v[2].val(), v[3]);
                 if u < p1 {
-                    0.0
+                    S::cst(0.0)
                 } else if u > p1 && u < p3 {
                     p2
                 } else {
@@ -738,58 +783,82 @@ impl Node {
 
     /// The unconstrained derivative of the limited state (the one a non-windup limit freezes).
     #[inline(always)]
-    pub fn free_rate<S: Sig>(&self, x: &[f64], s: &S) -> f64 {
+    pub fn free_rate<G: Sig + ?Sized>(&self, x: &[f64], s: &G) -> f64 {
+        self.free_rate_in(&self.v, x, s)
+    }
+
+    /// [`Node::free_rate`] on any [`Scalar`] with the values `v`.
+    #[inline(always)]
+    pub fn free_rate_in<S: Scalar, G: Sig<S> + ?Sized>(&self, v: &[S], x: &[S], s: &G) -> S {
         use slot::*;
-        let v = &self.v;
+        let u = || s.s(self.ins[0]);
         match self.kind {
-            Kind::Lag => (v[K] * self.u(s) - x[0]) * v[LAG_INV_T],
-            Kind::Integrator => v[K] * self.u(s),
-            Kind::Pi => v[PI_KI] * self.u(s),
-            Kind::Pid => v[PID_KI] * self.u(s),
-            _ => 0.0,
+            Kind::Lag => (v[K] * u() - x[0]) * v[LAG_INV_T],
+            Kind::Integrator => v[K] * u(),
+            Kind::Pi => v[PI_KI] * u(),
+            Kind::Pid => v[PID_KI] * u(),
+            _ => S::cst(0.0),
         }
     }
 
     /// Writes the derivatives of the node's states; `lim` is its non-windup limit, if any.
     #[inline(always)]
-    pub fn derivatives<S: Sig>(&self, x: &[f64], s: &S, lim: Option<&NonWindup>, dx: &mut [f64]) {
+    pub fn derivatives<G: Sig + ?Sized>(
+        &self,
+        x: &[f64],
+        s: &G,
+        lim: Option<&NonWindup>,
+        dx: &mut [f64],
+    ) {
+        self.derivatives_in(&self.v, x, s, lim, dx)
+    }
+
+    /// [`Node::derivatives`] on any [`Scalar`] with the values `v`.
+    #[inline(always)]
+    pub fn derivatives_in<S: Scalar, G: Sig<S> + ?Sized>(
+        &self,
+        v: &[S],
+        x: &[S],
+        s: &G,
+        lim: Option<&NonWindup>,
+        dx: &mut [S],
+    ) {
         use slot::*;
-        let v = &self.v;
+        let u = || s.s(self.ins[0]);
         match self.kind {
             Kind::Lag | Kind::Integrator | Kind::Pi | Kind::Pid => {
-                let f = self.free_rate(x, s);
+                let f = self.free_rate_in(v, x, s);
                 dx[0] = match lim {
                     Some(l) => l.derivative(f),
                     None => f,
                 };
                 if self.kind == Kind::Pid {
-                    dx[1] = (self.u(s) - x[1]) * v[PID_INV_TD];
+                    dx[1] = (u() - x[1]) * v[PID_INV_TD];
                 }
             }
-            Kind::LeadLag => dx[0] = (self.u(s) - x[0]) * v[LL_INV_TB],
-            Kind::Washout | Kind::Derivative => dx[0] = (self.u(s) - x[0]) * v[W_INV_T],
-            Kind::RateLimiter => {
-                dx[0] = clampv((self.u(s) - x[0]) * v[RL_INV_T], -v[RL_FALL], v[RL_RISE])
-            }
+            Kind::LeadLag => dx[0] = (u() - x[0]) * v[LL_INV_TB],
+            Kind::Washout | Kind::Derivative => dx[0] = (u() - x[0]) * v[W_INV_T],
+            Kind::RateLimiter => dx[0] = clamp((u() - x[0]) * v[RL_INV_T], -v[RL_FALL], v[RL_RISE]),
             _ => {}
         }
     }
 }
 
-/// Piecewise-linear interpolation, constant outside `[xs[0], xs[n-1]]`.
+/// Piecewise-linear interpolation, constant outside `[xs[0], xs[n-1]]` (on dual numbers: the
+/// derivatives of the active segment, its breakpoints' included).
 #[inline]
-pub fn pwl(xs: &[f64], ys: &[f64], u: f64) -> f64 {
+pub fn pwl<S: Scalar>(xs: &[S], ys: &[S], u: S) -> S {
     let n = xs.len();
     if n == 0 {
-        return 0.0;
+        return S::cst(0.0);
     }
-    if u <= xs[0] {
+    if u.val() <= xs[0].val() {
         return ys[0];
     }
-    if u >= xs[n - 1] {
+    if u.val() >= xs[n - 1].val() {
         return ys[n - 1];
     }
-    let k = xs.partition_point(|&b| b <= u).max(1) - 1;
+    let k = xs.partition_point(|b| b.val() <= u.val()).max(1) - 1;
     let w = (u - xs[k]) / (xs[k + 1] - xs[k]);
     ys[k] + w * (ys[k + 1] - ys[k])
 }

@@ -23,6 +23,12 @@
 //! playback's do, on the values; while a mode holds, the derivative is that of the active
 //! branch, and a state pinned to a limit takes the limit's derivatives ([`crate::Block::pin_dual`]).
 //!
+//! **Static switches.** A piecewise right-hand side whose pieces switch without a guard (a
+//! diagram's `switch`, `deadband`, `limiter`, `min`/`max`, `pwl`) takes the derivative of the
+//! active piece at every evaluation: the sensitivities are those of the replayed discrete
+//! playback, which differ from the converged derivative by the share of the steps that
+//! straddle a switch.
+//!
 //! **Limits of this version.** A unit whose blocks do not all have dual equations or an event
 //! with set-point steps is refused with [`SensError::Unsupported`]; the caller falls back to
 //! differences.
