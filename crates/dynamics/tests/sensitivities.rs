@@ -128,10 +128,14 @@ fn check_every_parameter(label: &str, u: &Unit, dip_v: f64) {
         "{label}: values"
     );
     let mut moved = 0;
+    let mut worst = (0.0f64, String::new());
     for (j, &r) in refs.iter().enumerate() {
         let (fp, fq, h) = differences(u, &ev, r, &m);
         let (ep, eq) = (mismatch(&s.dp[j], &fp, h), mismatch(&s.dq[j], &fq, h));
         let name = u.param_path(r);
+        if ep.max(eq) > worst.0 {
+            worst = (ep.max(eq), name.clone());
+        }
         assert!(
             ep < 1.0 && eq < 1.0,
             "{label} {name}: ∂P/∂p off by {ep:.2} × the tolerance, ∂Q/∂p by {eq:.2}"
@@ -139,6 +143,10 @@ fn check_every_parameter(label: &str, u: &Unit, dip_v: f64) {
         let big = |c: &[f64]| c.iter().any(|v| v.abs() > 1e-4);
         moved += usize::from(big(&fp) || big(&fq));
     }
+    eprintln!(
+        "{label}: worst {:.3} × the tolerance ({})",
+        worst.0, worst.1
+    );
     // Most parameters move P or Q on this event: the comparison is not of zeros.
     assert!(
         moved * 2 > refs.len(),
@@ -216,16 +224,40 @@ fn every_parameter_of_a_whole_unit_matches_differences() {
         esst1a.set(r, v);
     }
     check_every_parameter("GENROU+ESST1A+HYGOV", &esst1a, 0.9);
+    // ST5B: the transducer, both lead-lags of the main path (T_C1/T_B1 and T_C2/T_B2, their
+    // outputs limited to V_R/K_R), the bridge lag T_1 and a large commutation term K_C. With
+    // K_C = 0.3 and V_RMAX = 4 the K_C-reduced ceiling V_RMAX − K_C·X_adI_fd stays below the
+    // supply ceiling V_T·V_RMAX on this dip, so the bridge never pins (at the defaults it does:
+    // see `st5b_through_its_supply_ceiling`). The alternate UEL/OEL pairs stay inactive
+    // without their gates (zero columns). Measured: ST5B's parameters within 0.074 of the
+    // tolerance (T_1), the unit's within 0.27 (the machine's R_a).
+    let mut st5b = unit(&[
+        ("machine", "GENROU"),
+        ("exciter", "ST5B"),
+        ("governor", "HYGOV"),
+    ]);
+    for (p, v) in [("exciter.k_c", 0.3), ("exciter.vr_max", 4.0)] {
+        let r = st5b.param(p).unwrap();
+        st5b.set(r, v);
+    }
+    check_every_parameter("GENROU+ST5B+HYGOV", &st5b, 0.9);
 }
 
 #[test]
 fn a_block_without_dual_equations_is_refused_so_the_caller_falls_back() {
-    // ST5B has none yet.
-    let u = unit(&[("machine", "GENROU"), ("exciter", "ST5B")]);
+    // `grid_equivalent` has none (it holds only X_e and R_e for the closed-loop playback and is
+    // inert in this one, but it does not opt in with `Block::seed_dual`): the unit holding it
+    // is refused, naming the block. Every other registry model has dual equations; should this
+    // one get them, put a test-only block without them here.
+    let u = unit(&[
+        ("machine", "GENROU"),
+        ("exciter", "SEXS"),
+        ("grid", "grid_equivalent"),
+    ]);
     let ev = PreparedEvent::new(&event(&u));
     let r = u.param("machine.x_d").unwrap();
     match simulate_pq_sensitivities(&u, &ev, &[r], &SimOptions::default()) {
-        Err(SensError::Unsupported(why)) => assert!(why.contains("ST5B"), "{why}"),
+        Err(SensError::Unsupported(why)) => assert!(why.contains("grid_equivalent"), "{why}"),
         other => panic!("expected Unsupported, got {other:?}"),
     }
 }
@@ -269,6 +301,32 @@ fn sensitivities_through_a_ceiling_match_the_converged_derivative() {
         "exciter.t_f",
     ];
     through_a_limit(&ieeet1, &names);
+}
+
+/// ST5B through its bridge's supply ceiling: on the 0.7 pu dip E_fd reaches V_T·V_RMAX (3.50 pu
+/// at V_T = 0.70, the bridge input V_R − K_C·X_adI_fd being 4.90; checked on the traces) and is
+/// pinned on it until the voltage recovers, when the ceiling rises past the bridge input and
+/// releases it. Not yet within the tolerance: measured 3e-4 to 8e-2 of each column's largest
+/// value (T_1 worst: while pinned the stored state only tracks the moving ceiling with T_1, and
+/// at the release it is projected onto the ceiling, a reset whose derivative, the ceiling's plus
+/// its rate times the release time's shift, the sensitivity pass does not apply; the other
+/// columns' 3e-4 to 1e-2 are not explained yet). SEXS_bus_fed's moving limit is handled the
+/// same way and not tested through its ceiling. Ignored until then.
+#[test]
+#[ignore = "known gap: the moving bridge ceiling's release (see the comment)"]
+fn st5b_through_its_supply_ceiling() {
+    let u = unit(&[("machine", "GENROU"), ("exciter", "ST5B")]);
+    let names = [
+        "machine.x_d",
+        "exciter.k_r",
+        "exciter.t_1",
+        "exciter.vr_max",
+        "exciter.k_c",
+        "exciter.t_c2",
+        "exciter.t_b2",
+        "exciter.t_r",
+    ];
+    through_a_limit(&u, &names);
 }
 
 fn through_a_limit(u: &Unit, names: &[&str]) {
