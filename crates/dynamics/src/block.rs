@@ -235,6 +235,17 @@ pub trait Block: Send + Sync {
     /// states.
     fn pin_dual(&self, _x: &mut [D], _io: &Io<D>) {}
 
+    /// The states the current modes pin to a *moving* limit (one computed from signals, as a
+    /// bus-fed ceiling `V_t·V_RMAX`), with the limit: `(state index in this block, value)`.
+    /// While pinned such a block uses the limit itself and its stored state only tracks it; a
+    /// mode change projects the state onto it. At a release a sensitivity pass differentiates
+    /// that projection, `x⁺ = L(t*)`: the limit's derivatives, plus its rate along the
+    /// trajectory times the release time's shift ([`crate::sens`]). Default: none.
+    fn moving_pins(&self, _x: &[f64], _io: &Io, _out: &mut Vec<(usize, f64)>) {}
+
+    /// [`Block::moving_pins`] on dual numbers (after [`Block::seed_dual`]).
+    fn moving_pins_dual(&self, _x: &[D], _io: &Io<D>, _out: &mut Vec<(usize, D)>) {}
+
     /// [`Block::events`] on dual numbers (after [`Block::seed_dual`]): the guards' derivatives
     /// `∂g/∂x S + ∂g/∂p`, from which a sensitivity pass takes the shift of a crossing's time
     /// with the parameters (the saltation of [`crate::sens`]). `false`: the block's guards have

@@ -774,6 +774,44 @@ impl Unit {
         }
     }
 
+    /// Every block's [`crate::Block::moving_pins`] at `x` (after [`Unit::eval_outputs`]), the
+    /// state indices in the unit's state vector.
+    pub(crate) fn eval_moving_pins(&mut self, x: &[f64], out: &mut Vec<(usize, f64)>) {
+        out.clear();
+        let mut local = Vec::new();
+        for inst in &self.instances {
+            if inst.ev_len == 0 {
+                continue;
+            }
+            let (o, n) = (inst.x_offset, inst.x_len);
+            let io = Io::new(&mut self.bus, &inst.map);
+            local.clear();
+            inst.block.moving_pins(&x[o..o + n], &io, &mut local);
+            out.extend(local.iter().map(|&(i, v)| (o + i, v)));
+        }
+    }
+
+    /// [`Unit::eval_moving_pins`] on dual numbers (after [`Unit::eval_outputs_dual`]).
+    pub(crate) fn eval_moving_pins_dual(
+        &self,
+        x: &[crate::sens::D],
+        bus: &mut [crate::sens::D],
+        out: &mut Vec<(usize, crate::sens::D)>,
+    ) {
+        out.clear();
+        let mut local = Vec::new();
+        for inst in &self.instances {
+            if inst.ev_len == 0 {
+                continue;
+            }
+            let (o, n) = (inst.x_offset, inst.x_len);
+            let io = Io::new(bus, &inst.map);
+            local.clear();
+            inst.block.moving_pins_dual(&x[o..o + n], &io, &mut local);
+            out.extend(local.iter().map(|&(i, v)| (o + i, v)));
+        }
+    }
+
     /// [`Unit::eval_events`] on dual numbers (after [`Unit::eval_outputs_dual`]); the guards of
     /// a block without their dual form ([`crate::Block::events_dual`]) are NaN.
     pub(crate) fn eval_events_dual(

@@ -148,6 +148,19 @@ impl NonWindup {
         }
     }
 
+    /// The limit the current mode pins the state to (`None` while free): with moving limits,
+    /// the value a mode change projects the stored state onto ([`Block::moving_pins`]).
+    ///
+    /// [`Block::moving_pins`]: crate::block::Block::moving_pins
+    #[inline]
+    pub fn pinned_to<S: Scalar>(&self, lo: S, hi: S) -> Option<S> {
+        match self.mode {
+            LimitMode::Free => None,
+            LimitMode::AtMax => Some(hi),
+            LimitMode::AtMin => Some(lo),
+        }
+    }
+
     /// Derivative of the stored state with moving limits (`inv_t_track` = 1/T_track).
     #[inline(always)]
     pub fn derivative_moving<S: Scalar>(&self, f: S, x: S, lo: S, hi: S, inv_t_track: S) -> S {

@@ -382,6 +382,12 @@ impl OdeSystem for Augmented<'_> {
             None
         };
         let f_minus = shift.as_ref().map(|_| self.plain_rhs(t, &xa[..n]));
+        // The states pinned to a moving limit before the switch: the limit on duals and its
+        // rate along the trajectory (for a release, below).
+        let pinned = match &f_minus {
+            Some(fm) => self.moving_pins(t, xa, fm),
+            None => Vec::new(),
+        };
         self.eval_plain(t, &xa[..n]);
         let changed = self.unit.update_modes(&mut xa[..n]);
         // The modes (and perhaps x) changed: the outputs are evaluated again.
@@ -399,6 +405,23 @@ impl OdeSystem for Augmented<'_> {
         }
         self.eval(t, xa);
         self.unit.pin_dual(&mut self.x, &mut self.bus);
+        if let (Some(tau), false) = (shift, pinned.is_empty()) {
+            // A state released from a moving limit was projected onto it, `x⁺ = L(t*)`:
+            // `S⁺ = dL/dp + (L̇ − f⁺) ∂t*/∂p`, the limit's derivatives at the switch plus its
+            // rate along the trajectory times the switch time's shift, less the new rate's.
+            let mut still = Vec::new();
+            self.eval_plain(t, &xa[..n]);
+            self.unit.eval_moving_pins(&xa[..n], &mut still);
+            let fp = self.plain_rhs(t, &xa[..n]);
+            for (i, lim, rate) in pinned {
+                if still.iter().any(|&(j, _)| j == i) {
+                    continue;
+                }
+                for (l, tl) in tau.iter().enumerate() {
+                    self.x[i].d[l] = lim.d[l] + (rate - fp[i]) * tl;
+                }
+            }
+        }
         for i in 0..n {
             xa[i] = self.x[i].v;
             xa[n + i * LANES..n + (i + 1) * LANES].copy_from_slice(&self.x[i].d);
@@ -415,6 +438,41 @@ impl Augmented<'_> {
         self.eval_plain(t, x);
         self.unit.eval_derivatives(t, x, &mut f);
         f
+    }
+
+    /// The states pinned to a moving limit at `(t, [x, S])` in the modes before a switch
+    /// ([`crate::Block::moving_pins`]): `(state, the limit on duals, its rate along the
+    /// trajectory)`, the rate a central difference over `t ± δ` with the states moved by `f`
+    /// (δ = 1e-6 s, as for the guards' rates in [`Augmented::crossing_shift`]).
+    fn moving_pins(&mut self, t: f64, xa: &[f64], f: &[f64]) -> Vec<(usize, D, f64)> {
+        let n = self.x.len();
+        let mut now = Vec::new();
+        self.eval_plain(t, &xa[..n]);
+        self.unit.eval_moving_pins(&xa[..n], &mut now);
+        if now.is_empty() {
+            return Vec::new();
+        }
+        let delta = 1e-6;
+        let mut at = |s: f64| {
+            let x: Vec<f64> = (0..n).map(|i| xa[i] + s * delta * f[i]).collect();
+            self.eval_plain(t + s * delta, &x);
+            let mut v = Vec::new();
+            self.unit.eval_moving_pins(&x, &mut v);
+            v
+        };
+        let (up, dn) = (at(1.0), at(-1.0));
+        self.eval(t, xa);
+        let mut duals = Vec::new();
+        self.unit
+            .eval_moving_pins_dual(&self.x, &mut self.bus, &mut duals);
+        now.iter()
+            .filter_map(|&(i, _)| {
+                let u = up.iter().find(|p| p.0 == i)?.1;
+                let d = dn.iter().find(|p| p.0 == i)?.1;
+                let lim = duals.iter().find(|p| p.0 == i)?.1;
+                Some((i, lim, (u - d) / (2.0 * delta)))
+            })
+            .collect()
     }
 
     /// `∂t*/∂p` on every lane for the guard that went ≤ 0 at `(t, [x, S])` (the most negative

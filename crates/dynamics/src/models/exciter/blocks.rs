@@ -85,68 +85,117 @@ impl<S: Scalar> LeadLag<S> {
 /// winds up beyond it; the right-hand side is continuous, the output has a kink at the limit.
 /// `T_C = 0` (a pure lag): the non-windup lag of [`NonWindup`], the state frozen on the limit
 /// while pushing outwards, with event-located modes. `T_B = 0`: bypassed, `y = clamp(u)`.
+///
+/// On the number type `S` (`f64`, or a dual for forward sensitivities). The `*_in` methods take
+/// the `T_C = 0` form's mode from the caller (a block holding its modes apart from the numbers,
+/// so that its dual equations follow the plain simulation's modes); the others use the block's
+/// own.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct LeadLagLim {
-    ll: LeadLag,
-    inv_tc: f64,
-    lo: f64,
-    hi: f64,
+pub struct LeadLagLim<S = f64> {
+    ll: LeadLag<S>,
+    inv_tc: S,
+    lo: S,
+    hi: S,
     /// Modes of the `T_C = 0` form.
     limit: NonWindup,
     pure_lag: bool,
 }
 
-impl LeadLagLim {
-    pub fn new(tc: f64, tb: f64, lo: f64, hi: f64) -> Self {
+impl<S: Scalar> LeadLagLim<S> {
+    pub fn new(tc: S, tb: S, lo: S, hi: S) -> Self {
         let ll = LeadLag::new(tc, tb);
-        let pure_lag = !ll.bypass && tc < ZERO_T;
+        let pure_lag = !ll.bypass && tc.val() < ZERO_T;
         Self {
             ll,
-            inv_tc: if tc < ZERO_T { 0.0 } else { 1.0 / tc },
+            inv_tc: if tc.val() < ZERO_T {
+                S::cst(0.0)
+            } else {
+                tc.recip()
+            },
             lo,
             hi,
             limit: NonWindup::default(),
             pure_lag,
         }
     }
+    /// The block's own mode of the `T_C = 0` form.
     #[inline(always)]
-    pub fn output(&self, x: f64, u: f64) -> f64 {
+    pub fn mode(&self) -> NonWindup {
+        self.limit
+    }
+    #[inline(always)]
+    pub fn output(&self, x: S, u: S) -> S {
+        self.output_in(&self.limit, x, u)
+    }
+    /// [`LeadLagLim::output`] in the mode `limit`. While free, the `T_C = 0` form's output is
+    /// the state's (its value clamped: see [`NonWindup::output`]).
+    #[inline(always)]
+    pub fn output_in(&self, limit: &NonWindup, x: S, u: S) -> S {
         if self.pure_lag {
-            match self.limit.mode {
+            match limit.mode {
                 crate::models::limiter::LimitMode::AtMax => self.hi,
                 crate::models::limiter::LimitMode::AtMin => self.lo,
-                crate::models::limiter::LimitMode::Free => clamp(x, self.lo, self.hi),
+                crate::models::limiter::LimitMode::Free => {
+                    x.with_value(clamp(x.val(), self.lo.val(), self.hi.val()))
+                }
             }
         } else {
             clamp(self.ll.output(x, u), self.lo, self.hi)
         }
     }
     #[inline(always)]
-    pub fn derivative(&self, x: f64, u: f64) -> f64 {
+    pub fn derivative(&self, x: S, u: S) -> S {
+        self.derivative_in(&self.limit, x, u)
+    }
+    /// [`LeadLagLim::derivative`] in the mode `limit`.
+    #[inline(always)]
+    pub fn derivative_in(&self, limit: &NonWindup, x: S, u: S) -> S {
         if self.ll.bypass {
-            0.0
+            S::cst(0.0)
         } else if self.pure_lag {
-            self.limit.derivative(self.ll.derivative(x, u))
+            limit.derivative(self.ll.derivative(x, u))
         } else {
             (clamp(self.ll.output(x, u), self.lo, self.hi) - x) * self.inv_tc
         }
     }
     /// Two event functions (constant 1 unless `T_C = 0`).
     #[inline]
-    pub fn events(&self, x: f64, u: f64, g: &mut [f64]) {
+    pub fn events(&self, x: S, u: S, g: &mut [S]) {
+        self.events_in(&self.limit, x, u, g)
+    }
+    /// [`LeadLagLim::events`] in the mode `limit`.
+    #[inline]
+    pub fn events_in(&self, limit: &NonWindup, x: S, u: S, g: &mut [S]) {
         if self.pure_lag {
-            self.limit
-                .events(x, self.ll.derivative(x, u), self.lo, self.hi, g);
+            limit.events(x, self.ll.derivative(x, u), self.lo, self.hi, g);
         } else {
-            g[0] = 1.0;
-            g[1] = 1.0;
+            g[0] = S::cst(1.0);
+            g[1] = S::cst(1.0);
         }
     }
+    /// A state the mode `limit` pins (`T_C = 0` form) takes the limit's value and derivatives
+    /// ([`NonWindup::pin`]).
+    #[inline]
+    pub fn pin_in(&self, limit: &NonWindup, x: &mut S) {
+        if self.pure_lag {
+            limit.pin(x, self.lo, self.hi);
+        }
+    }
+}
+
+impl LeadLagLim {
     /// Mode update of the `T_C = 0` form (may pin `x` on a limit).
     pub fn update(&mut self, x: &mut f64, u: f64) -> bool {
+        let mut limit = self.limit;
+        let changed = self.update_in(&mut limit, x, u);
+        self.limit = limit;
+        changed
+    }
+    /// [`LeadLagLim::update`] of the mode `limit`.
+    pub fn update_in(&self, limit: &mut NonWindup, x: &mut f64, u: f64) -> bool {
         if self.pure_lag {
             let f = self.ll.derivative(*x, u);
-            self.limit.update(x, f, self.lo, self.hi)
+            limit.update(x, f, self.lo, self.hi)
         } else {
             false
         }

@@ -398,6 +398,20 @@ impl<V: SexsVariant> Block for SexsModel<V> {
         }
     }
 
+    fn moving_pins(&self, _x: &[f64], io: &Io, out: &mut Vec<(usize, f64)>) {
+        if V::MOVING_LIMITS {
+            let (lo, hi) = self.p.limits(io);
+            out.extend(self.limit.pinned_to(lo, hi).map(|v| (1, v)));
+        }
+    }
+
+    fn moving_pins_dual(&self, _x: &[D], io: &Io<D>, out: &mut Vec<(usize, D)>) {
+        if let (true, Some((p, _))) = (V::MOVING_LIMITS, &self.dual) {
+            let (lo, hi) = p.limits(io);
+            out.extend(self.limit.pinned_to(lo, hi).map(|v| (1, v)));
+        }
+    }
+
     fn n_events(&self) -> usize {
         2
     }

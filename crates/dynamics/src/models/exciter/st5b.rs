@@ -54,6 +54,18 @@
 //! `V_R0 ∉ [V_RMIN, V_RMAX]` (E_fd0 above the K_C-reduced ceiling), or a gate selects its
 //! limiter at t = 0. `ΔV_ref` (`v_ref_offset`, default 0) is the set-point offset a fit may free.
 //!
+//! **Forward sensitivities.** The equations are written once, generic over the number type
+//! ([`Scalar`]): the plain simulation runs them on `f64`, the sensitivity pass on duals
+//! ([`Block::seed_dual`]), with the modes of the plain playback; the lead-lags' `T_C = 0` forms
+//! and the bridge pinned on a limit take the limit's derivatives ([`Block::pin_dual`]), and the
+//! guards are given on duals ([`Block::events_dual`]); the release from the moving supply
+//! ceiling, where the state that only tracked the ceiling with `T_1` is projected onto it, is
+//! differentiated by the pass from [`Block::moving_pins`]. Not exact: when the ceiling falls onto
+//! a free state (a voltage dip), the output is clamped to it without a located event until the
+//! state decays below it, and the sensitivities there are those of the active piece on the
+//! replayed steps (on the 0.7 pu dip of `tests/sensitivities.rs`: 3e-4 to 1.6e-2 of each column
+//! off the converged derivative, K_R and K_C worst).
+//!
 //! **Departures from OpenIPSL** (3.x `ST5B.mo`): OpenIPSL builds the UEL and OEL lead-lag pairs
 //! but never connects them to the output (and gives the second UEL/OEL blocks the first blocks'
 //! time constants); here they are used as the IEEE/PSS/E diagram intends when a gate selects
@@ -65,6 +77,7 @@ use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::exciter::blocks::{Lag, LeadLagLim, ZERO_T};
 use crate::models::exciter::roles::{ExciterRoles, LeadLagRole, ParamRole};
 use crate::models::limiter::{clamp, NonWindup};
+use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
 
 param_set! {
@@ -154,12 +167,241 @@ pub struct St5b {
     /// The unit drives nothing into `vuel` / `voel` (a gate on it stays inactive).
     uel_undriven: bool,
     oel_undriven: bool,
-    v_ref: f64,
-    transducer: Lag,
+    /// The numbers the initialisation derives (built by [`Block::init`], read with `p`).
+    k: Consts,
+    /// The discrete modes (no number in them).
+    m: Modes,
+    /// The parameters and the derived numbers on duals, after [`Block::seed_dual`].
+    dual: Option<(St5bParams<D>, Consts<D>)>,
+}
+
+/// The numbers the initialisation derives, on the number type `S`.
+#[derive(Debug, Clone, Copy, Default)]
+struct Consts<S = f64> {
+    v_ref: S,
+    transducer: Lag<S>,
     /// main (0, 1), UEL (2, 3), OEL (4, 5).
-    ll: [LeadLagLim; 6],
-    inv_t1: f64,
-    limit: NonWindup,
+    ll: [LeadLagLim<S>; 6],
+    inv_t1: S,
+}
+
+/// The modes: the six lead-lags' (`T_C = 0` forms) and the bridge's.
+#[derive(Debug, Clone, Copy, Default)]
+struct Modes {
+    ll: [NonWindup; 6],
+    bridge: NonWindup,
+}
+
+/// Which gates are in use: the option set and its input driven.
+#[derive(Debug, Clone, Copy)]
+struct Opts {
+    uel_gate: bool,
+    oel_gate: bool,
+}
+
+impl Opts {
+    /// Which pairs integrate: the main one always, an alternate one only with its gate.
+    #[inline(always)]
+    fn active(&self, pair: usize) -> bool {
+        match pair {
+            0 => true,
+            1 => self.uel_gate,
+            _ => self.oel_gate,
+        }
+    }
+}
+
+/// The derived numbers of the parameters `p` with the voltage reference `v_ref`.
+fn consts<S: Scalar>(p: &St5bParams<S>, v_ref: S) -> Consts<S> {
+    let (lo, hi) = (p.vr_min / p.k_r, p.vr_max / p.k_r);
+    Consts {
+        v_ref,
+        transducer: Lag::new(p.t_r),
+        ll: [
+            LeadLagLim::new(p.t_c1, p.t_b1, lo, hi),
+            LeadLagLim::new(p.t_c2, p.t_b2, lo, hi),
+            LeadLagLim::new(p.t_uc1, p.t_ub1, lo, hi),
+            LeadLagLim::new(p.t_uc2, p.t_ub2, lo, hi),
+            LeadLagLim::new(p.t_oc1, p.t_ob1, lo, hi),
+            LeadLagLim::new(p.t_oc2, p.t_ob2, lo, hi),
+        ],
+        inv_t1: if p.t_1.val() < ZERO_T {
+            S::cst(0.0)
+        } else {
+            p.t_1.recip()
+        },
+    }
+}
+
+/// The lead-lag input `u` and the path the gates select.
+#[inline(always)]
+fn gated_input<S: Scalar>(
+    p: &St5bParams<S>,
+    k: &Consts<S>,
+    o: Opts,
+    x: &[S],
+    io: &Io<S>,
+) -> (S, Path) {
+    let v_m = k.transducer.output(x[0], io.get(port::V_TERM));
+    let v_e = k.v_ref + p.v_ref_offset - v_m;
+    let (v_uel, v_oel) = (io.get(port::VUEL), io.get(port::VOEL));
+    let mut path = Path::Main;
+    let v_h = if o.uel_gate {
+        if v_uel.val() > v_e.val() {
+            path = Path::Uel;
+            v_uel
+        } else {
+            v_e
+        }
+    } else {
+        v_e + v_uel
+    };
+    let v_l = if o.oel_gate {
+        if v_oel.val() < v_h.val() {
+            path = Path::Oel;
+            v_oel
+        } else {
+            v_h
+        }
+    } else {
+        v_h + v_oel
+    };
+    (v_l + io.get(port::VS), path)
+}
+
+/// `(u, output of the first block of each pair, path)`.
+#[inline(always)]
+fn chain<S: Scalar>(
+    p: &St5bParams<S>,
+    k: &Consts<S>,
+    o: Opts,
+    m: &Modes,
+    x: &[S],
+    io: &Io<S>,
+) -> (S, [S; 3], Path) {
+    let (u, path) = gated_input(p, k, o, x, io);
+    let y1 = [0, 1, 2].map(|j| k.ll[2 * j].output_in(&m.ll[2 * j], x[LL + 2 * j], u));
+    (u, y1, path)
+}
+
+/// Regulator output V_R.
+#[inline(always)]
+fn v_r<S: Scalar>(
+    p: &St5bParams<S>,
+    k: &Consts<S>,
+    m: &Modes,
+    x: &[S],
+    y1: &[S; 3],
+    path: Path,
+) -> S {
+    let j = path as usize;
+    let y = k.ll[2 * j + 1].output_in(&m.ll[2 * j + 1], x[LL + 2 * j + 1], y1[j]);
+    clamp(p.k_r * y, p.vr_min, p.vr_max)
+}
+
+/// `(E_fd,min, E_fd,max)` of the bridge.
+#[inline(always)]
+fn limits<S: Scalar>(p: &St5bParams<S>, io: &Io<S>) -> (S, S) {
+    let v = io.get(port::V_SUPPLY);
+    (v * p.vr_min, v * p.vr_max)
+}
+
+/// Bridge input `V_R − K_C·X_adI_fd`.
+#[inline(always)]
+fn bridge_input<S: Scalar>(
+    p: &St5bParams<S>,
+    k: &Consts<S>,
+    o: Opts,
+    m: &Modes,
+    x: &[S],
+    io: &Io<S>,
+) -> S {
+    let (_, y1, path) = chain(p, k, o, m, x, io);
+    v_r(p, k, m, x, &y1, path) - p.k_c * io.get(port::XADIFD)
+}
+
+/// E_fd at the current point.
+#[inline(always)]
+fn outputs<S: Scalar>(
+    p: &St5bParams<S>,
+    k: &Consts<S>,
+    o: Opts,
+    m: &Modes,
+    x: &[S],
+    io: &mut Io<S>,
+) {
+    let (lo, hi) = limits(p, io);
+    let efd = if k.inv_t1.val() == 0.0 {
+        clamp(bridge_input(p, k, o, m, x, io), lo, hi)
+    } else {
+        clamp(m.bridge.effective(x[EFD_STATE], lo, hi), lo, hi)
+    };
+    io.set(port::EFD, efd);
+}
+
+/// The state derivatives.
+#[inline(always)]
+fn derivatives<S: Scalar>(
+    p: &St5bParams<S>,
+    k: &Consts<S>,
+    o: Opts,
+    m: &Modes,
+    x: &[S],
+    io: &Io<S>,
+    dx: &mut [S],
+) {
+    dx[0] = k.transducer.derivative(x[0], io.get(port::V_TERM));
+    let (u, y1, path) = chain(p, k, o, m, x, io);
+    for (pair, &y1p) in y1.iter().enumerate() {
+        let (a, b) = (LL + 2 * pair, LL + 2 * pair + 1);
+        if o.active(pair) {
+            dx[a] = k.ll[2 * pair].derivative_in(&m.ll[2 * pair], x[a], u);
+            dx[b] = k.ll[2 * pair + 1].derivative_in(&m.ll[2 * pair + 1], x[b], y1p);
+        } else {
+            dx[a] = S::cst(0.0);
+            dx[b] = S::cst(0.0);
+        }
+    }
+    dx[EFD_STATE] = if k.inv_t1.val() == 0.0 {
+        S::cst(0.0)
+    } else {
+        let (lo, hi) = limits(p, io);
+        let v = v_r(p, k, m, x, &y1, path) - p.k_c * io.get(port::XADIFD);
+        let f = (v - m.bridge.effective(x[EFD_STATE], lo, hi)) * k.inv_t1;
+        m.bridge
+            .derivative_moving(f, x[EFD_STATE], lo, hi, k.inv_t1)
+    };
+}
+
+/// The guards: the bridge's two, then two for each lead-lag (constant unless `T_C = 0`).
+#[inline(always)]
+fn guards<S: Scalar>(
+    p: &St5bParams<S>,
+    k: &Consts<S>,
+    o: Opts,
+    m: &Modes,
+    x: &[S],
+    io: &Io<S>,
+    g: &mut [S],
+) {
+    let (u, y1, _) = chain(p, k, o, m, x, io);
+    if k.inv_t1.val() == 0.0 {
+        g[0] = S::cst(1.0);
+        g[1] = S::cst(1.0);
+    } else {
+        let (lo, hi) = limits(p, io);
+        // The rate at the output (the state clamped into the limits): a free state left
+        // above a ceiling that fell below it is pinned as soon as the regulator pushes
+        // beyond the ceiling, as OpenIPSL's `SimpleLagLimVar` does.
+        let xe = clamp(m.bridge.effective(x[EFD_STATE], lo, hi), lo, hi);
+        let f = (bridge_input(p, k, o, m, x, io) - xe) * k.inv_t1;
+        m.bridge
+            .events_moving(x[EFD_STATE], f, lo, hi, &mut g[0..2]);
+    }
+    for j in 0..6 {
+        let input = if j % 2 == 0 { u } else { y1[j / 2] };
+        k.ll[j].events_in(&m.ll[j], x[LL + j], input, &mut g[2 + 2 * j..4 + 2 * j]);
+    }
 }
 
 impl St5b {
@@ -172,102 +414,15 @@ impl St5b {
 
     /// Voltage reference found at initialisation [pu].
     pub fn v_ref(&self) -> f64 {
-        self.v_ref
+        self.k.v_ref
     }
 
-    fn prepare(&mut self) {
-        let p = &self.p;
-        let (lo, hi) = (p.vr_min / p.k_r, p.vr_max / p.k_r);
-        self.transducer = Lag::new(p.t_r);
-        self.ll = [
-            LeadLagLim::new(p.t_c1, p.t_b1, lo, hi),
-            LeadLagLim::new(p.t_c2, p.t_b2, lo, hi),
-            LeadLagLim::new(p.t_uc1, p.t_ub1, lo, hi),
-            LeadLagLim::new(p.t_uc2, p.t_ub2, lo, hi),
-            LeadLagLim::new(p.t_oc1, p.t_ob1, lo, hi),
-            LeadLagLim::new(p.t_oc2, p.t_ob2, lo, hi),
-        ];
-        self.inv_t1 = if p.t_1 < ZERO_T { 0.0 } else { 1.0 / p.t_1 };
-    }
-
-    /// Is the UEL (OEL) gate in use: the option set and its input driven?
+    /// The gates in use: the option set and its input driven.
     #[inline(always)]
-    fn gates(&self) -> (bool, bool) {
-        (
-            self.uel_gate && !self.uel_undriven,
-            self.oel_gate && !self.oel_undriven,
-        )
-    }
-
-    /// The lead-lag input `u` and the path the gates select.
-    #[inline(always)]
-    fn gated_input(&self, x: &[f64], io: &Io) -> (f64, Path) {
-        let v_m = self.transducer.output(x[0], io.get(port::V_TERM));
-        let v_e = self.v_ref + self.p.v_ref_offset - v_m;
-        let (v_uel, v_oel) = (io.get(port::VUEL), io.get(port::VOEL));
-        let (uel_gate, oel_gate) = self.gates();
-        let mut path = Path::Main;
-        let v_h = if uel_gate {
-            if v_uel > v_e {
-                path = Path::Uel;
-                v_uel
-            } else {
-                v_e
-            }
-        } else {
-            v_e + v_uel
-        };
-        let v_l = if oel_gate {
-            if v_oel < v_h {
-                path = Path::Oel;
-                v_oel
-            } else {
-                v_h
-            }
-        } else {
-            v_h + v_oel
-        };
-        (v_l + io.get(port::VS), path)
-    }
-
-    /// `(u, output of the first block of each pair, path)`.
-    #[inline(always)]
-    fn chain(&self, x: &[f64], io: &Io) -> (f64, [f64; 3], Path) {
-        let (u, path) = self.gated_input(x, io);
-        let y1 = [0, 1, 2].map(|k| self.ll[2 * k].output(x[LL + 2 * k], u));
-        (u, y1, path)
-    }
-
-    /// Regulator output V_R.
-    #[inline(always)]
-    fn v_r(&self, x: &[f64], y1: &[f64; 3], path: Path) -> f64 {
-        let k = path as usize;
-        let y = self.ll[2 * k + 1].output(x[LL + 2 * k + 1], y1[k]);
-        clamp(self.p.k_r * y, self.p.vr_min, self.p.vr_max)
-    }
-
-    /// `(E_fd,min, E_fd,max)` of the bridge.
-    #[inline(always)]
-    fn limits(&self, io: &Io) -> (f64, f64) {
-        let v = io.get(port::V_SUPPLY);
-        (v * self.p.vr_min, v * self.p.vr_max)
-    }
-
-    /// Bridge input `V_R − K_C·X_adI_fd`.
-    #[inline(always)]
-    fn bridge_input(&self, x: &[f64], io: &Io) -> f64 {
-        let (_, y1, path) = self.chain(x, io);
-        self.v_r(x, &y1, path) - self.p.k_c * io.get(port::XADIFD)
-    }
-
-    /// Which pairs integrate: the main one always, an alternate one only with its gate.
-    #[inline(always)]
-    fn active(&self, pair: usize) -> bool {
-        let (uel_gate, oel_gate) = self.gates();
-        match pair {
-            0 => true,
-            1 => uel_gate,
-            _ => oel_gate,
+    fn opts(&self) -> Opts {
+        Opts {
+            uel_gate: self.uel_gate && !self.uel_undriven,
+            oel_gate: self.oel_gate && !self.oel_undriven,
         }
     }
 }
@@ -315,12 +470,12 @@ impl Block for St5b {
 
     fn init(&mut self, _op: &InitPoint, x: &mut [f64], io: &mut Io) -> Result<(), ModelError> {
         self.validate()?;
-        self.prepare();
+        self.k = consts(&self.p, 0.0);
         let p = &self.p;
         let efd0 = io.get(port::EFD);
         let ifd0 = io.get(port::XADIFD);
         let vt0 = io.get(port::V_SUPPLY);
-        let (lo, hi) = self.limits(io);
+        let (lo, hi) = limits(p, io);
         if !(efd0 >= lo && efd0 <= hi) {
             return Err(ModelError::Init(format!(
                 "ST5B: initial field voltage E_fd0 = {efd0:.4} pu lies outside [V_T·VRMIN, V_T·VRMAX] = [{lo:.4}, {hi:.4}] (V_T = {vt0:.4})"
@@ -338,7 +493,7 @@ impl Block for St5b {
         // Backwards through the summing points and gates.
         let v_l = u0 - io.get(port::VS);
         let v_oel = io.get(port::VOEL);
-        let (uel_gate, oel_gate) = self.gates();
+        let Opts { uel_gate, oel_gate } = self.opts();
         let v_h = if oel_gate {
             if v_oel < v_l {
                 return Err(ModelError::Init(format!(
@@ -360,100 +515,116 @@ impl Block for St5b {
         } else {
             v_h - v_uel
         };
-        self.v_ref = ecomp0 + v_e;
+        self.k.v_ref = ecomp0 + v_e;
         x[0] = ecomp0;
         for s in &mut x[LL..LL + 6] {
             *s = u0;
         }
         x[EFD_STATE] = efd0;
-        self.limit = NonWindup::default();
-        for b in &mut self.ll {
-            b.reset();
-        }
+        self.m = Modes::default();
         Ok(())
     }
 
     #[inline]
     fn outputs(&self, _t: f64, x: &[f64], io: &mut Io) {
-        let (lo, hi) = self.limits(io);
-        let efd = if self.inv_t1 == 0.0 {
-            clamp(self.bridge_input(x, io), lo, hi)
-        } else {
-            clamp(self.limit.effective(x[EFD_STATE], lo, hi), lo, hi)
-        };
-        io.set(port::EFD, efd);
+        outputs(&self.p, &self.k, self.opts(), &self.m, x, io);
     }
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], io: &Io, dx: &mut [f64]) {
-        dx[0] = self.transducer.derivative(x[0], io.get(port::V_TERM));
-        let (u, y1, path) = self.chain(x, io);
-        for (pair, &y1p) in y1.iter().enumerate() {
-            let (a, b) = (LL + 2 * pair, LL + 2 * pair + 1);
-            if self.active(pair) {
-                dx[a] = self.ll[2 * pair].derivative(x[a], u);
-                dx[b] = self.ll[2 * pair + 1].derivative(x[b], y1p);
-            } else {
-                dx[a] = 0.0;
-                dx[b] = 0.0;
+        derivatives(&self.p, &self.k, self.opts(), &self.m, x, io, dx);
+    }
+
+    fn init_constants(&self) -> Vec<f64> {
+        vec![self.k.v_ref]
+    }
+
+    fn seed_dual(&mut self, lanes: &[Option<usize>], consts_d: &[D]) -> bool {
+        let p = self.p.lift_dual(lanes);
+        let v_ref = consts_d.first().copied().unwrap_or(D::cst(self.k.v_ref));
+        let k = consts(&p, v_ref);
+        self.dual = Some((p, k));
+        true
+    }
+
+    fn outputs_dual(&self, _t: f64, x: &[D], io: &mut Io<D>) {
+        if let Some((p, k)) = &self.dual {
+            outputs(p, k, self.opts(), &self.m, x, io);
+        }
+    }
+
+    fn derivatives_dual(&self, _t: f64, x: &[D], io: &Io<D>, dx: &mut [D]) {
+        if let Some((p, k)) = &self.dual {
+            derivatives(p, k, self.opts(), &self.m, x, io, dx);
+        }
+    }
+
+    /// The lead-lags' `T_C = 0` forms pinned on `V_RMIN/K_R`, `V_RMAX/K_R`, and the bridge
+    /// state pinned on its (moving) limit `V_T·V_RMIN`, `V_T·V_RMAX`.
+    fn pin_dual(&self, x: &mut [D], io: &Io<D>) {
+        if let Some((p, k)) = &self.dual {
+            for j in 0..6 {
+                k.ll[j].pin_in(&self.m.ll[j], &mut x[LL + j]);
+            }
+            if self.k.inv_t1 != 0.0 {
+                let (lo, hi) = limits(p, io);
+                self.m.bridge.pin(&mut x[EFD_STATE], lo, hi);
             }
         }
-        dx[EFD_STATE] = if self.inv_t1 == 0.0 {
-            0.0
-        } else {
-            let (lo, hi) = self.limits(io);
-            let v = self.v_r(x, &y1, path) - self.p.k_c * io.get(port::XADIFD);
-            let f = (v - self.limit.effective(x[EFD_STATE], lo, hi)) * self.inv_t1;
-            self.limit
-                .derivative_moving(f, x[EFD_STATE], lo, hi, self.inv_t1)
-        };
+    }
+
+    fn moving_pins(&self, _x: &[f64], io: &Io, out: &mut Vec<(usize, f64)>) {
+        if self.k.inv_t1 != 0.0 {
+            let (lo, hi) = limits(&self.p, io);
+            out.extend(self.m.bridge.pinned_to(lo, hi).map(|v| (EFD_STATE, v)));
+        }
+    }
+
+    fn moving_pins_dual(&self, _x: &[D], io: &Io<D>, out: &mut Vec<(usize, D)>) {
+        if let (true, Some((p, _))) = (self.k.inv_t1 != 0.0, &self.dual) {
+            let (lo, hi) = limits(p, io);
+            out.extend(self.m.bridge.pinned_to(lo, hi).map(|v| (EFD_STATE, v)));
+        }
     }
 
     fn n_events(&self) -> usize {
         2 + 12
     }
     fn events(&self, x: &[f64], io: &Io, g: &mut [f64]) {
-        let (u, y1, _) = self.chain(x, io);
-        if self.inv_t1 == 0.0 {
-            g[0] = 1.0;
-            g[1] = 1.0;
-        } else {
-            let (lo, hi) = self.limits(io);
-            // The rate at the output (the state clamped into the limits): a free state left
-            // above a ceiling that fell below it is pinned as soon as the regulator pushes
-            // beyond the ceiling, as OpenIPSL's `SimpleLagLimVar` does.
-            let xe = clamp(self.limit.effective(x[EFD_STATE], lo, hi), lo, hi);
-            let f = (self.bridge_input(x, io) - xe) * self.inv_t1;
-            self.limit
-                .events_moving(x[EFD_STATE], f, lo, hi, &mut g[0..2]);
-        }
-        for k in 0..6 {
-            let input = if k % 2 == 0 { u } else { y1[k / 2] };
-            self.ll[k].events(x[LL + k], input, &mut g[2 + 2 * k..4 + 2 * k]);
+        guards(&self.p, &self.k, self.opts(), &self.m, x, io, g);
+    }
+    fn events_dual(&self, x: &[D], io: &Io<D>, g: &mut [D]) -> bool {
+        match &self.dual {
+            Some((p, k)) => {
+                guards(p, k, self.opts(), &self.m, x, io, g);
+                true
+            }
+            None => false,
         }
     }
     fn update_modes(&mut self, x: &mut [f64], io: &Io) -> bool {
+        let o = self.opts();
         let mut changed = false;
         // The lead-lags first (T_C = 0 forms may pin their state), then the bridge.
-        for k in 0..6 {
-            let (u, y1, _) = self.chain(x, io);
-            let input = if k % 2 == 0 { u } else { y1[k / 2] };
-            let mut s = x[LL + k];
-            let mut b = self.ll[k];
-            changed |= b.update(&mut s, input);
-            self.ll[k] = b;
-            x[LL + k] = s;
+        for j in 0..6 {
+            let (u, y1, _) = chain(&self.p, &self.k, o, &self.m, x, io);
+            let input = if j % 2 == 0 { u } else { y1[j / 2] };
+            let mut s = x[LL + j];
+            let mut mode = self.m.ll[j];
+            changed |= self.k.ll[j].update_in(&mut mode, &mut s, input);
+            self.m.ll[j] = mode;
+            x[LL + j] = s;
         }
-        if self.inv_t1 != 0.0 {
-            let (lo, hi) = self.limits(io);
-            let v = self.bridge_input(x, io);
-            let mut limit = self.limit;
+        if self.k.inv_t1 != 0.0 {
+            let (lo, hi) = limits(&self.p, io);
+            let v = bridge_input(&self.p, &self.k, o, &self.m, x, io);
+            let mut limit = self.m.bridge;
             // Decide at the output, the state clamped into the limits (see `events`): a free
             // state above a fallen ceiling is clipped to it, and pinned if the regulator pushes.
             let mut xe = clamp(x[EFD_STATE], lo, hi);
-            let inv_t1 = self.inv_t1;
+            let inv_t1 = self.k.inv_t1;
             changed |= limit.update_moving(&mut xe, |s| (v - s) * inv_t1, lo, hi);
-            self.limit = limit;
+            self.m.bridge = limit;
             x[EFD_STATE] = xe;
         }
         changed
