@@ -384,9 +384,11 @@ impl LmStop {
     ///   processes side by side): every verdict and grade as on differences, `none` on the 18
     ///   clean records, keys 18/21; the 18 key values moved by a median of 0.001 % of the key
     ///   and at most 0.93 %; the diagnosis's median time 34.5 → 28.4 s, fit + diagnose 68.4 →
-    ///   60.5 s (maximum 108 → 100 s). A user cause without dual equations is re-fitted on differences while its
-    ///   baseline has sensitivities: its search then reaches no further than the baseline's,
-    ///   the side of the rule that can miss a cause but not invent one.
+    ///   60.5 s (maximum 108 → 100 s). A user cause is a diagram, which has dual equations
+    ///   since stop 42, so it is searched as the catalog's causes are; a unit holding a block
+    ///   without them is re-fitted on differences while its baseline has sensitivities: its
+    ///   search then reaches no further than the baseline's, the side of the rule that can
+    ///   miss a cause but not invent one.
     pub const COMPARISON: LmStop = LmStop {
         small_decrease: 1e-5,
         small_steps: 2,

@@ -92,13 +92,18 @@ fn the_sensitivity_jacobian_is_the_derivative_of_the_residuals() {
     }
 }
 
-/// A unit with a block without dual equations (ST5B here) has no sensitivity Jacobian: the
+/// A unit with a block without dual equations (`grid_equivalent` here, the last registry model
+/// without them, inert in the phasor playback) has no sensitivity Jacobian: the
 /// Levenberg-Marquardt then takes differences.
 #[test]
 fn without_dual_equations_there_is_no_sensitivity_jacobian() {
     use itaipu_dynamics::registry;
-    let mut unit = itaipu_dynamics::unit::Unit::new("st5b", 737.0, 60.0);
-    for (name, model) in [("machine", "GENROU"), ("exciter", "ST5B")] {
+    let mut unit = itaipu_dynamics::unit::Unit::new("grid", 737.0, 60.0);
+    for (name, model) in [
+        ("machine", "GENROU"),
+        ("exciter", "SEXS"),
+        ("grid", "grid_equivalent"),
+    ] {
         unit.add(name, registry::find(model).unwrap().create(), &[])
             .unwrap();
     }
