@@ -142,8 +142,7 @@ fn itaipu_rk4_1ms_diagram_sexs(bencher: Bencher) {
 /// [`synthetic_20s_dopri5_rtol_1e6`] × 9 (forward differences) or × 17 (central).
 #[divan::bench(sample_count = 30)]
 fn synthetic_20s_sensitivities_8_parameters(bencher: Bencher) {
-    let (unit, ev) = synthetic();
-    let refs: Vec<_> = [
+    let names = [
         "machine.h",
         "machine.x_d",
         "machine.t_d0_prime",
@@ -152,10 +151,14 @@ fn synthetic_20s_sensitivities_8_parameters(bencher: Bencher) {
         "pss.k_x",
         "governor.t_w",
         "governor.r_temp",
-    ]
-    .iter()
-    .map(|p| unit.param(p).unwrap())
-    .collect();
+    ];
+    sensitivities(bencher, synthetic(), &names);
+}
+
+/// One sensitivity playback of `ev` through `unit` for the parameters `names`, on the steps of
+/// a Dormand-Prince rtol-1e-6 playback.
+fn sensitivities(bencher: Bencher, (unit, ev): (Unit, PreparedEvent), names: &[&str]) {
+    let refs: Vec<_> = names.iter().map(|p| unit.param(p).unwrap()).collect();
     let opts = dopri5();
     bencher.bench_local(|| {
         itaipu_dynamics::sens::simulate_pq_sensitivities(divan::black_box(&unit), &ev, &refs, &opts)
@@ -167,8 +170,8 @@ fn synthetic_20s_sensitivities_8_parameters(bencher: Bencher) {
 /// exciter built in or the user-defined SEXS diagram (its dual equations evaluate the compiled
 /// nodes on dual numbers): one pass of the tangent lanes on the Dormand-Prince rtol-1e-6 steps.
 /// Compare with [`itaipu_record_dopri5_rtol_1e6`] × 9 (forward differences).
-fn itaipu_sensitivities(bencher: Bencher, (unit, ev): (Unit, PreparedEvent)) {
-    let refs: Vec<_> = [
+fn itaipu_sensitivities(bencher: Bencher, unit_ev: (Unit, PreparedEvent)) {
+    let names = [
         "machine.h",
         "machine.x_d",
         "machine.x_d_prime",
@@ -177,15 +180,8 @@ fn itaipu_sensitivities(bencher: Bencher, (unit, ev): (Unit, PreparedEvent)) {
         "exciter.te",
         "exciter.ta_tb",
         "exciter.tb",
-    ]
-    .iter()
-    .map(|p| unit.param(p).unwrap())
-    .collect();
-    let opts = dopri5();
-    bencher.bench_local(|| {
-        itaipu_dynamics::sens::simulate_pq_sensitivities(divan::black_box(&unit), &ev, &refs, &opts)
-            .unwrap()
-    });
+    ];
+    sensitivities(bencher, unit_ev, &names);
 }
 
 #[divan::bench(sample_count = 50)]

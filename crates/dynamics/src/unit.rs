@@ -777,18 +777,9 @@ impl Unit {
     /// Every block's [`crate::Block::moving_pins`] at `x` (after [`Unit::eval_outputs`]), the
     /// state indices in the unit's state vector.
     pub(crate) fn eval_moving_pins(&mut self, x: &[f64], out: &mut Vec<(usize, f64)>) {
-        out.clear();
-        let mut local = Vec::new();
-        for inst in &self.instances {
-            if inst.ev_len == 0 {
-                continue;
-            }
-            let (o, n) = (inst.x_offset, inst.x_len);
-            let io = Io::new(&mut self.bus, &inst.map);
-            local.clear();
-            inst.block.moving_pins(&x[o..o + n], &io, &mut local);
-            out.extend(local.iter().map(|&(i, v)| (o + i, v)));
-        }
+        collect_pins(&self.instances, x, &mut self.bus, out, |b, x, io, v| {
+            b.moving_pins(x, io, v)
+        });
     }
 
     /// [`Unit::eval_moving_pins`] on dual numbers (after [`Unit::eval_outputs_dual`]).
@@ -798,18 +789,9 @@ impl Unit {
         bus: &mut [crate::sens::D],
         out: &mut Vec<(usize, crate::sens::D)>,
     ) {
-        out.clear();
-        let mut local = Vec::new();
-        for inst in &self.instances {
-            if inst.ev_len == 0 {
-                continue;
-            }
-            let (o, n) = (inst.x_offset, inst.x_len);
-            let io = Io::new(bus, &inst.map);
-            local.clear();
-            inst.block.moving_pins_dual(&x[o..o + n], &io, &mut local);
-            out.extend(local.iter().map(|&(i, v)| (o + i, v)));
-        }
+        collect_pins(&self.instances, x, bus, out, |b, x, io, v| {
+            b.moving_pins_dual(x, io, v)
+        });
     }
 
     /// [`Unit::eval_events`] on dual numbers (after [`Unit::eval_outputs_dual`]); the guards of
@@ -976,5 +958,25 @@ impl OdeSystem for Playback<'_> {
         // Modes (and possibly x) changed: outputs must be recomputed.
         self.bus_valid = false;
         changed
+    }
+}
+
+/// The blocks' moving pins (`pins` calls [`crate::Block::moving_pins`] or its dual form) with
+/// their state indices moved to the unit's state vector.
+fn collect_pins<S: Copy>(
+    instances: &[Instance],
+    x: &[S],
+    bus: &mut [S],
+    out: &mut Vec<(usize, S)>,
+    pins: impl Fn(&dyn Block, &[S], &Io<S>, &mut Vec<(usize, S)>),
+) {
+    out.clear();
+    let mut local = Vec::new();
+    for inst in instances.iter().filter(|i| i.ev_len > 0) {
+        let (o, n) = (inst.x_offset, inst.x_len);
+        let io = Io::new(bus, &inst.map);
+        local.clear();
+        pins(inst.block.as_ref(), &x[o..o + n], &io, &mut local);
+        out.extend(local.iter().map(|&(i, v)| (o + i, v)));
     }
 }

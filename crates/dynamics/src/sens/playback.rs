@@ -392,8 +392,9 @@ impl OdeSystem for Augmented<'_> {
         let changed = self.unit.update_modes(&mut xa[..n]);
         // The modes (and perhaps x) changed: the outputs are evaluated again.
         self.bus_valid = false;
-        if let (Some(tau), Some(fm)) = (shift, f_minus) {
-            let fp = self.plain_rhs(t, &xa[..n]);
+        // The rates in the new modes (for the saltation and a release's reset).
+        let f_plus = shift.map(|_| self.plain_rhs(t, &xa[..n]));
+        if let (Some(tau), Some(fm), Some(fp)) = (shift, f_minus, &f_plus) {
             for i in 0..n {
                 let jump = fm[i] - fp[i];
                 if jump != 0.0 {
@@ -405,14 +406,13 @@ impl OdeSystem for Augmented<'_> {
         }
         self.eval(t, xa);
         self.unit.pin_dual(&mut self.x, &mut self.bus);
-        if let (Some(tau), false) = (shift, pinned.is_empty()) {
+        if let (Some(tau), Some(fp), false) = (shift, &f_plus, pinned.is_empty()) {
             // A state released from a moving limit was projected onto it, `x⁺ = L(t*)`:
             // `S⁺ = dL/dp + (L̇ − f⁺) ∂t*/∂p`, the limit's derivatives at the switch plus its
             // rate along the trajectory times the switch time's shift, less the new rate's.
             let mut still = Vec::new();
             self.eval_plain(t, &xa[..n]);
             self.unit.eval_moving_pins(&xa[..n], &mut still);
-            let fp = self.plain_rhs(t, &xa[..n]);
             for (i, lim, rate) in pinned {
                 if still.iter().any(|&(j, _)| j == i) {
                     continue;
