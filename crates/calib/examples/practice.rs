@@ -12,7 +12,8 @@
 //! calibrated set, `CAUSES=a,b` tries those causes of the catalog only (for experiments: the
 //! verdict then weighs fewer rivals), `FIT_SEED=n` runs the fits' swarms with seed `n` instead
 //! of the spec's (another calibration of the same record: how much does a verdict depend on
-//! where the fit landed?).
+//! where the fit landed?), `PSO_ITERATIONS=n`, `LOCAL_STARTS=k`, `JOINT_ITERATIONS=n` set the
+//! spec's `[calibration.pso]` search (README, "Short swarms, several starts").
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -84,6 +85,18 @@ fn main() {
         let mut spec = practice_spec(&case.unit).unwrap_or_else(|e| panic!("{e}"));
         if let Some(seed) = std::env::var("FIT_SEED").ok().and_then(|s| s.parse().ok()) {
             spec.seed = seed;
+        }
+        // The swarm's budget and hand-over (`[calibration.pso]`), to measure another search
+        // on the same spec: PSO_ITERATIONS, LOCAL_STARTS, JOINT_ITERATIONS.
+        let env = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<usize>().ok());
+        if let Some(n) = env("PSO_ITERATIONS") {
+            spec.pso.iterations = n;
+        }
+        if let Some(n) = env("LOCAL_STARTS") {
+            spec.pso.local_starts = n.max(1);
+        }
+        if let Some(n) = env("JOINT_ITERATIONS") {
+            spec.pso.joint_iterations = Some(n);
         }
         let opts = FitOptions::from_spec(&spec);
         let t0 = Instant::now();

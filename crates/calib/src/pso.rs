@@ -218,6 +218,9 @@ pub struct PsoResult {
     pub history: Vec<f64>,
     /// Why the run stopped.
     pub stopped_by: StopReason,
+    /// Every particle's best point and its cost, best first (ties by particle index); empty
+    /// when `n = 0`.
+    pub personal_bests: Vec<(f64, Vec<f64>)>,
 }
 
 /// Minimises `cost` over the unit box `[0, 1]^n` by global-best particle swarm optimisation.
@@ -279,6 +282,7 @@ where
             evaluations: 1,
             history: vec![c],
             stopped_by: StopReason::MaxIterations,
+            personal_bests: Vec::new(),
         };
     }
 
@@ -385,6 +389,9 @@ where
         }
     }
 
+    let mut personal_bests: Vec<(f64, Vec<f64>)> = pbest_cost.into_iter().zip(pbest).collect();
+    // Stable: equal costs keep the particles' order.
+    personal_bests.sort_by(|a, b| a.0.total_cmp(&b.0));
     PsoResult {
         best: gbest,
         best_cost: gbest_cost,
@@ -392,6 +399,7 @@ where
         evaluations,
         history,
         stopped_by,
+        personal_bests,
     }
 }
 
@@ -686,6 +694,57 @@ mod tests {
             }
         }
         assert!(hits >= 7, "found the global basin for only {hits}/10 seeds");
+    }
+
+    #[test]
+    fn personal_bests_are_every_particles_best_in_cost_order() {
+        // Every evaluation is logged, so each particle's best can be recomputed: particles are
+        // evaluated in order, m per iteration, each at its own position.
+        let log = std::sync::Mutex::new(Vec::<(Vec<f64>, f64)>::new());
+        let o = PsoOptions {
+            particles: 8,
+            iterations: 12,
+            stall_iterations: 0,
+            ..opts()
+        };
+        // Run on one thread so that the log is in particle order.
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let r = pool.install(|| {
+            minimize(
+                |x: &[f64]| {
+                    let c = rastrigin(x);
+                    log.lock().unwrap().push((x.to_vec(), c));
+                    c
+                },
+                2,
+                None,
+                &o,
+                |_, _| {},
+            )
+        });
+        let log = log.into_inner().unwrap();
+        assert_eq!(log.len(), 8 * 13);
+        let mut expected: Vec<(f64, Vec<f64>)> = (0..8)
+            .map(|i| {
+                let (x, c) = log
+                    .iter()
+                    .skip(i)
+                    .step_by(8)
+                    .fold(None::<&(Vec<f64>, f64)>, |b, e| match b {
+                        Some(b) if b.1 <= e.1 => Some(b),
+                        _ => Some(e),
+                    })
+                    .unwrap();
+                (*c, x.clone())
+            })
+            .collect();
+        expected.sort_by(|a, b| a.0.total_cmp(&b.0));
+        assert_eq!(r.personal_bests, expected);
+        assert_eq!(r.personal_bests[0].0, r.best_cost);
+        assert_eq!(r.personal_bests[0].1, r.best);
     }
 
     /// Records the calling thread in `seen`; the very first call then waits (up to 5 s) until a
@@ -1081,7 +1140,8 @@ mod tests {
                 iterations: 0,
                 evaluations: 1,
                 history: vec![4.2],
-                stopped_by: StopReason::MaxIterations
+                stopped_by: StopReason::MaxIterations,
+                personal_bests: vec![],
             }
         );
         let r = minimize(|_: &[f64]| f64::NAN, 0, Some(&[]), &opts(), |_, _| {});

@@ -445,6 +445,10 @@ impl FitRequest {
             &mut opts.pso_iterations,
             &mut opts.lbfgs_iterations,
         );
+        // The user's swarm iterations are every pass's (the stages' and the joint's).
+        if let Some(n) = self.search.pso_iterations {
+            opts.joint_pso_iterations = n;
+        }
         Ok(())
     }
 }

@@ -62,3 +62,60 @@ fn no_particle_is_a_setup_error_of_fit_and_diagnose() {
         Ok(_) => panic!("diagnosed with no particle"),
     }
 }
+
+/// The swarm's hand-over to the local method: `local_starts` below 1 is a spec error naming the
+/// field; `local_starts` and `joint_iterations` reach the fit's options, with their defaults
+/// when unset (one start; the joint pass's swarm as long as the stages'); a user's
+/// `--pso-iterations` sets the stages' swarms and the joint pass's alike.
+#[test]
+fn local_starts_and_the_joint_swarm_come_from_the_spec() {
+    let head = "[calibration]\n[calibration.pso]\n";
+    let stage = "[[calibration.stage]]\nname = \"gen\"\n\
+                 free = [ { param = \"machine.h\", min = 2.0, max = 8.0 } ]\n";
+    let bad = format!("{head}local_starts = 0\n{stage}");
+    let err = CalibSpec::parse(&bad, Path::new("spec.toml")).unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.contains("calibration.pso.local_starts") && text.contains("spec.toml"),
+        "{text}"
+    );
+
+    let given = format!("{head}local_starts = 2\njoint_iterations = 7\niterations = 5\n{stage}");
+    let opts = FitOptions::from_spec(&CalibSpec::parse(&given, Path::new("s.toml")).unwrap());
+    assert_eq!(
+        (
+            opts.local_starts,
+            opts.joint_pso_iterations,
+            opts.pso_iterations
+        ),
+        (2, 7, 5)
+    );
+    let unset = format!("{head}{stage}");
+    let opts = FitOptions::from_spec(&CalibSpec::parse(&unset, Path::new("s.toml")).unwrap());
+    let d = itaipu_calib::spec::DEFAULT_PSO_ITERATIONS;
+    assert_eq!(
+        (
+            opts.local_starts,
+            opts.joint_pso_iterations,
+            opts.pso_iterations
+        ),
+        (1, d, d)
+    );
+    let stages_only = format!(
+        "{head}iterations = 9
+{stage}"
+    );
+    let opts = FitOptions::from_spec(&CalibSpec::parse(&stages_only, Path::new("s.toml")).unwrap());
+    assert_eq!((opts.joint_pso_iterations, opts.pso_iterations), (9, 9));
+
+    let mut opts = FitOptions::from_spec(&CalibSpec::parse(&given, Path::new("s.toml")).unwrap());
+    let request = itaipu_calib::request::FitRequest {
+        search: itaipu_calib::request::Search {
+            pso_iterations: Some(3),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    request.apply(&mut opts).unwrap();
+    assert_eq!((opts.pso_iterations, opts.joint_pso_iterations), (3, 3));
+}

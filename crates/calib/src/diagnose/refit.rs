@@ -392,6 +392,10 @@ pub(super) fn refit(
         polish: false,
         local: crate::spec::LocalMethod::Lm,
         lm_stop: crate::local::LmStop::COMPARISON,
+        // A re-fit's swarm hands its best alone to the local method (the thresholds were set
+        // on that search; a baseline and its extension are searched alike).
+        local_starts: 1,
+        joint_pso_iterations: opts.pso_iterations,
     };
     let mut x: Vec<f64> = free.iter().map(|f| f.start).collect();
     let mut simulations = 0;

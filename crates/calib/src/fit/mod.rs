@@ -80,6 +80,13 @@ pub struct FitOptions {
     pub local: LocalMethod,
     /// When Levenberg-Marquardt counts as converged.
     pub lm_stop: local::LmStop,
+    /// Starts of the local method after a stage's swarm: its best and up to `local_starts − 1`
+    /// other particles' bests apart from it ([`search::distinct_bests`]; `[calibration.pso]
+    /// local_starts`). 1: the swarm's best alone.
+    pub local_starts: usize,
+    /// Swarm iterations of the joint pass (`[calibration.pso] joint_iterations`), whose local
+    /// method starts from the swarm's best, the staged result and the datasheet values.
+    pub joint_pso_iterations: usize,
 }
 
 impl FitOptions {
@@ -102,6 +109,8 @@ impl FitOptions {
             seed: spec.seed,
             particles: spec.pso.particles,
             pso_iterations: spec.pso.iterations,
+            local_starts: spec.pso.local_starts,
+            joint_pso_iterations: spec.pso.joint_iterations.unwrap_or(spec.pso.iterations),
             lbfgs_iterations: spec.lbfgs.iterations,
             lbfgs_memory: spec.lbfgs.memory,
             lbfgs_step_max_s: local::RK4_STEP_MAX_S,
@@ -429,5 +438,7 @@ pub fn quick_options(stages: &[&str], seed: u64) -> FitOptions {
         polish: false,
         local: LocalMethod::Lm,
         lm_stop: local::LmStop::CALIBRATION,
+        local_starts: 1,
+        joint_pso_iterations: 30,
     }
 }

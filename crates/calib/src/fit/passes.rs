@@ -252,6 +252,14 @@ impl Passes<'_> {
         spec: &StageSpec,
         also_from: &[Vec<f64>],
     ) -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
+        // The joint pass: its own swarm budget, and its local method starts from `also_from`
+        // (the staged result and the datasheet values) besides the swarm's best.
+        let joint = FitOptions {
+            pso_iterations: self.opts.joint_pso_iterations,
+            local_starts: 1,
+            ..self.opts.clone()
+        };
+        let opts = if name == "joint" { &joint } else { self.opts };
         let res = run_stage(
             name,
             label,
@@ -260,7 +268,7 @@ impl Passes<'_> {
             spec,
             self.events,
             self.held_out,
-            self.opts,
+            opts,
             self.progress,
             true,
             also_from,

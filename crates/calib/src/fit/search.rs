@@ -39,6 +39,8 @@ pub(crate) fn search(
     let start = problem.start();
     let mut phases = vec![];
     let mut candidates = vec![start.clone()];
+    // Further starts of the local method from the swarm (its other particles' bests).
+    let mut from_swarm: Vec<Vec<f64>> = vec![];
     if use_pso && n > 0 && opts.pso_iterations > 0 {
         let (t0, sims0) = (std::time::Instant::now(), problem.simulations());
         progress.phase(stage, "pso", opts.pso_iterations as u64);
@@ -74,11 +76,16 @@ pub(crate) fn search(
             simulations: problem.simulations() - sims0,
         });
         candidates.push(problem.from_unit(&res.best));
+        from_swarm = distinct_bests(&res, opts.local_starts.saturating_sub(1), problem.penalty)
+            .iter()
+            .map(|u| problem.from_unit(u))
+            .collect();
     }
     let from = candidates.last().cloned().unwrap_or_default();
     let lm = opts.local == LocalMethod::Lm;
     let starts: Vec<Vec<f64>> = std::iter::once(from)
         .chain(also_from.iter().cloned())
+        .chain(from_swarm)
         .collect();
     for (i, from) in starts.iter().enumerate() {
         if n == 0 || opts.lbfgs_iterations == 0 {
@@ -129,6 +136,36 @@ pub(crate) fn search(
     let acc = accurate_integrator();
     let (_, k) = problem.best_of(&candidates, &acc);
     (candidates[k].clone(), phases)
+}
+
+/// Distance (in every box coordinate, a fraction of the parameter's range) within which two
+/// particles' bests count as one start of the local method ([`distinct_bests`]).
+pub(crate) const DISTINCT_START: f64 = 0.1;
+
+/// Up to `k` particles' bests of the swarm `res`, best first, each apart from the swarm's best
+/// and from the others taken by more than [`DISTINCT_START`] of its range in some coordinate
+/// (points nearer than that are one valley's start twice), and each a simulated candidate (cost
+/// below `penalty`).
+///
+/// Why: a swarm's iterations after it has found the valleys only refine its best, which the
+/// local method does in a few steps; what the local method cannot do is leave the valley it
+/// starts in. So a shorter swarm can hand over its best few distinct points for the local method
+/// to polish each (`[calibration.pso] local_starts`; measured on the 66 practice fits, README
+/// "Short swarms, several starts": not the default).
+pub(crate) fn distinct_bests(res: &pso::PsoResult, k: usize, penalty: f64) -> Vec<Vec<f64>> {
+    let mut picked: Vec<&[f64]> = vec![&res.best];
+    for (c, p) in &res.personal_bests {
+        if picked.len() > k || !(*c < penalty) {
+            break;
+        }
+        let apart = picked
+            .iter()
+            .all(|q| q.iter().zip(p).any(|(a, b)| (a - b).abs() > DISTINCT_START));
+        if apart {
+            picked.push(p);
+        }
+    }
+    picked[1..].iter().map(|p| p.to_vec()).collect()
 }
 
 /// Jacobian of the residuals in physical units, for the identifiability report and the standard
@@ -198,6 +235,96 @@ mod tests {
     use crate::diagnose::trial::base_unit;
     use crate::problem::{EventData, FreeParam};
     use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
+
+    /// The further starts: best first, never the swarm's best again, nothing within a tenth of
+    /// the box of a start already taken, no failed candidate, at most `k`.
+    #[test]
+    fn distinct_bests_skip_near_and_failed_points() {
+        let best = vec![0.50, 0.50];
+        let res = pso::PsoResult {
+            best: best.clone(),
+            best_cost: 1.0,
+            iterations: 1,
+            evaluations: 12,
+            history: vec![1.0, 1.0],
+            stopped_by: pso::StopReason::MaxIterations,
+            personal_bests: vec![
+                (1.0, best.clone()),
+                (1.1, vec![0.55, 0.45]), // within 0.1 of the best in every coordinate
+                (1.2, vec![0.50, 0.75]), // apart in the second coordinate
+                (1.3, vec![0.52, 0.70]), // near the point just taken
+                (1.4, vec![0.90, 0.10]),
+                (1.5, vec![0.10, 0.90]),
+                (1e12, vec![0.0, 0.0]), // a failed candidate (the penalty)
+            ],
+        };
+        let penalty = 1e12;
+        assert_eq!(
+            distinct_bests(&res, 3, penalty),
+            vec![vec![0.50, 0.75], vec![0.90, 0.10], vec![0.10, 0.90]]
+        );
+        assert_eq!(
+            distinct_bests(&res, 2, penalty),
+            vec![vec![0.50, 0.75], vec![0.90, 0.10]]
+        );
+        assert!(distinct_bests(&res, 0, penalty).is_empty());
+        // Nothing simulated below the penalty beyond the points taken: no more starts.
+        assert_eq!(distinct_bests(&res, 10, penalty).len(), 3);
+    }
+
+    /// `local_starts`: the same swarm (same seed and budget) hands the local method more starts,
+    /// each reported as a phase, and the search never ends above the one-start search (its
+    /// candidates are a superset, ranked on the accurate integrator).
+    #[test]
+    fn more_local_starts_never_end_worse() {
+        let truth = base_unit()
+            .with_params(&[("machine.h", 3.1), ("machine.x_d_prime", 0.36)])
+            .unwrap();
+        let profile = VoltageProfile {
+            duration_s: 3.0,
+            ..VoltageProfile::default()
+        };
+        let ev = synthesize(
+            "dip",
+            &truth,
+            &profile,
+            1000.0,
+            &PmuNoise::typical(3),
+            &Default::default(),
+        )
+        .unwrap();
+        let unit = base_unit();
+        let free: Vec<FreeParam> = [("machine.h", 2.0, 8.0), ("machine.x_d_prime", 0.2, 0.45)]
+            .iter()
+            .map(|&(p, lo, hi)| {
+                let r = unit.param(p).unwrap();
+                FreeParam::new(p.into(), r, lo, hi, unit.get(r), "")
+            })
+            .collect();
+        let data = vec![EventData::new(&ev, None, None).unwrap()];
+        let problem = Problem::new(unit, free, data, (1.0, 1.0));
+        let acc = accurate_integrator();
+        let run = |k: usize| {
+            let opts = FitOptions {
+                particles: 12,
+                pso_iterations: 4,
+                lbfgs_iterations: 10,
+                local_starts: k,
+                ..quick_options(&["gen"], 5)
+            };
+            let (best, phases) = search(&problem, &opts, "gen", &Silent, true, &[]);
+            let locals = phases.iter().filter(|p| p.phase != "pso").count();
+            (problem.cost(&best, &acc), locals)
+        };
+        let (one, one_locals) = run(1);
+        let (four, four_locals) = run(4);
+        assert_eq!(one_locals, 1);
+        assert!(
+            (2..=4).contains(&four_locals),
+            "{four_locals} local phases from 4 starts"
+        );
+        assert!(four <= one, "4 starts end at {four}, 1 start at {one}");
+    }
 
     /// A free parameter whose start is NaN (a unit holding a NaN value) does not reach the
     /// swarm's start point, which panics on it: the search runs from the box.
