@@ -86,18 +86,15 @@ impl<S: Scalar> LeadLag<S> {
 /// `T_C = 0` (a pure lag): the non-windup lag of [`NonWindup`], the state frozen on the limit
 /// while pushing outwards, with event-located modes. `T_B = 0`: bypassed, `y = clamp(u)`.
 ///
-/// On the number type `S` (`f64`, or a dual for forward sensitivities). The `*_in` methods take
-/// the `T_C = 0` form's mode from the caller (a block holding its modes apart from the numbers,
-/// so that its dual equations follow the plain simulation's modes); the others use the block's
-/// own.
+/// On the number type `S` (`f64`, or a dual for forward sensitivities). The `T_C = 0` form's mode
+/// is the caller's (`*_in` methods): a block keeps its modes apart from its numbers, so that its
+/// dual equations follow the plain simulation's modes, and the mode has one home.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LeadLagLim<S = f64> {
     ll: LeadLag<S>,
     inv_tc: S,
     lo: S,
     hi: S,
-    /// Modes of the `T_C = 0` form.
-    limit: NonWindup,
     pure_lag: bool,
 }
 
@@ -114,21 +111,11 @@ impl<S: Scalar> LeadLagLim<S> {
             },
             lo,
             hi,
-            limit: NonWindup::default(),
             pure_lag,
         }
     }
-    /// The block's own mode of the `T_C = 0` form.
-    #[inline(always)]
-    pub fn mode(&self) -> NonWindup {
-        self.limit
-    }
-    #[inline(always)]
-    pub fn output(&self, x: S, u: S) -> S {
-        self.output_in(&self.limit, x, u)
-    }
-    /// [`LeadLagLim::output`] in the mode `limit`. While free, the `T_C = 0` form's output is
-    /// the state's (its value clamped: see [`NonWindup::output`]).
+    /// The output `y` in the mode `limit` (of the `T_C = 0` form). While free, that form's
+    /// output is the state's (its value clamped: see [`NonWindup::output`]).
     #[inline(always)]
     pub fn output_in(&self, limit: &NonWindup, x: S, u: S) -> S {
         if self.pure_lag {
@@ -143,11 +130,7 @@ impl<S: Scalar> LeadLagLim<S> {
             clamp(self.ll.output(x, u), self.lo, self.hi)
         }
     }
-    #[inline(always)]
-    pub fn derivative(&self, x: S, u: S) -> S {
-        self.derivative_in(&self.limit, x, u)
-    }
-    /// [`LeadLagLim::derivative`] in the mode `limit`.
+    /// The state's derivative in the mode `limit`.
     #[inline(always)]
     pub fn derivative_in(&self, limit: &NonWindup, x: S, u: S) -> S {
         if self.ll.bypass {
@@ -158,12 +141,7 @@ impl<S: Scalar> LeadLagLim<S> {
             (clamp(self.ll.output(x, u), self.lo, self.hi) - x) * self.inv_tc
         }
     }
-    /// Two event functions (constant 1 unless `T_C = 0`).
-    #[inline]
-    pub fn events(&self, x: S, u: S, g: &mut [S]) {
-        self.events_in(&self.limit, x, u, g)
-    }
-    /// [`LeadLagLim::events`] in the mode `limit`.
+    /// Two event functions in the mode `limit` (constant 1 unless `T_C = 0`).
     #[inline]
     pub fn events_in(&self, limit: &NonWindup, x: S, u: S, g: &mut [S]) {
         if self.pure_lag {
@@ -184,14 +162,7 @@ impl<S: Scalar> LeadLagLim<S> {
 }
 
 impl LeadLagLim {
-    /// Mode update of the `T_C = 0` form (may pin `x` on a limit).
-    pub fn update(&mut self, x: &mut f64, u: f64) -> bool {
-        let mut limit = self.limit;
-        let changed = self.update_in(&mut limit, x, u);
-        self.limit = limit;
-        changed
-    }
-    /// [`LeadLagLim::update`] of the mode `limit`.
+    /// Update of the `T_C = 0` form's mode `limit` (may pin `x` on a limit).
     pub fn update_in(&self, limit: &mut NonWindup, x: &mut f64, u: f64) -> bool {
         if self.pure_lag {
             let f = self.ll.derivative(*x, u);
@@ -199,10 +170,6 @@ impl LeadLagLim {
         } else {
             false
         }
-    }
-    /// Back to the free mode (at initialisation).
-    pub fn reset(&mut self) {
-        self.limit = NonWindup::default();
     }
 }
 
@@ -282,7 +249,7 @@ mod tests {
         let ll = LeadLag::new(2.0, 0.0);
         assert_eq!((ll.output(0.3, 0.7), ll.derivative(0.3, 0.7)), (0.7, 0.0));
         let lim = LeadLagLim::new(2.0, 0.0, -1.0, 0.5);
-        assert_eq!(lim.output(0.3, 0.7), 0.5);
+        assert_eq!(lim.output_in(&NonWindup::default(), 0.3, 0.7), 0.5);
         // T_C = 0: a lag, y = x.
         let ll = LeadLag::new(0.0, 2.0);
         assert_eq!(ll.output(0.3, 0.7), 0.3);
@@ -303,13 +270,14 @@ mod tests {
     #[test]
     fn a_limited_lead_lag_drives_its_state_to_the_limit_with_t_c() {
         let b = LeadLagLim::new(1.0, 4.0, -1.0, 1.0);
+        let free = NonWindup::default();
         // Free: (u − x)/T_B.
-        assert!((b.derivative(0.0, 0.8) - 0.2).abs() < 1e-15);
-        assert!((b.output(0.0, 0.8) - 0.2).abs() < 1e-15);
+        assert!((b.derivative_in(&free, 0.0, 0.8) - 0.2).abs() < 1e-15);
+        assert!((b.output_in(&free, 0.0, 0.8) - 0.2).abs() < 1e-15);
         // w = 0.5 + 0.25·(9.5) = 2.875 > 1: y = 1, dx/dt = (1 − 0.5)/T_C.
-        assert_eq!(b.output(0.5, 10.0), 1.0);
-        assert!((b.derivative(0.5, 10.0) - 0.5).abs() < 1e-15);
+        assert_eq!(b.output_in(&free, 0.5, 10.0), 1.0);
+        assert!((b.derivative_in(&free, 0.5, 10.0) - 0.5).abs() < 1e-15);
         // On the limit with x = hi the state stays (no windup).
-        assert_eq!(b.derivative(1.0, 10.0), 0.0);
+        assert_eq!(b.derivative_in(&free, 1.0, 10.0), 0.0);
     }
 }
