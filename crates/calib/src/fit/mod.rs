@@ -73,8 +73,8 @@ pub struct FitOptions {
     /// Largest RK4 step of the L-BFGS phase [s] ([`local::RK4_STEP_MAX_S`] in a calibration).
     pub lbfgs_step_max_s: f64,
     /// After several stages, search every freed parameter together on the full unit (swarm
-    /// from the staged result, then the local method from the swarm's best, the staged result
-    /// and the datasheet values; objective P+Q), reported as the stage `joint`.
+    /// from the staged result, then the local method from the swarm's best and from the
+    /// datasheet values; objective P+Q), reported as the stage `joint`.
     pub polish: bool,
     /// The local method after each swarm.
     pub local: LocalMethod,
@@ -84,8 +84,9 @@ pub struct FitOptions {
     /// other particles' bests apart from it ([`search::distinct_bests`]; `[calibration.pso]
     /// local_starts`). 1: the swarm's best alone.
     pub local_starts: usize,
-    /// Swarm iterations of the joint pass (`[calibration.pso] joint_iterations`), whose local
-    /// method starts from the swarm's best, the staged result and the datasheet values.
+    /// Swarm iterations of the joint pass (`[calibration.pso] joint_iterations`), whose swarm
+    /// starts from the staged result and whose local method starts from the swarm's best and
+    /// from the datasheet values.
     pub joint_pso_iterations: usize,
 }
 

@@ -253,7 +253,8 @@ impl Passes<'_> {
         also_from: &[Vec<f64>],
     ) -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
         // The joint pass: its own swarm budget, and its local method starts from `also_from`
-        // (the staged result and the datasheet values) besides the swarm's best.
+        // (the datasheet values) besides the swarm's best, whose first particle is the staged
+        // result.
         let joint = FitOptions {
             pso_iterations: self.opts.joint_pso_iterations,
             local_starts: 1,

@@ -12,12 +12,6 @@ use itaipu_dynamics::simulate::SimOptions;
 
 use super::*;
 
-/// Runs the swarm then L-BFGS on `problem` from its start; returns the best physical values,
-/// the phase reports, and the objective at the best (accurate integrator).
-///
-/// The local phase also runs from each point of `also_from` (physical values): the joint pass
-/// starts from the staged result and from the datasheet values, so that a stage that derailed
-/// (fitted a unit whose other blocks were still wrong) cannot trap the result.
 /// Iterations after which a swarm none of whose candidates has simulated gives up
 /// ([`pso::StopReason::NothingFeasible`]). A stage may start from a unit no candidate near it
 /// simulates within the search's step budget (practice p03: a generator stage ending on a
@@ -27,6 +21,15 @@ use super::*;
 /// iterations.
 pub(crate) const SWARM_GIVE_UP_ITERATIONS: usize = 5;
 
+/// Runs the swarm (its first particle at the problem's start), then the local method; returns
+/// the best of the candidates on the accurate integrator (physical values) and the phase
+/// reports.
+///
+/// The local method runs from the swarm's best (without a swarm, the start), from each point of
+/// `also_from` (physical values: the joint pass gives the datasheet values, so that a stage that
+/// derailed, fitted a unit whose other blocks were still wrong, cannot trap the result), and
+/// with `opts.local_starts > 1` from the swarm's other distinct particles' bests
+/// ([`distinct_bests`]).
 pub(crate) fn search(
     problem: &Problem,
     opts: &FitOptions,
