@@ -93,7 +93,12 @@ fn main() {
             spec.pso.iterations = n;
         }
         if let Some(n) = env("LOCAL_STARTS") {
-            spec.pso.local_starts = n.max(1);
+            // As the spec's field: at least the swarm's best.
+            if n == 0 {
+                eprintln!("LOCAL_STARTS = 0: needs at least 1 (the swarm's best)");
+                std::process::exit(2);
+            }
+            spec.pso.local_starts = n;
         }
         if let Some(n) = env("JOINT_ITERATIONS") {
             spec.pso.joint_iterations = Some(n);

@@ -396,6 +396,23 @@ impl Search {
         }
     }
 
+    /// [`Search::validate`], then [`Search::apply`] to a fit's options. The user's swarm
+    /// iterations are every pass's: the stages' and the joint pass's (the spec's
+    /// `joint_iterations` then no longer applies).
+    pub fn apply_fit(&self, opts: &mut FitOptions) -> Result<(), RequestError> {
+        self.validate()?;
+        self.apply(
+            &mut opts.seed,
+            &mut opts.particles,
+            &mut opts.pso_iterations,
+            &mut opts.lbfgs_iterations,
+        );
+        if self.pso_iterations.is_some() {
+            opts.joint_pso_iterations = None;
+        }
+        Ok(())
+    }
+
     /// [`Search::validate`], then [`Search::apply`] to diagnosis options.
     pub fn apply_diagnose(&self, opts: &mut DiagnoseOptions) -> Result<(), RequestError> {
         self.validate()?;
@@ -438,18 +455,7 @@ impl FitRequest {
         if self.no_polish {
             opts.polish = false;
         }
-        self.search.validate()?;
-        self.search.apply(
-            &mut opts.seed,
-            &mut opts.particles,
-            &mut opts.pso_iterations,
-            &mut opts.lbfgs_iterations,
-        );
-        // The user's swarm iterations are every pass's (the stages' and the joint's).
-        if let Some(n) = self.search.pso_iterations {
-            opts.joint_pso_iterations = n;
-        }
-        Ok(())
+        self.search.apply_fit(opts)
     }
 }
 

@@ -85,18 +85,21 @@ fn local_starts_and_the_joint_swarm_come_from_the_spec() {
     assert_eq!(
         (
             opts.local_starts,
-            opts.joint_pso_iterations,
+            opts.joint_iterations(),
             opts.pso_iterations
         ),
         (2, 7, 5)
     );
+    // The joint pass runs its own swarm budget and hands its best alone to the local method.
+    let joint = opts.joint_pass();
+    assert_eq!((joint.pso_iterations, joint.local_starts), (7, 1));
     let unset = format!("{head}{stage}");
     let opts = FitOptions::from_spec(&CalibSpec::parse(&unset, Path::new("s.toml")).unwrap());
     let d = itaipu_calib::spec::DEFAULT_PSO_ITERATIONS;
     assert_eq!(
         (
             opts.local_starts,
-            opts.joint_pso_iterations,
+            opts.joint_iterations(),
             opts.pso_iterations
         ),
         (1, d, d)
@@ -106,7 +109,7 @@ fn local_starts_and_the_joint_swarm_come_from_the_spec() {
 {stage}"
     );
     let opts = FitOptions::from_spec(&CalibSpec::parse(&stages_only, Path::new("s.toml")).unwrap());
-    assert_eq!((opts.joint_pso_iterations, opts.pso_iterations), (9, 9));
+    assert_eq!((opts.joint_iterations(), opts.pso_iterations), (9, 9));
 
     let mut opts = FitOptions::from_spec(&CalibSpec::parse(&given, Path::new("s.toml")).unwrap());
     let request = itaipu_calib::request::FitRequest {
@@ -117,5 +120,5 @@ fn local_starts_and_the_joint_swarm_come_from_the_spec() {
         ..Default::default()
     };
     request.apply(&mut opts).unwrap();
-    assert_eq!((opts.pso_iterations, opts.joint_pso_iterations), (3, 3));
+    assert_eq!((opts.pso_iterations, opts.joint_iterations()), (3, 3));
 }

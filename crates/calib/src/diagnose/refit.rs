@@ -395,7 +395,8 @@ pub(super) fn refit(
         // A re-fit's swarm hands its best alone to the local method (the thresholds were set
         // on that search; a baseline and its extension are searched alike).
         local_starts: 1,
-        joint_pso_iterations: opts.pso_iterations,
+        // No joint pass: a re-fit is one pass (`polish` off).
+        joint_pso_iterations: None,
     };
     let mut x: Vec<f64> = free.iter().map(|f| f.start).collect();
     let mut simulations = 0;

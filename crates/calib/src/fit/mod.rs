@@ -84,10 +84,9 @@ pub struct FitOptions {
     /// other particles' bests apart from it ([`search::distinct_bests`]; `[calibration.pso]
     /// local_starts`). 1: the swarm's best alone.
     pub local_starts: usize,
-    /// Swarm iterations of the joint pass (`[calibration.pso] joint_iterations`), whose swarm
-    /// starts from the staged result and whose local method starts from the swarm's best and
-    /// from the datasheet values.
-    pub joint_pso_iterations: usize,
+    /// Swarm iterations of the joint pass (`[calibration.pso] joint_iterations`); `None`: the
+    /// stages' [`FitOptions::pso_iterations`] ([`FitOptions::joint_pass`]).
+    pub joint_pso_iterations: Option<usize>,
 }
 
 impl FitOptions {
@@ -102,6 +101,24 @@ impl FitOptions {
         Ok(())
     }
 
+    /// The joint pass's swarm iterations: its own where set, else the stages'.
+    pub fn joint_iterations(&self) -> usize {
+        self.joint_pso_iterations.unwrap_or(self.pso_iterations)
+    }
+
+    /// The options of the joint pass: its own swarm budget ([`FitOptions::joint_iterations`]),
+    /// whose swarm starts from the staged result, and the swarm's best alone handed to the
+    /// local method (`local_starts` is the stages'), which the caller also starts from the
+    /// datasheet values.
+    pub fn joint_pass(&self) -> FitOptions {
+        FitOptions {
+            pso_iterations: self.joint_iterations(),
+            joint_pso_iterations: None,
+            local_starts: 1,
+            ..self.clone()
+        }
+    }
+
     /// Options from a spec, running every stage it lists.
     pub fn from_spec(spec: &CalibSpec) -> Self {
         Self {
@@ -111,7 +128,7 @@ impl FitOptions {
             particles: spec.pso.particles,
             pso_iterations: spec.pso.iterations,
             local_starts: spec.pso.local_starts,
-            joint_pso_iterations: spec.pso.joint_iterations.unwrap_or(spec.pso.iterations),
+            joint_pso_iterations: spec.pso.joint_iterations,
             lbfgs_iterations: spec.lbfgs.iterations,
             lbfgs_memory: spec.lbfgs.memory,
             lbfgs_step_max_s: local::RK4_STEP_MAX_S,
@@ -440,6 +457,6 @@ pub fn quick_options(stages: &[&str], seed: u64) -> FitOptions {
         local: LocalMethod::Lm,
         lm_stop: local::LmStop::CALIBRATION,
         local_starts: 1,
-        joint_pso_iterations: 30,
+        joint_pso_iterations: None,
     }
 }

@@ -108,7 +108,6 @@ pub fn fit_with(
         rows: &rows,
         events,
         held_out,
-        opts,
         progress,
         control,
         skip,
@@ -126,7 +125,8 @@ pub fn fit_with(
         }
         let all = combined_stage("all", spec, &opts.stages);
         let free = free_params(&full, &all, unit, spec.prior)?;
-        let (rep, out, best) = passes.run("all", "simultaneous", full.clone(), &free, &all, &[])?;
+        let (rep, out, best) =
+            passes.run(opts, "all", "simultaneous", full.clone(), &free, &all, &[])?;
         // The full unit (with every stage's replacements) carries on with the joint result.
         master = full;
         for (f, v) in free.iter().zip(&best) {
@@ -146,7 +146,7 @@ pub fn fit_with(
             .without(spec.removed_blocks(s))
             .map_err(|e| stage_err(s, e.to_string()))?;
         let free = free_params(&stage_unit, st, unit, spec.prior)?;
-        let (rep, out, best) = passes.run(s, s, stage_unit, &free, st, &[])?;
+        let (rep, out, best) = passes.run(opts, s, s, stage_unit, &free, st, &[])?;
         for (f, v) in free.iter().zip(&best) {
             let r = master
                 .param(&f.path)
@@ -177,7 +177,15 @@ pub fn fit_with(
             .iter()
             .map(|f| clamp_into(f.prior.map_or(f.start, |p| p.center), f.lo, f.hi))
             .collect();
-        let (rep, out, best) = passes.run("joint", "joint", full, &free, &joint, &[datasheet])?;
+        let (rep, out, best) = passes.run(
+            &opts.joint_pass(),
+            "joint",
+            "joint",
+            full,
+            &free,
+            &joint,
+            &[datasheet],
+        )?;
         for (f, v) in free.iter().zip(&best) {
             master.set(f.r, *v);
         }
@@ -213,7 +221,6 @@ struct Passes<'a> {
     rows: &'a [crate::spec::Compare],
     events: &'a [Event],
     held_out: &'a [Event],
-    opts: &'a FitOptions,
     progress: &'a dyn Progress,
     control: &'a FitControl<'a>,
     /// Passes finished by the resumed run (skipped now).
@@ -242,9 +249,12 @@ impl Passes<'_> {
         Ok(self.pass > self.skip)
     }
 
-    /// Runs one pass ([`run_stage`]); the pass is dropped when the fit was interrupted during it.
+    /// Runs one pass ([`run_stage`]) with its options (the fit's, or the joint pass's,
+    /// [`FitOptions::joint_pass`]); the pass is dropped when the fit was interrupted during it.
+    #[allow(clippy::too_many_arguments)]
     fn run(
         &self,
+        opts: &FitOptions,
         name: &str,
         label: &str,
         unit: Unit,
@@ -252,15 +262,6 @@ impl Passes<'_> {
         spec: &StageSpec,
         also_from: &[Vec<f64>],
     ) -> Result<(StageReport, StageOutput, Vec<f64>), FitError> {
-        // The joint pass: its own swarm budget, and its local method starts from `also_from`
-        // (the datasheet values) besides the swarm's best, whose first particle is the staged
-        // result.
-        let joint = FitOptions {
-            pso_iterations: self.opts.joint_pso_iterations,
-            local_starts: 1,
-            ..self.opts.clone()
-        };
-        let opts = if name == "joint" { &joint } else { self.opts };
         let res = run_stage(
             name,
             label,

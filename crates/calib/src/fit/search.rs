@@ -237,7 +237,19 @@ mod tests {
     use super::*;
     use crate::diagnose::trial::base_unit;
     use crate::problem::{EventData, FreeParam};
+    use itaipu_dynamics::event::Event;
     use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
+    use itaipu_dynamics::unit::Unit;
+
+    /// The playback's default voltage dip into `unit`, `duration_s` long at 1000 samples/s,
+    /// with `noise`.
+    fn dip(unit: &Unit, duration_s: f64, noise: &PmuNoise) -> Event {
+        let profile = VoltageProfile {
+            duration_s,
+            ..VoltageProfile::default()
+        };
+        synthesize("dip", unit, &profile, 1000.0, noise, &Default::default()).unwrap()
+    }
 
     /// The further starts: best first, never the swarm's best again, nothing within a tenth of
     /// the box of a start already taken, no failed candidate, at most `k`.
@@ -283,19 +295,7 @@ mod tests {
         let truth = base_unit()
             .with_params(&[("machine.h", 3.1), ("machine.x_d_prime", 0.36)])
             .unwrap();
-        let profile = VoltageProfile {
-            duration_s: 3.0,
-            ..VoltageProfile::default()
-        };
-        let ev = synthesize(
-            "dip",
-            &truth,
-            &profile,
-            1000.0,
-            &PmuNoise::typical(3),
-            &Default::default(),
-        )
-        .unwrap();
+        let ev = dip(&truth, 3.0, &PmuNoise::typical(3));
         let unit = base_unit();
         let free: Vec<FreeParam> = [("machine.h", 2.0, 8.0), ("machine.x_d_prime", 0.2, 0.45)]
             .iter()
@@ -334,19 +334,7 @@ mod tests {
     #[test]
     fn a_nan_start_does_not_reach_the_swarm() {
         let unit = base_unit();
-        let profile = VoltageProfile {
-            duration_s: 2.0,
-            ..VoltageProfile::default()
-        };
-        let ev = synthesize(
-            "dip",
-            &unit,
-            &profile,
-            1000.0,
-            &PmuNoise::typical(1),
-            &Default::default(),
-        )
-        .unwrap();
+        let ev = dip(&unit, 2.0, &PmuNoise::typical(1));
         let r = unit.param("machine.h").unwrap();
         let f = FreeParam {
             start: f64::NAN,
@@ -555,19 +543,7 @@ mod tests {
     #[test]
     fn no_stage_ends_above_its_start() {
         let truth = base_unit().with_params(&[("exciter.te", 1e-5)]).unwrap();
-        let profile = VoltageProfile {
-            duration_s: 2.0,
-            ..VoltageProfile::default()
-        };
-        let ev = synthesize(
-            "dip",
-            &truth,
-            &profile,
-            1000.0,
-            &PmuNoise::none(),
-            &Default::default(),
-        )
-        .unwrap();
+        let ev = dip(&truth, 2.0, &PmuNoise::none());
         let spec = crate::spec::CalibSpec::parse(
             r#"
 [calibration]
