@@ -124,7 +124,7 @@ pub fn preflight(unit: &Unit, event: &Event) -> Result<(), Error> {
 
 /// [`preflight`] in the diagnosis's playback (a mode's for a record without an angle).
 pub fn preflight_in(unit: &Unit, event: &Event, pb: &diagnose::Playback) -> Result<(), Error> {
-    if pb.is_phasor() {
+    if pb.is_pq_phasor() {
         return preflight(unit, event);
     }
     let ev = itaipu_dynamics::simulate::PreparedEvent::new(event);

@@ -21,7 +21,7 @@ fn case(name: &str) -> PracticeCase {
 #[test]
 fn the_one_spec_frees_the_twenty_parameters_within_the_same_relative_bounds() {
     let c = case("p01");
-    let spec = practice_spec(&c.unit).unwrap();
+    let spec = practice_spec(&c.unit, &c.event).unwrap();
     let names: Vec<&str> = spec.stages.iter().map(|s| s.name.as_str()).collect();
     assert_eq!(names, ["gen", "avr", "pss", "tg"]);
     let free: Vec<_> = spec
@@ -69,6 +69,61 @@ fn the_one_spec_frees_the_twenty_parameters_within_the_same_relative_bounds() {
     }
 }
 
+/// A record with the field channels: every stage and the joint pass compare them with P and
+/// Q, each weighted by its inverse noise variance against P's and Q's (σ 0.002 pu; E_fd 0.01,
+/// X_ad I_fd 0.005: weights 0.04 and 0.16); a record without them keeps the P+Q objective.
+#[test]
+fn the_one_spec_compares_the_recorded_field_channels_by_their_noise() {
+    use itaipu_dynamics::event::{Event, Record, Window};
+    use itaipu_dynamics::rng::Normal;
+    let c = case("p01");
+    let plain = practice_spec(&c.unit, &c.event).unwrap();
+    assert!(plain.stages.iter().all(|s| s.channels.is_none()) && plain.joint.is_none());
+
+    // 20 s at 60 samples/s, the first 10 s the initialisation window: each noise floor from
+    // 600 samples (±3.5 %), a ratio of two variances within ±10 % (1 σ).
+    let n = 1200;
+    let mut rng = Normal::new(11);
+    let mut noisy =
+        |level: f64, s: f64| -> Vec<f64> { (0..n).map(|_| level + s * rng.sample()).collect() };
+    let rec = Record {
+        time_s: (0..n).map(|i| i as f64 / 60.0).collect(),
+        v_mag_pu: noisy(1.0, 5e-4),
+        v_ang_rad: noisy(0.2, 5e-4),
+        p_pu: noisy(0.6, 0.002),
+        q_pu: noisy(0.1, 0.002),
+        freq_hz: None,
+        efd_pu: Some(noisy(1.8, 0.01)),
+        ifd_pu: Some(noisy(1.6, 0.005)),
+    };
+    let ev = Event::from_record(
+        "field",
+        rec,
+        1000.0,
+        60.0,
+        Some(Window::new(0.0, 10.0)),
+        None,
+    )
+    .unwrap();
+    let spec = practice_spec(&c.unit, &ev).unwrap();
+    let joint = spec
+        .joint
+        .as_ref()
+        .expect("the joint pass compares them too");
+    let compared = spec
+        .stages
+        .iter()
+        .map(|s| s.channels.as_ref())
+        .chain([joint.channels.as_ref()]);
+    for ch in compared {
+        let ch = ch.expect("every pass compares channels");
+        let w = |k: &str| ch.get(k).copied().unwrap_or(f64::NAN);
+        assert_eq!((w("p"), w("q")), (1.0, 1.0), "{ch:?}");
+        assert!((w("efd") / 0.04 - 1.0).abs() < 0.25, "{ch:?}");
+        assert!((w("ifd") / 0.16 - 1.0).abs() < 0.25, "{ch:?}");
+    }
+}
+
 #[test]
 fn a_nominal_file_with_an_unknown_parameter_is_refused_by_name() {
     let dir = std::env::temp_dir().join(format!("itaipu-practice-{}", std::process::id()));
@@ -109,7 +164,7 @@ fn the_engine_reproduces_the_independent_floor_with_the_true_parameters() {
 #[test]
 fn the_default_staged_fit_reaches_the_floor_with_every_uncertain_parameter_free() {
     let c = case("p01");
-    let spec = practice_spec(&c.unit).unwrap();
+    let spec = practice_spec(&c.unit, &c.event).unwrap();
     let opts = FitOptions::from_spec(&spec);
     let r = fit(
         &c.unit,
@@ -220,7 +275,7 @@ fn diagnose_bundled_unit(
     let unit =
         itaipu_dynamics::unit_file::read_unit(&root().join(folder).join(format!("{name}.toml")))
             .unwrap();
-    let spec = practice_spec(&case.unit).unwrap();
+    let spec = practice_spec(&case.unit, &case.event).unwrap();
     let opts = FitOptions::from_spec(&spec);
     let d = itaipu_calib::diagnose::diagnose(
         &unit,
@@ -268,6 +323,20 @@ fn a_skew_the_calibration_absorbed_is_read_at_its_whole_delay() {
     let (d, key) = diagnose_bundled_unit("default_fit", "q05");
     assert_eq!(key.cause, "measurement_skew");
     assert_named_with_its_key("q05", &d, &key);
+}
+
+/// A constant exciter ceiling that a calibration on P and Q alone absorbs (practice2 q11: it
+/// bends X_d by 1.9 prior spreads and the exciter's gain, leaving the simulated field 7 (E_fd)
+/// and 31 (X_ad I_fd) noise widths off the recorded one, and the diagnosis on P and Q finds
+/// nothing), found through the recorded field: the default fit compares E_fd and X_ad I_fd
+/// (`default_fit/q11.toml`, the practice spec on this record), and so does the diagnosis, which
+/// names `exciter_limit` with E_MAX within the key's 5 %.
+#[test]
+fn a_ceiling_the_calibration_absorbed_is_named_from_the_recorded_field() {
+    let (d, key) = diagnose_bundled_unit("default_fit", "q11");
+    assert_eq!(key.cause, "exciter_limit");
+    assert_eq!(d.report.noise.playback, "phasor: P, Q, Efd, Ifd");
+    assert_named_with_its_key("q11", &d, &key);
 }
 
 /// The diagnosis names the key's cause, and its key parameter, read in the extended unit, is

@@ -42,6 +42,15 @@
 //!    of the noise floor) or `unexplained` (with the window and signal where the residual
 //!    lives).
 //!
+//! # Recorded field channels
+//!
+//! When every event also records the field (E_fd, X_ad I_fd: [`playback::FIELD_CHANNELS`]), the
+//! phasor playback compares them with P and Q, every channel weighted by `1/σ_c²` with σ_c its
+//! own pre-event noise floor, through the same path as a playback mode's channels. A calibration
+//! on P and Q alone can absorb a ceiling or a saturation by bending X_d and the exciter's gain,
+//! which leaves the simulated field many noise widths off the recorded one: the recorded field
+//! is the evidence that bending cannot fake.
+//!
 //! # Records without an angle
 //!
 //! A staged test (|V|, P, Q, E_fd from the excitation system's recorder, no voltage angle) is
@@ -588,7 +597,7 @@ fn diagnose_run(
         sigma_of(itaipu_dynamics::event::Channel::P),
         sigma_of(itaipu_dynamics::event::Channel::Q),
     );
-    let weights = if pb.is_phasor() {
+    let weights = if pb.is_pq_phasor() {
         (1.0 / sigma_p.powi(2), 1.0 / sigma_q.powi(2))
     } else {
         (1.0, 1.0)

@@ -116,7 +116,7 @@ pub(super) fn sigmas(
     events: &[Event],
     pb: &Playback,
 ) -> Result<Vec<f64>, DiagnoseError> {
-    if pb.is_phasor() {
+    if pb.is_pq_phasor() {
         let (p, q) = sigma_pq(unit, events)?;
         return Ok(vec![p, q]);
     }

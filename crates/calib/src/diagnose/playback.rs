@@ -23,6 +23,13 @@ use crate::spec::Compare;
 
 use super::DiagnoseError;
 
+/// The field channels the phasor playback compares besides P and Q when every event records
+/// them (E_fd and X_ad I_fd from the excitation system's recorder). A calibration on P and Q
+/// alone may bend X_d and the exciter's gain so that the simulated field runs off the recorded
+/// one by many noise widths (measured on the practice records: 7-30 σ on clean ones); the
+/// recorded field is what shows a ceiling or a saturation that bending absorbed.
+pub const FIELD_CHANNELS: [Channel; 2] = [Channel::Efd, Channel::Ifd];
+
 /// The playback of a diagnosis and its compared channels (see the module documentation).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Playback {
@@ -45,18 +52,29 @@ impl Playback {
         }
     }
 
-    pub fn is_phasor(&self) -> bool {
-        self.mode == PlaybackMode::Phasor
+    /// The phasor playback comparing P and Q alone: the diagnosis as first written, with its
+    /// own `(w_P, w_Q)` weights and evidence. Any other (a mode, or the phasor playback with
+    /// field channels) compares through a [`Compare`].
+    pub fn is_pq_phasor(&self) -> bool {
+        self.mode == PlaybackMode::Phasor && self.channels == [Channel::P, Channel::Q]
     }
 
     /// The playback a diagnosis of `events` uses: `mode` when given (every event must hold what
     /// it plays back and compares), else the phasor playback, which needs every event's angle.
-    /// The error names the event and what it lacks.
+    /// The phasor playback also compares each field channel ([`FIELD_CHANNELS`]) that every
+    /// event records. The error names the event and what it lacks.
     pub fn for_events(
         mode: Option<PlaybackMode>,
         events: &[&Event],
     ) -> Result<Self, DiagnoseError> {
-        let pb = Self::new(mode.unwrap_or_default());
+        let mut pb = Self::new(mode.unwrap_or_default());
+        if pb.mode == PlaybackMode::Phasor && !events.is_empty() {
+            pb.channels.extend(
+                FIELD_CHANNELS
+                    .into_iter()
+                    .filter(|c| events.iter().all(|e| e.has(*c))),
+            );
+        }
         for e in events {
             if let Some(why) = pb.mode.missing(e, &pb.channels) {
                 let file = e.toml_path.as_ref().map_or_else(
@@ -82,7 +100,7 @@ impl Playback {
     /// the order of [`Playback::channels`]); `None` for the phasor playback, whose problems
     /// weigh P and Q by their `(w_P, w_Q)` pair.
     pub(super) fn compare(&self, sigmas: &[f64]) -> Option<Compare> {
-        (!self.is_phasor()).then(|| Compare {
+        (!self.is_pq_phasor()).then(|| Compare {
             mode: self.mode,
             weights: self
                 .channels
@@ -111,7 +129,7 @@ impl Playback {
         unit: &itaipu_dynamics::unit::Unit,
         event: &Event,
     ) -> Result<Traces, DiagnoseError> {
-        if self.is_phasor() {
+        if self.is_pq_phasor() {
             return fitness(unit, event, false)
                 .map(|(_, tr)| tr)
                 .map_err(|err| DiagnoseError::simulation(&event.name, &err));
@@ -148,7 +166,7 @@ impl Playback {
         unit: &itaipu_dynamics::unit::Unit,
         event: &Event,
     ) -> Result<(Traces, super::EventEvidence, Option<ModeOutputs>), DiagnoseError> {
-        if self.is_phasor() {
+        if self.is_pq_phasor() {
             let tr = self.traces(unit, event)?;
             let ev = super::event_evidence(event, &tr);
             return Ok((tr, ev, None));
@@ -182,6 +200,57 @@ pub fn signal_channel(name: &str) -> Option<Channel> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use itaipu_dynamics::event::Record;
+
+    /// A flat 5 s record at 60 samples/s, with the field channels asked for.
+    fn record(efd: bool, ifd: bool) -> Event {
+        let n = 300;
+        let rec = Record {
+            time_s: (0..n).map(|i| i as f64 / 60.0).collect(),
+            v_mag_pu: vec![1.0; n],
+            v_ang_rad: vec![0.1; n],
+            p_pu: vec![0.6; n],
+            q_pu: vec![0.1; n],
+            freq_hz: None,
+            efd_pu: efd.then(|| vec![1.8; n]),
+            ifd_pu: ifd.then(|| vec![1.6; n]),
+        };
+        Event::from_record("flat", rec, 1000.0, 60.0, None, None).unwrap()
+    }
+
+    /// The phasor playback compares the field channels every event records, and only those;
+    /// a mode keeps its own channels; P and Q alone is the legacy phasor playback.
+    #[test]
+    fn the_phasor_playback_compares_the_field_channels_every_event_records() {
+        let (both, efd_only, none) = (
+            record(true, true),
+            record(true, false),
+            record(false, false),
+        );
+        let pb = |events: &[&Event]| Playback::for_events(None, events).unwrap();
+        let full = pb(&[&both]);
+        assert_eq!(
+            full.channels,
+            [Channel::P, Channel::Q, Channel::Efd, Channel::Ifd]
+        );
+        assert!(!full.is_pq_phasor());
+        assert_eq!(full.describe(), "phasor: P, Q, Efd, Ifd");
+        assert_eq!(
+            pb(&[&both, &efd_only]).channels,
+            [Channel::P, Channel::Q, Channel::Efd]
+        );
+        let legacy = pb(&[&both, &none]);
+        assert!(legacy.is_pq_phasor(), "{legacy:?}");
+        // The compared channels are weighted by their noise (a Compare), except in the legacy
+        // playback, which keeps its (w_P, w_Q).
+        let cmp = full.compare(&[0.002, 0.002, 0.01, 0.005]).unwrap();
+        assert_eq!(cmp.weights.len(), 4);
+        assert!((cmp.weights[2].1 - 1e4).abs() < 1e-6, "{:?}", cmp.weights);
+        assert!(legacy.compare(&[0.002, 0.002]).is_none());
+        // A mode's channels are its own (a staged test's recorder: E_fd in exciter_alone).
+        let mode = Playback::for_events(Some(PlaybackMode::ExciterAlone), &[&both]).unwrap();
+        assert_eq!(mode.channels, PlaybackMode::ExciterAlone.default_channels());
+    }
 
     /// Every channel's residual name leads back to the channel, and the compared channels have
     /// the trace columns the reports read them from.

@@ -127,7 +127,7 @@ pub(super) fn reference(
     let mut surrogate_held = vec![];
     for (k, e) in held_out.iter().enumerate() {
         let seed = opts.seed.wrapping_add(1000 + k as u64);
-        if !pb.is_phasor() {
+        if !pb.is_pq_phasor() {
             surrogate_held.push(in_mode(e, None, seed)?);
             continue;
         }
@@ -141,7 +141,7 @@ pub(super) fn reference(
         .enumerate()
         .map(|(k, (e, ((_, tr), outs)))| {
             let seed = opts.seed.wrapping_add(k as u64);
-            if pb.is_phasor() {
+            if pb.is_pq_phasor() {
                 surrogate(e, tr, seed).map_err(DiagnoseError::Setup)
             } else {
                 in_mode(e, outs.as_ref(), seed)
