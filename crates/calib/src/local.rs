@@ -454,7 +454,7 @@ pub fn levenberg_marquardt(
     });
     let evaluate = |u: &[f64]| {
         let x = problem.from_unit(u);
-        if stop.sensitivities && problem.compare.is_none() {
+        if stop.sensitivities && problem.has_sensitivities() {
             return problem.residuals_with_steps(&x, opts);
         }
         if !stop.replay {

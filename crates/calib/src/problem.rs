@@ -755,6 +755,12 @@ impl Problem {
         Ok(r)
     }
 
+    /// Whether [`Problem::sensitivity_jacobian_x`] can take this problem's Jacobian: the
+    /// phasor playback (P and Q, or a [`Compare`] of its channels), not another mode.
+    pub fn has_sensitivities(&self) -> bool {
+        !matches!(&self.compare, Some(c) if c.mode != itaipu_dynamics::mode::PlaybackMode::Phasor)
+    }
+
     /// The Jacobian of [`Problem::residuals`] at box point `u` with respect to the box
     /// coordinates ([`Problem::sensitivity_jacobian_x`] chained with `dx/du`).
     pub fn sensitivity_jacobian(&self, u: &[f64], sims: &[&SimOptions]) -> Option<Vec<Vec<f64>>> {
@@ -774,10 +780,12 @@ impl Problem {
     /// [`itaipu_dynamics::sens::LANES`] parameters in parallel), the tied parameters moving
     /// with their source, the priors' rows analytically. Exact for the discretised playback,
     /// where differences carry their step's truncation and, between adaptive runs, the
-    /// integrator's noise. `None` when the stage plays back in a mode, a block has no dual
-    /// equations or a simulation fails: the caller then takes differences.
+    /// integrator's noise. The phasor playback's compared field channels (E_fd, X_ad I_fd,
+    /// [`Problem::compare`]) come out of the same passes. `None` when the stage plays back in
+    /// another mode, a block has no dual equations or a simulation fails: the caller then takes
+    /// differences.
     pub fn sensitivity_jacobian_x(&self, x: &[f64], sims: &[&SimOptions]) -> Option<Vec<Vec<f64>>> {
-        if self.compare.is_some() || self.cancelled() {
+        if !self.has_sensitivities() || self.cancelled() {
             return None;
         }
         let unit = self.unit_at(x);
@@ -822,25 +830,45 @@ impl Problem {
         self.evaluations.fetch_add(jobs.len(), Ordering::Relaxed);
         for (e, (ev, _)) in self.events.iter().zip(sims).enumerate() {
             // The event's passes, their columns in `refs` order.
-            let mut s = itaipu_dynamics::sens::PqSensitivities {
-                p: vec![],
-                q: vec![],
-                dp: vec![],
-                dq: vec![],
-            };
+            let mut s = itaipu_dynamics::sens::PqSensitivities::default();
             for (&(je, _), pass) in jobs.iter().zip(&passes) {
                 if je != e {
                     continue;
                 }
-                let pass = pass.as_ref()?;
-                if s.p.is_empty() {
-                    (s.p, s.q) = (pass.p.clone(), pass.q.clone());
-                }
-                s.dp.extend(pass.dp.iter().cloned());
-                s.dq.extend(pass.dq.iter().cloned());
+                s.extend(pass.as_ref()?.clone());
             }
             if s.p.is_empty() {
                 return None;
+            }
+            if let Some(cmp) = &self.compare {
+                // The rows of [`Problem::residuals_from_outputs`]: per window sample, each
+                // compared channel the event records, weighted by √w.
+                let chans: Vec<(f64, &[f64], &[Vec<f64>])> = cmp
+                    .weights
+                    .iter()
+                    .filter(|(c, _)| ev.measured(*c).is_some())
+                    .map(|&(c, w)| {
+                        let (v, d) = match c {
+                            Channel::P => (&s.p, &s.dp),
+                            Channel::Q => (&s.q, &s.dq),
+                            Channel::Efd => (&s.efd, &s.defd),
+                            Channel::Ifd => (&s.ifd, &s.difd),
+                            _ => return None,
+                        };
+                        (!v.is_empty()).then_some((w.sqrt(), v.as_slice(), d.as_slice()))
+                    })
+                    .collect::<Option<_>>()?;
+                for k in (0..ev.in_window.len()).filter(|&k| ev.in_window[k]) {
+                    for &(sw, v, d) in &chans {
+                        if !(v[k].abs() < DIVERGED_PU) {
+                            return None;
+                        }
+                        for (j, g) in groups.iter().enumerate() {
+                            cols[j].push(sw * g.iter().fold(0.0, |a, &i| a + d[i][k]));
+                        }
+                    }
+                }
+                continue;
             }
             for (k, _, _) in ev.window_residuals(&s.p, &s.q) {
                 if !(s.p[k].abs() < DIVERGED_PU && s.q[k].abs() < DIVERGED_PU) {

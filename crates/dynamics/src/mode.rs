@@ -562,6 +562,15 @@ impl ModeUnit {
     }
 }
 
+/// The bus indices of the field channels the phasor playback reads: E_fd (the signal the
+/// machine's `efd` input is wired to) and X_ad I_fd (`xadifd`); `None` where the unit has none.
+pub(crate) fn field_signals(u: &Unit) -> (Option<usize>, Option<usize>) {
+    let efd = instance(u, "machine")
+        .and_then(|m| port_signal(m, "efd", Dir::In))
+        .and_then(|s| u.signal_index(&s));
+    (efd, u.signal_index("xadifd"))
+}
+
 fn instance<'a>(u: &'a Unit, name: &str) -> Option<&'a crate::unit::Instance> {
     u.instances().iter().find(|i| i.name == name)
 }
@@ -1277,16 +1286,14 @@ pub fn simulate_mode(
     if mode == PlaybackMode::Phasor && ev.steps.is_empty() {
         let mut u = unit.clone();
         u.ensure_finished()?;
-        let idx = |n: &str| u.signal_index(n);
         let (ip, iq) = u.pq_signals()?;
+        let (iefd, iifd) = field_signals(&u);
         let r = Reader {
             ip,
             iq,
-            iefd: instance(&u, "machine")
-                .and_then(|m| port_signal(m, "efd", Dir::In))
-                .and_then(|s| idx(&s))
+            iefd: iefd
                 .ok_or_else(|| UnitError::Wiring("no machine reading a field voltage".into()))?,
-            iifd: idx("xadifd"),
+            iifd,
             to_sys,
         };
         out.stats = run_playback(&mut u, ev, opts, |k, u, _| r.read(k, u, &mut out))?;

@@ -56,17 +56,41 @@ impl From<UnitError> for SensError {
 }
 
 /// P and Q [pu system base] at every sample and their derivatives with respect to each
-/// requested parameter (`dp[j][k] = ∂P_k/∂p_j`).
-#[derive(Debug, Clone, PartialEq)]
+/// requested parameter (`dp[j][k] = ∂P_k/∂p_j`); the field channels E_fd and X_ad I_fd [pu
+/// machine base] likewise, as the phasor playback's [`crate::mode::simulate_mode`] reads them
+/// (empty where the unit has no such signal).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct PqSensitivities {
     pub p: Vec<f64>,
     pub q: Vec<f64>,
     pub dp: Vec<Vec<f64>>,
     pub dq: Vec<Vec<f64>>,
+    pub efd: Vec<f64>,
+    pub ifd: Vec<f64>,
+    pub defd: Vec<Vec<f64>>,
+    pub difd: Vec<Vec<f64>>,
+}
+
+/// One pass's values and derivatives, or the concatenation of passes.
+impl PqSensitivities {
+    /// Appends `other`'s derivative columns (the next parameters), taking its values if these
+    /// are still empty.
+    pub fn extend(&mut self, other: PqSensitivities) {
+        if self.p.is_empty() {
+            (self.p, self.q) = (other.p, other.q);
+            (self.efd, self.ifd) = (other.efd, other.ifd);
+        }
+        self.dp.extend(other.dp);
+        self.dq.extend(other.dq);
+        self.defd.extend(other.defd);
+        self.difd.extend(other.difd);
+    }
 }
 
 /// P, Q and `∂P/∂p`, `∂Q/∂p` of the phasor playback of `ev` through `unit` (as
-/// [`simulate_pq`] computes P and Q), for the parameters `params`.
+/// [`simulate_pq`] computes P and Q), for the parameters `params`; E_fd and X_ad I_fd with
+/// theirs too (as [`crate::mode::simulate_mode`]'s phasor playback reads them; with no
+/// parameter, P and Q alone).
 pub fn simulate_pq_sensitivities(
     unit: &Unit,
     ev: &PreparedEvent,
@@ -91,19 +115,9 @@ pub fn simulate_pq_sensitivities(
         Method::Rk4 { .. } | Method::Replay(_) => opts.method.clone(),
         Method::Dopri5(o) | Method::Dopri5Logged(o, _) => logged_steps(unit, ev, o)?,
     };
-    let mut out = PqSensitivities {
-        p: vec![],
-        q: vec![],
-        dp: vec![],
-        dq: vec![],
-    };
+    let mut out = PqSensitivities::default();
     for chunk in params.chunks(LANES) {
-        let (p, q, dp, dq) = pass(unit, ev, chunk, &method)?;
-        if out.p.is_empty() {
-            (out.p, out.q) = (p, q);
-        }
-        out.dp.extend(dp);
-        out.dq.extend(dq);
+        out.extend(pass(unit, ev, chunk, &method)?);
     }
     if params.is_empty() {
         let (p, q) = simulate_pq(&mut unit.clone(), ev, &SimOptions { method })?;
@@ -179,15 +193,13 @@ fn init_tangent(unit: &Unit, ev: &PreparedEvent, r: ParamRef) -> Result<Vec<f64>
     }
 }
 
-type Pass = (Vec<f64>, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
-
 /// One pass: up to [`LANES`] parameters on the tangent lanes.
 fn pass(
     unit: &Unit,
     ev: &PreparedEvent,
     params: &[ParamRef],
     method: &Method,
-) -> Result<Pass, SensError> {
+) -> Result<PqSensitivities, SensError> {
     let mut u = unit.clone();
     let init = Init::of(&mut u, ev)?;
     // Tangents of the initialisation, one lane per parameter.
@@ -233,10 +245,13 @@ fn pass(
         xa[n + i * LANES..n + (i + 1) * LANES].copy_from_slice(&xi.d);
     }
     let (ip, iq) = u.pq_signals()?;
+    let (iefd, iifd) = crate::mode::field_signals(&u);
     let ns = ev.input.time_s.len();
     let to_sys = u.machine_mva / ev.system_mva;
     let np = params.len();
     let (mut pd, mut qd) = (vec![D::cst(0.0); ns], vec![D::cst(0.0); ns]);
+    let field = |i: Option<usize>| vec![D::cst(0.0); if i.is_some() { ns } else { 0 }];
+    let (mut ed, mut fd) = (field(iefd), field(iifd));
     let mut sys = Augmented::new(&mut u, &ev.input, bus);
     integrate::solve(
         method,
@@ -250,21 +265,38 @@ fn pass(
             let (pl, ql) = sys.unit.terminal_load_dual(sys.bus[sys.sig.0].v);
             pd[k] = (sys.bus[ip] - pl) * to_sys;
             qd[k] = (sys.bus[iq] - ql) * to_sys;
+            if let Some(i) = iefd {
+                ed[k] = sys.bus[i];
+            }
+            if let Some(i) = iifd {
+                fd[k] = sys.bus[i];
+            }
         },
     )
     .map_err(SimError::from)?;
     // The measuring device's transform (skew, phase and ratio errors), its parameters' part
     // included.
     u.transform_pq_dual(&ev.input.time_s, &mut pd, &mut qd);
-    let p = pd.iter().map(|v| v.v).collect();
-    let q = qd.iter().map(|v| v.v).collect();
-    let dp = (0..np)
-        .map(|j| pd.iter().map(|v| v.d[j]).collect())
-        .collect();
-    let dq = (0..np)
-        .map(|j| qd.iter().map(|v| v.d[j]).collect())
-        .collect();
-    Ok((p, q, dp, dq))
+    let values = |s: &[D]| s.iter().map(|v| v.v).collect::<Vec<f64>>();
+    // One column per parameter; none for a channel the unit does not have.
+    let columns = |s: &[D]| -> Vec<Vec<f64>> {
+        if s.is_empty() {
+            return vec![];
+        }
+        (0..np)
+            .map(|j| s.iter().map(|v| v.d[j]).collect())
+            .collect()
+    };
+    Ok(PqSensitivities {
+        p: values(&pd),
+        q: values(&qd),
+        dp: columns(&pd),
+        dq: columns(&qd),
+        efd: values(&ed),
+        ifd: values(&fd),
+        defd: columns(&ed),
+        difd: columns(&fd),
+    })
 }
 
 /// The unit's states and sensitivities as one ODE.
