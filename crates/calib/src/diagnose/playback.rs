@@ -2,7 +2,9 @@
 //!
 //! A phasor record (the voltage angle recorded): the measured phasor imposed at the terminal,
 //! P and Q compared, each weighted by the inverse of its noise variance: the diagnosis as it
-//! was first written, bit for bit. A record without an angle (a staged test recorded by the
+//! was first written, bit for bit. When every event also records the field ([`FIELD_CHANNELS`]:
+//! E_fd, X_ad I_fd), the phasor playback compares those too, each weighted by `1/σ_c²` as a
+//! mode's channels are (below), through the same [`Compare`]. A record without an angle (a staged test recorded by the
 //! excitation system's recorder: |V|, P, Q, E_fd) cannot be played back that way; the user names
 //! one of the playback modes of [`itaipu_dynamics::mode`] and the diagnosis compares that mode's
 //! default channels (`exciter_alone`: E_fd; `machine_from_efd`: Q; `closed_loop`: |V|, Q, E_fd),
@@ -26,8 +28,9 @@ use super::DiagnoseError;
 /// The field channels the phasor playback compares besides P and Q when every event records
 /// them (E_fd and X_ad I_fd from the excitation system's recorder). A calibration on P and Q
 /// alone may bend X_d and the exciter's gain so that the simulated field runs off the recorded
-/// one by many noise widths (measured on the practice records: 7-30 σ on clean ones); the
-/// recorded field is what shows a ceiling or a saturation that bending absorbed.
+/// one by many noise widths (measured on the practice records' default fits: E_fd 2-5 σ and
+/// X_ad I_fd 7-19 σ off on clean ones, 7 and 31 σ on q11, whose ceiling the bending absorbed);
+/// the recorded field is what shows a ceiling or a saturation that bending absorbed.
 pub const FIELD_CHANNELS: [Channel; 2] = [Channel::Efd, Channel::Ifd];
 
 /// The playback of a diagnosis and its compared channels (see the module documentation).
