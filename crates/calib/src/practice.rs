@@ -300,7 +300,6 @@ pub fn practice_spec(unit: &Unit, event: &Event) -> Result<CalibSpec, SpecError>
 /// noise variance makes the objective the likelihood of independent Gaussian noise: a field
 /// channel five times noisier than P counts 1/25 as much per sample.
 pub fn field_channels(event: &Event) -> Vec<(&'static str, f64)> {
-    use itaipu_dynamics::event::Channel;
     let r = &event.record;
     let init = |y: &[f64]| -> Vec<f64> {
         r.time_s
@@ -312,11 +311,12 @@ pub fn field_channels(event: &Event) -> Vec<(&'static str, f64)> {
     };
     let floor = |y: &[f64]| crate::evidence::noise_floor(&init(y));
     let pq = 0.5 * (floor(&r.p_pu).powi(2) + floor(&r.q_pu).powi(2));
-    [(Channel::Efd, "efd"), (Channel::Ifd, "ifd")]
+    // The diagnosis's field channels, by their spec names.
+    crate::diagnose::playback::FIELD_CHANNELS
         .into_iter()
-        .filter_map(|(c, name)| {
+        .filter_map(|c| {
             let s = floor(event.series(c)?);
-            (s > 0.0 && pq > 0.0).then(|| (name, pq / (s * s)))
+            (s > 0.0 && pq > 0.0).then(|| (c.name(), pq / (s * s)))
         })
         .collect()
 }

@@ -814,7 +814,7 @@ impl Problem {
         let jobs: Vec<(usize, &[ParamRef])> = (0..self.events.len())
             .flat_map(|e| refs.chunks(lanes).map(move |c| (e, c)))
             .collect();
-        let passes: Vec<Option<itaipu_dynamics::sens::PqSensitivities>> = jobs
+        let mut passes: Vec<Option<itaipu_dynamics::sens::PqSensitivities>> = jobs
             .par_iter()
             .map(|&(e, chunk)| {
                 let ev = &self.events[e];
@@ -831,11 +831,11 @@ impl Problem {
         for (e, (ev, _)) in self.events.iter().zip(sims).enumerate() {
             // The event's passes, their columns in `refs` order.
             let mut s = itaipu_dynamics::sens::PqSensitivities::default();
-            for (&(je, _), pass) in jobs.iter().zip(&passes) {
+            for (&(je, _), pass) in jobs.iter().zip(passes.iter_mut()) {
                 if je != e {
                     continue;
                 }
-                s.extend(pass.as_ref()?.clone());
+                s.extend(pass.take()?);
             }
             if s.p.is_empty() {
                 return None;

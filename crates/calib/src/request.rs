@@ -380,8 +380,16 @@ impl Search {
         Ok(())
     }
 
-    /// Overrides the given settings with those the user gave (after [`Search::validate`]).
-    pub fn apply(&self, seed: &mut u64, particles: &mut usize, pso: &mut usize, local: &mut u64) {
+    /// [`Search::validate`], then overrides the given settings with those the user gave (the
+    /// fit's or the diagnosis's: [`Search::apply_fit`], [`Search::apply_diagnose`]).
+    fn apply(
+        &self,
+        seed: &mut u64,
+        particles: &mut usize,
+        pso: &mut usize,
+        local: &mut u64,
+    ) -> Result<(), RequestError> {
+        self.validate()?;
         if let Some(s) = self.seed {
             *seed = s;
         }
@@ -394,35 +402,32 @@ impl Search {
         if let Some(n) = self.local_iterations {
             *local = n;
         }
+        Ok(())
     }
 
-    /// [`Search::validate`], then [`Search::apply`] to a fit's options. The user's swarm
-    /// iterations are every pass's: the stages' and the joint pass's (the spec's
-    /// `joint_iterations` then no longer applies).
+    /// [`Search::apply`] to a fit's options. The user's swarm iterations are every pass's: the
+    /// stages' and the joint pass's (the spec's `joint_iterations` then no longer applies).
     pub fn apply_fit(&self, opts: &mut FitOptions) -> Result<(), RequestError> {
-        self.validate()?;
         self.apply(
             &mut opts.seed,
             &mut opts.particles,
             &mut opts.pso_iterations,
             &mut opts.lbfgs_iterations,
-        );
+        )?;
         if self.pso_iterations.is_some() {
             opts.joint_pso_iterations = None;
         }
         Ok(())
     }
 
-    /// [`Search::validate`], then [`Search::apply`] to diagnosis options.
+    /// [`Search::apply`] to diagnosis options.
     pub fn apply_diagnose(&self, opts: &mut DiagnoseOptions) -> Result<(), RequestError> {
-        self.validate()?;
         self.apply(
             &mut opts.seed,
             &mut opts.particles,
             &mut opts.pso_iterations,
             &mut opts.lbfgs_iterations,
-        );
-        Ok(())
+        )
     }
 }
 
