@@ -127,7 +127,7 @@ fn main() {
         let catalog_named = catalog::find(&verdict).is_some();
         wrong += usize::from(catalog_named);
         // The same calibrated unit, diagnosed with the cause file as well.
-        let spec = practice_spec(&case.unit, &case.event).expect("the practice spec");
+        let spec = practice_spec(&case.unit).expect("the practice spec");
         let opts = FitOptions::from_spec(&spec);
         let mut dopts = diagnose_options(&case, &spec, &opts.stages, &fitted.unit);
         dopts.user_causes = vec![cause.clone()];

@@ -82,7 +82,7 @@ fn main() {
             );
             continue;
         }
-        let mut spec = practice_spec(&case.unit, &case.event).unwrap_or_else(|e| panic!("{e}"));
+        let mut spec = practice_spec(&case.unit).unwrap_or_else(|e| panic!("{e}"));
         if let Some(seed) = std::env::var("FIT_SEED").ok().and_then(|s| s.parse().ok()) {
             spec.seed = seed;
         }

@@ -378,7 +378,57 @@ pub fn prepare_fit(
         &opts.stages,
         &spec_file,
     ));
+    warnings.extend(field_warnings(&all, &inputs.spec, &opts.stages, &spec_file));
     Ok((opts, warnings))
+}
+
+/// A phasor stage to run that compares P and Q alone on events that all record the field
+/// (E_fd, X_ad I_fd): said, with `channels = "recorded"` as the fix. P and Q alone leave X_d and
+/// the exciter's gain free to bend until the simulated field runs off the recorded one by many
+/// noise widths (measured on the practice records: 2-7 σ on E_fd, 7-31 σ on X_ad I_fd), which
+/// can hide a ceiling or a saturation inside the calibration.
+pub fn field_warnings(
+    events: &[&Event],
+    spec: &CalibSpec,
+    stages: &[String],
+    calib_path: &Path,
+) -> Vec<Finding> {
+    let field: Vec<_> = diagnose::playback::FIELD_CHANNELS
+        .into_iter()
+        .filter(|c| !events.is_empty() && events.iter().all(|e| e.has(*c)))
+        .collect();
+    if field.is_empty() {
+        return vec![];
+    }
+    let names = field
+        .iter()
+        .map(|c| c.name())
+        .collect::<Vec<_>>()
+        .join(", ");
+    spec.stages
+        .iter()
+        .enumerate()
+        .filter(|(_, st)| stages.contains(&st.name))
+        .filter(|(_, st)| {
+            st.mode == itaipu_dynamics::mode::PlaybackMode::Phasor && st.channels.is_none()
+        })
+        .map(|(k, st)| Finding {
+            severity: Severity::Warning,
+            kind: "field_not_compared",
+            file: calib_path.to_path_buf(),
+            line: None,
+            time_s: None,
+            column: format!("calibration.stage[{k}] (stage {})", st.name),
+            message: format!(
+                "every event records the field ({names}) but the stage compares P and Q alone: \
+                 the calibration may bend X_d and the exciter's gain until the simulated field \
+                 runs off the recorded one"
+            ),
+            fix: "channels = \"recorded\" in the stage (and in [calibration.joint]) compares \
+                  them too, each weighted by its noise"
+                .into(),
+        })
+        .collect()
 }
 
 /// Runs a fit ([`fit_with`]) with options and warnings from [`prepare_fit`], and builds its

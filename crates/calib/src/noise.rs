@@ -118,6 +118,60 @@ pub fn noise_floor(event: &Event, simulated: &[f64], measured: &[f64]) -> NoiseF
     }
 }
 
+/// The weights of `channels = "recorded"` ([`crate::spec::Channels::Recorded`]) for the fitted
+/// `events`: each field channel ([`crate::diagnose::playback::FIELD_CHANNELS`]) that every event
+/// records (the `held_out` ones too: a held-out event is compared on the same channels), with `w_c = σ_PQ²/σ_c²` against P and Q at weight 1. Each σ² is the mean over the events of
+/// the squared difference-based floor ([`crate::evidence::noise_floor`]) of the measured
+/// channel over the event's init window (the measurement alone: the weights are set before any
+/// model is calibrated), and σ_PQ² the mean of σ_P² and σ_Q². Weighting each channel by its
+/// inverse noise variance makes the objective the likelihood of independent Gaussian noise.
+/// A channel whose floor is zero (constant over the window) is left out.
+pub fn field_weights(
+    events: &[&Event],
+    held_out: &[&Event],
+) -> Vec<(itaipu_dynamics::event::Channel, f64)> {
+    use itaipu_dynamics::event::Channel;
+    if events.is_empty() {
+        return vec![];
+    }
+    let floor = |e: &Event, c: Channel| -> f64 {
+        let Some(y) = e.series(c) else { return 0.0 };
+        let init: Vec<f64> = e
+            .record
+            .time_s
+            .iter()
+            .zip(y)
+            .filter(|(t, _)| **t >= e.init.start_s && **t <= e.init.end_s)
+            .map(|(_, v)| *v)
+            .collect();
+        crate::evidence::noise_floor(&init)
+    };
+    let n = events.len() as f64;
+    let mean_var = |c: Channel| {
+        events
+            .iter()
+            .map(|e| {
+                let s = floor(e, c);
+                s * s
+            })
+            .sum::<f64>()
+            / n
+    };
+    let pq = events
+        .iter()
+        .map(|e| 0.5 * (floor(e, Channel::P).powi(2) + floor(e, Channel::Q).powi(2)))
+        .sum::<f64>()
+        / n;
+    crate::diagnose::playback::FIELD_CHANNELS
+        .into_iter()
+        .filter(|c| events.iter().chain(held_out).all(|e| e.has(*c)))
+        .filter_map(|c| {
+            let s2 = mean_var(c);
+            (s2 > 0.0 && pq > 0.0).then(|| (c, pq / s2))
+        })
+        .collect()
+}
+
 /// Where an event's pre-event samples end: its onset, or for a record with no disturbance the
 /// end of its init window.
 pub fn pre_event_end(event: &Event) -> f64 {

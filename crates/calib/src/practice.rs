@@ -233,24 +233,17 @@ impl PracticeCase {
 /// of `event`: every parameter of [`FREE`] whose block the unit has, within [`RELATIVE_BOUNDS`]
 /// of its nominal value, stages gen, avr, pss, tg, default search settings; X''q tied to X''d.
 ///
-/// Every stage and the joint pass compare P and Q, and every field channel the record holds
-/// (E_fd, X_ad I_fd: [`field_channels`]), as an engineer with those recordings would: P and Q
-/// alone leave X_d and the exciter's gain free to bend so that the field runs off by many noise
-/// widths, which hides a ceiling or a saturation inside the calibration.
-pub fn practice_spec(unit: &Unit, event: &Event) -> Result<CalibSpec, SpecError> {
+/// Every stage and the joint pass compare `channels = "recorded"` ([`Channels::Recorded`]):
+/// P and Q, and every field channel the record holds (E_fd, X_ad I_fd) weighted by its noise,
+/// as an engineer with those recordings would: P and Q alone leave X_d and the exciter's gain
+/// free to bend so that the field runs off by many noise widths, which hides a ceiling or a
+/// saturation inside the calibration. A record without them is fitted on P and Q.
+///
+/// [`Channels::Recorded`]: crate::spec::Channels::Recorded
+pub fn practice_spec(unit: &Unit) -> Result<CalibSpec, SpecError> {
     let (lo, hi) = RELATIVE_BOUNDS;
     let mut text = String::from("[calibration]\n");
-    let field = field_channels(event);
-    let compare = if field.is_empty() {
-        "objective = \"pq\"\n".to_string()
-    } else {
-        let mut c = String::from("channels = { p = 1.0, q = 1.0");
-        for (name, w) in &field {
-            c.push_str(&format!(", {name} = {w:e}"));
-        }
-        c.push_str(" }\n");
-        c
-    };
+    let compare = "channels = \"recorded\"\n";
     for stage in ["gen", "avr", "pss", "tg"] {
         let mut free = vec![];
         for (_, section, _, p) in FREE.iter().filter(|f| f.0 == stage) {
@@ -287,38 +280,8 @@ pub fn practice_spec(unit: &Unit, event: &Event) -> Result<CalibSpec, SpecError>
         }
         text.push_str("]\n");
     }
-    if !field.is_empty() {
-        text.push_str(&format!("\n[calibration.joint]\n{compare}"));
-    }
+    text.push_str(&format!("\n[calibration.joint]\n{compare}"));
     CalibSpec::parse(&text, Path::new("<practice spec>"))
-}
-
-/// The field channels of `event`'s record (`efd`, `ifd`, as the spec names them) with their
-/// weights against P and Q: `w_c = σ_PQ²/σ_c²`, the σ the difference-based noise floors of the
-/// measured channels over the initialisation window ([`crate::evidence::noise_floor`]) and
-/// σ_PQ² the mean of σ_P² and σ_Q² (P and Q keep weight 1). Weighting each channel by its inverse
-/// noise variance makes the objective the likelihood of independent Gaussian noise: a field
-/// channel five times noisier than P counts 1/25 as much per sample.
-pub fn field_channels(event: &Event) -> Vec<(&'static str, f64)> {
-    let r = &event.record;
-    let init = |y: &[f64]| -> Vec<f64> {
-        r.time_s
-            .iter()
-            .zip(y)
-            .filter(|(t, _)| **t >= event.init.start_s && **t <= event.init.end_s)
-            .map(|(_, v)| *v)
-            .collect()
-    };
-    let floor = |y: &[f64]| crate::evidence::noise_floor(&init(y));
-    let pq = 0.5 * (floor(&r.p_pu).powi(2) + floor(&r.q_pu).powi(2));
-    // The diagnosis's field channels, by their spec names.
-    crate::diagnose::playback::FIELD_CHANNELS
-        .into_iter()
-        .filter_map(|c| {
-            let s = floor(event.series(c)?);
-            (s > 0.0 && pq > 0.0).then(|| (c.name(), pq / (s * s)))
-        })
-        .collect()
 }
 
 /// What the scoring step reads of `answers/<case>.json`.
@@ -458,7 +421,7 @@ pub fn fit_and_diagnose(
     progress: &dyn Progress,
 ) -> Result<(FitResult, DiagnoseResult), PracticeError> {
     let engine = |e: &dyn std::fmt::Display| PracticeError::Engine(format!("{}: {e}", case.name));
-    let spec = practice_spec(&case.unit, &case.event).map_err(|e| engine(&e))?;
+    let spec = practice_spec(&case.unit).map_err(|e| engine(&e))?;
     let opts = FitOptions::from_spec(&spec);
     let events = std::slice::from_ref(&case.event);
     let fitted = fit(&case.unit, &spec, events, &[], &opts, progress).map_err(|e| engine(&e))?;

@@ -38,7 +38,8 @@
 //!
 //! [calibration.joint]            # optional: how the joint pass plays the record back
 //! mode = "closed_loop"
-//! channels = { v = 1.0, q = 1.0, efd = 1.0 }
+//! channels = { v = 1.0, q = 1.0, efd = 1.0 }   # a phasor pass: also "recorded" (P, Q and the
+//!                                # recorded field weighted by their noise: Channels::Recorded)
 //! free = [ { param = "grid.x_e", min = 0.02, max = 0.5 } ]   # freed in the joint pass only
 //! ```
 //!
@@ -191,11 +192,65 @@ pub struct StageSpec {
     /// How the record is played back in this stage (default: the phasor playback).
     #[serde(default)]
     pub mode: PlaybackMode,
-    /// Compared channels and their weights (`{ efd = 1.0 }`); default: the mode's
+    /// Compared channels and their weights (`{ efd = 1.0 }`), or `"recorded"` (phasor
+    /// playback: [`Channels::Recorded`]); default: the mode's
     /// ([`PlaybackMode::default_channels`], weight 1). A phasor stage without it compares P and
     /// Q as `objective` and `weights` say.
     #[serde(default)]
-    pub channels: Option<BTreeMap<String, f64>>,
+    pub channels: Option<Channels>,
+}
+
+/// What a stage (or the joint pass) says it compares: `channels = { p = 1.0, efd = 0.04 }` or
+/// `channels = "recorded"`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Channels {
+    /// Channel name → weight.
+    Weights(BTreeMap<String, f64>),
+    /// The phasor playback's P and Q (weight 1) and every field channel
+    /// ([`crate::diagnose::playback::FIELD_CHANNELS`]: E_fd, X_ad I_fd) that every event of the
+    /// fit records, each weighted by its inverse noise variance against P's and Q's
+    /// ([`crate::noise::field_weights`]): the likelihood of independent Gaussian noise, so a
+    /// field channel five times noisier than P counts 1/25 as much per sample. The choice an
+    /// engineer with the excitation system's recorder makes: P and Q alone leave X_d and the
+    /// exciter's gain free to bend until the field runs off the recorded one by many noise
+    /// widths. Resolved against the events when the fit starts
+    /// ([`CalibSpec::resolve_recorded`]); with no field channel recorded, the stage compares P
+    /// and Q as a stage without `channels` does (the same numbers).
+    Recorded,
+}
+
+impl Channels {
+    /// The weights by channel name (`None` for an unresolved [`Channels::Recorded`]).
+    pub fn weights(&self) -> Option<&BTreeMap<String, f64>> {
+        match self {
+            Channels::Weights(m) => Some(m),
+            Channels::Recorded => None,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Channels {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = Channels;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a table of channel weights ({ p = 1.0, efd = 0.04 }) or \"recorded\"")
+            }
+            fn visit_str<E: serde::de::Error>(self, s: &str) -> Result<Channels, E> {
+                if s == "recorded" {
+                    Ok(Channels::Recorded)
+                } else {
+                    Err(E::invalid_value(serde::de::Unexpected::Str(s), &self))
+                }
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, m: A) -> Result<Channels, A::Error> {
+                BTreeMap::deserialize(serde::de::value::MapAccessDeserializer::new(m))
+                    .map(Channels::Weights)
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
 }
 
 /// What a stage compares when it names a mode or channels: the mode and `(channel, weight)`
@@ -243,11 +298,14 @@ impl Compare {
 impl StageSpec {
     /// What the stage compares: `None` for a phasor stage without `channels` (P and Q by
     /// `objective` and `weights`, the historical objective), else the mode and its channels.
+    /// An unresolved `channels = "recorded"` (before [`CalibSpec::resolve_recorded`]) reads as
+    /// P and Q: nothing it may compare is required of an event.
     pub fn compare(&self) -> Option<Compare> {
-        if self.mode == PlaybackMode::Phasor && self.channels.is_none() {
+        let weights = self.channels.as_ref().and_then(Channels::weights);
+        if self.mode == PlaybackMode::Phasor && weights.is_none() {
             None
         } else {
-            Some(Compare::new(self.mode, self.channels.as_ref()))
+            Some(Compare::new(self.mode, weights))
         }
     }
 }
@@ -260,7 +318,7 @@ pub struct JointSpec {
     #[serde(default)]
     pub mode: PlaybackMode,
     #[serde(default)]
-    pub channels: Option<BTreeMap<String, f64>>,
+    pub channels: Option<Channels>,
     /// Parameters freed in the joint pass only (a grid equivalent's impedance, say).
     #[serde(default)]
     pub free: Vec<FreeBound>,
@@ -607,12 +665,54 @@ impl CalibSpec {
         Ok(())
     }
 
+    /// Whether a stage or the joint pass says `channels = "recorded"`.
+    pub fn compares_recorded(&self) -> bool {
+        self.stages
+            .iter()
+            .map(|s| &s.channels)
+            .chain(self.joint.as_ref().map(|j| &j.channels))
+            .any(|c| c == &Some(Channels::Recorded))
+    }
+
+    /// The spec with every `channels = "recorded"` ([`Channels::Recorded`]) made the weights of
+    /// the fitted `events`: P and Q at 1 and each field channel every event (fitted and
+    /// `held_out`) records at [`crate::noise::field_weights`]; with none recorded, no `channels`
+    /// (P and Q by the stage's `objective` and `weights`, the historical objective and its
+    /// numbers).
+    pub fn resolve_recorded(
+        &self,
+        events: &[&itaipu_dynamics::event::Event],
+        held_out: &[&itaipu_dynamics::event::Event],
+    ) -> CalibSpec {
+        let field = crate::noise::field_weights(events, held_out);
+        let resolved = || -> Option<Channels> {
+            (!field.is_empty()).then(|| {
+                let mut m = BTreeMap::from([("p".to_string(), 1.0), ("q".to_string(), 1.0)]);
+                m.extend(field.iter().map(|(c, w)| (c.name().to_string(), *w)));
+                Channels::Weights(m)
+            })
+        };
+        let mut out = self.clone();
+        for c in out
+            .stages
+            .iter_mut()
+            .map(|s| &mut s.channels)
+            .chain(out.joint.iter_mut().map(|j| &mut j.channels))
+        {
+            if *c == Some(Channels::Recorded) {
+                *c = resolved();
+            }
+        }
+        out
+    }
+
     /// What the joint (and simultaneous) pass compares: `None` without `[calibration.joint]` or
     /// with a phasor joint without `channels` (P and Q, the historical joint pass).
     pub fn joint_compare(&self) -> Option<Compare> {
         self.joint.as_ref().and_then(|j| {
-            (j.mode != PlaybackMode::Phasor || j.channels.is_some())
-                .then(|| Compare::new(j.mode, j.channels.as_ref()))
+            let weights = j.channels.as_ref().and_then(Channels::weights);
+            (j.mode != PlaybackMode::Phasor || weights.is_some())
+                .then(|| Compare::new(j.mode, weights))
         })
     }
 
@@ -664,9 +764,22 @@ fn check_channels(
     err: &dyn Fn(String, String) -> SpecError,
     field: &str,
     mode: PlaybackMode,
-    channels: Option<&BTreeMap<String, f64>>,
+    channels: Option<&Channels>,
 ) -> Result<(), SpecError> {
-    let Some(m) = channels else { return Ok(()) };
+    let m = match channels {
+        None => return Ok(()),
+        Some(Channels::Recorded) if mode != PlaybackMode::Phasor => {
+            return Err(err(
+                field.to_string(),
+                format!(
+                    "\"recorded\" goes with the phasor playback (P, Q and the recorded field); \
+                     mode {mode} names its channels with weights, {{ efd = 1.0 }}"
+                ),
+            ))
+        }
+        Some(Channels::Recorded) => return Ok(()),
+        Some(Channels::Weights(m)) => m,
+    };
     let outputs = mode.outputs();
     let names = |cs: &[Channel]| cs.iter().map(|c| c.name()).collect::<Vec<_>>().join(", ");
     for (name, w) in m {
@@ -682,7 +795,8 @@ fn check_channels(
             return Err(err(
                 format!("{field}.{name}"),
                 format!(
-                    "mode {mode} does not simulate {c} (it plays it back from the record or                      has no such output); it can compare: {}",
+                    "mode {mode} does not simulate {c} (it plays it back from the record or \
+                     has no such output); it can compare: {}",
                     names(outputs)
                 ),
             ));
@@ -774,7 +888,8 @@ fn check_objective_keys(text: &str, path: &Path) -> Result<(), SpecError> {
                 return Err(SpecError::Field {
                     path: path.into(),
                     field: format!("calibration.stage[{k}].{key}"),
-                    msg: "goes with a phasor stage's P and Q; a stage with a mode or channels                           says what it compares with channels = { … } (weights per channel)"
+                    msg: "goes with a phasor stage's P and Q; a stage with a mode or channels \
+                          says what it compares with channels = { … } (weights per channel)"
                         .into(),
                 });
             }

@@ -83,7 +83,7 @@ free = [
 fn spec_modes_and_channels_are_checked_field_by_field() {
     let base =
         |stage: &str| format!("[calibration]\n[[calibration.stage]]\nname = \"avr\"\n{stage}");
-    let cases: [(&str, &[&str]); 7] = [
+    let cases: [(&str, &[&str]); 9] = [
         (
             "mode = \"exciter_alone\"\nchannels = { q = 1.0 }",
             &[
@@ -113,6 +113,14 @@ fn spec_modes_and_channels_are_checked_field_by_field() {
             &["calibration.stage[0].objective", "channels = {"],
         ),
         ("mode = \"open_loop\"", &["open_loop"]),
+        (
+            "mode = \"exciter_alone\"\nchannels = \"recorded\"",
+            &[
+                "calibration.stage[0].channels (stage avr)",
+                "\"recorded\" goes with the phasor playback",
+            ],
+        ),
+        ("channels = \"all\"", &["\"all\"", "or \"recorded\""]),
     ];
     for (stage, needles) in cases {
         let e = spec(&base(stage)).unwrap_err().to_string();
@@ -128,6 +136,10 @@ fn spec_modes_and_channels_are_checked_field_by_field() {
         e.contains("calibration.joint.free[0] (grid.x_e)") && e.contains("upside down"),
         "{e}"
     );
+    // A phasor stage's "recorded" reads as P and Q until the events resolve it.
+    let s = spec("[calibration]\n[[calibration.stage]]\nname = \"gen\"\nchannels = \"recorded\"\n")
+        .unwrap();
+    assert!(s.compares_recorded() && s.stages[0].compare().is_none());
     // A good one: the stage compares what it names, the joint its own channels.
     let s = spec("[calibration]\n[[calibration.stage]]\nname = \"gen\"\nmode = \"machine_from_efd\"\n[calibration.joint]\nmode = \"closed_loop\"\nchannels = { v = 400.0, q = 6.0, efd = 2.0 }\n").unwrap();
     assert_eq!(

@@ -21,7 +21,7 @@ fn case(name: &str) -> PracticeCase {
 #[test]
 fn the_one_spec_frees_the_twenty_parameters_within_the_same_relative_bounds() {
     let c = case("p01");
-    let spec = practice_spec(&c.unit, &c.event).unwrap();
+    let spec = practice_spec(&c.unit).unwrap();
     let names: Vec<&str> = spec.stages.iter().map(|s| s.name.as_str()).collect();
     assert_eq!(names, ["gen", "avr", "pss", "tg"]);
     let free: Vec<_> = spec
@@ -69,16 +69,23 @@ fn the_one_spec_frees_the_twenty_parameters_within_the_same_relative_bounds() {
     }
 }
 
-/// A record with the field channels: every stage and the joint pass compare them with P and
-/// Q, each weighted by its inverse noise variance against P's and Q's (σ 0.002 pu; E_fd 0.01,
-/// X_ad I_fd 0.005: weights 0.04 and 0.16); a record without them keeps the P+Q objective.
+/// The one spec says `channels = "recorded"` in every stage and the joint pass. Resolved on a
+/// record with the field channels, each pass compares them with P and Q, each weighted by its
+/// inverse noise variance against P's and Q's (σ 0.002 pu; E_fd 0.01, X_ad I_fd 0.005: weights
+/// 0.04 and 0.16); resolved on a record without them, the passes keep the P+Q objective.
 #[test]
 fn the_one_spec_compares_the_recorded_field_channels_by_their_noise() {
+    use itaipu_calib::spec::Channels;
     use itaipu_dynamics::event::{Event, Record, Window};
     use itaipu_dynamics::rng::Normal;
     let c = case("p01");
-    let plain = practice_spec(&c.unit, &c.event).unwrap();
-    assert!(plain.stages.iter().all(|s| s.channels.is_none()) && plain.joint.is_none());
+    let spec = practice_spec(&c.unit).unwrap();
+    assert!(spec.compares_recorded());
+    let plain = spec.resolve_recorded(&[&c.event], &[]);
+    assert!(
+        plain.stages.iter().all(|s| s.compare().is_none()) && plain.joint_compare().is_none(),
+        "a record without the field is fitted on P and Q as before"
+    );
 
     // 20 s at 60 samples/s, the first 10 s the initialisation window: each noise floor from
     // 600 samples (±3.5 %), a ratio of two variances within ±10 % (1 σ).
@@ -105,23 +112,29 @@ fn the_one_spec_compares_the_recorded_field_channels_by_their_noise() {
         None,
     )
     .unwrap();
-    let spec = practice_spec(&c.unit, &ev).unwrap();
-    let joint = spec
+    let resolved = spec.resolve_recorded(&[&ev], &[]);
+    assert!(!resolved.compares_recorded());
+    let joint = resolved
         .joint
         .as_ref()
         .expect("the joint pass compares them too");
-    let compared = spec
+    let compared = resolved
         .stages
         .iter()
         .map(|s| s.channels.as_ref())
         .chain([joint.channels.as_ref()]);
     for ch in compared {
-        let ch = ch.expect("every pass compares channels");
+        let Some(Channels::Weights(ch)) = ch else {
+            panic!("every pass compares weighted channels: {ch:?}")
+        };
         let w = |k: &str| ch.get(k).copied().unwrap_or(f64::NAN);
         assert_eq!((w("p"), w("q")), (1.0, 1.0), "{ch:?}");
         assert!((w("efd") / 0.04 - 1.0).abs() < 0.25, "{ch:?}");
         assert!((w("ifd") / 0.16 - 1.0).abs() < 0.25, "{ch:?}");
     }
+    // A held-out event without the field: no pass compares it (it could not be scored there).
+    let partial = spec.resolve_recorded(&[&ev], &[&c.event]);
+    assert!(partial.stages.iter().all(|s| s.compare().is_none()));
 }
 
 #[test]
@@ -164,7 +177,7 @@ fn the_engine_reproduces_the_independent_floor_with_the_true_parameters() {
 #[test]
 fn the_default_staged_fit_reaches_the_floor_with_every_uncertain_parameter_free() {
     let c = case("p01");
-    let spec = practice_spec(&c.unit, &c.event).unwrap();
+    let spec = practice_spec(&c.unit).unwrap();
     let opts = FitOptions::from_spec(&spec);
     let r = fit(
         &c.unit,
@@ -275,7 +288,7 @@ fn diagnose_bundled_unit(
     let unit =
         itaipu_dynamics::unit_file::read_unit(&root().join(folder).join(format!("{name}.toml")))
             .unwrap();
-    let spec = practice_spec(&case.unit, &case.event).unwrap();
+    let spec = practice_spec(&case.unit).unwrap();
     let opts = FitOptions::from_spec(&spec);
     let d = itaipu_calib::diagnose::diagnose(
         &unit,
@@ -370,4 +383,50 @@ fn candidate<'a>(
     id: &str,
 ) -> &'a itaipu_calib::diagnose::CandidateReport {
     report.candidates.iter().find(|c| c.cause == id).unwrap()
+}
+
+/// A fit whose phasor stages compare P and Q alone on a record that holds the field (q11) is
+/// warned, per stage, with `channels = "recorded"` as the fix; the one spec, which says it, is
+/// not; a record without the field (p01) is not.
+#[test]
+fn a_fit_that_leaves_the_recorded_field_out_is_warned() {
+    use itaipu_calib::job::{prepare_fit, FitInputs};
+    use itaipu_calib::request::FitRequest;
+    use itaipu_calib::spec::CalibSpec;
+    let inputs = |c: &PracticeCase, spec: CalibSpec| FitInputs {
+        unit: c.unit.clone(),
+        unit_path: None,
+        spec,
+        spec_path: Some(PathBuf::from("cal.toml")),
+        spec_text: None,
+        events: vec![c.event.clone()],
+        held_out: vec![],
+    };
+    let kinds = |c: &PracticeCase, spec: CalibSpec| -> Vec<String> {
+        let (_, w) = prepare_fit(&inputs(c, spec), &FitRequest::default()).unwrap();
+        w.into_iter()
+            .filter(|f| f.kind == "field_not_compared")
+            .map(|f| format!("{}: {} ({})", f.column, f.message, f.fix))
+            .collect()
+    };
+    let pq_only = |c: &PracticeCase| {
+        let text = format!(
+            "[calibration]\n[[calibration.stage]]\nname = \"gen\"\nfree = [ {{ param = \"machine.x_d\", min = {}, max = {} }} ]\n",
+            0.5 * c.unit.get(c.unit.param("machine.x_d").unwrap()),
+            2.0 * c.unit.get(c.unit.param("machine.x_d").unwrap()),
+        );
+        CalibSpec::parse(&text, std::path::Path::new("cal.toml")).unwrap()
+    };
+    let q11 = case("q11");
+    let w = kinds(&q11, pq_only(&q11));
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].contains("calibration.stage[0] (stage gen)")
+            && w[0].contains("efd, ifd")
+            && w[0].contains("channels = \"recorded\""),
+        "{w:?}"
+    );
+    assert!(kinds(&q11, practice_spec(&q11.unit).unwrap()).is_empty());
+    let p01 = case("p01");
+    assert!(kinds(&p01, pq_only(&p01)).is_empty());
 }

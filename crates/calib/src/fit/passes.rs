@@ -49,6 +49,17 @@ pub fn fit_with(
         return Err(FitError::Setup("no event to fit".into()));
     }
     opts.check()?;
+    // `channels = "recorded"` becomes the weights of the field channels every event records,
+    // fitted and held out (one place, so every front end fits the same).
+    let resolved;
+    let spec = if spec.compares_recorded() {
+        let fitted: Vec<&Event> = events.iter().collect();
+        let held: Vec<&Event> = held_out.iter().collect();
+        resolved = spec.resolve_recorded(&fitted, &held);
+        &resolved
+    } else {
+        spec
+    };
     for s in &opts.stages {
         if !STAGES.contains(&s.as_str()) {
             return Err(FitError::Setup(format!(
