@@ -395,24 +395,25 @@ fn print_report(r: &Diagnosis) {
         "candidates (* = significant, ranked by the extended model's BIC; the others by ΔBIC)"
     );
     println!(
-        "  {:<18} {:>9} {:>9} {:>9} {:>2} {:1}  key parameters / note",
-        "cause", "ΔBIC", "fit χ²↓", "held χ²↓", "k", ""
+        "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>2} {:1}  key parameters / note",
+        "cause", "ΔBIC", "2 ln B", "fit χ²↓", "held χ²↓", "k", ""
     );
-    let indent = " ".repeat(2 + 18 + 1 + 9 + 1 + 9 + 1 + 9 + 1 + 2 + 1 + 1 + 2);
+    let indent = " ".repeat(2 + 18 + 1 + 9 + 1 + 9 + 1 + 9 + 1 + 9 + 1 + 2 + 1 + 1 + 2);
     for c in &r.candidates {
         let head = match &c.gains {
             Some(g) => format!(
-                "  {:<18} {:>9.1} {:>9} {:>9} {:>2} {:1}  ",
+                "  {:<18} {:>9.1} {:>9.1} {:>9} {:>9} {:>2} {:1}  ",
                 c.cause,
                 g.delta_bic,
+                g.record_evidence,
                 pct(g.fit_drop),
                 pct(g.held_drop),
                 g.k,
                 if c.significant { "*" } else { "" }
             ),
             None => format!(
-                "  {:<18} {:>9} {:>9} {:>9} {:>2} {:1}  ",
-                c.cause, "-", "-", "-", "-", ""
+                "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>2} {:1}  ",
+                c.cause, "-", "-", "-", "-", "-", ""
             ),
         };
         let items = key_params(c);

@@ -28,8 +28,10 @@
 //!    extension's parameters, N = fitted residuals, VIF = `(1 + ρ₁)/(1 − ρ₁)` from the baseline
 //!    residual's lag-1 autocorrelation, so that a coloured residual counts as fewer independent
 //!    samples): an extension that only buys flexibility gains about `k` in χ² and loses.
-//! 6. **Verdict.** A candidate is significant when `ΔBIC > bic_threshold`, its fitted χ² is down
-//!    by at least `min_fit_drop` and its held-out χ² by at least `min_held_drop`. Among the
+//! 6. **Verdict.** A candidate is significant when its fitted χ² is down by at least
+//!    `min_fit_drop`, its held-out χ² by at least `min_held_drop`, and the whole record's
+//!    evidence `ΔBIC + Δχ²_held/VIF` (the fitted blocks' Bayes factor times the held-out
+//!    blocks' predictive likelihood ratio, `2 ln B`) is above `bic_threshold`. Among the
 //!    significant ones, the extended model with the lowest `χ²_ext + k ln N` (k = every
 //!    parameter it re-fitted) is the best; an extension pressed against the upper end of its
 //!    range is not significant (the residual asks for more than the cause can be), nor is one
@@ -300,6 +302,10 @@ pub struct Gains {
     /// and the sample size deflated by the baseline residual's variance inflation (positive
     /// favours the extension).
     pub delta_bic: f64,
+    /// The whole record's evidence, `2 ln B`: `delta_bic` plus the held-out samples' predictive
+    /// gain `Δχ²_held/VIF` (net), what significance is judged on
+    /// ([`candidates::record_evidence`]).
+    pub record_evidence: f64,
     /// Variance inflation factor of the baseline residual (1 for white noise).
     pub vif: f64,
     /// Parameters counted (the extension's, plus discrete switches).

@@ -63,10 +63,12 @@ pub(super) fn undecided(
         .next()
         .map(|(r, g)| {
             format!(
-                " The best candidate, {}, gained ΔBIC {:.1} ({:.1} % of χ²){}.",
+                " The best candidate, {}, gained ΔBIC {:.1} ({:.1} % of χ²; the record's evidence \
+                 with its held-out prediction 2 ln B = {:.1}){}.",
                 r.cause,
                 g.delta_bic,
                 100.0 * g.fit_drop,
+                g.record_evidence,
                 if r.note.starts_with("not named") {
                     format!(", {}", r.note)
                 } else {
@@ -292,7 +294,8 @@ pub(super) fn decide(
                 .collect();
             let statement = format!(
                 "{}: {}. The extension ({}) lowers χ² on the fitted samples by {:.0} % ({:.1} -> {:.1}) and on the held-out \
-                 samples by {:.0} %{}; ΔBIC = {:.1} with {} added parameter(s). Fitted values: {}.",
+                 samples by {:.0} %{}; ΔBIC = {:.1} with {} added parameter(s), and with the held-out samples' \
+                 predictive gain the record's evidence 2 ln B = {:.1}. Fitted values: {}.",
                 rep.cause,
                 rep.title,
                 rep.extension,
@@ -306,6 +309,7 @@ pub(super) fn decide(
                 )),
                 g.delta_bic,
                 g.k,
+                g.record_evidence,
                 params.join(", ")
             );
             // Which calibrated values become plausible again with it.
@@ -581,6 +585,7 @@ mod tests {
                 held_drop: 0.2,
                 held_drop_segments: None,
                 delta_bic,
+                record_evidence: delta_bic + 50.0,
                 vif: 2.0,
                 k: 1,
                 n_fit: 1000,

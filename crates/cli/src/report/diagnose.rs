@@ -303,7 +303,7 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
 
     // Candidates.
     page.h2("candidates", "Candidates");
-    page.p("Ranked by ΔBIC = Δχ²/VIF − k ln(N/VIF); a cause is significant when ΔBIC and the fitted and held-out χ² drops (net of what the same re-fit gains on noise alone) all pass. χ² base → ext compares each cause's extended re-fit with the baseline re-fitted over the same parameters; the RMS columns compare with the one reference above.");
+    page.p("Ranked by ΔBIC = Δχ²/VIF − k ln(N/VIF); a cause is significant when the fitted and held-out χ² drops (net of what the same re-fit gains on noise alone) pass and the record's evidence 2 ln B = ΔBIC + Δχ²_held/VIF (the fitted blocks' Bayes factor times the held-out blocks' predictive likelihood ratio) is above 10. χ² base → ext compares each cause's extended re-fit with the baseline re-fitted over the same parameters; the RMS columns compare with the one reference above.");
     let mut rows = vec![];
     for (i, c) in r.candidates.iter().enumerate() {
         let ptr = |f: &str| format!("/candidates/{i}/gains/{f}");
@@ -318,6 +318,9 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
         match &c.gains {
             Some(g) => row.extend([
                 Cell::json(g.delta_bic, ptr("delta_bic"), |v| format!("{v:.1}")),
+                Cell::json(g.record_evidence, ptr("record_evidence"), |v| {
+                    format!("{v:.1}")
+                }),
                 Cell::json(g.chi2_fit_base, ptr("chi2_fit_base"), chi2),
                 Cell::json(g.chi2_fit_ext, ptr("chi2_fit_ext"), chi2),
                 Cell::json_pct(g.fit_drop, ptr("fit_drop")),
@@ -351,6 +354,7 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
             "#",
             "cause",
             "ΔBIC",
+            "2 ln B",
             "fit χ² base",
             "fit χ² ext",
             "fit drop [%]",
