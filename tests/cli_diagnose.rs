@@ -210,15 +210,18 @@ fn diagnose_draws_plots_and_a_self_contained_html_report() {
             "the report must stand alone: found {banned}"
         );
     }
-    // Text is escaped: the verdict statement's "->" arrows appear as "-&gt;".
+    // Text is escaped: the verdict statement's "->" arrows appear as "-&gt;", its apostrophes
+    // as "&#39;".
     let d = json(&out.join("diagnosis.json"));
     let statement = d["verdict"]["statement"].as_str().unwrap();
-    assert!(statement.contains("->"));
+    assert!(statement.contains("->") && statement.contains('\''));
     assert!(html.contains(
         &statement
             .replace('&', "&amp;")
             .replace('<', "&lt;")
             .replace('>', "&gt;")
+            .replace('"', "&quot;")
+            .replace('\'', "&#39;")
     ));
     for section in [
         "Verdict: measurement_skew",
