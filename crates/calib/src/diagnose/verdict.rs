@@ -96,6 +96,20 @@ pub(super) fn undecided(
     let top = top_window(s);
     let where_ = top.map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s));
     let over = ratio(s);
+    // The largest residual in the recorded field of a phasor playback (P and Q compared too):
+    // what a calibration on P and Q alone leaves, bending X_d and the exciter's gain until the
+    // simulated field runs off the recorded one (practice p15: Ifd 13 σ off on a clean record).
+    let field_hint = if compared.contains(&"P")
+        && compared.contains(&"Q")
+        && super::playback::signal_channel(&s.signal)
+            .is_some_and(|c| super::playback::FIELD_CHANNELS.contains(&c))
+    {
+        " If the calibration compared P and Q alone, it may have bent X_d and the exciter's gain \
+         until the simulated field ran off the recorded one: calibrate with channels = \"recorded\" \
+         (P, Q and the recorded field, each weighted by its noise) and diagnose again."
+    } else {
+        ""
+    };
     if over <= opts.noise_factor {
         Verdict {
             cause: "none".into(),
@@ -131,7 +145,7 @@ pub(super) fn undecided(
             title: format!("unexplained residual at {} ({}, {:.2}-{:.2} s)", s.signal, w.label, w.start_s, w.end_s),
             statement: format!(
                 "Unexplained residual at {} in the {} window ({:.2}-{:.2} s, {:.0} % of its squared error) on {event}: RMS {:.2} × \
-                 the pre-event residual σ, Ljung-Box p = {:.2}{mode}. No catalog extension explains it significantly.{best_try}",
+                 the pre-event residual σ, Ljung-Box p = {:.2}{mode}. No catalog extension explains it significantly.{best_try}{field_hint}",
                 s.signal,
                 w.label,
                 w.start_s,
@@ -154,7 +168,7 @@ pub(super) fn undecided(
             title: format!("unexplained residual at {}", s.signal),
             statement: format!(
                 "Unexplained residual at {} on {event}: RMS {:.2} × the pre-event residual σ, \
-                 Ljung-Box p = {:.2}. No catalog extension explains it significantly.{best_try}",
+                 Ljung-Box p = {:.2}. No catalog extension explains it significantly.{best_try}{field_hint}",
                 s.signal, over, s.whiteness.p_value
             ),
             key_parameters: vec![],
@@ -545,6 +559,41 @@ mod tests {
             v.statement
         );
         assert!(v.where_.is_none());
+        assert!(!v.statement.contains("recorded"), "{}", v.statement);
+    }
+
+    /// An unexplained residual in the recorded field of a phasor playback says how the
+    /// calibration may have left it (P and Q alone) and what to do; in a playback mode that
+    /// compares E_fd without P it does not.
+    #[test]
+    fn an_unexplained_field_residual_points_to_the_recorded_channels() {
+        let t: Vec<f64> = (0..200).map(|k| k as f64 / 60.0).collect();
+        let r: Vec<f64> = t.iter().map(|x| 0.05 * (3.0 * x).sin()).collect();
+        let ev = |signal: &str| {
+            [EventEvidence {
+                event: "e".into(),
+                onset_s: 1.0,
+                signals: vec![analyse(
+                    signal,
+                    &t,
+                    &r,
+                    &r,
+                    &[],
+                    &EvidenceOptions::default(),
+                )],
+                p_peak: None,
+            }]
+        };
+        let opts = DiagnoseOptions::default();
+        let v = undecided(&ev("Ifd"), &["P", "Q", "Efd", "Ifd"], &[], &opts);
+        assert_eq!(v.cause, "unexplained");
+        assert!(
+            v.statement.contains("channels = \"recorded\""),
+            "{}",
+            v.statement
+        );
+        let v = undecided(&ev("Efd"), &["|V|", "Q", "Efd"], &[], &opts);
+        assert!(!v.statement.contains("recorded"), "{}", v.statement);
     }
 
     fn candidate(
