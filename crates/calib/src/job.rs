@@ -393,10 +393,7 @@ pub fn field_warnings(
     stages: &[String],
     calib_path: &Path,
 ) -> Vec<Finding> {
-    let field: Vec<_> = diagnose::playback::FIELD_CHANNELS
-        .into_iter()
-        .filter(|c| !events.is_empty() && events.iter().all(|e| e.has(*c)))
-        .collect();
+    let field = diagnose::playback::field_recorded_by_all(events.iter().copied());
     if field.is_empty() {
         return vec![];
     }

@@ -162,9 +162,8 @@ pub fn field_weights(
         .map(|e| 0.5 * (floor(e, Channel::P).powi(2) + floor(e, Channel::Q).powi(2)))
         .sum::<f64>()
         / n;
-    crate::diagnose::playback::FIELD_CHANNELS
+    crate::diagnose::playback::field_recorded_by_all(events.iter().chain(held_out).copied())
         .into_iter()
-        .filter(|c| events.iter().chain(held_out).all(|e| e.has(*c)))
         .filter_map(|c| {
             let s2 = mean_var(c);
             (s2 > 0.0 && pq > 0.0).then(|| (c, pq / s2))

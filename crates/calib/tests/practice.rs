@@ -387,7 +387,7 @@ fn candidate<'a>(
 
 /// A fit whose phasor stages compare P and Q alone on a record that holds the field (q11) is
 /// warned, per stage, with `channels = "recorded"` as the fix; the one spec, which says it, is
-/// not; a record without the field (p01) is not.
+/// not; a record without the field channels is not.
 #[test]
 fn a_fit_that_leaves_the_recorded_field_out_is_warned() {
     use itaipu_calib::job::{prepare_fit, FitInputs};

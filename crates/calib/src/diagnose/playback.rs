@@ -33,6 +33,19 @@ use super::DiagnoseError;
 /// the recorded field is what shows a ceiling or a saturation that bending absorbed.
 pub const FIELD_CHANNELS: [Channel; 2] = [Channel::Efd, Channel::Ifd];
 
+/// The field channels ([`FIELD_CHANNELS`]) that every one of `events` records (none for no
+/// event): what the phasor playback, `channels = "recorded"` and the fit's warning compare.
+pub fn field_recorded_by_all<'a>(events: impl Iterator<Item = &'a Event> + Clone) -> Vec<Channel> {
+    let mut any = events.clone().peekable();
+    if any.peek().is_none() {
+        return vec![];
+    }
+    FIELD_CHANNELS
+        .into_iter()
+        .filter(|c| events.clone().all(|e| e.has(*c)))
+        .collect()
+}
+
 /// The playback of a diagnosis and its compared channels (see the module documentation).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Playback {
@@ -72,11 +85,8 @@ impl Playback {
     ) -> Result<Self, DiagnoseError> {
         let mut pb = Self::new(mode.unwrap_or_default());
         if pb.mode == PlaybackMode::Phasor && !events.is_empty() {
-            pb.channels.extend(
-                FIELD_CHANNELS
-                    .into_iter()
-                    .filter(|c| events.iter().all(|e| e.has(*c))),
-            );
+            pb.channels
+                .extend(field_recorded_by_all(events.iter().copied()));
         }
         for e in events {
             if let Some(why) = pb.mode.missing(e, &pb.channels) {

@@ -97,8 +97,10 @@ pub(super) fn undecided(
     let where_ = top.map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s));
     let over = ratio(s);
     // The largest residual in the recorded field of a phasor playback (P and Q compared too):
-    // what a calibration on P and Q alone leaves, bending X_d and the exciter's gain until the
-    // simulated field runs off the recorded one (practice p15: Ifd 13 σ off on a clean record).
+    // what a calibration on P and Q alone can leave, X_d and the exciter's gain bent until the
+    // simulated field runs off the recorded one. The condition is structural (which compared
+    // signal holds the largest residual), no threshold: the verdict is already `unexplained`,
+    // the residual above the noise floor by `noise_factor`.
     let field_hint = if compared.contains(&"P")
         && compared.contains(&"Q")
         && super::playback::signal_channel(&s.signal)
