@@ -10,6 +10,8 @@
 //! * `jacobian_adaptive_differences` / `jacobian_replayed` / `jacobian_sensitivities`: one
 //!   Levenberg-Marquardt Jacobian (12 parameters, a 20 s synthetic dip) by differences of
 //!   adaptive runs, on replays, and by forward sensitivities;
+//! * `swarm_whole_or_bounded`: one swarm with whole playbacks and with bounded ones (each
+//!   candidate stopped once it cannot beat its particle's best);
 //! * `practice_fit_and_diagnose`: the default fit and the diagnosis of the bundled practice case
 //!   p01 with every uncertain parameter free (target: within 60 s).
 
@@ -199,5 +201,45 @@ fn jacobian_sensitivities(bencher: Bencher) {
         let (_, steps) = problem.residuals_with_steps(&x, o).unwrap();
         let sims: Vec<_> = steps.iter().collect();
         problem.sensitivity_jacobian(&u, &sims).unwrap()
+    });
+}
+
+/// A swarm of 20 particles and 10 iterations on [`jacobian_problem`] (220 candidates, search
+/// integrator), with whole playbacks (`whole`) and with each candidate simulated only as far as
+/// it can still beat its particle's best (`bounded`, as the calibration runs it): the same swarm
+/// bit for bit (`tests/bounded_swarm.rs`), the time saved by the stops.
+#[divan::bench(args = ["whole", "bounded"], sample_count = 3, sample_size = 1)]
+fn swarm_whole_or_bounded(bencher: Bencher, how: &str) {
+    use itaipu_calib::problem::search_integrator;
+    use itaipu_calib::pso::{minimize, minimize_bounded, PsoOptions};
+    let problem = jacobian_problem();
+    let sim = search_integrator();
+    let u0 = problem.to_unit(&problem.start());
+    let opts = PsoOptions {
+        particles: 20,
+        iterations: 10,
+        seed: 1,
+        failed_cost: problem.penalty,
+        ..Default::default()
+    };
+    bencher.bench_local(|| {
+        let n = u0.len();
+        if how == "whole" {
+            minimize(
+                |u: &[f64]| problem.cost(&problem.from_unit(u), &sim),
+                n,
+                Some(&u0),
+                &opts,
+                |_, _| {},
+            )
+        } else {
+            minimize_bounded(
+                |u: &[f64], b: f64| problem.cost_bounded(&problem.from_unit(u), &sim, b),
+                n,
+                Some(&u0),
+                &opts,
+                |_, _| {},
+            )
+        }
     });
 }

@@ -20,8 +20,8 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use itaipu_dynamics::event::{Channel, Event, Window, MIN_SAMPLES};
 use itaipu_dynamics::integrate::{Dopri5Options, Method, StepLog};
-use itaipu_dynamics::mode::{simulate_mode, ModeOutputs};
-use itaipu_dynamics::simulate::{simulate_pq, PreparedEvent, SimOptions};
+use itaipu_dynamics::mode::{simulate_mode, simulate_mode_watched, ModeOutputs};
+use itaipu_dynamics::simulate::{simulate_pq, simulate_pq_watched, PreparedEvent, SimOptions};
 use itaipu_dynamics::unit::{ParamRef, Unit};
 use rayon::prelude::*;
 
@@ -446,6 +446,13 @@ pub fn accurate_integrator() -> SimOptions {
 
 /// One event's simulated P and Q at the record's samples ([`Problem::simulate`]).
 pub type SimulatedPq = (Vec<f64>, Vec<f64>);
+
+/// Relative margin by which a partial sum of squares must pass the bound before
+/// [`Problem::cost_bounded`] stops a playback: summed in another order than the objective, the
+/// two may differ by rounding, at most about `n·ε` relative for `n` terms (2e-11 for 10⁵ samples
+/// of two channels); 1e-9 leaves a hundredfold margin, and costs nothing measurable (a
+/// candidate that close to its particle's best is rare and simulated to the end).
+const STOP_MARGIN: f64 = 1e-9;
 
 /// Largest |P| or |Q| [pu] a sane simulation produces; beyond it a candidate has diverged.
 const DIVERGED_PU: f64 = 100.0;
@@ -964,6 +971,124 @@ impl Problem {
     pub fn cost(&self, x: &[f64], sim: &SimOptions) -> f64 {
         self.residuals_logged(x, sim)
             .map_or(self.penalty, |r| sum_of_squares(&r))
+    }
+
+    /// [`Problem::cost`] for a caller that needs the objective only when it is below `bound`
+    /// (a swarm's particle against its personal best, [`crate::pso::minimize_bounded`]): the
+    /// objective, bit for bit [`Problem::cost`]'s, when the candidate ends below `bound`;
+    /// otherwise some value at or above `bound`.
+    ///
+    /// The objective is a sum of squares in time order, event after event, plus the priors'
+    /// squares: once the priors and the samples simulated so far reach `bound`, the rest of the
+    /// playback cannot bring the candidate below it, and it stops there. It stops only when
+    /// `bound` is at most the penalty: a candidate that would fail later scores the penalty,
+    /// which must not be below `bound` either. The partial sum is taken in another order than
+    /// [`Problem::cost`]'s, so it must pass `bound` by [`STOP_MARGIN`] (relative) to stop: a
+    /// candidate whose objective is within rounding of the bound is simulated to the end. A
+    /// stopped candidate is counted as a simulation; a failure it would have met later is not
+    /// seen (nor logged).
+    pub fn cost_bounded(&self, x: &[f64], sim: &SimOptions, bound: f64) -> f64 {
+        if !(bound <= self.penalty) || self.cancelled() {
+            return self.cost(x, sim);
+        }
+        let stop_at = bound * (1.0 + STOP_MARGIN);
+        self.evaluations
+            .fetch_add(self.events.len(), Ordering::Relaxed);
+        match self.residuals_until(x, sim, stop_at) {
+            Ok(Ok(r)) => sum_of_squares(&r),
+            Ok(Err(partial)) => partial,
+            Err(msg) => {
+                self.record_failure(x, msg.to_string());
+                self.penalty
+            }
+        }
+    }
+
+    /// The residuals at `x` ([`Problem::residuals`], bit for bit), or `Err(partial)`, the sum of
+    /// squares reached, once it reaches `stop_at` ([`Problem::cost_bounded`]).
+    fn residuals_until(
+        &self,
+        x: &[f64],
+        sim: &SimOptions,
+        stop_at: f64,
+    ) -> Result<Result<Vec<f64>, f64>, ProblemError> {
+        let mut partial = sum_of_squares(&self.prior_residuals(x));
+        if partial >= stop_at {
+            return Ok(Err(partial));
+        }
+        // The first sample that ran away, as the residuals would report it.
+        let mut diverged: Option<f64> = None;
+        let unit = self.unit_at(x);
+        if let Some(cmp) = &self.compare {
+            let mut outs = Vec::with_capacity(self.events.len());
+            for ev in &self.events {
+                let series: Vec<(f64, Channel, &[f64])> = cmp
+                    .weights
+                    .iter()
+                    .filter_map(|&(c, w)| Some((w, c, ev.measured(c)?)))
+                    .collect();
+                let watched = simulate_mode_watched(&unit, &ev.prepared, cmp.mode, sim, |k, o| {
+                    if !ev.in_window[k] {
+                        return true;
+                    }
+                    for &(w, c, meas) in &series {
+                        let Some(s) = o.channel(c) else { continue };
+                        if !(s[k].abs() < DIVERGED_PU) {
+                            diverged = Some(ev.prepared.input.time_s[k]);
+                            return false;
+                        }
+                        partial += w * (s[k] - meas[k]).powi(2);
+                    }
+                    partial < stop_at
+                })
+                .map_err(|error| ProblemError::Simulation {
+                    event: ev.name.clone(),
+                    error,
+                })?;
+                if let Some(t) = diverged {
+                    return Err(ProblemError::Diverged {
+                        event: ev.name.clone(),
+                        t,
+                    });
+                }
+                match watched {
+                    Some(o) => outs.push(o),
+                    None => return Ok(Err(partial)),
+                }
+            }
+            return self.residuals_from_outputs(x, &outs).map(Ok);
+        }
+        let (wp, wq) = self.weights;
+        let mut unit = unit;
+        let mut pq = Vec::with_capacity(self.events.len());
+        for ev in &self.events {
+            let watched = simulate_pq_watched(&mut unit, &ev.prepared, sim, |k, p, q| {
+                if !ev.in_window[k] {
+                    return true;
+                }
+                if !(p.abs() < DIVERGED_PU && q.abs() < DIVERGED_PU) {
+                    diverged = Some(ev.prepared.input.time_s[k]);
+                    return false;
+                }
+                partial += wp * (p - ev.p_meas[k]).powi(2) + wq * (q - ev.q_meas[k]).powi(2);
+                partial < stop_at
+            })
+            .map_err(|error| ProblemError::Simulation {
+                event: ev.name.clone(),
+                error,
+            })?;
+            if let Some(t) = diverged {
+                return Err(ProblemError::Diverged {
+                    event: ev.name.clone(),
+                    t,
+                });
+            }
+            match watched {
+                Some(s) => pq.push(s),
+                None => return Ok(Err(partial)),
+            }
+        }
+        self.residuals_from(x, &pq).map(Ok)
     }
 
     /// The residuals at physical values `x`, counted as an evaluation; `None` (the failure

@@ -250,10 +250,33 @@ pub fn minimize<F, P>(
     n: usize,
     start: Option<&[f64]>,
     opts: &PsoOptions,
-    mut on_iteration: P,
+    on_iteration: P,
 ) -> PsoResult
 where
     F: Fn(&[f64]) -> f64 + Sync,
+    P: FnMut(usize, f64),
+{
+    minimize_bounded(|x, _| cost(x), n, start, opts, on_iteration)
+}
+
+/// [`minimize`] with a cost that may stop early: `cost(x, bound)` must return the exact cost of
+/// `x` when it is below `bound`, and may return any value at or above `bound` otherwise.
+///
+/// The bound handed over is the particle's personal best (`+∞` before it has one). The swarm
+/// reads a new cost only through `c < pbest_cost[i]`, and the global best only moves with a
+/// personal best, so a cost that stops once it is known to reach the bound changes nothing:
+/// the result and the `on_iteration` calls are bit-for-bit those of [`minimize`] with the exact
+/// cost. A sum of non-negative terms (a least-squares objective simulated in time) can stop as
+/// soon as its partial sum reaches the bound.
+pub fn minimize_bounded<F, P>(
+    cost: F,
+    n: usize,
+    start: Option<&[f64]>,
+    opts: &PsoOptions,
+    mut on_iteration: P,
+) -> PsoResult
+where
+    F: Fn(&[f64], f64) -> f64 + Sync,
     P: FnMut(usize, f64),
 {
     if let Err(msg) = opts.validate() {
@@ -273,7 +296,7 @@ where
     }
 
     if n == 0 {
-        let c = sanitize(cost(&[]));
+        let c = sanitize(cost(&[], f64::INFINITY));
         on_iteration(0, c);
         return PsoResult {
             best: Vec::new(),
@@ -321,7 +344,11 @@ where
                                    gbest: &mut Vec<f64>,
                                    gbest_cost: &mut f64| {
         // Parallel part: pure evaluations, collected in particle order.
-        let costs: Vec<f64> = xs.par_iter().map(|x| sanitize(cost(x))).collect();
+        let costs: Vec<f64> = xs
+            .par_iter()
+            .zip(pbest_cost.par_iter())
+            .map(|(x, &bound)| sanitize(cost(x, bound)))
+            .collect();
         evaluations += costs.len();
         // Sequential part, in particle order: personal bests, then global best with ties
         // broken by the lowest index (strict `<`).
@@ -948,6 +975,42 @@ mod tests {
         assert_eq!(r.best, xstar.to_vec());
         // Nothing improves on the optimum, so the run stalls.
         assert_eq!(r.stopped_by, StopReason::Stalled);
+    }
+
+    /// A cost that gives up at its bound (returns the bound, or the bound plus the part it
+    /// had summed) leaves the swarm exactly as the exact cost does, and is asked for each
+    /// particle's personal best: `+∞` in the initial swarm, finite after.
+    #[test]
+    fn a_cost_that_stops_at_its_bound_leaves_the_swarm_unchanged() {
+        let o = PsoOptions {
+            iterations: 40,
+            stall_iterations: 0,
+            seed: 5,
+            ..opts()
+        };
+        let exact = minimize(rastrigin, 3, None, &o, |_, _| {});
+        let asked = std::sync::Mutex::new(vec![]);
+        let bounded = minimize_bounded(
+            |x: &[f64], bound: f64| {
+                asked.lock().unwrap().push(bound);
+                let c = rastrigin(x);
+                if c >= bound {
+                    bound + 0.5 * (c - bound)
+                } else {
+                    c
+                }
+            },
+            3,
+            None,
+            &o,
+            |_, _| {},
+        );
+        assert!(bitwise_eq(&exact, &bounded));
+        let asked = asked.into_inner().unwrap();
+        assert_eq!(asked.len(), exact.evaluations);
+        let m = o.particles;
+        assert!(asked[..m].iter().all(|b| *b == f64::INFINITY));
+        assert!(asked[m..].iter().all(|b| b.is_finite()));
     }
 
     #[test]

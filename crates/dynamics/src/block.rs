@@ -260,6 +260,11 @@ pub trait Block: Send + Sync {
     /// errors). Default: no change.
     fn transform_pq(&self, _t: &[f64], _p: &mut [f64], _q: &mut [f64]) {}
 
+    /// Whether [`Block::transform_pq`] acts (a block that overrides it says `true`).
+    fn transforms_pq(&self) -> bool {
+        false
+    }
+
     /// P and Q [pu machine base] drawn between the machine terminals and the measurement point
     /// at terminal voltage `v` [pu]: the machine initialises delivering the measured power plus
     /// this, and the recorded P, Q are the machine's minus this. Default: none.

@@ -1171,14 +1171,15 @@ pub fn initial_derivatives(
 
 /// Plays `ev` back into a prepared unit; `record(k, unit, x)` is called at every sample `k` with
 /// the bus evaluated there (the unit as played back: read signals by name on it).
-pub fn run_mode_unit<F>(
+pub fn run_mode_unit<F, G>(
     mu: &mut ModeUnit,
     ev: &PreparedEvent,
     opts: &SimOptions,
     mut record: F,
 ) -> Result<Stats, SimError>
 where
-    F: FnMut(usize, &Unit, &[f64]),
+    F: FnMut(usize, &Unit, &[f64]) -> G,
+    G: integrate::GoOn,
 {
     let mut x = mu.unit.initialise_with(&mu.op, &mu.preset)?;
     let inp = inputs(mu, ev);
@@ -1220,9 +1221,10 @@ where
         let res = integrate::solve(&opts.method, &mut sys, &mut x, &kt[a..=b], |j, t, xx, s| {
             if let Some(k) = knots[a + j].1 {
                 if s.eval_signals(t, xx) {
-                    record(k, s.unit, xx);
+                    return integrate::GoOn::go_on(record(k, s.unit, xx));
                 }
             }
+            true
         });
         if let Some((t, msg)) = sys.fail.take() {
             return Err(SimError::ModeSolve {
@@ -1243,8 +1245,10 @@ where
         sys.level = level;
         sys.bus_valid = false;
         if let Some(k) = knots[last].1 {
-            if sys.eval_signals(kt[last], &x) {
-                record(k, sys.unit, &x);
+            if sys.eval_signals(kt[last], &x) && !integrate::GoOn::go_on(record(k, sys.unit, &x)) {
+                return Err(SimError::Solve(integrate::SolveError::Stopped {
+                    t: kt[last],
+                }));
             }
         }
     }
@@ -1275,6 +1279,85 @@ impl Reader {
 /// Simulates `unit` on `ev` in `mode`: the channels at every sample ([`ModeOutputs`]). A phasor
 /// playback without steps is [`crate::simulate::run_playback`]'s, bit for bit.
 pub fn simulate_mode(
+    unit: &Unit,
+    ev: &PreparedEvent,
+    mode: PlaybackMode,
+    opts: &SimOptions,
+) -> Result<ModeOutputs, SimError> {
+    simulate_mode_watched(unit, ev, mode, opts, |_, _| true)
+        .map(|o| o.expect("a watch that never stops"))
+}
+
+/// [`simulate_mode`], showing `watch(k, outputs)` each sample `k` of the channels as soon as it
+/// is final (the samples up to `k` are set); a `watch` that returns `false` stops the playback
+/// there, and the result is `Ok(None)`. The outputs and the error of a run that is not stopped
+/// are [`simulate_mode`]'s, bit for bit.
+///
+/// Samples are final at once in a phasor playback without set-point steps of a unit that does
+/// not transform its recorded P and Q ([`Unit::transforms_pq`]); in every other case `watch`
+/// sees each sample after the whole playback, and may stop nothing.
+pub fn simulate_mode_watched<W>(
+    unit: &Unit,
+    ev: &PreparedEvent,
+    mode: PlaybackMode,
+    opts: &SimOptions,
+    mut watch: W,
+) -> Result<Option<ModeOutputs>, SimError>
+where
+    W: FnMut(usize, &ModeOutputs) -> bool,
+{
+    let out = match simulate_mode_live(unit, ev, mode, opts, &mut watch) {
+        Err(e) if e.is_stopped() => return Ok(None),
+        r => r?,
+    };
+    if let Some(out) = out {
+        return Ok(Some(out));
+    }
+    let out = simulate_mode_whole(unit, ev, mode, opts)?;
+    for k in 0..out.p.len() {
+        if !watch(k, &out) {
+            return Ok(None);
+        }
+    }
+    Ok(Some(out))
+}
+
+/// The phasor playback without steps of a unit that does not transform its P and Q, watched at
+/// each sample; `Ok(None)` for every other playback ([`simulate_mode_whole`]).
+fn simulate_mode_live<W>(
+    unit: &Unit,
+    ev: &PreparedEvent,
+    mode: PlaybackMode,
+    opts: &SimOptions,
+    watch: &mut W,
+) -> Result<Option<ModeOutputs>, SimError>
+where
+    W: FnMut(usize, &ModeOutputs) -> bool,
+{
+    if !(mode == PlaybackMode::Phasor && ev.steps.is_empty() && !unit.transforms_pq()) {
+        return Ok(None);
+    }
+    let mut out = ModeOutputs::unset(ev.input.time_s.len());
+    let mut u = unit.clone();
+    u.ensure_finished()?;
+    let (ip, iq) = u.pq_signals()?;
+    let (iefd, iifd) = field_signals(&u);
+    let r = Reader {
+        ip,
+        iq,
+        iefd: iefd.ok_or_else(|| UnitError::Wiring("no machine reading a field voltage".into()))?,
+        iifd,
+        to_sys: unit.machine_mva / ev.system_mva,
+    };
+    out.stats = run_playback(&mut u, ev, opts, |k, u, _| {
+        r.read(k, u, &mut out);
+        watch(k, &out)
+    })?;
+    Ok(Some(out))
+}
+
+/// [`simulate_mode`] without a watch.
+fn simulate_mode_whole(
     unit: &Unit,
     ev: &PreparedEvent,
     mode: PlaybackMode,

@@ -10,7 +10,7 @@ use std::path::Path;
 
 use crate::block::InitPoint;
 use crate::event::{Channel, Event, SetpointStep};
-use crate::integrate::{self, Dopri5Options, Method, SolveError, Stats};
+use crate::integrate::{self, Dopri5Options, GoOn, Method, SolveError, Stats};
 use crate::unit::{Playback, PlaybackInput, Unit, UnitError};
 
 /// Options of a playback simulation.
@@ -77,6 +77,11 @@ pub enum SimError {
 }
 
 impl SimError {
+    /// Whether the playback was stopped by its observer ([`GoOn`]), not by a failure.
+    pub fn is_stopped(&self) -> bool {
+        matches!(self, SimError::Solve(SolveError::Stopped { .. }))
+    }
+
     /// Short identifier of the error kind.
     pub fn kind(&self) -> &'static str {
         match self {
@@ -177,19 +182,21 @@ impl PreparedEvent {
 }
 
 /// Runs one playback; `record(k, unit)` is called at every sample `k` with the bus evaluated
-/// there (read signals with [`Unit::bus`]). Returns the integrator statistics.
+/// there (read signals with [`Unit::bus`]). Returns the integrator statistics. A `record` that
+/// returns `false` ([`GoOn`]) stops the playback at that sample ([`SimError::is_stopped`]).
 ///
 /// A record without a voltage angle is refused ([`SimError::NoAngle`]). An event with
 /// set-point steps is played back by [`crate::mode`] (the unit given to `record` is then the
 /// unit as played back, with the set-point block: read its signals by name on it).
-pub fn run_playback<F>(
+pub fn run_playback<F, G>(
     unit: &mut Unit,
     ev: &PreparedEvent,
     opts: &SimOptions,
     mut record: F,
 ) -> Result<Stats, SimError>
 where
-    F: FnMut(usize, &Unit, &[f64]),
+    F: FnMut(usize, &Unit, &[f64]) -> G,
+    G: GoOn,
 {
     if !ev.has_angle {
         return Err(SimError::NoAngle {
@@ -210,7 +217,7 @@ where
         &ev.input.time_s,
         |k, t, x, sys| {
             sys.eval_signals(t, x);
-            record(k, sys.unit, x);
+            record(k, sys.unit, x)
         },
     )?;
     Ok(stats)
@@ -222,21 +229,59 @@ pub fn simulate_pq(
     ev: &PreparedEvent,
     opts: &SimOptions,
 ) -> Result<(Vec<f64>, Vec<f64>), SimError> {
-    if !ev.steps.is_empty() && ev.has_angle {
+    simulate_pq_watched(unit, ev, opts, |_, _, _| true)
+        .map(|pq| pq.expect("a watch that never stops"))
+}
+
+/// [`simulate_pq`], showing `watch(k, P_k, Q_k)` each sample's simulated P and Q (system base,
+/// final: as [`simulate_pq`] returns them) as soon as it is known; a `watch` that returns
+/// `false` stops the playback there, and the result is `Ok(None)`. The values and the error of a
+/// run that is not stopped are [`simulate_pq`]'s, bit for bit.
+///
+/// A sample is known at once when nothing acts on the recorded series after the playback; a
+/// unit that transforms them ([`Unit::transforms_pq`]: a measuring device's delay moves a
+/// sample by later ones) or an event with set-point steps shows every sample after the whole
+/// playback, and may stop nothing.
+pub fn simulate_pq_watched<W>(
+    unit: &mut Unit,
+    ev: &PreparedEvent,
+    opts: &SimOptions,
+    mut watch: W,
+) -> Result<Option<(Vec<f64>, Vec<f64>)>, SimError>
+where
+    W: FnMut(usize, f64, f64) -> bool,
+{
+    let (p, q) = if !ev.steps.is_empty() && ev.has_angle {
         let o = crate::mode::simulate_mode(unit, ev, crate::mode::PlaybackMode::Phasor, opts)?;
-        return Ok((o.p, o.q));
+        (o.p, o.q)
+    } else {
+        let n = ev.input.time_s.len();
+        let (mut p, mut q) = (vec![0.0; n], vec![0.0; n]);
+        let to_sys = unit.machine_mva / ev.system_mva;
+        let (ip, iq) = unit.pq_signals()?;
+        let live = !unit.transforms_pq();
+        let run = run_playback(unit, ev, opts, |k, u, _| {
+            let (pk, qk) = u.measured_pq_now(ip, iq);
+            p[k] = pk * to_sys;
+            q[k] = qk * to_sys;
+            !live || watch(k, p[k], q[k])
+        });
+        match run {
+            Err(e) if e.is_stopped() => return Ok(None),
+            r => r?,
+        };
+        if live {
+            return Ok(Some((p, q)));
+        }
+        unit.transform_pq(&ev.input.time_s, &mut p, &mut q);
+        (p, q)
+    };
+    for k in 0..p.len() {
+        if !watch(k, p[k], q[k]) {
+            return Ok(None);
+        }
     }
-    let n = ev.input.time_s.len();
-    let (mut p, mut q) = (vec![0.0; n], vec![0.0; n]);
-    let to_sys = unit.machine_mva / ev.system_mva;
-    let (ip, iq) = unit.pq_signals()?;
-    run_playback(unit, ev, opts, |k, u, _| {
-        let (pk, qk) = u.measured_pq_now(ip, iq);
-        p[k] = pk * to_sys;
-        q[k] = qk * to_sys;
-    })?;
-    unit.transform_pq(&ev.input.time_s, &mut p, &mut q);
-    Ok((p, q))
+    Ok(Some((p, q)))
 }
 
 /// Recorded traces: one row per sample, named columns.

@@ -634,6 +634,12 @@ impl Unit {
         }
     }
 
+    /// Whether a block acts on the recorded P and Q after the playback
+    /// ([`Unit::transform_pq`] is not the identity).
+    pub fn transforms_pq(&self) -> bool {
+        self.instances.iter().any(|i| i.block.transforms_pq())
+    }
+
     /// Total load [pu machine base] between the machine and the measurement point at terminal
     /// voltage `v` ([`Block::terminal_load`]).
     pub fn terminal_load(&self, v: f64) -> (f64, f64) {

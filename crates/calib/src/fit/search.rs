@@ -63,8 +63,10 @@ pub(crate) fn search(
         // NaN value in the unit) is left out of the swarm, whose candidates are drawn in the
         // box as usual.
         let u0 = Some(problem.to_unit(&start)).filter(|u| u.iter().all(|v| v.is_finite()));
-        let res = pso::minimize(
-            |u: &[f64]| problem.cost(&problem.from_unit(u), &sim),
+        // Each candidate is simulated only as far as it can still beat its particle's best
+        // (`Problem::cost_bounded`): the swarm is bit for bit the one with whole playbacks.
+        let res = pso::minimize_bounded(
+            |u: &[f64], bound: f64| problem.cost_bounded(&problem.from_unit(u), &sim, bound),
             n,
             u0.as_deref(),
             &pso_opts,

@@ -30,7 +30,7 @@
 //! used to locate events; the step is then re-taken with the event time as its end and accepted
 //! without error control.
 
-use super::{begin, check_finite, Dopri5Options, Events, OdeSystem, SolveError, Stats};
+use super::{begin, check_finite, Dopri5Options, Events, GoOn, OdeSystem, SolveError, Stats};
 
 // Nodes c_i and coefficients a_ij (row s holds a_s1..a_s,s-1; row 6 is the fifth-order weights b).
 const C: [f64; 7] = [0.0, 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0, 1.0];
@@ -128,7 +128,7 @@ impl Dopri5 {
     }
 
     /// Integrates over `knots`; see [`super::solve`] for the contract.
-    pub fn solve<S, O>(
+    pub fn solve<S, O, G>(
         &mut self,
         sys: &mut S,
         x: &mut [f64],
@@ -137,14 +137,15 @@ impl Dopri5 {
     ) -> Result<Stats, SolveError>
     where
         S: OdeSystem,
-        O: FnMut(usize, f64, &[f64], &mut S),
+        O: FnMut(usize, f64, &[f64], &mut S) -> G,
+        G: GoOn,
     {
         self.solve_logged(sys, x, knots, observer, None)
     }
 
     /// As [`Dopri5::solve`], appending the end time of every accepted step to `log` (the steps
     /// a [`replay`] retakes).
-    pub fn solve_logged<S, O>(
+    pub fn solve_logged<S, O, G>(
         &mut self,
         sys: &mut S,
         x: &mut [f64],
@@ -154,7 +155,8 @@ impl Dopri5 {
     ) -> Result<Stats, SolveError>
     where
         S: OdeSystem,
-        O: FnMut(usize, f64, &[f64], &mut S),
+        O: FnMut(usize, f64, &[f64], &mut S) -> G,
+        G: GoOn,
     {
         let rule = Adaptive {
             opts: &self.opts,
@@ -282,7 +284,7 @@ impl StepRule for Replayed<'_> {
 
 /// The Dormand-Prince run over `knots` with the steps `rule` chooses (see [`super::solve`] for
 /// the contract).
-fn drive<S, O, R>(
+fn drive<S, O, R, G>(
     sys: &mut S,
     x: &mut [f64],
     knots: &[f64],
@@ -291,12 +293,15 @@ fn drive<S, O, R>(
 ) -> Result<Stats, SolveError>
 where
     S: OdeSystem,
-    O: FnMut(usize, f64, &[f64], &mut S),
+    O: FnMut(usize, f64, &[f64], &mut S) -> G,
+    G: GoOn,
     R: StepRule,
 {
     begin(sys, x, knots)?;
     let mut t = knots[0];
-    observer(0, t, x, sys);
+    if !observer(0, t, x, sys).go_on() {
+        return Err(SolveError::Stopped { t });
+    }
     let mut stats = Stats::default();
     if knots.len() == 1 {
         return Ok(stats);
@@ -318,7 +323,9 @@ where
             t = accept(sys, &mut step, &mut events, &mut stats, t1, x)?;
             rule.accepted(t);
         }
-        observer(k, t_knot, x, sys);
+        if !observer(k, t_knot, x, sys).go_on() {
+            return Err(SolveError::Stopped { t: t_knot });
+        }
     }
     Ok(stats)
 }
@@ -381,7 +388,7 @@ fn accept<S: OdeSystem>(
 /// not change with them), so a difference quotient between two replays on the same steps is the
 /// derivative of the discretised playback, free of the step-size noise of two adaptive runs
 /// ("internal numerical differentiation", Bock 1981).
-pub fn replay<S, O>(
+pub fn replay<S, O, G>(
     sys: &mut S,
     x: &mut [f64],
     knots: &[f64],
@@ -390,7 +397,8 @@ pub fn replay<S, O>(
 ) -> Result<Stats, SolveError>
 where
     S: OdeSystem,
-    O: FnMut(usize, f64, &[f64], &mut S),
+    O: FnMut(usize, f64, &[f64], &mut S) -> G,
+    G: GoOn,
 {
     let span = ends_of(knots).map_or(0.0, |(t0, t1)| (t1 - t0).abs().max(t0.abs()));
     let rule = Replayed {

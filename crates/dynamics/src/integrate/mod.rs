@@ -212,12 +212,37 @@ pub enum SolveError {
         1.0 / rate
     )]
     Stiff { h: f64, rate: f64 },
+    /// The observer asked to stop at this knot ([`GoOn`]): not a failure of the integration.
+    #[error("stopped by the observer at t = {t:.6} s")]
+    Stopped { t: f64 },
+}
+
+/// What an observer returns: `()` (the run goes on to the last knot) or a `bool` (`false` stops
+/// the run at that knot with [`SolveError::Stopped`]: a caller that has seen enough, say a
+/// least-squares sum already above what it needs, does not pay for the rest).
+pub trait GoOn {
+    fn go_on(self) -> bool;
+}
+
+impl GoOn for () {
+    #[inline(always)]
+    fn go_on(self) -> bool {
+        true
+    }
+}
+
+impl GoOn for bool {
+    #[inline(always)]
+    fn go_on(self) -> bool {
+        self
+    }
 }
 
 /// Integrates `sys` from `knots[0]` to the last knot starting at `x` (overwritten with the final
 /// state), calling `observer(k, t_k, x_k, sys)` at every knot `k` (the first call is at `k = 0`
-/// after the initial [`OdeSystem::handle_event`]).
-pub fn solve<S, O>(
+/// after the initial [`OdeSystem::handle_event`]). An observer that returns `false` ([`GoOn`])
+/// stops the run there: [`SolveError::Stopped`].
+pub fn solve<S, O, G>(
     method: &Method,
     sys: &mut S,
     x: &mut [f64],
@@ -226,7 +251,8 @@ pub fn solve<S, O>(
 ) -> Result<Stats, SolveError>
 where
     S: OdeSystem,
-    O: FnMut(usize, f64, &[f64], &mut S),
+    O: FnMut(usize, f64, &[f64], &mut S) -> G,
+    G: GoOn,
 {
     match method {
         Method::Rk4 { h } => Rk4::new(*h)?.solve(sys, x, knots, observer),

@@ -29,7 +29,7 @@
 //! saturation curve steepening) is not seen, and the step budget is then the only guard. Use
 //! Dormand-Prince (the default) where a run leaves the start's operating point far behind.
 
-use super::{begin, check_finite, Events, OdeSystem, SolveError, Stats};
+use super::{begin, check_finite, Events, GoOn, OdeSystem, SolveError, Stats};
 
 /// Largest `h·|λ|` at which [`Rk4`] integrates a mode `λ` of the start's linearisation. RK4's
 /// region of absolute stability reaches -2.785 on the negative real axis and ±2.828 on the
@@ -61,7 +61,7 @@ impl Rk4 {
     }
 
     /// Integrates over `knots`; see [`super::solve`] for the contract.
-    pub fn solve<S, O>(
+    pub fn solve<S, O, G>(
         &mut self,
         sys: &mut S,
         x: &mut [f64],
@@ -70,7 +70,8 @@ impl Rk4 {
     ) -> Result<Stats, SolveError>
     where
         S: OdeSystem,
-        O: FnMut(usize, f64, &[f64], &mut S),
+        O: FnMut(usize, f64, &[f64], &mut S) -> G,
+        G: GoOn,
     {
         begin(sys, x, knots)?;
         let mut t = knots[0];
@@ -93,7 +94,9 @@ impl Rk4 {
         if h_taken * rate > RK4_STABLE_HLAMBDA {
             return Err(SolveError::Stiff { h: h_taken, rate });
         }
-        observer(0, t, x, sys);
+        if !observer(0, t, x, sys).go_on() {
+            return Err(SolveError::Stopped { t });
+        }
 
         let n = x.len();
         let mut stats = Stats::default();
@@ -155,7 +158,9 @@ impl Rk4 {
                     }
                 }
             }
-            observer(k + 1, tb, x, sys);
+            if !observer(k + 1, tb, x, sys).go_on() {
+                return Err(SolveError::Stopped { t: tb });
+            }
         }
         Ok(stats)
     }

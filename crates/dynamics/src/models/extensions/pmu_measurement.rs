@@ -75,6 +75,10 @@ impl Block for PmuMeasurement {
     fn outputs(&self, _t: f64, _x: &[f64], _io: &mut Io) {}
     fn derivatives(&self, _t: f64, _x: &[f64], _io: &Io, _dx: &mut [f64]) {}
 
+    fn transforms_pq(&self) -> bool {
+        true
+    }
+
     fn transform_pq(&self, t: &[f64], p: &mut [f64], q: &mut [f64]) {
         let pp = &self.p;
         if pp.pq_delay_s > 0.0 {

@@ -1,0 +1,148 @@
+//! A playback whose observer says "enough" stops there ([`GoOn`]), and a watched playback shows
+//! each sample's P and Q as they will be returned: on every integrator, with and without a
+//! measuring device that acts on the recorded series after the playback.
+
+use itaipu_dynamics::integrate::{Dopri5Options, Method, SolveError};
+use itaipu_dynamics::mode::{simulate_mode, simulate_mode_watched, PlaybackMode};
+use itaipu_dynamics::simulate::{
+    run_playback, simulate_pq, simulate_pq_watched, PreparedEvent, SimError, SimOptions,
+};
+use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
+use itaipu_dynamics::unit::Unit;
+use itaipu_dynamics::unit_file::read_unit;
+
+fn unit() -> Unit {
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data/synthetic/unit_gensae_sexs_stab3_hygov.toml");
+    read_unit(&path).unwrap()
+}
+
+/// A 6 s dip into the synthetic unit at 60 samples/s (PMU noise, seed 2).
+fn event() -> PreparedEvent {
+    let profile = VoltageProfile {
+        duration_s: 6.0,
+        ..VoltageProfile::default()
+    };
+    let ev = synthesize(
+        "dip",
+        &unit(),
+        &profile,
+        60.0,
+        &PmuNoise::typical(2),
+        &SimOptions::default(),
+    )
+    .unwrap();
+    PreparedEvent::new(&ev)
+}
+
+fn methods(ev: &PreparedEvent) -> Vec<Method> {
+    let logged = itaipu_dynamics::integrate::StepLog::default();
+    let opts = Dopri5Options {
+        rtol: 1e-6,
+        atol: 1e-7,
+        h_max: 0.05,
+        ..Default::default()
+    };
+    simulate_pq(
+        &mut unit(),
+        ev,
+        &SimOptions {
+            method: Method::Dopri5Logged(opts.clone(), logged.clone()),
+        },
+    )
+    .unwrap();
+    vec![
+        Method::Rk4 { h: 2e-3 },
+        Method::Dopri5(opts),
+        Method::Replay(logged.times()),
+    ]
+}
+
+#[test]
+fn an_observer_that_says_enough_stops_the_playback_at_that_sample() {
+    let ev = event();
+    let stop_at = 100;
+    for method in methods(&ev) {
+        let opts = SimOptions {
+            method: method.clone(),
+        };
+        let mut seen = vec![];
+        let err = run_playback(&mut unit(), &ev, &opts, |k, _, _| {
+            seen.push(k);
+            k < stop_at
+        })
+        .unwrap_err();
+        assert!(err.is_stopped(), "{method}: {err}");
+        let SimError::Solve(SolveError::Stopped { t }) = err else {
+            unreachable!()
+        };
+        assert_eq!(t, ev.input.time_s[stop_at], "{method}");
+        assert_eq!(seen, (0..=stop_at).collect::<Vec<_>>(), "{method}");
+        // An observer that returns nothing runs to the end, as before.
+        let mut n = 0;
+        run_playback(&mut unit(), &ev, &opts, |_, _, _| n += 1).unwrap();
+        assert_eq!(n, ev.input.time_s.len(), "{method}");
+    }
+}
+
+#[test]
+fn a_watched_playback_shows_the_samples_it_returns_and_stops_when_told() {
+    let ev = event();
+    let n = ev.input.time_s.len();
+    let mut with_device = unit();
+    with_device
+        .put(
+            "measurement",
+            itaipu_dynamics::registry::find("pmu_measurement")
+                .unwrap()
+                .create(),
+            &[],
+        )
+        .unwrap();
+    let delay = with_device.param("measurement.pq_delay_s").unwrap();
+    with_device.set(delay, 0.03);
+    assert!(with_device.transforms_pq() && !unit().transforms_pq());
+    for method in methods(&ev) {
+        let opts = SimOptions {
+            method: method.clone(),
+        };
+        for u in [unit(), with_device.clone()] {
+            let whole = simulate_pq(&mut u.clone(), &ev, &opts).unwrap();
+            let mut shown = (vec![f64::NAN; n], vec![f64::NAN; n]);
+            let watched = simulate_pq_watched(&mut u.clone(), &ev, &opts, |k, p, q| {
+                shown.0[k] = p;
+                shown.1[k] = q;
+                true
+            })
+            .unwrap()
+            .expect("never stopped");
+            assert_eq!(watched, whole, "{method}");
+            assert_eq!(
+                shown, whole,
+                "{method}: the samples shown are the ones returned"
+            );
+            let mut last = 0;
+            let stopped = simulate_pq_watched(&mut u.clone(), &ev, &opts, |k, _, _| {
+                last = k;
+                k < 50
+            })
+            .unwrap();
+            assert!(stopped.is_none() && last == 50, "{method}");
+
+            let whole = simulate_mode(&u, &ev, PlaybackMode::Phasor, &opts).unwrap();
+            let mut efd = vec![f64::NAN; n];
+            let watched = simulate_mode_watched(&u, &ev, PlaybackMode::Phasor, &opts, |k, o| {
+                efd[k] = o.efd[k];
+                true
+            })
+            .unwrap()
+            .expect("never stopped");
+            assert_eq!(watched.p, whole.p, "{method}");
+            assert_eq!(watched.efd, whole.efd, "{method}");
+            assert_eq!(efd, whole.efd, "{method}");
+            let stopped =
+                simulate_mode_watched(&u, &ev, PlaybackMode::Phasor, &opts, |k, _| k < 10).unwrap();
+            assert!(stopped.is_none(), "{method}");
+        }
+    }
+}
