@@ -452,22 +452,30 @@ pub fn levenberg_marquardt(
         atol: 0.1 * JACOBIAN_RTOL,
         ..opts.clone()
     });
-    let evaluate = |u: &[f64]| {
+    // A point's residuals and the steps of its Jacobian, when their sum of squares is below
+    // `bound` (`+∞` for the start): a trial step that cannot lower the objective is not wanted,
+    // so its playback stops once it cannot ([`Problem::residuals_with_steps_below`]), and the
+    // Jacobian's coarse run is taken only for a point the iteration keeps. The accepted steps
+    // are the ones whole playbacks give, bit for bit (`tests/bounded_swarm.rs`).
+    let evaluate = |u: &[f64], bound: f64| {
         let x = problem.from_unit(u);
         if stop.sensitivities && problem.has_sensitivities() {
-            return problem.residuals_with_steps(&x, opts);
+            return problem.residuals_with_steps_below(&x, opts, bound);
         }
         if !stop.replay {
-            return Some((problem.residuals_logged(&x, &sim)?, vec![]));
+            return Some((problem.residuals_logged_below(&x, &sim, bound)?, vec![]));
         }
-        let (r, steps) = problem.residuals_with_steps(&x, opts)?;
+        let (r, steps) = problem.residuals_with_steps_below(&x, opts, bound)?;
+        if !(sum_of_squares(&r) < bound) {
+            return Some((r, steps));
+        }
         match &coarse {
             Some(c) => Some((r, problem.residuals_with_steps(&x, c)?.1)),
             None => Some((r, steps)),
         }
     };
     let step_s = f64::NAN; // adaptive: no fixed step
-    let Some((mut r, mut steps)) = evaluate(&u) else {
+    let Some((mut r, mut steps)) = evaluate(&u, f64::INFINITY) else {
         return LocalResult {
             best: x0.to_vec(),
             best_cost: problem.penalty,
@@ -551,7 +559,7 @@ pub fn levenberg_marquardt(
                 lambda *= 10.0;
                 continue;
             }
-            match evaluate(&un) {
+            match evaluate(&un, cost) {
                 Some((rn, steps_n)) if sum_of_squares(&rn) < cost => {
                     let new_cost = sum_of_squares(&rn);
                     let rel = (cost - new_cost) / cost.max(1e-300);

@@ -447,6 +447,16 @@ pub fn accurate_integrator() -> SimOptions {
 /// One event's simulated P and Q at the record's samples ([`Problem::simulate`]).
 pub type SimulatedPq = (Vec<f64>, Vec<f64>);
 
+/// What a bounded evaluation ([`Problem::cost_bounded`]) found.
+enum Below {
+    /// The whole residuals (their sum may still be at or above the bound, within the margin).
+    Residuals(Vec<f64>),
+    /// The playback stopped: the sum of squares reached so far, past the bound.
+    Stopped(f64),
+    /// The candidate failed (counted and logged).
+    Failed,
+}
+
 /// Relative margin by which a partial sum of squares must pass the bound before
 /// [`Problem::cost_bounded`] stops a playback: summed in another order than the objective, the
 /// two may differ by rounding, at most about `n·ε` relative for `n` terms (2e-11 for 10⁵ samples
@@ -630,6 +640,53 @@ impl Problem {
                 self.record_failure(x, msg.to_string());
                 None
             }
+        }
+    }
+
+    /// [`Problem::residuals_with_steps`] for a caller that needs them only when their sum of
+    /// squares is below `bound` (a local method's trial step against its current point):
+    /// `None` also when the playback stopped because it could not end below ([`Problem::cost_bounded`]
+    /// stops the same way, and with the same margin); otherwise that function's result, bit for
+    /// bit, whose sum the caller still compares (it may lie within the margin above `bound`).
+    /// A stopped candidate is counted as a simulation and is not a failure.
+    pub fn residuals_with_steps_below(
+        &self,
+        x: &[f64],
+        opts: &Dopri5Options,
+        bound: f64,
+    ) -> Option<(Vec<f64>, Vec<SimOptions>)> {
+        let logs: Vec<StepLog> = self.events.iter().map(|_| StepLog::default()).collect();
+        let sims: Vec<SimOptions> = logs
+            .iter()
+            .map(|log| SimOptions {
+                method: Method::Dopri5Logged(opts.clone(), log.clone()),
+            })
+            .collect();
+        let refs: Vec<&SimOptions> = sims.iter().collect();
+        match self.residuals_below(x, &refs, bound) {
+            Below::Residuals(r) => Some((
+                r,
+                logs.iter()
+                    .map(|log| SimOptions {
+                        method: Method::Replay(log.times()),
+                    })
+                    .collect(),
+            )),
+            Below::Stopped(_) | Below::Failed => None,
+        }
+    }
+
+    /// [`Problem::residuals_logged`] for a caller that needs them only when their sum of squares
+    /// is below `bound`, as [`Problem::residuals_with_steps_below`].
+    pub fn residuals_logged_below(
+        &self,
+        x: &[f64],
+        sim: &SimOptions,
+        bound: f64,
+    ) -> Option<Vec<f64>> {
+        match self.residuals_below(x, &vec![sim; self.events.len()], bound) {
+            Below::Residuals(r) => Some(r),
+            Below::Stopped(_) | Below::Failed => None,
         }
     }
 
@@ -960,7 +1017,19 @@ impl Problem {
     /// The lowest objective among `points` (physical values, evaluated in parallel) and its
     /// index, the first one on ties, so the choice does not depend on thread timing.
     pub fn best_of(&self, points: &[Vec<f64>], sim: &SimOptions) -> (f64, usize) {
-        let costs: Vec<f64> = points.par_iter().map(|x| self.cost(x, sim)).collect();
+        self.best_of_below(points, sim, f64::INFINITY)
+    }
+
+    /// [`Problem::best_of`] for a caller that uses the result only when it is below `bound` (a
+    /// grid scan against its start): each point's playback stops once it cannot end below
+    /// ([`Problem::cost_bounded`]). When some point ends below `bound` the result is
+    /// [`Problem::best_of`]'s, bit for bit (a stopped point scores above `bound`, so above the
+    /// best); otherwise it is some value at or above `bound`.
+    pub fn best_of_below(&self, points: &[Vec<f64>], sim: &SimOptions, bound: f64) -> (f64, usize) {
+        let costs: Vec<f64> = points
+            .par_iter()
+            .map(|x| self.cost_bounded(x, sim, bound))
+            .collect();
         costs.into_iter().enumerate().fold(
             (f64::INFINITY, 0),
             |a, (i, c)| if c < a.0 { (c, i) } else { a },
@@ -988,18 +1057,33 @@ impl Problem {
     /// stopped candidate is counted as a simulation; a failure it would have met later is not
     /// seen (nor logged).
     pub fn cost_bounded(&self, x: &[f64], sim: &SimOptions, bound: f64) -> f64 {
-        if !(bound <= self.penalty) || self.cancelled() {
-            return self.cost(x, sim);
+        match self.residuals_below(x, &vec![sim; self.events.len()], bound) {
+            Below::Residuals(r) => sum_of_squares(&r),
+            Below::Stopped(partial) => partial,
+            Below::Failed => self.penalty,
         }
-        let stop_at = bound * (1.0 + STOP_MARGIN);
+    }
+
+    /// The one bounded evaluation behind [`Problem::cost_bounded`],
+    /// [`Problem::residuals_logged_below`] and [`Problem::residuals_with_steps_below`]: counted
+    /// as an evaluation, a failure logged, the playback stopped once its partial sum passes
+    /// `bound` by [`STOP_MARGIN`] where `bound` is at most the penalty (whole otherwise, and
+    /// when the problem is cancelled: [`Problem::residuals_logged_each`]'s path).
+    fn residuals_below(&self, x: &[f64], sims: &[&SimOptions], bound: f64) -> Below {
+        if !(bound <= self.penalty) || self.cancelled() {
+            return match self.residuals_logged_each(x, sims) {
+                Some(r) => Below::Residuals(r),
+                None => Below::Failed,
+            };
+        }
         self.evaluations
             .fetch_add(self.events.len(), Ordering::Relaxed);
-        match self.residuals_until(x, sim, stop_at) {
-            Ok(Ok(r)) => sum_of_squares(&r),
-            Ok(Err(partial)) => partial,
+        match self.residuals_until(x, sims, bound * (1.0 + STOP_MARGIN)) {
+            Ok(Ok(r)) => Below::Residuals(r),
+            Ok(Err(partial)) => Below::Stopped(partial),
             Err(msg) => {
                 self.record_failure(x, msg.to_string());
-                self.penalty
+                Below::Failed
             }
         }
     }
@@ -1009,7 +1093,7 @@ impl Problem {
     fn residuals_until(
         &self,
         x: &[f64],
-        sim: &SimOptions,
+        sims: &[&SimOptions],
         stop_at: f64,
     ) -> Result<Result<Vec<f64>, f64>, ProblemError> {
         let mut partial = sum_of_squares(&self.prior_residuals(x));
@@ -1021,7 +1105,7 @@ impl Problem {
         let unit = self.unit_at(x);
         if let Some(cmp) = &self.compare {
             let mut outs = Vec::with_capacity(self.events.len());
-            for ev in &self.events {
+            for (ev, sim) in self.events.iter().zip(sims) {
                 let series: Vec<(f64, Channel, &[f64])> = cmp
                     .weights
                     .iter()
@@ -1061,7 +1145,7 @@ impl Problem {
         let (wp, wq) = self.weights;
         let mut unit = unit;
         let mut pq = Vec::with_capacity(self.events.len());
-        for ev in &self.events {
+        for (ev, sim) in self.events.iter().zip(sims) {
             let watched = simulate_pq_watched(&mut unit, &ev.prepared, sim, |k, p, q| {
                 if !ev.in_window[k] {
                     return true;

@@ -185,3 +185,63 @@ fn a_bounded_swarm_comparing_the_field_is_the_whole_swarm() {
 fn a_bounded_swarm_through_a_measuring_device_is_the_whole_swarm() {
     check(&with_device(), "a delayed P and Q");
 }
+
+/// The Levenberg-Marquardt iterations stop a trial step's playback once it cannot lower the
+/// objective: the same iterations, bit for bit, as with whole playbacks (the same problem with
+/// a penalty of 0, below every bound, never stops one), with sensitivities (a diagnosis
+/// re-fit) and with differences (a calibration), on P and Q and on the field.
+#[test]
+fn a_bounded_local_method_takes_the_whole_playbacks_steps() {
+    use itaipu_calib::local::{levenberg_marquardt, LmStop};
+    for (make, what) in [
+        (problem as fn() -> Problem, "P and Q"),
+        (with_field, "P, Q and E_fd"),
+    ] {
+        for stop in [LmStop::COMPARISON, LmStop::CALIBRATION] {
+            let (bounded, mut whole) = (make(), make());
+            whole.penalty = 0.0;
+            let x0 = bounded.start();
+            let a = levenberg_marquardt(&bounded, &x0, 8, stop);
+            let b = levenberg_marquardt(&whole, &x0, 8, stop);
+            assert_eq!(a.best, b.best, "{what}, {stop:?}");
+            assert_eq!(a.best_cost.to_bits(), b.best_cost.to_bits(), "{what}");
+            assert_eq!((a.iterations, &a.stopped_by), (b.iterations, &b.stopped_by));
+            assert_eq!(bounded.simulations(), whole.simulations(), "{what}");
+            assert!(a.iterations >= 2 && a.best_cost < bounded.cost(&x0, &search_integrator()));
+        }
+    }
+}
+
+/// A grid scan takes its best point only when it is below the start: bounded by the start's
+/// objective, the best point and its objective are the whole scan's, bit for bit.
+#[test]
+fn a_bounded_scan_finds_the_whole_scans_best() {
+    let pb = problem();
+    let sim = search_integrator();
+    let x0 = pb.start();
+    let start = pb.cost(&x0, &sim);
+    // machine.h over its range: the truth (1/1.15 of the start) lies between grid points.
+    let points: Vec<Vec<f64>> = (0..9)
+        .map(|i| {
+            let mut x = x0.clone();
+            x[0] = 2.0 + 6.0 * i as f64 / 8.0;
+            x
+        })
+        .collect();
+    let whole = pb.best_of(&points, &sim);
+    let bounded = pb.best_of_below(&points, &sim, start);
+    assert!(whole.0 < start, "a grid point below the start");
+    assert_eq!(
+        (bounded.0.to_bits(), bounded.1),
+        (whole.0.to_bits(), whole.1)
+    );
+    // The grid's ends stop short of their objective (and at or above the start's).
+    let stopped = [&points[0], &points[8]]
+        .iter()
+        .filter(|x| {
+            let (c, exact) = (pb.cost_bounded(x, &sim, start), pb.cost(x, &sim));
+            c >= start && c < exact
+        })
+        .count();
+    assert!(stopped >= 1, "no grid point stopped early");
+}

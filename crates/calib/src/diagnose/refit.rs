@@ -181,7 +181,8 @@ pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)]) {
                 xs
             })
             .collect();
-        let (c, i) = problem.best_of(&points, &sim);
+        // Only a point below the start is taken: the others stop once they cannot be.
+        let (c, i) = problem.best_of_below(&points, &sim, start_cost);
         if c < start_cost {
             for (jj, _) in &group {
                 problem.free[*jj].start = points[i][*jj];
