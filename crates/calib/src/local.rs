@@ -559,9 +559,8 @@ pub fn levenberg_marquardt(
                 lambda *= 10.0;
                 continue;
             }
-            match evaluate(&un, cost) {
-                Some((rn, steps_n)) if sum_of_squares(&rn) < cost => {
-                    let new_cost = sum_of_squares(&rn);
+            match evaluate(&un, cost).map(|(rn, steps_n)| (sum_of_squares(&rn), rn, steps_n)) {
+                Some((new_cost, rn, steps_n)) if new_cost < cost => {
                     let rel = (cost - new_cost) / cost.max(1e-300);
                     small_steps = if rel < stop.small_decrease {
                         small_steps + 1

@@ -447,6 +447,28 @@ pub fn accurate_integrator() -> SimOptions {
 /// One event's simulated P and Q at the record's samples ([`Problem::simulate`]).
 pub type SimulatedPq = (Vec<f64>, Vec<f64>);
 
+/// One event's watched playback in [`Problem::residuals_until`] as the residuals would judge it:
+/// a failed simulation, or a sample that ran away (at time `diverged`: the watch stopped there),
+/// is the candidate's error; otherwise the outputs, or `None` when the watch stopped the
+/// playback at the bound.
+fn settle<T>(
+    ev: &EventData,
+    watched: Result<Option<T>, itaipu_dynamics::simulate::SimError>,
+    diverged: Option<f64>,
+) -> Result<Option<T>, ProblemError> {
+    let watched = watched.map_err(|error| ProblemError::Simulation {
+        event: ev.name.clone(),
+        error,
+    })?;
+    if let Some(t) = diverged {
+        return Err(ProblemError::Diverged {
+            event: ev.name.clone(),
+            t,
+        });
+    }
+    Ok(watched)
+}
+
 /// What a bounded evaluation ([`Problem::cost_bounded`]) found.
 enum Below {
     /// The whole residuals (their sum may still be at or above the bound, within the margin).
@@ -1124,18 +1146,8 @@ impl Problem {
                         partial += w * (s[k] - meas[k]).powi(2);
                     }
                     partial < stop_at
-                })
-                .map_err(|error| ProblemError::Simulation {
-                    event: ev.name.clone(),
-                    error,
-                })?;
-                if let Some(t) = diverged {
-                    return Err(ProblemError::Diverged {
-                        event: ev.name.clone(),
-                        t,
-                    });
-                }
-                match watched {
+                });
+                match settle(ev, watched, diverged)? {
                     Some(o) => outs.push(o),
                     None => return Ok(Err(partial)),
                 }
@@ -1156,18 +1168,8 @@ impl Problem {
                 }
                 partial += wp * (p - ev.p_meas[k]).powi(2) + wq * (q - ev.q_meas[k]).powi(2);
                 partial < stop_at
-            })
-            .map_err(|error| ProblemError::Simulation {
-                event: ev.name.clone(),
-                error,
-            })?;
-            if let Some(t) = diverged {
-                return Err(ProblemError::Diverged {
-                    event: ev.name.clone(),
-                    t,
-                });
-            }
-            match watched {
+            });
+            match settle(ev, watched, diverged)? {
                 Some(s) => pq.push(s),
                 None => return Ok(Err(partial)),
             }

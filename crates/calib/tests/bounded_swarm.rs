@@ -4,14 +4,12 @@
 //! with priors, with the field channels compared, and with a measuring device that acts on the
 //! recorded series after the playback.
 
-use itaipu_calib::diagnose::trial::{base_unit, dip_problem};
+use itaipu_calib::diagnose::trial::{base_unit, dip_event_with_field, dip_problem};
 use itaipu_calib::problem::{search_integrator, EventData, Prior, Problem};
 use itaipu_calib::pso::{self, PsoOptions};
 use itaipu_calib::spec::Compare;
-use itaipu_dynamics::event::{Channel, Event};
-use itaipu_dynamics::mode::{simulate_mode, PlaybackMode};
-use itaipu_dynamics::simulate::{PreparedEvent, SimOptions};
-use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
+use itaipu_dynamics::event::Channel;
+use itaipu_dynamics::mode::PlaybackMode;
 
 /// A 10 s dip into the synthetic unit (PMU noise, seed 4), five parameters free at 15 % above
 /// their values, priors on two.
@@ -37,42 +35,10 @@ fn problem() -> Problem {
     pb
 }
 
-/// `problem()` with the unit's E_fd recorded (noise-free) and compared with P and Q.
+/// `problem()` with the unit's field recorded (with noise) and E_fd compared with P and Q.
 fn with_field() -> Problem {
     let mut pb = problem();
-    // `dip_problem`'s record of the truth, with the field added.
-    let truth = base_unit();
-    let profile = VoltageProfile {
-        duration_s: 10.0,
-        ..VoltageProfile::default()
-    };
-    let dip = synthesize(
-        "dip",
-        &truth,
-        &profile,
-        60.0,
-        &PmuNoise::typical(4),
-        &Default::default(),
-    )
-    .unwrap();
-    let out = simulate_mode(
-        &truth,
-        &PreparedEvent::new(&dip),
-        PlaybackMode::Phasor,
-        &SimOptions::default(),
-    )
-    .unwrap();
-    let mut rec = dip.record.clone();
-    rec.efd_pu = Some(out.efd);
-    let ev = Event::from_record(
-        "dip with field",
-        rec,
-        dip.system_mva,
-        dip.nominal_hz,
-        Some(dip.init),
-        Some(dip.fit),
-    )
-    .unwrap();
+    let ev = dip_event_with_field(&base_unit(), 10.0, 4, 5);
     assert_eq!(ev.record.p_pu, pb.events[0].p_meas, "dip_problem's record");
     pb.events = vec![EventData::new(&ev, None, None).unwrap()];
     pb.compare = Some(Compare {

@@ -3,7 +3,7 @@
 //! integrator: the playback's columns, the chain to box coordinates (linear and logarithmic
 //! boxes), a tied parameter moving with its source, and the priors' rows.
 
-use itaipu_calib::diagnose::trial::{base_unit, dip_problem};
+use itaipu_calib::diagnose::trial::{base_unit, dip_event_with_field, dip_problem};
 use itaipu_calib::local::lm_integrator;
 use itaipu_calib::problem::{Prior, Problem};
 use itaipu_dynamics::integrate::Method;
@@ -55,48 +55,11 @@ fn the_sensitivity_jacobian_is_the_derivative_of_the_residuals() {
 fn the_field_channels_rows_are_the_derivative_of_their_residuals() {
     use itaipu_calib::problem::EventData;
     use itaipu_calib::spec::Compare;
-    use itaipu_dynamics::event::{Channel, Event};
-    use itaipu_dynamics::mode::{simulate_mode, PlaybackMode};
-    use itaipu_dynamics::rng::Normal;
-    use itaipu_dynamics::simulate::{PreparedEvent, SimOptions};
-    use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
+    use itaipu_dynamics::event::Channel;
+    use itaipu_dynamics::mode::PlaybackMode;
     let mut pb = problem();
     // `dip_problem`'s record of the truth (`base_unit`), with the field added.
-    let profile = VoltageProfile {
-        duration_s: 20.0,
-        ..VoltageProfile::default()
-    };
-    let truth = base_unit();
-    let dip = synthesize(
-        "dip",
-        &truth,
-        &profile,
-        60.0,
-        &PmuNoise::typical(1),
-        &Default::default(),
-    )
-    .unwrap();
-    let out = simulate_mode(
-        &truth,
-        &PreparedEvent::new(&dip),
-        PlaybackMode::Phasor,
-        &SimOptions::default(),
-    )
-    .unwrap();
-    let mut rng = Normal::new(3);
-    let mut noisy = |y: &[f64], s: f64| y.iter().map(|v| v + s * rng.sample()).collect();
-    let mut rec = dip.record.clone();
-    rec.efd_pu = Some(noisy(&out.efd, 0.01));
-    rec.ifd_pu = Some(noisy(&out.ifd, 0.005));
-    let ev = Event::from_record(
-        "dip with field",
-        rec,
-        dip.system_mva,
-        dip.nominal_hz,
-        Some(dip.init),
-        Some(dip.fit),
-    )
-    .unwrap();
+    let ev = dip_event_with_field(&base_unit(), 20.0, 1, 3);
     pb.events = vec![EventData::new(&ev, None, None).unwrap()];
     pb.compare = Some(Compare {
         mode: PlaybackMode::Phasor,

@@ -1295,7 +1295,7 @@ pub fn simulate_mode(
 ///
 /// Samples are final at once in a phasor playback without set-point steps of a unit that does
 /// not transform its recorded P and Q ([`Unit::transforms_pq`]); in every other case `watch`
-/// sees each sample after the whole playback, and may stop nothing.
+/// sees each sample after the whole playback (a stop then saves no simulation).
 pub fn simulate_mode_watched<W>(
     unit: &Unit,
     ev: &PreparedEvent,
@@ -1306,37 +1306,36 @@ pub fn simulate_mode_watched<W>(
 where
     W: FnMut(usize, &ModeOutputs) -> bool,
 {
-    let out = match simulate_mode_live(unit, ev, mode, opts, &mut watch) {
-        Err(e) if e.is_stopped() => return Ok(None),
-        r => r?,
+    let (out, seen) = if mode == PlaybackMode::Phasor && ev.steps.is_empty() {
+        match phasor_outputs(unit, ev, opts, &mut watch) {
+            Err(e) if e.is_stopped() => return Ok(None),
+            r => r?,
+        }
+    } else {
+        (mode_unit_outputs(unit, ev, mode, opts)?, false)
     };
-    if let Some(out) = out {
-        return Ok(Some(out));
-    }
-    let out = simulate_mode_whole(unit, ev, mode, opts)?;
-    for k in 0..out.p.len() {
-        if !watch(k, &out) {
-            return Ok(None);
+    if !seen {
+        for k in 0..out.p.len() {
+            if !watch(k, &out) {
+                return Ok(None);
+            }
         }
     }
     Ok(Some(out))
 }
 
-/// The phasor playback without steps of a unit that does not transform its P and Q, watched at
-/// each sample; `Ok(None)` for every other playback ([`simulate_mode_whole`]).
-fn simulate_mode_live<W>(
+/// The phasor playback without steps ([`run_playback`]): the outputs, and whether `watch` saw
+/// each sample as it was read (a unit that does not transform its P and Q,
+/// [`Unit::transforms_pq`]); otherwise it saw none.
+fn phasor_outputs<W>(
     unit: &Unit,
     ev: &PreparedEvent,
-    mode: PlaybackMode,
     opts: &SimOptions,
     watch: &mut W,
-) -> Result<Option<ModeOutputs>, SimError>
+) -> Result<(ModeOutputs, bool), SimError>
 where
     W: FnMut(usize, &ModeOutputs) -> bool,
 {
-    if !(mode == PlaybackMode::Phasor && ev.steps.is_empty() && !unit.transforms_pq()) {
-        return Ok(None);
-    }
     let mut out = ModeOutputs::unset(ev.input.time_s.len());
     let mut u = unit.clone();
     u.ensure_finished()?;
@@ -1349,40 +1348,24 @@ where
         iifd,
         to_sys: unit.machine_mva / ev.system_mva,
     };
+    let live = !u.transforms_pq();
     out.stats = run_playback(&mut u, ev, opts, |k, u, _| {
         r.read(k, u, &mut out);
-        watch(k, &out)
+        !live || watch(k, &out)
     })?;
-    Ok(Some(out))
+    u.transform_pq(&ev.input.time_s, &mut out.p, &mut out.q);
+    Ok((out, live))
 }
 
-/// [`simulate_mode`] without a watch.
-fn simulate_mode_whole(
+/// Every other playback: the unit as played back in `mode` ([`ModeUnit`], [`run_mode_unit`]).
+fn mode_unit_outputs(
     unit: &Unit,
     ev: &PreparedEvent,
     mode: PlaybackMode,
     opts: &SimOptions,
 ) -> Result<ModeOutputs, SimError> {
-    let n = ev.input.time_s.len();
-    let mut out = ModeOutputs::unset(n);
+    let mut out = ModeOutputs::unset(ev.input.time_s.len());
     let to_sys = unit.machine_mva / ev.system_mva;
-    if mode == PlaybackMode::Phasor && ev.steps.is_empty() {
-        let mut u = unit.clone();
-        u.ensure_finished()?;
-        let (ip, iq) = u.pq_signals()?;
-        let (iefd, iifd) = field_signals(&u);
-        let r = Reader {
-            ip,
-            iq,
-            iefd: iefd
-                .ok_or_else(|| UnitError::Wiring("no machine reading a field voltage".into()))?,
-            iifd,
-            to_sys,
-        };
-        out.stats = run_playback(&mut u, ev, opts, |k, u, _| r.read(k, u, &mut out))?;
-        u.transform_pq(&ev.input.time_s, &mut out.p, &mut out.q);
-        return Ok(out);
-    }
     let mut mu = ModeUnit::new(unit, ev, mode)?;
     let r = Reader {
         ip: mu.ip,

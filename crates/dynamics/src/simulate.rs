@@ -241,7 +241,7 @@ pub fn simulate_pq(
 /// A sample is known at once when nothing acts on the recorded series after the playback; a
 /// unit that transforms them ([`Unit::transforms_pq`]: a measuring device's delay moves a
 /// sample by later ones) or an event with set-point steps shows every sample after the whole
-/// playback, and may stop nothing.
+/// playback (a stop then saves no simulation).
 pub fn simulate_pq_watched<W>(
     unit: &mut Unit,
     ev: &PreparedEvent,

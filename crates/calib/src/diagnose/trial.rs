@@ -286,6 +286,53 @@ pub fn scenario(cause: &str, seed: u64, kind: Option<EventKind>) -> Trial {
     t
 }
 
+/// A fault dip of `duration_s` at 60 samples/s into `unit`, with PMU noise of `seed`: the
+/// record of [`dip_problem`].
+pub fn dip_event(unit: &Unit, duration_s: f64, seed: u64) -> Event {
+    let profile = VoltageProfile {
+        duration_s,
+        ..VoltageProfile::default()
+    };
+    synthesize(
+        "dip",
+        unit,
+        &profile,
+        60.0,
+        &PmuNoise::typical(seed),
+        &Default::default(),
+    )
+    .expect("a dip into a unit that initialises")
+}
+
+/// [`dip_event`] with the field recorded too: `unit`'s E_fd and X_ad I_fd in the phasor
+/// playback, with white noise of 0.01 and 0.005 pu (seed `field_seed`, E_fd's draws first).
+pub fn dip_event_with_field(unit: &Unit, duration_s: f64, seed: u64, field_seed: u64) -> Event {
+    use itaipu_dynamics::mode::{simulate_mode, PlaybackMode};
+    use itaipu_dynamics::simulate::PreparedEvent;
+    let dip = dip_event(unit, duration_s, seed);
+    let out = simulate_mode(
+        unit,
+        &PreparedEvent::new(&dip),
+        PlaybackMode::Phasor,
+        &SimOptions::default(),
+    )
+    .expect("the dip's unit plays back");
+    let mut rng = itaipu_dynamics::rng::Normal::new(field_seed);
+    let mut noisy = |y: &[f64], s: f64| y.iter().map(|v| v + s * rng.sample()).collect();
+    let mut rec = dip.record.clone();
+    rec.efd_pu = Some(noisy(&out.efd, 0.01));
+    rec.ifd_pu = Some(noisy(&out.ifd, 0.005));
+    Event::from_record(
+        "dip with field",
+        rec,
+        dip.system_mva,
+        dip.nominal_hz,
+        Some(dip.init),
+        Some(dip.fit),
+    )
+    .expect("the dip's record with its field")
+}
+
 /// The least-squares problem of a fault dip (`duration_s` at 60 samples/s, PMU noise of `seed`)
 /// played into `unit`, with `free` parameters (path, lower and upper bound) starting at
 /// `start_scale` times their values in `unit`: the Jacobian tests' and benchmarks' problem.
@@ -297,19 +344,7 @@ pub fn dip_problem(
     start_scale: f64,
 ) -> crate::problem::Problem {
     use crate::problem::{EventData, FreeParam, Problem};
-    let profile = VoltageProfile {
-        duration_s,
-        ..VoltageProfile::default()
-    };
-    let ev = synthesize(
-        "dip",
-        &unit,
-        &profile,
-        60.0,
-        &PmuNoise::typical(seed),
-        &Default::default(),
-    )
-    .expect("a dip into a unit that initialises");
+    let ev = dip_event(&unit, duration_s, seed);
     let free: Vec<FreeParam> = free
         .iter()
         .map(|&(p, lo, hi)| {
