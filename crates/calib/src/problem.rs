@@ -84,6 +84,24 @@ pub fn noise_variance(y: &[f64]) -> f64 {
     (1.4826 * mad).powi(2) / 6.0
 }
 
+/// Whether a parameter free in `[lo, hi]` is searched on a log scale: a positive range of a
+/// decade or more (the one rule of [`FreeParam::new`]).
+pub fn is_log_scale(lo: f64, hi: f64) -> bool {
+    lo > 0.0 && hi / lo >= 10.0
+}
+
+/// Box coordinate in `[0, 1]` of physical value `x` free in `[lo, hi]`, on the scale the search
+/// uses ([`is_log_scale`]): what [`FreeParam::to_unit`] gives, for a rule that has the range but
+/// not the parameter.
+pub fn box_coordinate(x: f64, lo: f64, hi: f64) -> f64 {
+    let x = crate::bounds::clamp_into(x, lo, hi);
+    if is_log_scale(lo, hi) {
+        (x / lo).ln() / (hi / lo).ln()
+    } else {
+        (x - lo) / (hi - lo)
+    }
+}
+
 impl FreeParam {
     pub fn new(
         path: String,
@@ -93,7 +111,7 @@ impl FreeParam {
         start: f64,
         unit: &'static str,
     ) -> Self {
-        let log = lo > 0.0 && hi / lo >= 10.0;
+        let log = is_log_scale(lo, hi);
         Self {
             path,
             r,

@@ -220,6 +220,14 @@ fn each_bad_cause_file_is_refused_naming_the_file_and_the_field() {
             &["titel", "unknown key"],
         ),
         (
+            "from_datasheet not a boolean",
+            good.replace(
+                "id = \"reactive_droop\"",
+                "id = \"reactive_droop\"\nfrom_datasheet = \"yes\"",
+            ),
+            &["from_datasheet", "true or false"],
+        ),
+        (
             "no block",
             good.replace("[[block]]", "[[blocks]]"),
             &["blocks", "unknown key"],
@@ -314,8 +322,9 @@ fn each_bad_cause_file_is_refused_naming_the_file_and_the_field() {
 }
 
 /// The bundled cause files of the outside-the-catalog trials (`examples/outside_catalog.rs`):
-/// each reads, applies to the synthetic unit, starts near neutral (a 1 ms lag: P and Q within a
-/// tenth of a PMU's noise, 2e-3 pu, of the unit without it) and, hidden at a typical value,
+/// each reads, applies to the synthetic unit, starts near neutral (a 1 ms lag, a lead-lag with
+/// equal time constants, a limiter whose pickup the record never reaches: P and Q within
+/// a tenth of a PMU's noise, 2e-3 pu, of the unit without it) and, hidden at a typical value,
 /// moves P or Q by more than the noise on the event it acts on.
 #[test]
 fn the_bundled_lag_causes_are_near_neutral_at_their_start_and_act_when_hidden() {
@@ -333,6 +342,13 @@ fn the_bundled_lag_causes_are_near_neutral_at_their_start_and_act_when_hidden() 
             0.45,
             EventKind::FrequencyExcursion,
         ),
+        (
+            "pss_lead_lag.toml",
+            "pss_comp.t_lead",
+            0.4,
+            EventKind::FaultDip,
+        ),
+        ("uel.toml", "uel.q_min", -0.1, EventKind::VoltageStep),
     ] {
         let cause =
             UserCause::read(&data(&format!("causes/{file}"))).unwrap_or_else(|e| panic!("{e}"));
@@ -358,4 +374,16 @@ fn the_bundled_lag_causes_are_near_neutral_at_their_start_and_act_when_hidden() 
         assert!(at_start < 2e-4, "{file}: {at_start} at the neutral start");
         assert!(when_hidden > 5e-3, "{file}: {when_hidden} when hidden");
     }
+}
+
+/// `from_datasheet = true` in a cause file (the bundled UEL, a limit) gives its extension the
+/// catalog limits' two starts (`Extension::from_datasheet`); a file without it (the droop) keeps
+/// the single, calibrated start.
+#[test]
+fn a_cause_file_can_ask_for_the_datasheet_start_of_a_limit() {
+    let base = base_unit();
+    let ctx = itaipu_calib::diagnose::catalog::Context::default();
+    let read = |f: &str| UserCause::read(&data(&format!("causes/{f}"))).unwrap();
+    assert!(read("uel.toml").extend(&base, &ctx).unwrap().from_datasheet);
+    assert!(!droop().extend(&base, &ctx).unwrap().from_datasheet);
 }

@@ -418,6 +418,15 @@ pub(crate) fn declared(unit: &Unit, path: &str, start: f64) -> Result<FreeBound,
         .map_err(CauseError::build)
 }
 
+/// The declared range (`ParamSpec::range`) of parameter `param` of library model `model`: what
+/// [`declared`] frees it within, for a rule that reads a fitted value against it.
+pub(crate) fn declared_range(model: &str, param: &str) -> Option<(f64, f64)> {
+    let block = itaipu_dynamics::registry::find(model)?.create();
+    let p = block.params();
+    let i = p.index_of(param)?;
+    Some(p.specs()[i].range)
+}
+
 /// `param` free within `[min, max]` computed by the cause (from the operating point, the
 /// evidence or the PMU rate), starting at `start` (clamped). A range that is empty, upside down
 /// or not finite (an operating point that leaves the search no room, a NaN from a unit that

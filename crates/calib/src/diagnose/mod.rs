@@ -35,6 +35,10 @@
 //!    significant ones, the extended model with the lowest `χ²_ext + k ln N` (k = every
 //!    parameter it re-fitted) is the best; an extension pressed against the upper end of its
 //!    range is not significant (the residual asks for more than the cause can be), nor is one
+//!    whose fitted values are no unit of its cause or below what the data resolve
+//!    ([`catalog::Cause::vetoed`]: a saturation curve falling with flux, a shaft mode at the
+//!    torsional band's lower edge or damped above ζ = 0.1, an OEL without I²t capacity, a skew
+//!    below half a sample), nor one
 //!    that leaves most of a misfit above the noise floor in place (it removed a part of another
 //!    effect's). The best is
 //!    named only when every other significant candidate's extended model is at least

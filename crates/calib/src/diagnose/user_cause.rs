@@ -10,6 +10,8 @@
 //! signature = "…"                         # optional: what it looks like in the residual
 //! extension = "…"                         # optional: what the extension is (for the report)
 //! search_factor = 1                       # optional: longer swarm for this cause
+//! from_datasheet = false                  # optional: a limit's re-fit also starts from the
+//!                                         # datasheet values (Extension::from_datasheet)
 //! [[block]]                               # one or more, as in a unit file's [[block]]
 //! name = "droop"
 //! model = "diagram"                       # or a library model
@@ -72,6 +74,8 @@ pub struct UserCause {
     /// The file it was read from (messages).
     pub path: PathBuf,
     search_factor: usize,
+    /// The re-fit also starts from the datasheet values ([`Extension::from_datasheet`]).
+    from_datasheet: bool,
     /// `(instance name, section, field prefix)`.
     blocks: Vec<(String, toml::Table, String)>,
     rewire: Vec<(String, Vec<(String, String)>)>,
@@ -123,6 +127,7 @@ impl UserCause {
             "signature",
             "extension",
             "search_factor",
+            "from_datasheet",
             "block",
             "rewire",
             "free",
@@ -171,6 +176,11 @@ impl UserCause {
                     "must be an integer from 1 to 20".into(),
                 ))
             }
+        };
+        let from_datasheet = match t.get("from_datasheet") {
+            None => false,
+            Some(toml::Value::Boolean(b)) => *b,
+            Some(_) => return Err(err("from_datasheet", "must be true or false".into())),
         };
 
         // Blocks: each built once here, so that a bad one is refused when the file is read.
@@ -295,6 +305,7 @@ impl UserCause {
             extension,
             path: path.into(),
             search_factor,
+            from_datasheet,
             blocks,
             rewire,
             free,
@@ -387,7 +398,7 @@ impl UserCause {
             description: self.extension.clone(),
             fixed: vec![],
             search_factor: self.search_factor,
-            from_datasheet: false,
+            from_datasheet: self.from_datasheet,
         };
         catalog::free_nuisance(&mut ext);
         Ok(ext)

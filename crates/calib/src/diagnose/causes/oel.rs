@@ -4,8 +4,9 @@
 use itaipu_dynamics::synthetic::EventKind;
 
 use super::super::catalog::{
-    add_block, declared, fb, field_side, model_of, new_block, scanned, Cause, CauseError,
-    CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP, OEL_IFD_RISE,
+    add_block, declared, declared_range, fb, field_side, model_of, new_block, scanned, Cause,
+    CauseError, CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP,
+    OEL_IFD_RISE,
 };
 use super::super::trial::Tolerance;
 use super::super::EventEvidence;
@@ -114,6 +115,28 @@ impl Cause for Oel {
         super::q_window(ev)
     }
 
+    /// An inverse-time limiter whose I²t capacity A_max ends at the bottom of its declared
+    /// range (within 0.1 % of the range's width on its search scale, as for any bound:
+    /// [`crate::problem::FreeParam::at_bound`]) acts the moment the field current passes its
+    /// pickup: the residual asks for a limit without the thermal delay that makes an OEL act
+    /// seconds after the event, which the cause does not explain (an instantaneous field-current
+    /// limit, a compensator or a bent AVR does; the upper-end rule of the candidates, turned to
+    /// the end where this parameter gives the most effect). Measured on the 66 practice records
+    /// (stop 47): the five OELs named right ended at A_max 0.06-1.5; 13 of the 53 OEL re-fits, all
+    /// rivals of other causes and none significant, at the bottom; a reactive-current droop outside the catalog
+    /// (`examples/outside_catalog.rs`, X_c = 0.03 on a dip) was named `oel` strong there.
+    fn unphysical(&self, fitted: &[(String, f64)], _ctx: &Context) -> Option<String> {
+        let a = fitted.iter().find(|(p, _)| p == "oel.a_max")?.1;
+        let (lo, hi) = declared_range("oel", "a_max")?;
+        (crate::problem::box_coordinate(a, lo, hi) < 1e-3).then(|| {
+            format!(
+                "its I²t capacity ends at the bottom of its range (oel.a_max = {a:.3} in [{lo}, {hi}] pu²s): \
+                 the limiter would act the moment the field current passes its pickup, without the thermal \
+                 delay of an inverse-time OEL, so the residual asks for another effect"
+            )
+        })
+    }
+
     fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
         Scenario {
             // The truth reads its settings against the pre-event field current (the search's
@@ -126,5 +149,41 @@ impl Cause for Oel {
             key: Some(("oel.ifd_rated", Tolerance::Rel(0.05))),
             kind: EventKind::FaultDip,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::catalog::cause;
+
+    /// The veto every candidate's scoring asks (`Cause::vetoed`): an OEL whose I²t capacity
+    /// ends at the bottom of the block's declared range (0.02 pu²s, searched on a log scale up
+    /// to 30) is not named; the capacities of the OELs the practice records hide (fitted
+    /// 0.06-1.5) are, and so is one just off the bottom.
+    #[test]
+    fn an_oel_without_thermal_capacity_is_not_named() {
+        let oel = cause("oel").unwrap();
+        let fitted = |a_max: f64| {
+            vec![
+                ("oel.ifd_rated".to_string(), 1.7),
+                ("oel.a_max".to_string(), a_max),
+                ("oel.k_i".to_string(), 0.01),
+            ]
+        };
+        let ctx = Context::default();
+        assert_eq!(declared_range("oel", "a_max"), Some((0.02, 30.0)));
+        let why = oel.vetoed(&fitted(0.02), &ctx).expect("vetoed");
+        assert!(
+            why.contains("oel.a_max = 0.020") && why.contains("thermal"),
+            "{why}"
+        );
+        // Within 0.1 % of the log range (a factor 30/0.02 = 1500: 0.02 × 1500^0.001 = 0.02015).
+        assert!(oel.vetoed(&fitted(0.02014), &ctx).is_some());
+        for a in [0.0202, 0.061, 0.27, 1.53, 30.0] {
+            assert!(oel.vetoed(&fitted(a), &ctx).is_none(), "A_max = {a}");
+        }
+        // Without the capacity among the fitted values there is nothing to judge.
+        assert!(oel.vetoed(&fitted(0.02)[..1], &ctx).is_none());
     }
 }
