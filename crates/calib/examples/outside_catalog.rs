@@ -93,6 +93,50 @@ const TRIALS: &[Trial] = &[
         value: -0.1,
         kind: EventKind::VoltageStep,
     },
+    // Added at the end of stop 47, run once with its rules in place: the last but two is a
+    // wrong name the rules do not catch (a strong droop on a dip named `saturation`).
+    Trial {
+        file: "pss_lead_lag.toml",
+        param: "pss_comp.t_lead",
+        value: 1.0,
+        kind: EventKind::FaultDip,
+    },
+    Trial {
+        file: "pss_lead_lag.toml",
+        param: "pss_comp.t_lead",
+        value: 0.03,
+        kind: EventKind::FaultDip,
+    },
+    Trial {
+        file: "avr_transducer.toml",
+        param: "transducer.t_r",
+        value: 0.3,
+        kind: EventKind::VoltageStep,
+    },
+    Trial {
+        file: "governor_speed_filter.toml",
+        param: "speed_filter.t_f",
+        value: 1.0,
+        kind: EventKind::FaultDip,
+    },
+    Trial {
+        file: "reactive_droop.toml",
+        param: "droop.x_c",
+        value: 0.1,
+        kind: EventKind::FaultDip,
+    },
+    Trial {
+        file: "reactive_droop.toml",
+        param: "droop.x_c",
+        value: 0.02,
+        kind: EventKind::VoltageStep,
+    },
+    Trial {
+        file: "reactive_droop.toml",
+        param: "droop.x_c",
+        value: 0.05,
+        kind: EventKind::FrequencyExcursion,
+    },
 ];
 
 /// The record length [s], rate [samples/s] and system base [MVA] of every trial.
