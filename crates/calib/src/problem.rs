@@ -94,8 +94,13 @@ pub fn is_log_scale(lo: f64, hi: f64) -> bool {
 /// uses ([`is_log_scale`]): what [`FreeParam::to_unit`] gives, for a rule that has the range but
 /// not the parameter.
 pub fn box_coordinate(x: f64, lo: f64, hi: f64) -> f64 {
+    coordinate(x, lo, hi, is_log_scale(lo, hi))
+}
+
+/// Box coordinate of `x` in `[lo, hi]` on a log or a linear scale (clamped into the range).
+fn coordinate(x: f64, lo: f64, hi: f64, log: bool) -> f64 {
     let x = crate::bounds::clamp_into(x, lo, hi);
-    if is_log_scale(lo, hi) {
+    if log {
         (x / lo).ln() / (hi / lo).ln()
     } else {
         (x - lo) / (hi - lo)
@@ -149,12 +154,7 @@ impl FreeParam {
     }
     /// Box coordinate of physical value `x`.
     pub fn to_unit(&self, x: f64) -> f64 {
-        let x = crate::bounds::clamp_into(x, self.lo, self.hi);
-        if self.log {
-            (x / self.lo).ln() / (self.hi / self.lo).ln()
-        } else {
-            (x - self.lo) / (self.hi - self.lo)
-        }
+        coordinate(x, self.lo, self.hi, self.log)
     }
     /// True when `x` lies within 0.1 % of the box width of a bound.
     pub fn at_bound(&self, x: f64) -> bool {
