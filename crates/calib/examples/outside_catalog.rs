@@ -161,7 +161,7 @@ fn main() {
     let base = base_unit();
     let sim = SimOptions::default();
     println!(
-        "{:<27} {:<7} {:>6} {:>8} {:>8} {:>8} {:<14} {:<38} {:>6}",
+        "{:<27} {:<7} {:>6} {:>8} {:>8} {:>8} {:<30} {:<38} {:>6}",
         "cause file",
         "event",
         "value",
@@ -229,6 +229,11 @@ fn main() {
         keep("", &d.report);
         let verdict = d.report.verdict.cause.clone();
         let catalog_named = catalog::find(&verdict).is_some();
+        // An `unexplained` that a look-alike outside the catalog explains says which.
+        let verdict = match d.report.verdict.competing.first() {
+            Some((c, _)) if verdict == "unexplained" => format!("unexplained~{c}"),
+            _ => verdict,
+        };
         wrong += usize::from(catalog_named);
         // The same calibrated unit, diagnosed with the cause file as well.
         let spec = practice_spec(&case.unit).expect("the practice spec");
@@ -247,12 +252,15 @@ fn main() {
             let v = &d.report.verdict;
             match v.key_parameters.iter().find(|(p, _, _)| p == t.param) {
                 Some((_, x, _)) => format!("{} ({}={x:.3})", v.cause, t.param),
-                None => v.cause.clone(),
+                None => match v.competing.first() {
+                    Some((c, _)) if v.cause == "unexplained" => format!("unexplained~{c}"),
+                    _ => v.cause.clone(),
+                },
             }
         })
         .unwrap_or_else(|e| format!("error: {e}"));
         println!(
-            "{:<27} {:<7} {:>6} {:>8.4} {:>8.4} {:>8.5} {:<14} {:<38} {:>6.1}",
+            "{:<27} {:<7} {:>6} {:>8.4} {:>8.4} {:>8.5} {:<30} {:<38} {:>6.1}",
             t.file,
             match t.kind {
                 EventKind::FaultDip => "dip",

@@ -17,12 +17,17 @@ use itaipu_calib::diagnose::{diagnose, DiagnoseError, DiagnoseOptions};
 use itaipu_calib::fit::Silent;
 use itaipu_dynamics::synthetic::EventKind;
 
+/// The catalog's own recovery of a cause hidden by our engine. The look-alikes outside the
+/// catalog are left out here (they are scored after every catalog cause and leave their
+/// scores as they are; what they do to right names is measured on the practice sets, where
+/// `tests/practice.rs` runs them, and their verdict rule is `verdict.rs`'s unit test).
 fn check(cause: &str, seed: u64, kind: Option<EventKind>) {
     let t = scenario(cause, seed, kind);
     let o = run(
         &t,
         &DiagnoseOptions {
             seed,
+            look_alikes: false,
             ..Default::default()
         },
     )
@@ -491,6 +496,11 @@ fn the_whole_catalog_runs_on_units_with_any_exciter() {
         };
         let d = diagnose(&unit, std::slice::from_ref(&ev), &[], &opts, &Silent)
             .unwrap_or_else(|e| panic!("{model}: {e}"));
-        assert_eq!(d.report.candidates.len(), catalog::CAUSES.len());
+        // Every catalog cause has a report (the look-alikes outside the catalog follow when
+        // one was significant).
+        assert_eq!(
+            d.report.candidates.iter().filter(|c| !c.look_alike).count(),
+            catalog::CAUSES.len()
+        );
     }
 }

@@ -119,16 +119,17 @@ fn a_hidden_droop_is_named_by_the_user_cause_with_its_reactance() {
     assert!(cand.significant);
 }
 
-/// Outside the catalog: the same hidden droop, calibrated and then diagnosed as a user does
-/// (the practice protocol: the one spec frees the 20 uncertain parameters, the default staged
-/// fit, then the diagnosis re-freeing the calibrated set with its prior), with the whole
-/// built-in catalog and no user cause. No catalog cause models a compensator in front of the
-/// AVR, so none may be named (the engineer would act on it): `unexplained` (a residual above
-/// the noise no candidate explains), `inconclusive` or `none` (a droop the calibration
-/// absorbed).
+/// Outside the catalog: a strong hidden droop (X_c = 0.1), calibrated and then diagnosed as a
+/// user does (the practice protocol: the one spec frees the 20 uncertain parameters, the
+/// default staged fit, then the diagnosis re-freeing the calibrated set with its prior), with
+/// the whole built-in catalog and no user cause. No catalog cause models a compensator in
+/// front of the AVR, so none may be named (the engineer would act on it). This record was
+/// named `saturation` strong at stop 47 (S(1.0) 0.365, S(1.2) 1.21, a physical curve): the
+/// saturation passes its test against its own baseline. The reactive-droop look-alike explains
+/// it better, so the verdict is `unexplained`, pointing at the droop's cause file.
 #[test]
 fn a_hidden_droop_without_its_user_cause_gets_no_catalog_name() {
-    let ev = dip_event(&truth(0.06), 11);
+    let ev = dip_event(&truth(0.1), 11);
     let case = itaipu_calib::practice::PracticeCase {
         name: "droop".into(),
         dir: PathBuf::from("."),
@@ -159,6 +160,27 @@ fn a_hidden_droop_without_its_user_cause_gets_no_catalog_name() {
         !v.names_a_cause(),
         "a catalog cause named for an effect outside it: {}",
         v.statement
+    );
+    assert_eq!(v.cause, "unexplained", "{}", v.statement);
+    assert_eq!(
+        v.competing.first().map(|(c, _)| c.as_str()),
+        Some("reactive_droop"),
+        "{}",
+        v.statement
+    );
+    assert!(
+        v.statement
+            .contains("--user-cause data/causes/reactive_droop.toml"),
+        "{}",
+        v.statement
+    );
+    // The catalog cause it beat is listed after it, with its BIC gap.
+    assert!(
+        v.competing[1..]
+            .iter()
+            .any(|(c, gap)| c == "saturation" && *gap > 10.0),
+        "{:?}",
+        v.competing
     );
 }
 

@@ -149,7 +149,7 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     let staging = prepare_out(a.out.as_deref(), &format!("diagnose-{name}"), a.force)?;
     let tried = if opts.causes.is_empty() {
         format!(
-            "all {} causes",
+            "all {} causes (and the look-alikes outside the catalog if one is significant)",
             catalog::CAUSES.len() + opts.user_causes.len()
         )
     } else {
@@ -392,7 +392,7 @@ fn print_report(r: &Diagnosis) {
     println!("{}", wrap(&noise, WIDTH, "noise    ", "         "));
     println!();
     println!(
-        "candidates (* = significant, ranked by the extended model's BIC; the others by ΔBIC)"
+        "candidates (* = significant, ranked by the extended model's BIC; the others by ΔBIC; ~ = a look-alike outside the catalog, never named)"
     );
     println!(
         "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>2} {:1}  key parameters / note",
@@ -400,10 +400,15 @@ fn print_report(r: &Diagnosis) {
     );
     let indent = " ".repeat(2 + 18 + 1 + 9 + 1 + 9 + 1 + 9 + 1 + 9 + 1 + 2 + 1 + 1 + 2);
     for c in &r.candidates {
+        let cause = if c.look_alike {
+            format!("~{}", c.cause)
+        } else {
+            c.cause.clone()
+        };
         let head = match &c.gains {
             Some(g) => format!(
                 "  {:<18} {:>9.1} {:>9.1} {:>9} {:>9} {:>2} {:1}  ",
-                c.cause,
+                cause,
                 g.delta_bic,
                 g.record_evidence,
                 pct(g.fit_drop),
@@ -413,7 +418,7 @@ fn print_report(r: &Diagnosis) {
             ),
             None => format!(
                 "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>2} {:1}  ",
-                c.cause, "-", "-", "-", "-", "-", ""
+                cause, "-", "-", "-", "-", "-", ""
             ),
         };
         let items = key_params(c);

@@ -164,7 +164,7 @@ impl PyDiagnosis {
     }
 
     /// The candidates as a pandas DataFrame indexed by cause, in the report's order (columns
-    /// title, applicable, significant, note, and the gains: delta_bic, fit_drop, held_drop, ...;
+    /// title, applicable, significant, look_alike, note, and the gains: delta_bic, fit_drop, held_drop, ...;
     /// NaN where a cause was not applicable). Needs pandas.
     fn to_pandas<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let empty = vec![];
@@ -173,7 +173,14 @@ impl PyDiagnosis {
             .iter()
             .map(|c| {
                 let d = PyDict::new(py);
-                for key in ["cause", "title", "applicable", "significant", "note"] {
+                for key in [
+                    "cause",
+                    "title",
+                    "applicable",
+                    "significant",
+                    "look_alike",
+                    "note",
+                ] {
                     d.set_item(key, json_to_py(py, &c[key])?)?;
                 }
                 if let Some(g) = c["gains"].as_object() {

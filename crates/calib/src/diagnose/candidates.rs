@@ -86,6 +86,7 @@ impl Candidates<'_> {
             fixed: vec![],
             gains: None,
             significant: false,
+            look_alike: false,
             by_evidence: false,
             signature: cause.map_or_else(Vec::new, |c| c.signature(evidence_before, ctx)),
             simulations: 0,

@@ -46,7 +46,11 @@
 //!    competitors. A named cause carries its posterior probability and a grade ([`Grade`]).
 //!    With no significant candidate the verdict is `none` (residual RMS within `noise_factor`
 //!    of the noise floor) or `unexplained` (with the window and signal where the residual
-//!    lives).
+//!    lives). In a full diagnosis where a candidate is significant, the bundled effects outside
+//!    the catalog ([`look_alike`]: a reactive droop, a transducer lag, a speed filter, a PSS
+//!    lead-lag, a UEL) are scored too and ranked with the others, never named: when one is the
+//!    best the verdict is `unexplained` (what the residual looks like, and the cause file that
+//!    names it), when one is within `bic_threshold` of the best it is `inconclusive`.
 //!
 //! # Recorded field channels
 //!
@@ -85,6 +89,7 @@
 mod candidates;
 pub mod catalog;
 pub mod causes;
+pub mod look_alike;
 mod noise;
 pub mod playback;
 mod reference;
@@ -153,6 +158,10 @@ pub struct DiagnoseOptions {
     /// compared), which needs a voltage angle; a record without one is diagnosed in the mode
     /// named here, on that mode's compared channels.
     pub mode: Option<itaipu_dynamics::mode::PlaybackMode>,
+    /// Also try the bundled effects outside the catalog ([`look_alike`]) in a full diagnosis
+    /// (`causes` empty) where a candidate is significant: a residual one of them explains
+    /// better is then `unexplained` (or `inconclusive`), not the nearest catalog cause.
+    pub look_alikes: bool,
     /// When set (by a signal handler, say), every later candidate evaluation of the re-fits
     /// fails at once and the diagnosis returns [`DiagnoseError::Interrupted`] with the causes
     /// it finished.
@@ -184,6 +193,7 @@ impl Default for DiagnoseOptions {
             min_held_drop: 0.01,
             noise_factor: 1.5,
             mode: None,
+            look_alikes: true,
             cancel: None,
         }
     }
@@ -341,6 +351,9 @@ pub struct CandidateReport {
     pub fixed: Vec<(String, f64)>,
     pub gains: Option<Gains>,
     pub significant: bool,
+    /// A bundled effect outside the catalog ([`look_alike`]): tried against the others, never
+    /// named.
+    pub look_alike: bool,
     /// Significant by the cause's signature in the evidence (e.g. a shaft resonance's peak),
     /// not by the re-fit's test: never graded `strong`.
     pub by_evidence: bool,
@@ -653,6 +666,26 @@ fn diagnose_run(
     } else {
         opts.causes.iter().map(|s| s.as_str()).collect()
     };
+    // The look-alikes a full diagnosis may try: the bundled ones whose id is no catalog cause's
+    // nor the user's (a user's file of the same id is a candidate that can be named).
+    let look_alikes: Vec<user_cause::UserCause> = if opts.look_alikes && opts.causes.is_empty() {
+        look_alike::bundled()
+            .iter()
+            .filter(|l| !user_cause::known(&l.id, &opts.user_causes))
+            .cloned()
+            .collect()
+    } else {
+        vec![]
+    };
+    let run_opts = DiagnoseOptions {
+        user_causes: opts
+            .user_causes
+            .iter()
+            .chain(&look_alikes)
+            .cloned()
+            .collect(),
+        ..opts.clone()
+    };
     let mut candidates = Candidates {
         unit,
         ctx: &ctx,
@@ -661,7 +694,7 @@ fn diagnose_run(
             sp: &sp,
             weights,
             compare: compare.as_ref(),
-            opts,
+            opts: &run_opts,
             progress,
             profile: Some(&profile),
         },
@@ -678,6 +711,17 @@ fn diagnose_run(
             refits.insert(id.to_string(), r);
         }
         reports.push(rep);
+    }
+    // 4b. The look-alikes, after every cause that can be named (whose scores they leave as they
+    //     are), and only when one of those is significant: without a name to guard they could
+    //     only turn `none` or `unexplained` into `unexplained`.
+    if reports.iter().any(|r| r.significant) {
+        for l in &look_alikes {
+            interrupted(opts, &reports)?;
+            let (mut rep, _) = candidates.score(&l.id);
+            rep.look_alike = true;
+            reports.push(rep);
+        }
     }
 
     // 5. Rank and decide.

@@ -253,6 +253,16 @@ pub(super) fn decide(
     }
     // A significant candidate has its re-fit and its gains (`Candidates::score` returns them
     // with every report it scores); one without them could not be named, and is not.
+    // A look-alike outside the catalog explains the residual best: no catalog name.
+    if let Some(best) = significant.first().filter(|r| r.look_alike) {
+        let verdict = outside_catalog(best, reports, evidence_before, &compared);
+        return Decision {
+            verdict,
+            extended_unit: None,
+            after: vec![],
+            evidence_after: vec![],
+        };
+    }
     let named = reports
         .iter()
         .find(|r| r.significant)
@@ -474,6 +484,71 @@ pub(super) fn explains_too_little(g: &Gains, noise_factor: f64) -> Option<String
     })
 }
 
+/// The verdict when a look-alike outside the catalog ([`super::look_alike`]) is the best
+/// significant candidate: `unexplained`, saying what the residual looks like, which catalog
+/// causes it beats and how to name it; `competing` holds the look-alike, then those causes
+/// with their extended models' BIC above it.
+fn outside_catalog(
+    best: &CandidateReport,
+    reports: &[CandidateReport],
+    ev: &[EventEvidence],
+    compared: &[&str],
+) -> Verdict {
+    let beaten: Vec<(String, f64)> = reports
+        .iter()
+        .filter(|r| r.significant && !r.look_alike && r.gains.is_some())
+        .map(|r| (r.cause.clone(), bic_gap(best, r)))
+        .collect();
+    let where_ = worst_residual(ev, compared).and_then(|(_, s)| {
+        top_window(s).map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s))
+    });
+    let gains = best.gains.as_ref().map_or(String::new(), |g| {
+        format!(
+            ": its extension ({}) lowers χ² on the fitted samples by {:.0} % and on the held-out samples by {:.0} %, \
+             the record's evidence 2 ln B = {:.1}",
+            best.extension,
+            100.0 * g.fit_drop,
+            100.0 * g.held_drop,
+            g.record_evidence
+        )
+    });
+    let catalog = if beaten.is_empty() {
+        String::new()
+    } else {
+        let list: Vec<String> = beaten
+            .iter()
+            .map(|(c, gap)| format!("{c} (its extended model's BIC {gap:.1} above)"))
+            .collect();
+        format!(
+            " {} also passes its own test but explains the data less well; it is not named, as the nearest \
+             catalog cause to an effect outside the catalog would be a wrong name.",
+            list.join(" and ")
+        )
+    };
+    let file = super::look_alike::file_of(&best.cause);
+    Verdict {
+        cause: "unexplained".into(),
+        title: format!(
+            "unexplained by the catalog: looks like {} ({})",
+            best.title, best.cause
+        ),
+        statement: format!(
+            "Unexplained by the catalog. The residual is explained best by an effect outside the catalog that the \
+             diagnosis tries as a look-alike, {} ({}){gains}.{catalog} If the unit has this setting, diagnose again \
+             with --user-cause {file} to name it and re-fit with it; if not, write a cause file for the effect it has.",
+            best.title, best.cause
+        ),
+        key_parameters: vec![],
+        gains: None,
+        where_,
+        grade: None,
+        probability: None,
+        competing: std::iter::once((best.cause.clone(), 0.0))
+            .chain(beaten)
+            .collect(),
+    }
+}
+
 /// The verdict when two or more significant candidates explain the residual within the BIC
 /// threshold of each other: `inconclusive`, with the competitors and where the residual lives.
 fn inconclusive(
@@ -485,10 +560,18 @@ fn inconclusive(
     opts: &DiagnoseOptions,
 ) -> Verdict {
     let describe = |c: &CandidateReport| {
-        c.gains.as_ref().map_or(c.cause.clone(), |g| {
+        let name = if c.look_alike {
             format!(
-                "{} (ΔBIC {:.1} against its baseline, fitted χ² −{:.0} %, held out −{:.0} %)",
+                "{} (outside the catalog: {})",
                 c.cause,
+                super::look_alike::file_of(&c.cause)
+            )
+        } else {
+            c.cause.clone()
+        };
+        c.gains.as_ref().map_or(name.clone(), |g| {
+            format!(
+                "{name} (ΔBIC {:.1} against its baseline, fitted χ² −{:.0} %, held out −{:.0} %)",
                 g.delta_bic,
                 100.0 * g.fit_drop,
                 100.0 * g.held_drop
@@ -648,6 +731,7 @@ mod tests {
                 rms_q_ext: 0.005,
             }),
             significant,
+            look_alike: false,
             by_evidence: false,
             signature: vec![],
             simulations: 0,
@@ -704,6 +788,71 @@ mod tests {
         assert!(explains_too_little(&with(1_120.0, 1_080.0), 1.5).is_none());
         // A stricter floor makes the same residual "above the noise".
         assert!(explains_too_little(&with(2_400.0, 2_200.0), 1.0).is_some());
+    }
+
+    /// A look-alike outside the catalog whose extended model is decisively better than the
+    /// significant catalog cause's takes the name away: `unexplained`, with the look-alike, its
+    /// file and the cause it beats. About as good: `inconclusive`, the look-alike among the
+    /// competitors. Decisively worse, or not significant: the catalog cause stays the best.
+    #[test]
+    fn a_better_look_alike_outside_the_catalog_takes_the_name_away() {
+        let look_alike = |chi2: f64, significant: bool| {
+            let mut c = candidate("reactive_droop", chi2, 2, 60.0, significant);
+            c.look_alike = true;
+            c
+        };
+        let saturation = || candidate("saturation", 340.0, 3, 40.0, true);
+        // VIF 2, N = 1000: a gap of 40/2 + (3 − 2) ln 500 = 26.2.
+        let d = decide_on(vec![saturation(), look_alike(300.0, true)]);
+        assert_eq!(d.verdict.cause, "unexplained", "{}", d.verdict.statement);
+        assert!(!d.verdict.names_a_cause());
+        assert!(d.extended_unit.is_none());
+        assert_eq!(d.verdict.competing[0], ("reactive_droop".to_string(), 0.0));
+        assert_eq!(d.verdict.competing[1].0, "saturation");
+        assert!((d.verdict.competing[1].1 - (20.0 + 500f64.ln())).abs() < 1e-9);
+        for s in [
+            "--user-cause data/causes/reactive_droop.toml",
+            "saturation (its extended model's BIC 26.2 above)",
+        ] {
+            assert!(
+                d.verdict.statement.contains(s),
+                "{s}: {}",
+                d.verdict.statement
+            );
+        }
+        assert!(
+            d.verdict.title.contains("looks like"),
+            "{}",
+            d.verdict.title
+        );
+        // A gap of 5/2 + ln 500 = 8.7: not decided either way.
+        let d = decide_on(vec![saturation(), look_alike(335.0, true)]);
+        assert_eq!(d.verdict.cause, "inconclusive", "{}", d.verdict.statement);
+        let names: Vec<&str> = d
+            .verdict
+            .competing
+            .iter()
+            .map(|(c, _)| c.as_str())
+            .collect();
+        assert_eq!(names, ["reactive_droop", "saturation"]);
+        assert!(
+            d.verdict
+                .statement
+                .contains("outside the catalog: data/causes/reactive_droop.toml"),
+            "{}",
+            d.verdict.statement
+        );
+        // Decisively worse, or not significant: the catalog cause is the best (named when its
+        // re-fit is on record; here `decide` falls back to undecided without the look-alike).
+        for l in [look_alike(400.0, true), look_alike(300.0, false)] {
+            let d = decide_on(vec![saturation(), l]);
+            assert!(
+                !d.verdict.title.contains("looks like"),
+                "{}",
+                d.verdict.title
+            );
+            assert_ne!(d.verdict.cause, "inconclusive");
+        }
     }
 
     /// Two causes that pass their tests and whose extended models are within the BIC threshold

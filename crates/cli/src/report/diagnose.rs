@@ -310,9 +310,14 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
         let mut row = vec![
             Cell::Num((i + 1).to_string()),
             Cell::Html(format!(
-                "<b>{}</b><br/><span class=\"muted\">{}</span>",
+                "<b>{}</b><br/><span class=\"muted\">{}{}</span>",
                 e(&c.cause),
-                e(&c.title)
+                e(&c.title),
+                if c.look_alike {
+                    " (a look-alike outside the catalog: tried against the others, never named)"
+                } else {
+                    ""
+                }
             )),
         ];
         match &c.gains {
