@@ -237,14 +237,24 @@ fn diagnose_draws_plots_and_a_self_contained_html_report() {
     }
 }
 
-/// On a clean record no cause is named, and no extended unit is written.
+/// On a clean record no cause is named, and no extended unit is written (`--no-look-alikes`
+/// is accepted).
 #[test]
 fn diagnose_writes_no_extended_unit_when_no_cause_is_named() {
     let tmp = TempDir::new("diag-clean");
     let event = synth(&tmp, "0");
     let out = tmp.path().join("diag");
     assert_eq!(
-        diagnose(&event, &out, &["--cause", "measurement_skew", "--no-plot"]),
+        diagnose(
+            &event,
+            &out,
+            &[
+                "--cause",
+                "measurement_skew",
+                "--no-plot",
+                "--no-look-alikes"
+            ]
+        ),
         0
     );
     let d = json(&out.join("diagnosis.json"));

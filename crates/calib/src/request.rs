@@ -511,6 +511,9 @@ pub struct DiagnoseRequest {
     pub user_causes: Vec<std::path::PathBuf>,
     pub refit: Vec<RefitRequest>,
     pub search: Search,
+    /// Try the look-alikes outside the catalog ([`DiagnoseOptions::look_alikes`]); `None`: the
+    /// options' default (yes).
+    pub look_alikes: Option<bool>,
 }
 
 impl DiagnoseRequest {
@@ -543,6 +546,9 @@ impl DiagnoseRequest {
             mode: self.mode,
             ..Default::default()
         };
+        if let Some(l) = self.look_alikes {
+            opts.look_alikes = l;
+        }
         self.search.apply_diagnose(&mut opts)?;
         opts.refit = diagnose::refit_bounds(unit, &self.refit)
             .map_err(|e| RequestError::new("refit", format!(": {e} (unit '{}')", unit.name)))?;
@@ -923,6 +929,24 @@ mod tests {
         .unwrap_err();
         assert_eq!(e.message(Style::Cli), "--pq-sigma must be >= 0 (got -1)");
         assert_eq!(e.to_string(), "pq_sigma must be >= 0 (got -1)");
+    }
+
+    /// A diagnosis tries the look-alikes outside the catalog unless the request turns them off
+    /// (`--no-look-alikes`, `look_alikes=False`).
+    #[test]
+    fn a_diagnosis_tries_the_look_alikes_unless_asked_not_to() {
+        let unit = crate::diagnose::trial::base_unit();
+        assert!(
+            DiagnoseRequest::default()
+                .options(&unit)
+                .unwrap()
+                .look_alikes
+        );
+        let off = DiagnoseRequest {
+            look_alikes: Some(false),
+            ..Default::default()
+        };
+        assert!(!off.options(&unit).unwrap().look_alikes);
     }
 
     #[test]

@@ -68,6 +68,12 @@ pub struct DiagnoseArgs {
     /// weighted by its own noise floor.
     #[arg(long, value_parser = crate::simulate_cmd::mode_parser())]
     mode: Option<itaipu_dynamics::mode::PlaybackMode>,
+    /// Do not try the look-alikes outside the catalog (the bundled reactive droop, transducer
+    /// lag, speed filter, PSS lead-lag and UEL), which a full diagnosis with a significant
+    /// candidate scores so that a residual one of them explains better gets no catalog name.
+    /// Faster, and a wrong name is then more likely.
+    #[arg(long)]
+    no_look_alikes: bool,
     #[command(flatten)]
     search: SearchArgs,
     /// Do not draw the plots (report.html is written without them).
@@ -103,6 +109,7 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         user_causes: a.user_cause.clone(),
         refit: refit_requests(&a.refit)?,
         search: a.search.request(),
+        look_alikes: a.no_look_alikes.then_some(false),
     };
     let pool = a.search.pool()?;
     let threads = pool.current_num_threads();

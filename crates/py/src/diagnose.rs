@@ -318,7 +318,9 @@ pub(crate) fn refit_list(
 /// diagnose --fit`: `unit` is then left out (or is `fit.unit`). `user_causes` (a path or a list
 /// of paths) adds causes written by the user, as `--user-cause`. `mode` plays a record without
 /// an angle back in a playback mode ("exciter_alone", "machine_from_efd", "closed_loop"), as
-/// `--mode`: its compared channels, each weighted by its noise floor, are diagnosed. The GIL is released while it
+/// `--mode`: its compared channels, each weighted by its noise floor, are diagnosed.
+/// `look_alikes=False` leaves out the look-alikes outside the catalog, as `--no-look-alikes`
+/// (faster; a wrong name is then more likely). The GIL is released while it
 /// runs. Plausibility warnings on the inputs are issued as `ItaipuWarning`s and kept in the
 /// report's `warnings`. Returns a Diagnosis.
 ///
@@ -330,10 +332,10 @@ pub(crate) fn refit_list(
 #[pyo3(
     signature = (events, unit = None, held_out = None, *, causes = None, seed = None, particles = None,
                  pso_iterations = None, local_iterations = None, threads = None, refit = None, fit = None,
-                 user_causes = None, mode = None, lbfgs_iterations = None),
+                 user_causes = None, mode = None, lbfgs_iterations = None, look_alikes = None),
     text_signature = "(events, unit=None, held_out=None, *, causes=None, seed=None, particles=None, \
                       pso_iterations=None, local_iterations=None, threads=None, refit=None, fit=None, user_causes=None, \
-                      mode=None)"
+                      mode=None, look_alikes=None)"
 )]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
@@ -352,6 +354,7 @@ pub(crate) fn diagnose(
     user_causes: Option<&Bound<'_, PyAny>>,
     mode: Option<&str>,
     lbfgs_iterations: Option<u64>,
+    look_alikes: Option<bool>,
 ) -> PyResult<PyDiagnosis> {
     let mode = mode
         .map(|m| {
@@ -447,6 +450,7 @@ pub(crate) fn diagnose(
         causes: cause_list(causes)?,
         user_causes: user_paths,
         refit: refit_list(refit)?,
+        look_alikes,
         search: Search {
             seed,
             particles,
