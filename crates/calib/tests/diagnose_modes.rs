@@ -87,7 +87,9 @@ fn a_clean_step_test_diagnosed_open_loop_names_nothing() {
 
 /// The same step test with the regulator's ceiling V_RMAX hidden at 3 pu (the unit file says
 /// 10): the open-loop E_fd is clipped on the step up. Diagnosed in `exciter_alone` with the
-/// whole catalog, `exciter_limit` is named and V_RMAX comes back within 10 %.
+/// whole catalog, `exciter_limit` is named and V_RMAX comes back within 10 %. (Without the
+/// look-alikes outside the catalog, which the suite has no room for here: they score after
+/// the catalog and move no key.)
 #[test]
 fn a_hidden_regulator_ceiling_is_named_from_a_step_test() {
     let nominal = truth();
@@ -97,7 +99,10 @@ fn a_hidden_regulator_ceiling_is_named_from_a_step_test() {
         &nominal,
         std::slice::from_ref(&ev),
         &[],
-        &in_mode(PlaybackMode::ExciterAlone),
+        &DiagnoseOptions {
+            look_alikes: false,
+            ..in_mode(PlaybackMode::ExciterAlone)
+        },
         &Silent,
     )
     .unwrap()

@@ -278,7 +278,11 @@ fn a_clean_record_of_the_second_set_is_diagnosed_none() {
 /// The diagnosis of a calibrated unit bundled in `data/practice/swarm50/` (the default fit of
 /// the case with its swarms halved: it converged less), as the practice runner diagnoses it.
 /// The diagnosis, as the practice runner makes it, of the calibrated unit `folder/name.toml`
-/// (bundled) on the case's record; with the case's answer key, for scoring only.
+/// (bundled) on the case's record; with the case's answer key, for scoring only. Without the
+/// look-alikes outside the catalog: these tests read a named cause's key from a bent
+/// calibration, which the look-alikes (scored after the catalog) do not change, and the suite
+/// has no room for their cost; `fit_and_diagnose` above keeps them (p02), and the 66-case run
+/// measures them on every named record.
 fn diagnose_bundled_unit(
     folder: &str,
     name: &str,
@@ -290,11 +294,15 @@ fn diagnose_bundled_unit(
             .unwrap();
     let spec = practice_spec(&case.unit).unwrap();
     let opts = FitOptions::from_spec(&spec);
+    let dopts = itaipu_calib::diagnose::DiagnoseOptions {
+        look_alikes: false,
+        ..diagnose_options(&case, &spec, &opts.stages, &unit)
+    };
     let d = itaipu_calib::diagnose::diagnose(
         &unit,
         std::slice::from_ref(&case.event),
         &[],
-        &diagnose_options(&case, &spec, &opts.stages, &unit),
+        &dopts,
         &Silent,
     )
     .unwrap();
