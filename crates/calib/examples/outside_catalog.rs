@@ -157,6 +157,15 @@ fn largest_change(a: &Traces, b: &Traces, signal: &str) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// A verdict's cause; an `unexplained` that a look-alike outside the catalog explains says
+/// which (`unexplained~reactive_droop`).
+fn label(v: &itaipu_calib::diagnose::Verdict) -> String {
+    match v.competing.first() {
+        Some((c, _)) if v.cause == "unexplained" => format!("unexplained~{c}"),
+        _ => v.cause.clone(),
+    }
+}
+
 fn main() {
     let base = base_unit();
     let sim = SimOptions::default();
@@ -227,13 +236,8 @@ fn main() {
             }
         };
         keep("", &d.report);
-        let verdict = d.report.verdict.cause.clone();
-        let catalog_named = catalog::find(&verdict).is_some();
-        // An `unexplained` that a look-alike outside the catalog explains says which.
-        let verdict = match d.report.verdict.competing.first() {
-            Some((c, _)) if verdict == "unexplained" => format!("unexplained~{c}"),
-            _ => verdict,
-        };
+        let catalog_named = catalog::find(&d.report.verdict.cause).is_some();
+        let verdict = label(&d.report.verdict);
         wrong += usize::from(catalog_named);
         // The same calibrated unit, diagnosed with the cause file as well.
         let spec = practice_spec(&case.unit).expect("the practice spec");
@@ -252,10 +256,7 @@ fn main() {
             let v = &d.report.verdict;
             match v.key_parameters.iter().find(|(p, _, _)| p == t.param) {
                 Some((_, x, _)) => format!("{} ({}={x:.3})", v.cause, t.param),
-                None => match v.competing.first() {
-                    Some((c, _)) if v.cause == "unexplained" => format!("unexplained~{c}"),
-                    _ => v.cause.clone(),
-                },
+                None => label(v),
             }
         })
         .unwrap_or_else(|e| format!("error: {e}"));

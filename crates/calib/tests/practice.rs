@@ -279,10 +279,11 @@ fn a_clean_record_of_the_second_set_is_diagnosed_none() {
 /// the case with its swarms halved: it converged less), as the practice runner diagnoses it.
 /// The diagnosis, as the practice runner makes it, of the calibrated unit `folder/name.toml`
 /// (bundled) on the case's record; with the case's answer key, for scoring only. Without the
-/// look-alikes outside the catalog: these tests read a named cause's key from a bent
-/// calibration, which the look-alikes (scored after the catalog) do not change, and the suite
-/// has no room for their cost; `fit_and_diagnose` above keeps them (p02), and the 66-case run
-/// measures them on every named record.
+/// look-alikes outside the catalog. The rule: a look-alike is scored after every catalog cause
+/// and is never named, so it can take a name away but cannot change a named cause's re-fit,
+/// whose key these tests read; whether it takes a right name away is a property of the
+/// verdict (its unit test in `verdict.rs`) and of the data, measured on every named record of
+/// both practice sets by the runner, not here. The protocol with them is `fit_and_diagnose`.
 fn diagnose_bundled_unit(
     folder: &str,
     name: &str,

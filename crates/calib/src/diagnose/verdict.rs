@@ -484,6 +484,35 @@ pub(super) fn explains_too_little(g: &Gains, noise_factor: f64) -> Option<String
     })
 }
 
+/// A verdict that names no cause but lists the candidates behind it (`inconclusive`, or
+/// `unexplained` by a look-alike): `best` first, then `others` with their BIC gaps above it,
+/// and where the residual lives as `undecided` finds it.
+fn listing(
+    cause: &str,
+    title: String,
+    statement: String,
+    (ev, compared): (&[EventEvidence], &[&str]),
+    best: &CandidateReport,
+    others: Vec<(String, f64)>,
+) -> Verdict {
+    let where_ = worst_residual(ev, compared).and_then(|(_, s)| {
+        top_window(s).map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s))
+    });
+    Verdict {
+        cause: cause.into(),
+        title,
+        statement,
+        key_parameters: vec![],
+        gains: None,
+        where_,
+        grade: None,
+        probability: None,
+        competing: std::iter::once((best.cause.clone(), 0.0))
+            .chain(others)
+            .collect(),
+    }
+}
+
 /// The verdict when a look-alike outside the catalog ([`super::look_alike`]) is the best
 /// significant candidate: `unexplained`, saying what the residual looks like, which catalog
 /// causes it beats and how to name it; `competing` holds the look-alike, then those causes
@@ -499,9 +528,6 @@ fn outside_catalog(
         .filter(|r| r.significant && !r.look_alike && r.gains.is_some())
         .map(|r| (r.cause.clone(), bic_gap(best, r)))
         .collect();
-    let where_ = worst_residual(ev, compared).and_then(|(_, s)| {
-        top_window(s).map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s))
-    });
     let gains = best.gains.as_ref().map_or(String::new(), |g| {
         format!(
             ": its extension ({}) lowers χ² on the fitted samples by {:.0} % and on the held-out samples by {:.0} %, \
@@ -526,27 +552,22 @@ fn outside_catalog(
         )
     };
     let file = super::look_alike::file_of(&best.cause);
-    Verdict {
-        cause: "unexplained".into(),
-        title: format!(
+    listing(
+        "unexplained",
+        format!(
             "unexplained by the catalog: looks like {} ({})",
             best.title, best.cause
         ),
-        statement: format!(
+        format!(
             "Unexplained by the catalog. The residual is explained best by an effect outside the catalog that the \
              diagnosis tries as a look-alike, {} ({}){gains}.{catalog} If the unit has this setting, diagnose again \
              with --user-cause {file} to name it and re-fit with it; if not, write a cause file for the effect it has.",
             best.title, best.cause
         ),
-        key_parameters: vec![],
-        gains: None,
-        where_,
-        grade: None,
-        probability: None,
-        competing: std::iter::once((best.cause.clone(), 0.0))
-            .chain(beaten)
-            .collect(),
-    }
+        (ev, compared),
+        best,
+        beaten,
+    )
 }
 
 /// The verdict when two or more significant candidates explain the residual within the BIC
@@ -589,31 +610,22 @@ fn inconclusive(
             })
         })
         .collect();
-    // Where the residual lives, as `undecided` finds it.
-    let where_ = worst_residual(ev, compared).and_then(|(_, s)| {
-        top_window(s).map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s))
-    });
     let names: Vec<&str> = std::iter::once(best.cause.as_str())
         .chain(competing.iter().map(|(c, _)| c.as_str()))
         .collect();
-    Verdict {
-        cause: "inconclusive".into(),
-        title: format!("inconclusive: {}", names.join(" or ")),
-        statement: format!(
+    listing(
+        "inconclusive",
+        format!("inconclusive: {}", names.join(" or ")),
+        format!(
             "Inconclusive: more than one cause explains the residual about equally. {} passes its test, and so does {}: a              BIC difference below {:.0} (Kass and Raftery's \"very strong\" level, the one each cause had to pass against its              baseline) does not decide between them, so none is named. Test them apart with another event (a step of the              other sign or size, a different operating point) or hold one of them out by knowledge of the unit.",
             describe(best),
             rivals.join("; and "),
             opts.bic_threshold
         ),
-        key_parameters: vec![],
-        gains: None,
-        where_,
-        grade: None,
-        probability: None,
-        competing: std::iter::once((best.cause.clone(), 0.0))
-            .chain(competing.iter().cloned())
-            .collect(),
-    }
+        (ev, compared),
+        best,
+        competing.to_vec(),
+    )
 }
 
 #[cfg(test)]
@@ -638,11 +650,7 @@ mod tests {
         }];
         let v = undecided(&ev, &["P", "Q"], &[], &DiagnoseOptions::default());
         assert_eq!(v.cause, "unexplained");
-        assert!(
-            v.statement.contains("Unexplained residual at Q on e"),
-            "{}",
-            v.statement
-        );
+        says(&v.statement, "Unexplained residual at Q on e");
         assert!(v.where_.is_none());
         assert!(!v.statement.contains("recorded"), "{}", v.statement);
     }
@@ -672,13 +680,19 @@ mod tests {
         let opts = DiagnoseOptions::default();
         let v = undecided(&ev("Ifd"), &["P", "Q", "Efd", "Ifd"], &[], &opts);
         assert_eq!(v.cause, "unexplained");
-        assert!(
-            v.statement.contains("channels = \"recorded\""),
-            "{}",
-            v.statement
-        );
+        says(&v.statement, "channels = \"recorded\"");
         let v = undecided(&ev("Efd"), &["|V|", "Q", "Efd"], &[], &opts);
         assert!(!v.statement.contains("recorded"), "{}", v.statement);
+    }
+
+    /// Asserts that a verdict's text holds `part`, printing the text when it does not.
+    fn says(text: &str, part: &str) {
+        assert!(text.contains(part), "expected {part:?} in: {text}");
+    }
+
+    /// The causes a verdict lists as competing, in order.
+    fn competitors(v: &Verdict) -> Vec<&str> {
+        v.competing.iter().map(|(c, _)| c.as_str()).collect()
     }
 
     fn candidate(
@@ -814,33 +828,16 @@ mod tests {
             "--user-cause data/causes/reactive_droop.toml",
             "saturation (its extended model's BIC 26.2 above)",
         ] {
-            assert!(
-                d.verdict.statement.contains(s),
-                "{s}: {}",
-                d.verdict.statement
-            );
+            says(&d.verdict.statement, s);
         }
-        assert!(
-            d.verdict.title.contains("looks like"),
-            "{}",
-            d.verdict.title
-        );
+        says(&d.verdict.title, "looks like");
         // A gap of 5/2 + ln 500 = 8.7: not decided either way.
         let d = decide_on(vec![saturation(), look_alike(335.0, true)]);
         assert_eq!(d.verdict.cause, "inconclusive", "{}", d.verdict.statement);
-        let names: Vec<&str> = d
-            .verdict
-            .competing
-            .iter()
-            .map(|(c, _)| c.as_str())
-            .collect();
-        assert_eq!(names, ["reactive_droop", "saturation"]);
-        assert!(
-            d.verdict
-                .statement
-                .contains("outside the catalog: data/causes/reactive_droop.toml"),
-            "{}",
-            d.verdict.statement
+        assert_eq!(competitors(&d.verdict), ["reactive_droop", "saturation"]);
+        says(
+            &d.verdict.statement,
+            "outside the catalog: data/causes/reactive_droop.toml",
         );
         // Decisively worse, or not significant: the catalog cause is the best (named when its
         // re-fit is on record; here `decide` falls back to undecided without the look-alike).
@@ -870,23 +867,13 @@ mod tests {
         assert_eq!(d.verdict.cause, "inconclusive", "{}", d.verdict.statement);
         assert!(!d.verdict.names_a_cause());
         assert!(d.extended_unit.is_none());
-        let names: Vec<&str> = d
-            .verdict
-            .competing
-            .iter()
-            .map(|(c, _)| c.as_str())
-            .collect();
-        assert_eq!(names, ["saturation", "torsional_mode"]);
+        assert_eq!(competitors(&d.verdict), ["saturation", "torsional_mode"]);
         assert!(
             (d.verdict.competing[1].1 - 6.0).abs() < 1e-9,
             "{:?}",
             d.verdict.competing
         );
-        assert!(
-            d.verdict.statement.contains("torsional_mode"),
-            "{}",
-            d.verdict.statement
-        );
+        says(&d.verdict.statement, "torsional_mode");
         // The rival 40 χ² behind (deflated gap 20): not inconclusive.
         let d = decide_on(vec![
             candidate("saturation", 300.0, 3, 40.0, true),
