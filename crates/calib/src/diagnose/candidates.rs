@@ -30,6 +30,109 @@ pub(super) fn distortion(refit: &[FreeBound], base: &Unit, ext: &Unit) -> Vec<Di
         .collect()
 }
 
+/// The χ²₁ quantile at 95 %: the likelihood-ratio test of one parameter. Relaxing an upper end
+/// that gains less than this (in independent samples, VIF-deflated) is a bound the data do not
+/// push against.
+const BINDING_CHI2: f64 = 3.841;
+
+/// Whether a cause's alternative structure replaces the kept one, each given as (whether its
+/// fit presses against a binding upper end, its information criterion): an admissible structure
+/// before a pressed one, else the lower criterion.
+fn keeps_alternative(kept: (bool, f64), alt: (bool, f64)) -> bool {
+    match (kept.0, alt.0) {
+        (true, false) => true,
+        (false, true) => false,
+        _ => alt.1 < kept.1,
+    }
+}
+
+/// Whether an upper end binds, given the relaxed re-fit's gain (`None`: not measured).
+fn binds(relaxed_gain: Option<f64>) -> bool {
+    relaxed_gain.is_none_or(|g| g >= BINDING_CHI2)
+}
+
+/// An extension parameter that its re-fit left at the upper end of its declared range (the
+/// largest saturation, load, delay, limiter setting the cause can physically be).
+struct Pressed {
+    param: crate::problem::FreeParam,
+    value: f64,
+    /// The fitted χ² the re-fit gains when that end is moved out by the range's own width
+    /// (`None`: not measured, or the relaxed re-fit failed: taken as binding).
+    relaxed_gain: Option<f64>,
+    /// The relaxed re-fit's simulations.
+    simulations: usize,
+}
+
+impl Pressed {
+    /// The first of `ext`'s own parameters at the upper end of its range in the re-fit `r`.
+    fn find(ext: &Extension, r: &Refit) -> Option<Self> {
+        let free = resolve(&ext.unit, &ext.free().cloned().collect::<Vec<_>>()).ok()?;
+        free.into_iter()
+            .zip(r.values.iter().copied())
+            .take(ext.extension_free.len())
+            .find(|(f, v)| f.at_upper_bound(*v))
+            .map(|(param, value)| Self {
+                param,
+                value,
+                relaxed_gain: None,
+                simulations: 0,
+            })
+    }
+
+    /// Whether the data push against that end: the re-fit from `r` with the range extended by
+    /// its width (local method only, every other bound as it was) gains at least
+    /// [`BINDING_CHI2`] in independent samples. An end that does not bind is where a flat
+    /// valley of the parameter ran out, not a residual asking for more of the effect.
+    fn measure(mut self, env: &RefitEnv, ext: &Extension, r: &Refit, vif: f64) -> Self {
+        let width = self.param.hi - self.param.lo;
+        let bounds: Vec<FreeBound> = ext
+            .free()
+            .map(|b| {
+                let mut b = FreeBound {
+                    scan: 0,
+                    polish_only: false,
+                    ..b.starting_in(&r.unit)
+                };
+                if b.param == self.param.path {
+                    b.max += width;
+                }
+                b
+            })
+            .collect();
+        let local = DiagnoseOptions {
+            pso_iterations: 0,
+            ..env.opts.clone()
+        };
+        let label = Label::new(
+            RefitKind::Extension,
+            format!("{} relaxed past its upper end", self.param.path),
+        );
+        if let Ok(r2) = refit(&env.with(&local), &ext.unit, &bounds, &ext.ties, &label) {
+            self.relaxed_gain = Some((r.chi2_fit - r2.chi2_fit).max(0.0) / vif.max(1.0));
+            self.simulations = r2.simulations;
+        }
+        self
+    }
+
+    /// [`Self::find`] then [`Self::measure`], the relaxed re-fit's simulations added to
+    /// `simulations`.
+    fn measured(
+        env: &RefitEnv,
+        ext: &Extension,
+        r: &Refit,
+        vif: f64,
+        simulations: &mut usize,
+    ) -> Option<Self> {
+        let p = Self::find(ext, r)?.measure(env, ext, r, vif);
+        *simulations += p.simulations;
+        Some(p)
+    }
+
+    fn binds(&self) -> bool {
+        binds(self.relaxed_gain)
+    }
+}
+
 /// The evidence for an extension over its baseline from the whole record, `2 ln B`: the fitted
 /// blocks' marginal likelihood ratio by Schwarz's approximation (`delta_bic`, the parameters'
 /// Occam penalty in it) plus the held-out blocks' predictive likelihood ratio at the values
@@ -165,12 +268,17 @@ impl Candidates<'_> {
         // They are refinements of the first, which can mimic them in part (a constant ceiling
         // at the level a terminal-fed one falls to in the dip): they are tried only when the
         // first gains on the fitted samples more than its own penalty.
+        // A structure whose fit presses against a binding upper end of its range
+        // ([`Pressed`]) is not the cause as that structure models it: an admissible structure
+        // is kept before it whatever their criteria, as the pressed one could not be named.
         let ic = |r: &Refit, x: &Extension| {
             r.chi2_fit + x.extension_free.len() as f64 * (r.n_fit.max(1) as f64).ln()
         };
         if ic(&r, &ext) >= baselines[&key].chi2_fit {
             exts.clear();
         }
+        // The kept structure's pressed parameter, once measured (`None`: not yet).
+        let mut kept_pressed: Option<Option<Pressed>> = None;
         for alt in exts {
             let label = Label::new(RefitKind::Extension, format!("{id} ({})", alt.description));
             if let Ok(r2) = fit_extension(
@@ -180,7 +288,17 @@ impl Candidates<'_> {
                 !base_bounds.is_empty(),
                 &label,
             ) {
-                if ic(&r2, &alt) < ic(&r, &ext) {
+                let vif = baselines[&key].vif;
+                let cur = match kept_pressed.take() {
+                    Some(p) => p,
+                    None => Pressed::measured(&env, &ext, &r, vif, &mut rep.simulations),
+                };
+                let was = cur.as_ref().is_some_and(Pressed::binds);
+                let alt_pressed = Pressed::measured(&env, &alt, &r2, vif, &mut rep.simulations);
+                let now = alt_pressed.as_ref().is_some_and(Pressed::binds);
+                kept_pressed = Some(cur);
+                if keeps_alternative((was, ic(&r, &ext)), (now, ic(&r2, &alt))) {
+                    kept_pressed = Some(alt_pressed);
                     r = r.replaced_by(r2);
                     ext = alt;
                     rep.extension = ext.description.clone();
@@ -381,27 +499,43 @@ impl Candidates<'_> {
             }
         }
         // An extension pressed against the upper end of its declared range (the largest
-        // saturation, load, delay, limiter setting the cause can physically be): the residual
-        // asks for more of the effect than the cause can be, so what it gained is a part of
-        // another misfit it bent to follow (an effect outside the catalog, practice's
-        // significant rivals of the named cause, e.g. a terminal load at 0.15 pu beside an
-        // OEL). Not named by the statistical test; the evidence rule below may still name it.
+        // saturation, load, delay, limiter setting the cause can physically be), where that end
+        // binds ([`Pressed::binds`]): the residual asks for more of the effect than the cause
+        // can be, so what it gained is a part of another misfit it bent to follow (an effect
+        // outside the catalog, or the named cause's, which a rival follows as far as its range
+        // lets it). Not named by the statistical test; the evidence rule below may still name
+        // it. An end that does not bind is where a flat valley ran out: the cause stands.
         if rep.significant {
-            if let Some((f, v)) = free
-                .iter()
-                .zip(&r.values)
-                .take(ext.extension_free.len())
-                .find(|(f, v)| f.at_upper_bound(**v))
-            {
+            let pressed = match kept_pressed {
+                Some(p) => p,
+                None => Pressed::measured(&env, &ext, &r, base.vif, &mut rep.simulations),
+            };
+            if let Some(p) = pressed.as_ref().filter(|p| !p.binds()) {
+                if !rep.note.is_empty() {
+                    rep.note.push_str("; ");
+                }
+                rep.note += &format!(
+                    "{} rests at the upper end of its range, which does not bind: moved out by the \
+                     range's width it gains Δχ² {:.1} (independent samples), below the one-parameter \
+                     test's {BINDING_CHI2}",
+                    p.param.path,
+                    p.relaxed_gain.unwrap_or(0.0)
+                );
+            }
+            if let Some(p) = pressed.filter(Pressed::binds) {
+                let (f, v) = (&p.param, p.value);
                 rep.significant = false;
                 rep.note = format!(
-                    "not named: its extension presses against the upper end of its range ({} = {} in [{}, {}]): the \
+                    "not named: its extension presses against the upper end of its range ({} = {} in [{}, {}]{}): the \
                      residual asks for more of this effect than the cause can be, so it does not explain it (another \
                      effect may be at work)",
                     f.path,
-                    super::verdict::fmt_num(*v),
+                    super::verdict::fmt_num(v),
                     super::verdict::fmt_num(f.lo),
-                    super::verdict::fmt_num(f.hi)
+                    super::verdict::fmt_num(f.hi),
+                    p.relaxed_gain.map_or(String::new(), |g| format!(
+                        "; moved out by the range's width it gains Δχ² {g:.1}"
+                    ))
                 );
             }
         }
@@ -689,7 +823,28 @@ fn baseline_from(
 
 #[cfg(test)]
 mod tests {
-    use super::record_evidence;
+    use super::{binds, keeps_alternative, record_evidence, BINDING_CHI2};
+
+    /// A structure pressed against a binding end gives way to an admissible one even with a
+    /// better criterion, never the other way round; between two alike, the criterion decides.
+    #[test]
+    fn an_admissible_structure_is_kept_before_a_pressed_one() {
+        assert!(keeps_alternative((true, 500.0), (false, 520.0)));
+        assert!(!keeps_alternative((false, 520.0), (true, 500.0)));
+        assert!(keeps_alternative((false, 520.0), (false, 500.0)));
+        assert!(!keeps_alternative((false, 500.0), (false, 520.0)));
+        assert!(keeps_alternative((true, 520.0), (true, 500.0)));
+    }
+
+    /// An upper end binds when relaxing it gains the one-parameter test's quantile or more, or
+    /// when the relaxed re-fit could not say (the veto stays).
+    #[test]
+    fn an_upper_end_binds_unless_relaxing_it_gains_little() {
+        assert!(binds(None));
+        assert!(binds(Some(BINDING_CHI2)));
+        assert!(binds(Some(40.0)));
+        assert!(!binds(Some(0.4)));
+    }
 
     /// The held-out samples' predictive gain adds to the fitted ΔBIC, deflated by the same
     /// variance inflation; a held-out loss adds nothing (the held-out floor refuses it).
