@@ -3,7 +3,7 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError};
 
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -88,6 +88,13 @@ pub(crate) struct Reporter {
     terminal: bool,
 }
 
+/// The data behind `m`, even when a thread panicked while holding it: the progress display
+/// and the record of finished stages stay usable, so that one panic (which the run reports)
+/// does not become a second one in the bookkeeping around it.
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
 impl Reporter {
     pub(crate) fn new() -> Self {
         Self {
@@ -98,7 +105,7 @@ impl Reporter {
 
     /// Finishes the current bar, if any.
     pub(crate) fn finish(&self) {
-        if let Some(b) = self.bar.lock().expect("progress").take() {
+        if let Some(b) = lock(&self.bar).take() {
             b.finish();
         }
     }
@@ -106,7 +113,7 @@ impl Reporter {
 
 impl Progress for Reporter {
     fn phase(&self, stage: &str, phase: &str, total: u64) {
-        let mut bar = self.bar.lock().expect("progress");
+        let mut bar = lock(&self.bar);
         if let Some(b) = bar.take() {
             b.finish();
         }
@@ -125,7 +132,7 @@ impl Progress for Reporter {
         }
     }
     fn iteration(&self, i: u64, best: f64) {
-        if let Some(b) = self.bar.lock().expect("progress").as_ref() {
+        if let Some(b) = lock(&self.bar).as_ref() {
             b.set_position(i);
             b.set_message(format!("{best:.5}"));
         } else if i.is_multiple_of(10) {
@@ -133,7 +140,7 @@ impl Progress for Reporter {
         }
     }
     fn message(&self, text: &str) {
-        match self.bar.lock().expect("progress").as_ref() {
+        match lock(&self.bar).as_ref() {
             Some(b) => b.println(text),
             None => eprintln!("{text}"),
         }
@@ -331,7 +338,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
                 )
             })?;
         }
-        let mut f = finished.lock().expect("finished");
+        let mut f = lock(&finished);
         f.labels = st.finished_stages.clone();
         f.reports = st.stage_reports.clone();
         resume = Some(Resume {
@@ -362,7 +369,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         stage_reports: f.reports.clone(),
     }
     };
-    write_partial(&out, &partial(&finished.lock().expect("finished"), "-"))?;
+    write_partial(&out, &partial(&lock(&finished), "-"))?;
     staging.mark_resumable();
     println!(
         "fit    unit {} ({}), events {}, spec {}, stages {}, strategy {}, seed {}, {} threads",
@@ -392,7 +399,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         .map_err(to_fit)?;
         itaipu_calib::output::write_synced(&out.join(RESUME_UNIT), unit_to_toml(master).as_bytes())
             .map_err(to_fit)?;
-        let mut f = finished.lock().expect("finished");
+        let mut f = lock(&finished);
         f.labels.push(rep.stage.clone());
         f.reports
             .push(serde_json::to_value(rep).map_err(|e| FitError::Output(e.to_string()))?);
@@ -423,7 +430,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         Ok(r) => r,
         Err(itaipu_calib::Error::Fit(FitError::Interrupted { .. })) => {
             let (sig, code) = signal_name(which.load(Ordering::SeqCst));
-            let f = finished.lock().expect("finished");
+            let f = lock(&finished);
             write_partial(&out, &partial(&f, sig))?;
             let target = staging.keep_partial()?;
             return Err(CliError::new(

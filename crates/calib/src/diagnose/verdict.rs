@@ -545,9 +545,14 @@ fn outside_catalog(
             .iter()
             .map(|(c, gap)| format!("{c} (its extended model's BIC {gap:.1} above)"))
             .collect();
+        let verbs = if list.len() == 1 {
+            "also passes its own test but explains the data less well; it is"
+        } else {
+            "also pass their own tests but explain the data less well; they are"
+        };
         format!(
-            " {} also passes its own test but explains the data less well; it is not named, as the nearest \
-             catalog cause to an effect outside the catalog would be a wrong name.",
+            " {} {verbs} not named, as the nearest catalog cause to an effect outside the catalog \
+             would be a wrong name.",
             list.join(" and ")
         )
     };
