@@ -35,17 +35,6 @@ pub(super) fn distortion(refit: &[FreeBound], base: &Unit, ext: &Unit) -> Vec<Di
 /// push against.
 const BINDING_CHI2: f64 = 3.841;
 
-/// Whether a cause's alternative structure replaces the kept one, each given as (whether its
-/// fit presses against a binding upper end, its information criterion): an admissible structure
-/// before a pressed one, else the lower criterion.
-fn keeps_alternative(kept: (bool, f64), alt: (bool, f64)) -> bool {
-    match (kept.0, alt.0) {
-        (true, false) => true,
-        (false, true) => false,
-        _ => alt.1 < kept.1,
-    }
-}
-
 /// Whether an upper end binds, given the relaxed re-fit's gain (`None`: not measured).
 fn binds(relaxed_gain: Option<f64>) -> bool {
     relaxed_gain.is_none_or(|g| g >= BINDING_CHI2)
@@ -268,17 +257,12 @@ impl Candidates<'_> {
         // They are refinements of the first, which can mimic them in part (a constant ceiling
         // at the level a terminal-fed one falls to in the dip): they are tried only when the
         // first gains on the fitted samples more than its own penalty.
-        // A structure whose fit presses against a binding upper end of its range
-        // ([`Pressed`]) is not the cause as that structure models it: an admissible structure
-        // is kept before it whatever their criteria, as the pressed one could not be named.
         let ic = |r: &Refit, x: &Extension| {
             r.chi2_fit + x.extension_free.len() as f64 * (r.n_fit.max(1) as f64).ln()
         };
         if ic(&r, &ext) >= baselines[&key].chi2_fit {
             exts.clear();
         }
-        // The kept structure's pressed parameter, once measured (`None`: not yet).
-        let mut kept_pressed: Option<Option<Pressed>> = None;
         for alt in exts {
             let label = Label::new(RefitKind::Extension, format!("{id} ({})", alt.description));
             if let Ok(r2) = fit_extension(
@@ -288,17 +272,7 @@ impl Candidates<'_> {
                 !base_bounds.is_empty(),
                 &label,
             ) {
-                let vif = baselines[&key].vif;
-                let cur = match kept_pressed.take() {
-                    Some(p) => p,
-                    None => Pressed::measured(&env, &ext, &r, vif, &mut rep.simulations),
-                };
-                let was = cur.as_ref().is_some_and(Pressed::binds);
-                let alt_pressed = Pressed::measured(&env, &alt, &r2, vif, &mut rep.simulations);
-                let now = alt_pressed.as_ref().is_some_and(Pressed::binds);
-                kept_pressed = Some(cur);
-                if keeps_alternative((was, ic(&r, &ext)), (now, ic(&r2, &alt))) {
-                    kept_pressed = Some(alt_pressed);
+                if ic(&r2, &alt) < ic(&r, &ext) {
                     r = r.replaced_by(r2);
                     ext = alt;
                     rep.extension = ext.description.clone();
@@ -506,10 +480,7 @@ impl Candidates<'_> {
         // lets it). Not named by the statistical test; the evidence rule below may still name
         // it. An end that does not bind is where a flat valley ran out: the cause stands.
         if rep.significant {
-            let pressed = match kept_pressed {
-                Some(p) => p,
-                None => Pressed::measured(&env, &ext, &r, base.vif, &mut rep.simulations),
-            };
+            let pressed = Pressed::measured(&env, &ext, &r, base.vif, &mut rep.simulations);
             if let Some(p) = pressed.as_ref().filter(|p| !p.binds()) {
                 if !rep.note.is_empty() {
                     rep.note.push_str("; ");
@@ -823,18 +794,7 @@ fn baseline_from(
 
 #[cfg(test)]
 mod tests {
-    use super::{binds, keeps_alternative, record_evidence, BINDING_CHI2};
-
-    /// A structure pressed against a binding end gives way to an admissible one even with a
-    /// better criterion, never the other way round; between two alike, the criterion decides.
-    #[test]
-    fn an_admissible_structure_is_kept_before_a_pressed_one() {
-        assert!(keeps_alternative((true, 500.0), (false, 520.0)));
-        assert!(!keeps_alternative((false, 520.0), (true, 500.0)));
-        assert!(keeps_alternative((false, 520.0), (false, 500.0)));
-        assert!(!keeps_alternative((false, 500.0), (false, 520.0)));
-        assert!(keeps_alternative((true, 520.0), (true, 500.0)));
-    }
+    use super::{binds, record_evidence, BINDING_CHI2};
 
     /// An upper end binds when relaxing it gains the one-parameter test's quantile or more, or
     /// when the relaxed re-fit could not say (the veto stays).
