@@ -53,15 +53,15 @@ struct Pressed {
 }
 
 impl Pressed {
-    /// The first of `ext`'s own parameters at the upper end of its range in the re-fit `r`.
-    fn find(ext: &Extension, r: &Refit) -> Option<Self> {
-        let free = resolve(&ext.unit, &ext.free().cloned().collect::<Vec<_>>()).ok()?;
-        free.into_iter()
+    /// The first of `ext`'s own parameters at the upper end of its range in the re-fit `r`,
+    /// `free` being the re-fit's free parameters resolved (the extension's first).
+    fn find(free: &[crate::problem::FreeParam], ext: &Extension, r: &Refit) -> Option<Self> {
+        free.iter()
             .zip(r.values.iter().copied())
             .take(ext.extension_free.len())
             .find(|(f, v)| f.at_upper_bound(*v))
             .map(|(param, value)| Self {
-                param,
+                param: param.clone(),
                 value,
                 relaxed_gain: None,
                 simulations: 0,
@@ -78,9 +78,8 @@ impl Pressed {
             .free()
             .map(|b| {
                 let mut b = FreeBound {
-                    scan: 0,
                     polish_only: false,
-                    ..b.starting_in(&r.unit)
+                    ..b.clone()
                 };
                 if b.param == self.param.path {
                     b.max += width;
@@ -88,15 +87,11 @@ impl Pressed {
                 b
             })
             .collect();
-        let local = DiagnoseOptions {
-            pso_iterations: 0,
-            ..env.opts.clone()
-        };
         let label = Label::new(
             RefitKind::Extension,
             format!("{} relaxed past its upper end", self.param.path),
         );
-        if let Ok(r2) = refit(&env.with(&local), &ext.unit, &bounds, &ext.ties, &label) {
+        if let Ok(r2) = refit_locally(env, &ext.unit, &bounds, &ext.ties, &r.unit, &label) {
             self.relaxed_gain = Some((r.chi2_fit - r2.chi2_fit).max(0.0) / vif.max(1.0));
             self.simulations = r2.simulations;
         }
@@ -107,12 +102,13 @@ impl Pressed {
     /// `simulations`.
     fn measured(
         env: &RefitEnv,
+        free: &[crate::problem::FreeParam],
         ext: &Extension,
         r: &Refit,
         vif: f64,
         simulations: &mut usize,
     ) -> Option<Self> {
-        let p = Self::find(ext, r)?.measure(env, ext, r, vif);
+        let p = Self::find(free, ext, r)?.measure(env, ext, r, vif);
         *simulations += p.simulations;
         Some(p)
     }
@@ -480,7 +476,7 @@ impl Candidates<'_> {
         // lets it). Not named by the statistical test; the evidence rule below may still name
         // it. An end that does not bind is where a flat valley ran out: the cause stands.
         if rep.significant {
-            let pressed = Pressed::measured(&env, &ext, &r, base.vif, &mut rep.simulations);
+            let pressed = Pressed::measured(&env, &free, &ext, &r, base.vif, &mut rep.simulations);
             if let Some(p) = pressed.as_ref().filter(|p| !p.binds()) {
                 if !rep.note.is_empty() {
                     rep.note.push_str("; ");
@@ -778,18 +774,31 @@ fn baseline_from(
     from: &Refit,
     label: &Label,
 ) -> Option<Refit> {
-    let start: Vec<FreeBound> = base_bounds
+    refit_locally(env, unit, base_bounds, &[], &from.unit, label).ok()
+}
+
+/// The re-fit of `unit` over `bounds` by the local method alone (no scan, no swarm), from the
+/// values those parameters have in `from`.
+fn refit_locally(
+    env: &RefitEnv,
+    unit: &Unit,
+    bounds: &[FreeBound],
+    ties: &[(String, String)],
+    from: &Unit,
+    label: &Label,
+) -> Result<Refit, String> {
+    let start: Vec<FreeBound> = bounds
         .iter()
         .map(|b| FreeBound {
             scan: 0,
-            ..b.starting_in(&from.unit)
+            ..b.starting_in(from)
         })
         .collect();
-    let polish = DiagnoseOptions {
+    let local = DiagnoseOptions {
         pso_iterations: 0,
         ..env.opts.clone()
     };
-    refit(&env.with(&polish), unit, &start, &[], label).ok()
+    refit(&env.with(&local), unit, &start, ties, label)
 }
 
 #[cfg(test)]
