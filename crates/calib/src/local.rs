@@ -443,8 +443,6 @@ pub fn levenberg_marquardt(
     };
     let n = problem.dim();
     let mut u = problem.to_unit(x0);
-    // Each accepted point's residuals come with the steps its simulations took: the Jacobian
-    // is taken on replays of those steps.
     // Each accepted point's residuals come with steps for the Jacobian's replays: those of its
     // own simulations, or of a run at [`JACOBIAN_RTOL`] when `opts` is tighter.
     let coarse = (opts.rtol < JACOBIAN_RTOL).then(|| Dopri5Options {
