@@ -103,6 +103,22 @@ def test_with_params_returns_a_new_validated_unit():
     assert u.with_params({k: u.parameters()[k]}).to_toml() == u.to_toml()
 
 
+def test_with_input_lowpass_returns_an_event_played_back_smoothed():
+    ev = ic.load_event(EVENT)
+    assert ev.input_lowpass_hz is None
+    sm = ev.with_input_lowpass(4.0)
+    assert isinstance(sm, ic.Event) and sm is not ev
+    assert sm.input_lowpass_hz == 4.0 and ev.input_lowpass_hz is None
+    # The record is kept as recorded; only its playback is smoothed.
+    assert np.array_equal(sm.v_mag_pu, ev.v_mag_pu)
+    a, b = ic.simulate(ev, UNIT), ic.simulate(sm, UNIT)
+    moved = np.max(np.abs(a.q_pu - b.q_pu))
+    assert 0.0 < moved < 0.05, moved
+    assert sm.with_input_lowpass(None).input_lowpass_hz is None
+    with pytest.raises(ValueError, match="Nyquist"):
+        ev.with_input_lowpass(40.0)
+
+
 def test_with_params_errors_name_the_parameter():
     u = ic.load_unit(UNIT)
     with pytest.raises(ic.UnitModelError, match="machine.hh") as e:

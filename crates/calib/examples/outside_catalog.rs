@@ -9,7 +9,8 @@
 //! `cargo run --release -p itaipu-calib --example outside_catalog [FILE…]` (about 1 min per trial
 //! on 2 cores; with arguments, only the trials whose cause file contains one of them). Prints one line per trial: the effect's largest change of P and Q on the noiseless
 //! record, the fitted J, the verdict without and with the cause file, and whether a catalog
-//! cause was named (`WRONG`).
+//! cause was named (`WRONG`). `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back
+//! low-passed at `f` Hz between their edges (`Event::set_input_lowpass`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -213,6 +214,13 @@ fn main() {
             &sim,
         )
         .expect("the truth plays back the preset");
+        let mut event = event;
+        if let Some(fc) = std::env::var("INPUT_LOWPASS_HZ")
+            .ok()
+            .and_then(|s| s.parse().ok())
+        {
+            event.set_input_lowpass(Some(fc)).expect("a uniform record");
+        }
         let case = PracticeCase {
             name: t.file.into(),
             dir: PathBuf::from("."),

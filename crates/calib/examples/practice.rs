@@ -13,7 +13,9 @@
 //! verdict then weighs fewer rivals), `FIT_SEED=n` runs the fits' swarms with seed `n` instead
 //! of the spec's (another calibration of the same record: how much does a verdict depend on
 //! where the fit landed?), `PSO_ITERATIONS=n`, `LOCAL_STARTS=k`, `JOINT_ITERATIONS=n` set the
-//! spec's `[calibration.pso]` search (README, "Short swarms, several starts").
+//! spec's `[calibration.pso]` search (README, "Short swarms, several starts"),
+//! `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back low-passed at `f` Hz between
+//! their edges (`Event::set_input_lowpass`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -70,7 +72,15 @@ fn main() {
         if !filter.is_empty() && !filter.contains(&name) {
             continue;
         }
-        let case = PracticeCase::load(&dir).unwrap_or_else(|e| panic!("{e}"));
+        let mut case = PracticeCase::load(&dir).unwrap_or_else(|e| panic!("{e}"));
+        if let Some(fc) = std::env::var("INPUT_LOWPASS_HZ")
+            .ok()
+            .and_then(|s| s.parse().ok())
+        {
+            case.event
+                .set_input_lowpass(Some(fc))
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
         if truth_check {
             // The engine check: the true unit (from the key) with only the offsets fitted.
             let j = truth_j(&root, &case).unwrap_or_else(|e| panic!("{e}"));

@@ -32,7 +32,8 @@ pub mod bounds;
 pub mod diagnose;
 pub mod error;
 pub mod evidence;
-pub mod filter;
+/// The zero-phase low-pass of the measurement (and of the played-back input: `itaipu_dynamics`).
+pub use itaipu_dynamics::filter;
 pub mod fit;
 pub mod identify;
 pub mod job;

@@ -23,6 +23,7 @@ pub mod block;
 pub mod diagram;
 pub mod dyr;
 pub mod event;
+pub mod filter;
 pub mod integrate;
 pub mod mode;
 pub mod models;

@@ -123,12 +123,13 @@ pub struct PreparedEvent {
 impl PreparedEvent {
     pub fn new(event: &Event) -> Self {
         let r = &event.record;
+        let (v_mag, v_ang) = event.playback_voltage();
         Self {
             name: event.name.clone(),
             input: PlaybackInput {
                 time_s: r.time_s.clone(),
-                v_mag: r.v_mag_pu.clone(),
-                v_ang: r.v_ang_rad.clone(),
+                v_mag,
+                v_ang,
             },
             op_system: event.operating_point(),
             system_mva: event.system_mva,

@@ -123,3 +123,62 @@ fn error_missing_toml_key_syntax_and_types() {
     let e = Event::from_toml_file(&toml).unwrap_err();
     assert_err(&e, "invalid_value", &[&ps(&toml), "nominal_hz = NaN"]);
 }
+
+#[test]
+fn input_lowpass_is_read_played_and_checked() {
+    let dir = TempDir::new("input-lowpass");
+    // 10 s at 60/s: |V| 1.0 with an alternating ±1e-3 (noise at the Nyquist frequency) and a
+    // 0.1 pu step at 5 s.
+    let n = 600;
+    let t: Vec<f64> = (0..n).map(|i| i as f64 / 60.0).collect();
+    let mag: Vec<f64> = (0..n)
+        .map(|i| 1.0 - if i >= 300 { 0.1 } else { 0.0 } + if i % 2 == 0 { 1e-3 } else { -1e-3 })
+        .collect();
+    let ang: Vec<f64> = t.iter().map(|t| 0.1 + 0.05 * t).collect();
+    dir.write(
+        "d.csv",
+        &rect_csv(&t, &mag, &ang, &vec![0.6; n], &vec![0.02; n]),
+    );
+
+    let plain = Event::from_toml_file(&dir.write("plain.toml", &toml_text("d.csv", ""))).unwrap();
+    assert_eq!(plain.input_lowpass_hz, None);
+    let (v, _) = plain.playback_voltage();
+    assert_eq!(
+        v, plain.record.v_mag_pu,
+        "without the key the record plays as recorded"
+    );
+
+    let toml = dir.write("lp.toml", &toml_text("d.csv", "input_lowpass_hz = 4\n"));
+    let ev = Event::from_toml_file(&toml).unwrap();
+    assert_eq!(ev.input_lowpass_hz, Some(4.0));
+    let (v, a) = ev.playback_voltage();
+    // The alternation (30 Hz) is gone away from the step and the ends; the step's samples are
+    // as recorded.
+    for k in (60..280).chain(320..540) {
+        let level = if k >= 300 { 0.9 } else { 1.0 };
+        assert!((v[k] - level).abs() < 1e-5, "sample {k}: {}", v[k]);
+    }
+    for k in 299..=300 {
+        assert_eq!(v[k], ev.record.v_mag_pu[k], "step sample {k}");
+    }
+    // The angle's ramp (an off-nominal frequency) passes.
+    for k in 0..n {
+        assert!(
+            (a[k] - ev.record.v_ang_rad[k]).abs() < 1e-7,
+            "angle sample {k}"
+        );
+    }
+
+    for (bad, needle) in [("40.0", "Nyquist"), ("-1.0", "invalid"), ("0.0", "invalid")] {
+        let toml = dir.write(
+            "bad.toml",
+            &toml_text("d.csv", &format!("input_lowpass_hz = {bad}\n")),
+        );
+        let e = Event::from_toml_file(&toml).unwrap_err();
+        assert_err(
+            &e,
+            "invalid_value",
+            &[&ps(&toml), "input_lowpass_hz", needle],
+        );
+    }
+}

@@ -59,6 +59,26 @@ impl PyEvent {
         self.inner.csv_path.clone()
     }
     /// Playback window `(start_s, end_s)`.
+    /// Cut-off [Hz] of the zero-phase low-pass the playback applies to the recorded |V| and
+    /// angle between their discontinuities (`input_lowpass_hz` in the event file), or None: played
+    /// back as recorded.
+    #[getter]
+    fn input_lowpass_hz(&self) -> Option<f64> {
+        self.inner.input_lowpass_hz
+    }
+
+    /// This event with its |V| and angle played back low-passed at `hz` between their
+    /// discontinuities (None: as recorded), as `input_lowpass_hz` in the event file. Raises
+    /// ValueError for a cut-off not between 0 and the Nyquist frequency or a record whose time
+    /// stamps are not uniform within 1 %.
+    #[pyo3(signature = (hz))]
+    fn with_input_lowpass(&self, py: Python<'_>, hz: Option<f64>) -> PyResult<PyEvent> {
+        let mut e = (*self.inner).clone();
+        e.set_input_lowpass(hz)
+            .map_err(|err| crate::errors::usage_error(py, "hz", &err.to_string()))?;
+        Ok(PyEvent { inner: Arc::new(e) })
+    }
+
     #[getter]
     fn playback(&self) -> (f64, f64) {
         (self.inner.playback.start_s, self.inner.playback.end_s)

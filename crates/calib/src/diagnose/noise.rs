@@ -66,6 +66,9 @@ pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Eve
     .map_err(|e| e.to_string())?;
     // The event's onset, not one detected again on the redrawn noise: the same windows.
     s.onset = event.onset.clone();
+    // Played back as the record is (its input smoothed alike).
+    s.set_input_lowpass(event.input_lowpass_hz)
+        .map_err(|e| e.to_string())?;
     Ok(s)
 }
 

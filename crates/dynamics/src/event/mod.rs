@@ -9,6 +9,7 @@
 //! system_mva = 1000.0                  # MVA base of p_pu and q_pu in the CSV
 //! nominal_hz = 60.0                    # nominal frequency of the PMU reference frame
 //! onset_s = 1.0167                     # optional: when the disturbance starts; default detected
+//! input_lowpass_hz = 4.0               # optional: play |V| and angle back low-passed (below)
 //! [playback]   # optional: trim the record used for playback; default = whole record
 //! start_s = 0.0
 //! end_s = 4.65
@@ -65,6 +66,14 @@
 //! file and the key otherwise), or `onset_s = "none"` for data without a disturbance. The
 //! default init window ends before it; the diagnosis takes its evidence windows, its noise and
 //! its fit/held-out split from it.
+//!
+//! # Played-back voltage
+//!
+//! `input_lowpass_hz` (optional, Hz, above 0 and below the Nyquist frequency; the record's time
+//! stamps uniform within 1 %) plays the recorded |V| and angle back through a zero-phase
+//! low-pass between their discontinuities, which stay as recorded ([`smoothing`]: why a
+//! playback should not feed its input's noise to the model, and how the edges are found).
+//! Without it the record is played back as recorded. In memory: [`Event::set_input_lowpass`].
 //!
 //! # CSV format
 //!
@@ -135,6 +144,7 @@ mod csv;
 mod declare;
 mod error;
 mod onset;
+pub mod smoothing;
 mod spec;
 mod window;
 
@@ -493,6 +503,10 @@ pub struct Event {
     pub time_base: TimeBase,
     /// Known set-point steps of a staged test (`[[step]]`), in increasing time.
     pub steps: Vec<SetpointStep>,
+    /// Cut-off of the zero-phase low-pass the playback applies to the recorded |V| and angle
+    /// between their discontinuities ([`smoothing`]), Hz; `None` plays the record back as
+    /// recorded. Set with [`Event::set_input_lowpass`], which checks it.
+    pub input_lowpass_hz: Option<f64>,
 }
 
 impl Event {
@@ -570,6 +584,33 @@ impl Event {
                 steps: declaration.steps.clone(),
             },
         )
+    }
+
+    /// Plays the recorded |V| and angle back low-passed at `cutoff_hz` between their
+    /// discontinuities ([`smoothing`]), or as recorded (`None`).
+    ///
+    /// # Errors
+    /// The record's time stamps are not uniform within 1 %, or the cut-off is not a positive
+    /// frequency below the Nyquist frequency.
+    pub fn set_input_lowpass(
+        &mut self,
+        cutoff_hz: Option<f64>,
+    ) -> Result<(), crate::filter::FilterError> {
+        if let Some(fc) = cutoff_hz {
+            let r = &self.record;
+            smoothing::smoothed_input(&r.time_s, &r.v_mag_pu, &r.v_ang_rad, fc)?;
+        }
+        self.input_lowpass_hz = cutoff_hz;
+        Ok(())
+    }
+
+    /// The |V| and angle the playback plays: the record's, low-passed between its
+    /// discontinuities where [`Event::input_lowpass_hz`] asks for it.
+    pub fn playback_voltage(&self) -> (Vec<f64>, Vec<f64>) {
+        let r = &self.record;
+        self.input_lowpass_hz
+            .and_then(|fc| smoothing::smoothed_input(&r.time_s, &r.v_mag_pu, &r.v_ang_rad, fc).ok())
+            .unwrap_or_else(|| (r.v_mag_pu.clone(), r.v_ang_rad.clone()))
     }
 
     /// Whether the record holds the voltage angle (a phasor record).

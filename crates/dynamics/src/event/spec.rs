@@ -11,13 +11,14 @@ use super::declare_check::resolve_channels;
 use super::window::{assemble, Declared, Window};
 use super::{Channel, Declaration, Event, EventError, SetpointStep, StepReference, TimeBase};
 
-const TOP_KEYS: [&str; 12] = [
+const TOP_KEYS: [&str; 13] = [
     "name",
     "description",
     "csv",
     "system_mva",
     "nominal_hz",
     "onset_s",
+    "input_lowpass_hz",
     "channels",
     "time_base",
     "playback",
@@ -41,6 +42,8 @@ struct EventSpec {
     nominal_hz: f64,
     #[serde(default)]
     onset_s: Option<OnsetValue>,
+    #[serde(default)]
+    input_lowpass_hz: Option<f64>,
     #[serde(default)]
     playback: Option<WindowSpec>,
     #[serde(default)]
@@ -260,7 +263,7 @@ impl Event {
         let data = format!("the CSV file {}", csv_path.display());
         let channels = resolve_channels(path, &declaration, &found, &data)?;
 
-        assemble(
+        let mut event = assemble(
             path,
             spec.name,
             spec.description,
@@ -278,7 +281,18 @@ impl Event {
                 time_base: declaration.time_base,
                 steps: declaration.steps,
             },
-        )
+        )?;
+        if let Some(fc) = spec.input_lowpass_hz {
+            event
+                .set_input_lowpass(Some(fc))
+                .map_err(|e| EventError::InvalidValue {
+                    path: path.to_path_buf(),
+                    field: "input_lowpass_hz".into(),
+                    value: fc,
+                    message: e.to_string(),
+                })?;
+        }
+        Ok(event)
     }
 }
 

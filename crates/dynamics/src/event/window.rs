@@ -195,6 +195,7 @@ pub(super) fn assemble(
         channels: declared.channels,
         time_base: declared.time_base,
         steps: declared.steps,
+        input_lowpass_hz: None,
     })
 }
 
