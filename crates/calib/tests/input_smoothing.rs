@@ -12,9 +12,8 @@
 //! values, so wherever it ends is the bias of the objective's minimum (and the noise's scatter),
 //! not a search that stopped short.
 
-use itaipu_calib::diagnose::trial::base_unit;
+use itaipu_calib::diagnose::trial::{base_unit, event_problem};
 use itaipu_calib::local::{levenberg_marquardt, LmStop};
-use itaipu_calib::problem::{EventData, FreeParam, Problem};
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
@@ -28,15 +27,7 @@ const FREE: [(&str, f64, f64); 3] = [
 
 /// The calibrated values of [`FREE`] over their true values, from the truth.
 fn calibrate(unit: &Unit, event: &Event) -> Vec<f64> {
-    let free: Vec<FreeParam> = FREE
-        .iter()
-        .map(|&(p, lo, hi)| {
-            let r = unit.param(p).expect("a parameter of the unit");
-            FreeParam::new(p.into(), r, lo, hi, unit.get(r), "pu")
-        })
-        .collect();
-    let data = vec![EventData::new(event, None, None).expect("a synthesized event")];
-    let problem = Problem::new(unit.clone(), free, data, (1.0, 1.0));
+    let problem = event_problem(unit.clone(), event, &FREE, 1.0);
     let x0 = problem.start();
     let res = levenberg_marquardt(&problem, &x0, 40, LmStop::CALIBRATION);
     res.best.iter().zip(&x0).map(|(x, t)| x / t).collect()

@@ -343,8 +343,20 @@ pub fn dip_problem(
     seed: u64,
     start_scale: f64,
 ) -> crate::problem::Problem {
-    use crate::problem::{EventData, FreeParam, Problem};
     let ev = dip_event(&unit, duration_s, seed);
+    event_problem(unit, &ev, free, start_scale)
+}
+
+/// The least-squares problem of `event` played into `unit`, with `free` parameters (path, lower
+/// and upper bound) starting at `start_scale` times their values in `unit`, P and Q weighted
+/// alike.
+pub fn event_problem(
+    unit: Unit,
+    ev: &Event,
+    free: &[(&str, f64, f64)],
+    start_scale: f64,
+) -> crate::problem::Problem {
+    use crate::problem::{EventData, FreeParam, Problem};
     let free: Vec<FreeParam> = free
         .iter()
         .map(|&(p, lo, hi)| {
@@ -352,6 +364,6 @@ pub fn dip_problem(
             FreeParam::new(p.into(), r, lo, hi, start_scale * unit.get(r), "")
         })
         .collect();
-    let data = vec![EventData::new(&ev, None, None).expect("a synthesized event")];
+    let data = vec![EventData::new(ev, None, None).expect("a usable event")];
     Problem::new(unit, free, data, (1.0, 1.0))
 }

@@ -597,8 +597,7 @@ impl Event {
         cutoff_hz: Option<f64>,
     ) -> Result<(), crate::filter::FilterError> {
         if let Some(fc) = cutoff_hz {
-            let r = &self.record;
-            smoothing::smoothed_input(&r.time_s, &r.v_mag_pu, &r.v_ang_rad, fc)?;
+            smoothing::check(&self.record.time_s, fc)?;
         }
         self.input_lowpass_hz = cutoff_hz;
         Ok(())

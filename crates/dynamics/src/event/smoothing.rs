@@ -121,6 +121,17 @@ fn smooth_between(
     Ok(out)
 }
 
+/// The sample rate of `time_s`, when [`smoothed_input`] can smooth at `cutoff_hz`: its only
+/// failures are these two checks (a stretch too short for the filter stays raw).
+///
+/// # Errors
+/// As [`smoothed_input`].
+pub fn check(time_s: &[f64], cutoff_hz: f64) -> Result<f64, FilterError> {
+    let fs = sample_rate(time_s)?;
+    crate::filter::Biquad::butterworth_lowpass(fs, cutoff_hz)?;
+    Ok(fs)
+}
+
 /// The played-back |V| and angle of a record (`time_s`, `v_mag`, `v_ang` unwrapped), each
 /// low-passed at `cutoff_hz` between the discontinuities of either ([`edge_samples`]).
 ///
@@ -133,9 +144,7 @@ pub fn smoothed_input(
     v_ang: &[f64],
     cutoff_hz: f64,
 ) -> Result<(Vec<f64>, Vec<f64>), FilterError> {
-    let fs = sample_rate(time_s)?;
-    // Validate the cut-off even where no stretch is long enough to be filtered.
-    crate::filter::Biquad::butterworth_lowpass(fs, cutoff_hz)?;
+    let fs = check(time_s, cutoff_hz)?;
     // An edge in either channel (a fault moves both) keeps both raw there.
     let raw: Vec<bool> = edge_samples(v_mag)
         .iter()
