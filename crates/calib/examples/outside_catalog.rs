@@ -10,7 +10,8 @@
 //! on 2 cores; with arguments, only the trials whose cause file contains one of them). Prints one line per trial: the effect's largest change of P and Q on the noiseless
 //! record, the fitted J, the verdict without and with the cause file, and whether a catalog
 //! cause was named (`WRONG`). `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back
-//! low-passed at `f` Hz between their edges (`Event::set_input_lowpass`).
+//! low-passed at `f` Hz between their edges instead of the default 4 Hz, `none` as recorded
+//! (`Event::set_input_lowpass`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -215,11 +216,8 @@ fn main() {
         )
         .expect("the truth plays back the preset");
         let mut event = event;
-        if let Some(fc) = std::env::var("INPUT_LOWPASS_HZ")
-            .ok()
-            .and_then(|s| s.parse().ok())
-        {
-            event.set_input_lowpass(Some(fc)).expect("a uniform record");
+        if let Some(fc) = itaipu_calib::practice::input_lowpass_env().expect("INPUT_LOWPASS_HZ") {
+            event.set_input_lowpass(fc).expect("a uniform record");
         }
         let case = PracticeCase {
             name: t.file.into(),

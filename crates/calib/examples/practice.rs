@@ -15,7 +15,8 @@
 //! where the fit landed?), `PSO_ITERATIONS=n`, `LOCAL_STARTS=k`, `JOINT_ITERATIONS=n` set the
 //! spec's `[calibration.pso]` search (README, "Short swarms, several starts"),
 //! `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back low-passed at `f` Hz between
-//! their edges (`Event::set_input_lowpass`).
+//! their edges instead of the default 4 Hz, `INPUT_LOWPASS_HZ=none` as recorded
+//! (`Event::set_input_lowpass`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -23,7 +24,8 @@ use std::time::Instant;
 use itaipu_calib::diagnose::diagnose;
 use itaipu_calib::fit::{fit, FitOptions, Silent};
 use itaipu_calib::practice::{
-    case_dirs, diagnose_options, practice_spec, score, truth_j, AnswerKey, PracticeCase,
+    case_dirs, diagnose_options, input_lowpass_env, practice_spec, score, truth_j, AnswerKey,
+    PracticeCase,
 };
 use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
 
@@ -73,12 +75,9 @@ fn main() {
             continue;
         }
         let mut case = PracticeCase::load(&dir).unwrap_or_else(|e| panic!("{e}"));
-        if let Some(fc) = std::env::var("INPUT_LOWPASS_HZ")
-            .ok()
-            .and_then(|s| s.parse().ok())
-        {
+        if let Some(fc) = input_lowpass_env().unwrap_or_else(|e| panic!("{e}")) {
             case.event
-                .set_input_lowpass(Some(fc))
+                .set_input_lowpass(fc)
                 .unwrap_or_else(|e| panic!("{name}: {e}"));
         }
         if truth_check {

@@ -451,8 +451,18 @@ pub fn true_unit(practice_root: &Path, case: &str) -> Result<Unit, PracticeError
 /// The engine check: J of the case's true unit (from the key, [`true_unit`]) on its event with
 /// only the two set-point offsets fitted (no prior, local method only), which the key's floor
 /// J is (for a case whose effect is not part of the true unit's parameters). Reads the key.
+/// The event is played back as recorded whatever its `input_lowpass_hz`: the key's floor is the
+/// true unit driven by the recorded voltage.
 pub fn truth_j(practice_root: &Path, case: &PracticeCase) -> Result<f64, PracticeError> {
     let truth = true_unit(practice_root, &case.name)?;
+    let mut event = case.event.clone();
+    event.input_lowpass_hz = None;
+    let case = &PracticeCase {
+        name: case.name.clone(),
+        dir: case.dir.clone(),
+        event,
+        unit: case.unit.clone(),
+    };
     let mut text =
         String::from("[calibration]\nprior = 0\n[[calibration.stage]]\nname = \"tg\"\nfree = [\n");
     for (_, path, b) in NUISANCE {
@@ -587,4 +597,23 @@ pub fn score(
         nominal_errors,
         grade: None,
     }
+}
+
+/// The practice examples' `INPUT_LOWPASS_HZ`: a cut-off in Hz (`Some(Some(f))`), `none` to play
+/// the records back as recorded (`Some(None)`), or unset (`None`: each event's default,
+/// [`itaipu_dynamics::event::smoothing::default_cutoff`]).
+///
+/// # Errors
+/// A value that is neither a number nor `none`.
+pub fn input_lowpass_env() -> Result<Option<Option<f64>>, String> {
+    let Ok(s) = std::env::var("INPUT_LOWPASS_HZ") else {
+        return Ok(None);
+    };
+    if s.trim().eq_ignore_ascii_case("none") {
+        return Ok(Some(None));
+    }
+    s.trim()
+        .parse()
+        .map(|f| Some(Some(f)))
+        .map_err(|_| format!("INPUT_LOWPASS_HZ={s}: expected a cut-off in Hz or none"))
 }

@@ -64,7 +64,10 @@ fn a_window_bound_within_the_tolerance_of_a_sample_holds_it() {
 /// The searches' integrators against the accurate one on an independent record (the bundled
 /// practice case p01, the nominal unit): what a swarm or a Levenberg-Marquardt step ranks is the
 /// accurate J to well within the differences they rank, and the search integrator takes a
-/// quarter fewer steps at least than the tolerances it replaced.
+/// quarter fewer steps at least than the tolerances it replaced. The record is played back as
+/// recorded, as when those tolerances were chosen: its voltage noise is what makes the
+/// integrators work hardest (smoothed at the default 4 Hz both take fewer steps, 1409 and 1828:
+/// 23 % fewer).
 #[test]
 fn the_search_integrators_agree_with_the_accurate_one_on_a_practice_record() {
     use itaipu_calib::local::{lm_integrator, LmStop, LM_RTOL};
@@ -74,7 +77,8 @@ fn the_search_integrators_agree_with_the_accurate_one_on_a_practice_record() {
 
     let dir =
         std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/practice/cases/p01");
-    let case = PracticeCase::load(&dir).unwrap();
+    let mut case = PracticeCase::load(&dir).unwrap();
+    case.event.set_input_lowpass(None).unwrap();
     let data = EventData::new(&case.event, None, None).unwrap();
     let run = |o: &SimOptions| simulate_pq(&mut case.unit.clone(), &data.prepared, o).unwrap();
     let (pa, qa) = run(&accurate_integrator());

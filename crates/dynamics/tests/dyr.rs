@@ -506,7 +506,8 @@ fn a_calibrated_unit_with_x_q_pp_apart_from_x_d_pp_is_refused_with_both_j_or_wri
     let c = &report.events[0];
     let jw = c.j_written.unwrap();
     // The fit's J and the J the .dyr gives, both quoted; P and Q far apart.
-    assert!((c.j_unit - 0.8732).abs() < 5e-4, "{c}");
+    // (0.8713 on the bundled record smoothed at the default 4 Hz; 0.8732 as recorded.)
+    assert!((c.j_unit - 0.8713).abs() < 5e-4, "{c}");
     assert!(jw > c.j_unit * 1.2, "{c}");
     assert!(c.max_dp.max(c.max_dq) > 1e-2, "{c}");
     let msg = e.to_string();

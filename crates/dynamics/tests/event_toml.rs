@@ -140,17 +140,37 @@ fn input_lowpass_is_read_played_and_checked() {
         &rect_csv(&t, &mag, &ang, &vec![0.6; n], &vec![0.02; n]),
     );
 
-    let plain = Event::from_toml_file(&dir.write("plain.toml", &toml_text("d.csv", ""))).unwrap();
+    let plain = Event::from_toml_file(&dir.write(
+        "plain.toml",
+        &toml_text("d.csv", "input_lowpass_hz = \"None\"\n"),
+    ))
+    .unwrap();
     assert_eq!(plain.input_lowpass_hz, None);
     let (v, _) = plain.playback_voltage();
     assert_eq!(
         v, plain.record.v_mag_pu,
-        "without the key the record plays as recorded"
+        "with \"none\" the record plays as recorded"
     );
 
+    // Without the key a phasor record is smoothed at the default cut-off; with it, at its own.
+    let default = Event::from_toml_file(&dir.write("d.toml", &toml_text("d.csv", ""))).unwrap();
+    assert_eq!(default.input_lowpass_hz, Some(smoothing::DEFAULT_CUTOFF_HZ));
     let toml = dir.write("lp.toml", &toml_text("d.csv", "input_lowpass_hz = 4\n"));
     let ev = Event::from_toml_file(&toml).unwrap();
     assert_eq!(ev.input_lowpass_hz, Some(4.0));
+    assert_eq!(default.playback_voltage(), ev.playback_voltage());
+    let toml = dir.write("lp2.toml", &toml_text("d.csv", "input_lowpass_hz = 2.5\n"));
+    let other = Event::from_toml_file(&toml).unwrap();
+    assert_eq!(other.input_lowpass_hz, Some(2.5));
+    // The reports say how the voltage was played back when it is not the default.
+    assert!(default.declaration_notes().is_empty());
+    let note = |e: &Event| e.declaration_notes().join("\n");
+    assert!(note(&plain).contains("as recorded"), "{}", note(&plain));
+    assert!(
+        note(&other).contains("low-passed at 2.5 Hz"),
+        "{}",
+        note(&other)
+    );
     let (v, a) = ev.playback_voltage();
     // The alternation (30 Hz) is gone away from the step and the ends; the step's samples are
     // as recorded.
@@ -181,4 +201,53 @@ fn input_lowpass_is_read_played_and_checked() {
             &[&ps(&toml), "input_lowpass_hz", needle],
         );
     }
+    let toml = dir.write(
+        "word.toml",
+        &toml_text("d.csv", "input_lowpass_hz = \"off\"\n"),
+    );
+    let e = Event::from_toml_file(&toml).unwrap_err();
+    assert_err(
+        &e,
+        "toml_value",
+        &[&ps(&toml), "input_lowpass_hz = \"off\"", "\"none\""],
+    );
+}
+
+/// The default cut-off is the same on every path, and only where the filter can run on a phasor
+/// record: not on uneven stamps, not without an angle, not at or below the Nyquist frequency.
+#[test]
+fn the_default_input_lowpass_needs_a_uniform_phasor_record() {
+    let n = 600;
+    // `mem_record`'s samples (60/s) at the stamps `dt` gives.
+    let rec = |dt: &dyn Fn(usize) -> f64| Record {
+        time_s: (0..n).map(dt).collect(),
+        ..mem_record(n)
+    };
+    let build = |r: Record, d: &Declaration| {
+        Event::from_record_declared("e", r, 100.0, 60.0, None, None, d)
+            .unwrap()
+            .input_lowpass_hz
+    };
+    let phasor = Declaration::default();
+    let uniform = |i: usize| i as f64 / 60.0;
+    assert_eq!(
+        build(rec(&uniform), &phasor),
+        Some(smoothing::DEFAULT_CUTOFF_HZ)
+    );
+    // Stamps 1/60 s apart, then 1/30 s: not uniform within 1 %.
+    let uneven = |i: usize| {
+        if i < 300 {
+            i as f64 / 60.0
+        } else {
+            5.0 + (i - 300) as f64 / 30.0
+        }
+    };
+    assert_eq!(build(rec(&uneven), &phasor), None);
+    // 8 samples/s: the Nyquist frequency is the default cut-off.
+    assert_eq!(build(rec(&|i| i as f64 / 8.0), &phasor), None);
+    let no_angle = Declaration {
+        channels: Some(vec![Channel::V, Channel::P, Channel::Q]),
+        ..Declaration::default()
+    };
+    assert_eq!(build(rec(&uniform), &no_angle), None);
 }

@@ -58,10 +58,9 @@ impl PyEvent {
     fn csv_path(&self) -> PathBuf {
         self.inner.csv_path.clone()
     }
-    /// Playback window `(start_s, end_s)`.
     /// Cut-off [Hz] of the zero-phase low-pass the playback applies to the recorded |V| and
-    /// angle between their discontinuities (`input_lowpass_hz` in the event file), or None: played
-    /// back as recorded.
+    /// angle between their discontinuities (`input_lowpass_hz` in the event file; 4.0 by default
+    /// for a phasor record with uniform time stamps), or None: played back as recorded.
     #[getter]
     fn input_lowpass_hz(&self) -> Option<f64> {
         self.inner.input_lowpass_hz
@@ -79,6 +78,7 @@ impl PyEvent {
         Ok(PyEvent { inner: Arc::new(e) })
     }
 
+    /// Playback window `(start_s, end_s)`.
     #[getter]
     fn playback(&self) -> (f64, f64) {
         (self.inner.playback.start_s, self.inner.playback.end_s)

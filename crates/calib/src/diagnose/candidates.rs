@@ -148,19 +148,132 @@ pub(super) struct Candidates<'a> {
     /// The split on contiguous segments for the second held-out test (without held-out events;
     /// [`SEGMENT_S`]).
     pub sp_segments: Option<&'a Split>,
+    /// The same splits with the record played back as recorded, when the events' input is
+    /// low-passed: for a cause whose extension adds a mode above the cut-off
+    /// ([`catalog::Cause::band_top_hz`]).
+    pub recorded: Option<&'a RecordedInput>,
+    /// [`Gains::input_echo`], once measured.
+    pub input_echo: Option<f64>,
     pub baselines: BTreeMap<String, Refit>,
+}
+
+/// The record's splits played back as recorded (the events' `input_lowpass_hz` cleared), for
+/// the causes whose band reaches above the lowest cut-off of the events, `cutoff_hz`.
+pub(super) struct RecordedInput {
+    pub cutoff_hz: f64,
+    pub events: Vec<Event>,
+    /// The reference's evidence and the catalog's context on the events played so: what such a
+    /// cause reads its signature and its search's start from (a shaft's resonance in the
+    /// residual is the recorded input's).
+    pub evidence: Vec<EventEvidence>,
+    pub ctx: Context,
+    pub sp: Split,
+    pub sp_null: Split,
+    pub sp_segments: Option<Split>,
+}
+
+impl RecordedInput {
+    /// `events`, `held_out` and their surrogates played back as recorded, when any of them is
+    /// low-passed (`None` otherwise: they already are), with the evidence of the reference
+    /// unit `reference` on them.
+    pub(super) fn new(
+        events: &[Event],
+        held_out: &[Event],
+        surrogates: (&[Event], &[Event]),
+        (reference, pb): (&Unit, &Playback),
+        segments: bool,
+        block_s: f64,
+    ) -> Result<Option<Self>, DiagnoseError> {
+        let Some(cutoff_hz) = events
+            .iter()
+            .chain(held_out)
+            .filter_map(|e| e.input_lowpass_hz)
+            .reduce(f64::min)
+        else {
+            return Ok(None);
+        };
+        let raw = |es: &[Event]| -> Vec<Event> {
+            es.iter()
+                .map(|e| {
+                    let mut e = e.clone();
+                    e.input_lowpass_hz = None;
+                    e
+                })
+                .collect()
+        };
+        let (ev, ho) = (raw(events), raw(held_out));
+        let sp = split(&ev, &ho, block_s)?;
+        let sp_null = split(&raw(surrogates.0), &raw(surrogates.1), block_s)?;
+        let sp_segments = if segments {
+            Some(split(&ev, &ho, SEGMENT_S)?)
+        } else {
+            None
+        };
+        let mut before = vec![];
+        let mut evidence = vec![];
+        for e in &ev {
+            let (tr, evd, _) = pb.evidence(reference, e)?;
+            before.push((e.name.clone(), tr));
+            evidence.push(evd);
+        }
+        let ctx = super::reference::catalog_context(&ev, &before, &evidence, pb);
+        Ok(Some(Self {
+            cutoff_hz,
+            evidence,
+            ctx,
+            events: ev,
+            sp,
+            sp_null,
+            sp_segments,
+        }))
+    }
 }
 
 impl Candidates<'_> {
     /// Scores the cause `id`: its report, and its re-fit when it has one (for the standard
     /// errors of a named cause).
     pub(super) fn score(&mut self, id: &str) -> (CandidateReport, Option<RefitRecord>) {
-        let (unit, ctx, evidence_before, env) = (self.unit, self.ctx, self.evidence, self.env);
-        let (opts, progress) = (env.opts, env.progress);
-        let env_null = env.on(self.sp_null);
-        let baselines = &mut self.baselines;
+        let unit = self.unit;
         // A catalog cause (its evidence rules and signature), or a user cause (none).
         let cause = catalog::cause(id);
+        // The record as recorded for a cause whose mode lies above the input's cut-off, with
+        // its baselines and surrogates played alike (cached apart from the others').
+        let recorded = self.recorded.filter(|r| {
+            cause
+                .and_then(|c| c.band_top_hz(&r.ctx))
+                .is_some_and(|top| r.cutoff_hz < top)
+        });
+        let (env, sp_null, sp_segments, key_prefix) = match recorded {
+            Some(r) => (
+                self.env.on(&r.sp),
+                &r.sp_null,
+                r.sp_segments.as_ref(),
+                "as recorded:",
+            ),
+            None => (self.env, self.sp_null, self.sp_segments, ""),
+        };
+        let (ctx, evidence_before) = match recorded {
+            Some(r) => (&r.ctx, r.evidence.as_slice()),
+            None => (self.ctx, self.evidence),
+        };
+        let (opts, progress) = (env.opts, env.progress);
+        let env_null = env.on(sp_null);
+        // The voltage noise's echo in the fitted χ² as recorded: the reference unit (no
+        // parameter free) on both playbacks.
+        let input_echo = match recorded {
+            None => 0.0,
+            Some(_) => *self.input_echo.get_or_insert_with(|| {
+                let label = Label::new(RefitKind::Reference, "input echo");
+                match (
+                    refit(&env, unit, &[], &[], &label),
+                    refit(&self.env, unit, &[], &[], &label),
+                ) {
+                    (Ok(a), Ok(b)) => (a.chi2_fit - b.chi2_fit).max(0.0),
+                    _ => 0.0,
+                }
+            }),
+        };
+        let baselines = &mut self.baselines;
         // `diagnose_run` refused every id that is neither the catalog's nor a user cause's.
         let (title, extension) = user_cause::describe(id, &opts.user_causes).expect("checked");
         let t0 = Instant::now();
@@ -181,6 +294,7 @@ impl Candidates<'_> {
             failed_candidates: 0,
             wall_s: 0.0,
             distortion: vec![],
+            input_as_recorded: recorded.is_some(),
         };
         if let Some(why) = cause.and_then(|c| ctx.not_seen(c.acts())) {
             rep.note = format!("not applicable: {why}");
@@ -215,7 +329,7 @@ impl Candidates<'_> {
             .filter(|b| unit.param(&b.param).is_ok())
             .map(|b| b.starting_in(unit))
             .collect();
-        let key = bounds_key(&base_bounds);
+        let key = format!("{key_prefix}{}", bounds_key(&base_bounds));
         if !baselines.contains_key(&key) {
             match refit(
                 &env,
@@ -294,7 +408,7 @@ impl Candidates<'_> {
         let segments = {
             let b = baselines[&key].clone_scores();
             let (d_fit, d_held) = (b.chi2_fit - r.chi2_fit, b.chi2_held - r.chi2_held);
-            self.sp_segments
+            sp_segments
                 .filter(|_| fits(d_fit, &b) && d_held < opts.min_held_drop * b.chi2_held)
                 .and_then(|sp_segments| {
                     segments_test(
@@ -427,6 +541,7 @@ impl Candidates<'_> {
         let gains = Gains {
             chi2_fit_base: base.chi2_fit,
             chi2_fit_ext: r.chi2_fit,
+            input_echo,
             chi2_held_base: base.chi2_held,
             chi2_held_ext: r.chi2_held,
             null_gain_fit: null_fit,

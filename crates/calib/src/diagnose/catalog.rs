@@ -72,6 +72,16 @@ pub trait Cause: Sync {
         self.extend(x, roles, ctx)
     }
 
+    /// The highest frequency the extension's dynamics must reproduce [Hz], when it adds a mode
+    /// above the control band (`None`: the machine's, controls' and governor's band, below a few
+    /// hertz). A playback whose input is low-passed below it
+    /// ([`itaipu_dynamics::event::Event::input_lowpass_hz`]) would remove what drives the mode
+    /// with the noise, so the cause's re-fits (its baseline too, and their surrogates) play the
+    /// record back as recorded.
+    fn band_top_hz(&self, _ctx: &Context) -> Option<f64> {
+        None
+    }
+
     /// Features of the evidence that point to the cause (shown in the candidates' table, not
     /// used to rank).
     fn signature(&self, _ev: &[super::EventEvidence], _ctx: &Context) -> Vec<String> {

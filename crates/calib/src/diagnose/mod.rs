@@ -297,6 +297,12 @@ pub struct Gains {
     /// χ² of the baseline re-fit on the fitted samples.
     pub chi2_fit_base: f64,
     pub chi2_fit_ext: f64,
+    /// The part of both fitted χ² that the record played back as recorded adds
+    /// ([`CandidateReport::input_as_recorded`]; 0 otherwise): the reference unit's fitted χ² as
+    /// recorded less its χ² smoothed, the voltage noise's echo. Taken off `chi2_fit_ext` where
+    /// candidates are compared with each other, so that each is compared on the smoothed
+    /// playback's footing; its own test against its baseline (on the same input) keeps it.
+    pub input_echo: f64,
     pub chi2_held_base: f64,
     pub chi2_held_ext: f64,
     /// χ² drop of the residuals (the priors' rows left out) that the same re-fit achieves on
@@ -366,6 +372,10 @@ pub struct CandidateReport {
     /// prior spread from their datasheet value, or that the extension does: what the base model
     /// bends to mimic the cause, and where they go with the extension.
     pub distortion: Vec<Distortion>,
+    /// Its re-fits (baseline, extension, surrogates) played the record's |V| and angle back as
+    /// recorded, not low-passed: the cause adds a mode above the input's cut-off
+    /// ([`catalog::Cause::band_top_hz`]).
+    pub input_as_recorded: bool,
 }
 
 /// A calibrated parameter's value in the datasheet, the re-fitted baseline and the extension.
@@ -642,6 +652,7 @@ fn diagnose_run(
         before,
         evidence: evidence_before,
         sp_null,
+        surrogates,
     } = reference::reference(
         unit,
         events,
@@ -686,7 +697,16 @@ fn diagnose_run(
             .collect(),
         ..opts.clone()
     };
+    let recorded = RecordedInput::new(
+        events,
+        held_out,
+        (&surrogates.0, &surrogates.1),
+        (unit, &pb),
+        sp_segments.is_some(),
+        opts.block_s,
+    )?;
     let mut candidates = Candidates {
+        input_echo: None,
         unit,
         ctx: &ctx,
         evidence: &evidence_before,
@@ -700,6 +720,7 @@ fn diagnose_run(
         },
         sp_null: &sp_null,
         sp_segments: sp_segments.as_ref(),
+        recorded: recorded.as_ref(),
         baselines,
     };
     let mut reports = vec![];
@@ -735,6 +756,7 @@ fn diagnose_run(
         &mut reports,
         refits,
         events,
+        recorded.as_ref().map(|r| r.events.as_slice()),
         (&pb, weights, compare.as_ref()),
         &evidence_before,
         opts,

@@ -62,6 +62,8 @@ pub(super) struct Reference {
     pub evidence: Vec<EventEvidence>,
     /// The split of the surrogate events (and surrogate held-out events).
     pub sp_null: Split,
+    /// The surrogate events and surrogate held-out events themselves.
+    pub surrogates: (Vec<Event>, Vec<Event>),
 }
 
 /// The unit with its set-point offsets (nuisance) re-fitted on the split `sp`, its traces and
@@ -162,6 +164,7 @@ pub(super) fn reference(
         before,
         evidence: evidence_before,
         sp_null,
+        surrogates: (surrogate_events, surrogate_held),
     })
 }
 

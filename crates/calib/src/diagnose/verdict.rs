@@ -194,12 +194,15 @@ pub(super) struct Decision {
 
 /// Ranks `reports` (see [`Diagnosis::candidates`]) and decides: the first significant
 /// candidate is named (with the standard errors of its re-fit in `refits`), else
-/// [`undecided`].
+/// [`undecided`]. A named cause whose re-fits played the record as recorded
+/// ([`CandidateReport::input_as_recorded`]) gets its standard errors and its evidence after on
+/// `recorded` (the events played back so).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn decide(
     reports: &mut [CandidateReport],
     mut refits: BTreeMap<String, RefitRecord>,
     events: &[Event],
+    recorded: Option<&[Event]>,
     (pb, weights, compare): super::playback::Scoring,
     evidence_before: &[EventEvidence],
     opts: &DiagnoseOptions,
@@ -218,7 +221,7 @@ pub(super) fn decide(
     // others follow by ΔBIC.
     let bic_ext = |r: &CandidateReport| {
         r.gains.as_ref().map_or(f64::INFINITY, |g| {
-            g.chi2_fit_ext + r.parameters.len() as f64 * (g.n_fit.max(1) as f64).ln()
+            comparable_chi2(g) + r.parameters.len() as f64 * (g.n_fit.max(1) as f64).ln()
         })
     };
     reports.sort_by(|a, b| {
@@ -277,6 +280,10 @@ pub(super) fn decide(
     let mut evidence_after = vec![];
     let verdict = match named {
         Some((mut rep, g, (r, bounds, ties))) => {
+            let events = match recorded {
+                Some(raw) if rep.input_as_recorded => raw,
+                _ => events,
+            };
             // Uncertainty of the re-fitted parameters (all samples, with the priors).
             if let Some(se) =
                 std_errors(&r.unit, &bounds, &ties, &r.values, events, weights, compare)
@@ -400,6 +407,12 @@ pub(super) fn decide(
     }
 }
 
+/// A candidate's fitted χ² as candidates are compared with each other: without the echo of
+/// the voltage's noise that a re-fit on the record as recorded carries ([`Gains::input_echo`]).
+fn comparable_chi2(g: &Gains) -> f64 {
+    g.chi2_fit_ext - g.input_echo
+}
+
 /// The VIF-deflated BIC of `other`'s extended model above `best`'s, on the common fitted
 /// samples: `(χ²_other − χ²_best)/v + (k_other − k_best) ln(N/v)`, k every parameter each
 /// re-fitted and `v` the larger of the two baselines' variance inflation (the conservative
@@ -411,7 +424,7 @@ pub(super) fn bic_gap(best: &CandidateReport, other: &CandidateReport) -> f64 {
     };
     let v = a.vif.max(b.vif).max(1.0);
     let n = (a.n_fit.max(1) as f64 / v).max(1.0);
-    (b.chi2_fit_ext - a.chi2_fit_ext) / v
+    (comparable_chi2(b) - comparable_chi2(a)) / v
         + (other.parameters.len() as f64 - best.parameters.len() as f64) * n.ln()
 }
 
@@ -730,6 +743,7 @@ mod tests {
             gains: Some(Gains {
                 chi2_fit_base: chi2_ext + 100.0,
                 chi2_fit_ext: chi2_ext,
+                input_echo: 0.0,
                 chi2_held_base: 500.0,
                 chi2_held_ext: 400.0,
                 null_gain_fit: 0.0,
@@ -757,6 +771,7 @@ mod tests {
             failed_candidates: 0,
             wall_s: 0.0,
             distortion: vec![],
+            input_as_recorded: false,
         }
     }
 
@@ -777,6 +792,7 @@ mod tests {
             &mut reports,
             BTreeMap::new(),
             &[],
+            None,
             (&Playback::phasor(), (1.0, 1.0), None),
             &evidence(),
             &DiagnoseOptions::default(),
@@ -855,6 +871,30 @@ mod tests {
             );
             assert_ne!(d.verdict.cause, "inconclusive");
         }
+    }
+
+    /// A candidate re-fitted on the record as recorded is compared with the others without its
+    /// input's echo: 70 χ² of echo on a raw 340 puts its extended model 30 below a smoothed 300
+    /// (VIF 2, equal k: a deflated gap of 15), so its rival is decisively behind; without the
+    /// echo taken off, the smoothed rival would be 40 χ² ahead of it.
+    #[test]
+    fn a_candidate_played_as_recorded_is_compared_without_its_input_echo() {
+        let smoothed = candidate("saturation", 300.0, 3, 40.0, true);
+        let mut recorded = candidate("torsional_mode", 340.0, 3, 40.0, true);
+        recorded.input_as_recorded = true;
+        assert!((bic_gap(&smoothed, &recorded) - 20.0).abs() < 1e-9);
+        recorded.gains.as_mut().unwrap().input_echo = 70.0;
+        assert!((bic_gap(&recorded, &smoothed) - 15.0).abs() < 1e-9);
+        assert!((bic_gap(&smoothed, &recorded) + 15.0).abs() < 1e-9);
+        let d = decide_on(vec![smoothed.clone(), recorded.clone()]);
+        assert_ne!(d.verdict.cause, "inconclusive", "{}", d.verdict.statement);
+        assert!(d.verdict.competing.is_empty(), "{:?}", d.verdict.competing);
+        // A smaller echo (25): 15 χ² behind, a deflated gap of 7.5 < 10: inconclusive, the
+        // smoothed candidate first.
+        recorded.gains.as_mut().unwrap().input_echo = 25.0;
+        let d = decide_on(vec![recorded, smoothed]);
+        assert_eq!(d.verdict.cause, "inconclusive", "{}", d.verdict.statement);
+        assert_eq!(competitors(&d.verdict), ["saturation", "torsional_mode"]);
     }
 
     /// Two causes that pass their tests and whose extended models are within the BIC threshold

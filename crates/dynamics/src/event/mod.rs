@@ -9,7 +9,7 @@
 //! system_mva = 1000.0                  # MVA base of p_pu and q_pu in the CSV
 //! nominal_hz = 60.0                    # nominal frequency of the PMU reference frame
 //! onset_s = 1.0167                     # optional: when the disturbance starts; default detected
-//! input_lowpass_hz = 4.0               # optional: play |V| and angle back low-passed (below)
+//! input_lowpass_hz = 4.0               # optional: the played-back |V| and angle's low-pass, or "none" (below)
 //! [playback]   # optional: trim the record used for playback; default = whole record
 //! start_s = 0.0
 //! end_s = 4.65
@@ -69,11 +69,16 @@
 //!
 //! # Played-back voltage
 //!
-//! `input_lowpass_hz` (optional, Hz, above 0 and below the Nyquist frequency; the record's time
-//! stamps uniform within 1 %) plays the recorded |V| and angle back through a zero-phase
-//! low-pass between their discontinuities, which stay as recorded ([`smoothing`]: why a
-//! playback should not feed its input's noise to the model, and how the edges are found).
-//! Without it the record is played back as recorded. In memory: [`Event::set_input_lowpass`].
+//! A phasor record's |V| and angle are played back through a zero-phase low-pass between their
+//! discontinuities, which stay as recorded ([`smoothing`]: why a playback should not feed its
+//! input's noise to the model, and how the edges are found), at
+//! [`smoothing::DEFAULT_CUTOFF_HZ`] (4 Hz) by default, on every path (event file,
+//! [`Event::from_record`], the PMU import). `input_lowpass_hz` names another cut-off (Hz, above
+//! 0 and below the Nyquist frequency; the record's time stamps uniform within 1 %), or
+//! `input_lowpass_hz = "none"` plays the record back as recorded. A record whose stamps are not
+//! uniform, or whose Nyquist frequency is at or below the default, and a record without an
+//! angle are played back as recorded unless a cut-off is named. In memory:
+//! [`Event::set_input_lowpass`].
 //!
 //! # CSV format
 //!
@@ -505,7 +510,8 @@ pub struct Event {
     pub steps: Vec<SetpointStep>,
     /// Cut-off of the zero-phase low-pass the playback applies to the recorded |V| and angle
     /// between their discontinuities ([`smoothing`]), Hz; `None` plays the record back as
-    /// recorded. Set with [`Event::set_input_lowpass`], which checks it.
+    /// recorded. [`smoothing::default_cutoff`] unless the event file names it; set with
+    /// [`Event::set_input_lowpass`], which checks it.
     pub input_lowpass_hz: Option<f64>,
 }
 
@@ -623,10 +629,26 @@ impl Event {
     }
 
     /// What the event declares beyond its samples, one line each, for reports: the channels
-    /// (when not a phasor record), the time base (when not uniform) and the set-point steps.
-    /// Empty for a plain phasor record.
+    /// (when not a phasor record), the played-back voltage of a phasor record (when not
+    /// smoothed at the default cut-off), the time base (when not uniform) and the set-point
+    /// steps. Empty for a plain phasor record.
     pub fn declaration_notes(&self) -> Vec<String> {
         let mut out = vec![];
+        if self.has_angle() {
+            match self.input_lowpass_hz {
+                Some(fc) if fc == smoothing::DEFAULT_CUTOFF_HZ => {}
+                Some(fc) => out.push(format!(
+                    "played-back |V| and angle: low-passed at {fc} Hz between their edges (the \
+                     default is {} Hz)",
+                    smoothing::DEFAULT_CUTOFF_HZ
+                )),
+                None => out.push(
+                    "played-back |V| and angle: as recorded, not smoothed (input_lowpass_hz = \
+                     \"none\", or time stamps the low-pass cannot run on)"
+                        .into(),
+                ),
+            }
+        }
         if !self.has_angle() {
             out.push(format!(
                 "recorded channels: {} (no voltage angle: no phasor playback; the playback modes \

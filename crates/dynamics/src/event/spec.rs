@@ -41,9 +41,9 @@ struct EventSpec {
     system_mva: f64,
     nominal_hz: f64,
     #[serde(default)]
-    onset_s: Option<OnsetValue>,
+    onset_s: Option<NumberOrWord>,
     #[serde(default)]
-    input_lowpass_hz: Option<f64>,
+    input_lowpass_hz: Option<NumberOrWord>,
     #[serde(default)]
     playback: Option<WindowSpec>,
     #[serde(default)]
@@ -68,10 +68,10 @@ struct StepSpec {
     reference: Option<String>,
 }
 
-/// `onset_s` as written: a time or a word (only `"none"` is accepted).
+/// `onset_s` or `input_lowpass_hz` as written: a number or a word (only `"none"` is accepted).
 #[derive(Debug, Deserialize)]
 #[serde(untagged)]
-enum OnsetValue {
+enum NumberOrWord {
     Time(f64),
     Word(String),
 }
@@ -228,11 +228,11 @@ impl Event {
         let declaration = declaration(path, &spec)?;
         let onset = match spec.onset_s {
             None => OnsetSpec::Detect,
-            Some(OnsetValue::Time(t)) => OnsetSpec::Given(Some(t)),
-            Some(OnsetValue::Word(w)) if w.trim().eq_ignore_ascii_case("none") => {
+            Some(NumberOrWord::Time(t)) => OnsetSpec::Given(Some(t)),
+            Some(NumberOrWord::Word(w)) if w.trim().eq_ignore_ascii_case("none") => {
                 OnsetSpec::Given(None)
             }
-            Some(OnsetValue::Word(w)) => {
+            Some(NumberOrWord::Word(w)) => {
                 return Err(EventError::TomlValue {
                     path: path.to_path_buf(),
                     message: format!(
@@ -282,15 +282,32 @@ impl Event {
                 steps: declaration.steps,
             },
         )?;
-        if let Some(fc) = spec.input_lowpass_hz {
-            event
-                .set_input_lowpass(Some(fc))
-                .map_err(|e| EventError::InvalidValue {
+        // A number or "none" (as `onset_s`); absent: the default
+        // `assemble` chose.
+        match spec.input_lowpass_hz {
+            None => {}
+            Some(NumberOrWord::Word(w)) if w.trim().eq_ignore_ascii_case("none") => {
+                event.input_lowpass_hz = None;
+            }
+            Some(NumberOrWord::Word(w)) => {
+                return Err(EventError::TomlValue {
                     path: path.to_path_buf(),
-                    field: "input_lowpass_hz".into(),
-                    value: fc,
-                    message: e.to_string(),
-                })?;
+                    message: format!(
+                        "input_lowpass_hz = {}: expected a cut-off in Hz (a number) or \"none\" to play |V| and the angle back as recorded",
+                        toml::Value::String(w)
+                    ),
+                })
+            }
+            Some(NumberOrWord::Time(fc)) => {
+                event
+                    .set_input_lowpass(Some(fc))
+                    .map_err(|e| EventError::InvalidValue {
+                        path: path.to_path_buf(),
+                        field: "input_lowpass_hz".into(),
+                        value: fc,
+                        message: e.to_string(),
+                    })?;
+            }
         }
         Ok(event)
     }

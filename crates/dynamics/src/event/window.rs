@@ -180,6 +180,8 @@ pub(super) fn assemble(
         record.window_range(&fw.window).len(),
     )?;
 
+    let has_angle = declared.channels.contains(&Channel::Angle);
+    let input_lowpass_hz = super::smoothing::default_cutoff(&record.time_s, has_angle);
     Ok(Event {
         name,
         description,
@@ -195,7 +197,7 @@ pub(super) fn assemble(
         channels: declared.channels,
         time_base: declared.time_base,
         steps: declared.steps,
-        input_lowpass_hz: None,
+        input_lowpass_hz,
     })
 }
 

@@ -60,6 +60,13 @@ impl Cause for TorsionalMode {
         super::super::catalog::Acts::ActivePower
     }
 
+    /// The shaft's mode is searched up to the top of [`torsional_band`]; in playback it is
+    /// driven by the recorded voltage's content at the mode (the unit's own oscillation seen
+    /// through the grid), which a low-passed input removes.
+    fn band_top_hz(&self, ctx: &Context) -> Option<f64> {
+        Some(torsional_band(ctx).1)
+    }
+
     fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
         if roles.governor.is_none() {
             return Err(CauseError::not_applicable(
