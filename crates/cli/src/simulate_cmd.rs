@@ -316,6 +316,23 @@ pub fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
             },
         ];
         let mut panels = panels;
+        // A phasor record played back smoothed: the played-back |V| over the recorded one.
+        if let (PlaybackMode::Phasor, Some(fc)) = (a.mode, event.input_lowpass_hz) {
+            if event.record.v_mag_pu.len() == t.len() {
+                panels[0].series[0].label = format!("played-back |V| (low-passed at {fc} Hz)");
+                panels[0].series[0].color = plot::PLAYED;
+                panels[0].series.insert(
+                    0,
+                    plot::Series {
+                        label: "measured |V|".into(),
+                        x: t,
+                        y: &event.record.v_mag_pu,
+                        color: plot::MEASURED,
+                        thin: true,
+                    },
+                );
+            }
+        }
         if a.mode != PlaybackMode::Phasor {
             panels[0].y_label = "|V| [pu]".into();
             if a.mode == PlaybackMode::ClosedLoop {

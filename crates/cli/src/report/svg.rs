@@ -51,6 +51,8 @@ pub fn start_end_panel<'a>(
 pub const MEASURED: RGBColor = RGBColor(90, 90, 90);
 pub const SIMULATED: RGBColor = RGBColor(214, 39, 40);
 pub const START: RGBColor = RGBColor(31, 119, 180);
+/// An input as the playback imposes it where it differs from the record (the smoothed |V|).
+pub const PLAYED: RGBColor = RGBColor(255, 127, 14);
 pub const EXTRA: RGBColor = RGBColor(44, 160, 44);
 
 /// Decorations of one panel beyond its lines (all optional; `Decor::default()` draws nothing).
