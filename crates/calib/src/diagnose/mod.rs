@@ -19,7 +19,12 @@
 //!    re-fitted over the extension's parameters and the unit parameters it interacts with: a grid
 //!    scan of the narrow-valleyed ones, the swarm, the scan again, L-BFGS. The
 //!    **baseline** is the unit re-fitted over the same interacting parameters without the
-//!    extension, so a gain is the extension's alone.
+//!    extension, so a gain is the extension's alone. The events play their voltage back as
+//!    they say (smoothed at 4 Hz by default); a cause whose mode lies above that cut-off
+//!    ([`catalog::Cause::band_top_hz`], the torsional mode) has its baseline, extension and
+//!    surrogates played back as recorded (`candidates::RecordedInput`), and is compared with
+//!    the other causes without the echo of the voltage's noise that input adds
+//!    ([`Gains::input_echo`]).
 //! 5. **Gain.** `Δχ²` on the fitted samples, the relative drop of the fitted and of the held-out
 //!    χ², each net of the gain the same re-fits achieve on a surrogate of the events (the
 //!    reference's own simulation with the noise drawn again: pure noise fitting; the residuals'
@@ -706,7 +711,6 @@ fn diagnose_run(
         opts.block_s,
     )?;
     let mut candidates = Candidates {
-        input_echo: None,
         unit,
         ctx: &ctx,
         evidence: &evidence_before,
@@ -721,6 +725,7 @@ fn diagnose_run(
         sp_null: &sp_null,
         sp_segments: sp_segments.as_ref(),
         recorded: recorded.as_ref(),
+        input_echo: None,
         baselines,
     };
     let mut reports = vec![];

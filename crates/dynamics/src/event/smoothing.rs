@@ -55,10 +55,11 @@ pub const SETTLE: f64 = 3.0;
 /// [Hz]: twice the upper edge of the electromechanical band (2 Hz, where the swing modes the
 /// machine, AVR, PSS and governor models are calibrated on end). The zero-phase filter's gain
 /// `1/(1 + (f/f_c)⁴)` is 0.996 at 1 Hz and 0.94 at 2 Hz, and it keeps `1.11 f_c/f_Nyquist` of a
-/// white noise's variance: 15 % at 30 samples/s Nyquist. Measured on the 66 practice records
-/// (README, "The played-back voltage's noise"): the median error of X''_d falls from 16 % to
-/// 3 %. A mode the model must reproduce above the cut-off (a shaft's torsional mode) needs the
-/// record as recorded: the diagnosis plays it so for the causes that add one.
+/// white noise's variance: 15 % at 60 samples/s (a 30 Hz Nyquist frequency). Measured on the 66
+/// practice records (README, "The played-back voltage's noise"): the median error of X''_d
+/// falls from 16 % to 3 %. A mode the model must reproduce above the cut-off (a shaft's
+/// torsional mode) needs the record as recorded: the diagnosis plays it so for the causes that
+/// add one.
 pub const DEFAULT_CUTOFF_HZ: f64 = 4.0;
 
 /// The cut-off an event with the record's `time_s` gets by default: [`DEFAULT_CUTOFF_HZ`] for a

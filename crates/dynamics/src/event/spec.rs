@@ -72,7 +72,7 @@ struct StepSpec {
 #[derive(Debug, Deserialize)]
 #[serde(untagged)]
 enum NumberOrWord {
-    Time(f64),
+    Number(f64),
     Word(String),
 }
 
@@ -228,7 +228,7 @@ impl Event {
         let declaration = declaration(path, &spec)?;
         let onset = match spec.onset_s {
             None => OnsetSpec::Detect,
-            Some(NumberOrWord::Time(t)) => OnsetSpec::Given(Some(t)),
+            Some(NumberOrWord::Number(t)) => OnsetSpec::Given(Some(t)),
             Some(NumberOrWord::Word(w)) if w.trim().eq_ignore_ascii_case("none") => {
                 OnsetSpec::Given(None)
             }
@@ -282,8 +282,7 @@ impl Event {
                 steps: declaration.steps,
             },
         )?;
-        // A number or "none" (as `onset_s`); absent: the default
-        // `assemble` chose.
+        // A number or "none" (as `onset_s`); absent, the default `assemble` chose.
         match spec.input_lowpass_hz {
             None => {}
             Some(NumberOrWord::Word(w)) if w.trim().eq_ignore_ascii_case("none") => {
@@ -298,7 +297,7 @@ impl Event {
                     ),
                 })
             }
-            Some(NumberOrWord::Time(fc)) => {
+            Some(NumberOrWord::Number(fc)) => {
                 event
                     .set_input_lowpass(Some(fc))
                     .map_err(|e| EventError::InvalidValue {
