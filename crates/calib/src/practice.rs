@@ -457,12 +457,6 @@ pub fn truth_j(practice_root: &Path, case: &PracticeCase) -> Result<f64, Practic
     let truth = true_unit(practice_root, &case.name)?;
     let mut event = case.event.clone();
     event.input_lowpass_hz = None;
-    let case = &PracticeCase {
-        name: case.name.clone(),
-        dir: case.dir.clone(),
-        event,
-        unit: case.unit.clone(),
-    };
     let mut text =
         String::from("[calibration]\nprior = 0\n[[calibration.stage]]\nname = \"tg\"\nfree = [\n");
     for (_, path, b) in NUISANCE {
@@ -476,10 +470,10 @@ pub fn truth_j(practice_root: &Path, case: &PracticeCase) -> Result<f64, Practic
         .map_err(|e| PracticeError::Engine(e.to_string()))?;
     let mut opts = crate::fit::FitOptions::from_spec(&spec);
     opts.pso_iterations = 0;
-    let events = std::slice::from_ref(&case.event);
+    let events = std::slice::from_ref(&event);
     let r = crate::fit::fit(&truth, &spec, events, &[], &opts, &crate::fit::Silent)
         .map_err(|e| PracticeError::Engine(e.to_string()))?;
-    crate::fit::fitness(&r.unit, &case.event, false)
+    crate::fit::fitness(&r.unit, &event, false)
         .map(|(f, _)| f.j_pq)
         .map_err(|e| PracticeError::Engine(e.to_string()))
 }

@@ -173,13 +173,14 @@ pub(super) struct RecordedInput {
 }
 
 impl RecordedInput {
-    /// `events`, `held_out` and their surrogates played back as recorded, when any of them is
-    /// low-passed (`None` otherwise: they already are), with the evidence of the reference
-    /// unit `reference` on them.
+    /// `events`, `held_out` and their surrogates played back as recorded, with the evidence of
+    /// the reference unit `reference` on them, when any of them is low-passed below `band_top`
+    /// (the highest band a cause to try must reproduce); `None` otherwise (no cause needs it).
     pub(super) fn new(
         events: &[Event],
         held_out: &[Event],
         surrogates: (&[Event], &[Event]),
+        band_top: Option<f64>,
         (reference, pb): (&Unit, &Playback),
         segments: bool,
         block_s: f64,
@@ -189,6 +190,7 @@ impl RecordedInput {
             .chain(held_out)
             .filter_map(|e| e.input_lowpass_hz)
             .reduce(f64::min)
+            .filter(|fc| band_top.is_some_and(|top| *fc < top))
         else {
             return Ok(None);
         };
@@ -243,18 +245,23 @@ impl Candidates<'_> {
                 .and_then(|c| c.band_top_hz(&r.ctx))
                 .is_some_and(|top| r.cutoff_hz < top)
         });
-        let (env, sp_null, sp_segments, key_prefix) = match recorded {
+        let (env, sp_null, sp_segments, ctx, evidence_before, key_prefix) = match recorded {
             Some(r) => (
                 self.env.on(&r.sp),
                 &r.sp_null,
                 r.sp_segments.as_ref(),
+                &r.ctx,
+                r.evidence.as_slice(),
                 "as recorded:",
             ),
-            None => (self.env, self.sp_null, self.sp_segments, ""),
-        };
-        let (ctx, evidence_before) = match recorded {
-            Some(r) => (&r.ctx, r.evidence.as_slice()),
-            None => (self.ctx, self.evidence),
+            None => (
+                self.env,
+                self.sp_null,
+                self.sp_segments,
+                self.ctx,
+                self.evidence,
+                "",
+            ),
         };
         let (opts, progress) = (env.opts, env.progress);
         let env_null = env.on(sp_null);

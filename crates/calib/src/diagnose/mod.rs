@@ -702,10 +702,18 @@ fn diagnose_run(
             .collect(),
         ..opts.clone()
     };
+    // The highest band a cause to try must reproduce: the recorded playback is built only
+    // when some cause's band reaches above the events' cut-off.
+    let band_top = ids
+        .iter()
+        .filter_map(|id| catalog::cause(id))
+        .filter_map(|c| c.band_top_hz(&ctx))
+        .reduce(f64::max);
     let recorded = RecordedInput::new(
         events,
         held_out,
         (&surrogates.0, &surrogates.1),
+        band_top,
         (unit, &pb),
         sp_segments.is_some(),
         opts.block_s,
