@@ -16,7 +16,8 @@
 //! spec's `[calibration.pso]` search (README, "Short swarms, several starts"),
 //! `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back low-passed at `f` Hz between
 //! their edges instead of the default 4 Hz, `INPUT_LOWPASS_HZ=none` as recorded
-//! (`Event::set_input_lowpass`).
+//! (`Event::set_input_lowpass`), `REFIT_OVER_SAMPLES=1` lets the diagnosis re-fits' searches
+//! step over the smoothed input's samples (`DiagnoseOptions::refit_over_samples`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -158,6 +159,7 @@ fn main() {
             if let Ok(causes) = std::env::var("CAUSES") {
                 dopts.causes = causes.split(',').map(|c| c.trim().to_string()).collect();
             }
+            dopts.refit_over_samples = std::env::var("REFIT_OVER_SAMPLES").is_ok_and(|v| v == "1");
             let d = diagnose(
                 &calibrated,
                 std::slice::from_ref(&case.event),

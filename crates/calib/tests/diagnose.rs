@@ -22,12 +22,19 @@ use itaipu_dynamics::synthetic::EventKind;
 /// scores as they are; what they do to right names is measured on the practice sets, where
 /// `tests/practice.rs` runs them, and their verdict rule is `verdict.rs`'s unit test).
 fn check(cause: &str, seed: u64, kind: Option<EventKind>) {
+    check_with(cause, seed, kind, false);
+}
+
+/// [`check`], the re-fits' searches stepping over the smoothed input's samples or not
+/// (`DiagnoseOptions::refit_over_samples`).
+fn check_with(cause: &str, seed: u64, kind: Option<EventKind>, over_samples: bool) {
     let t = scenario(cause, seed, kind);
     let o = run(
         &t,
         &DiagnoseOptions {
             seed,
             look_alikes: false,
+            refit_over_samples: over_samples,
             ..Default::default()
         },
     )
@@ -112,6 +119,14 @@ fn a_hidden_over_excitation_limiter_is_named_with_its_pickup() {
 #[test]
 fn hidden_governor_deadband_and_rate_limit_are_named() {
     check("governor", 101, None);
+}
+
+/// The option that lets the re-fits' searches step over the smoothed samples names the same
+/// hidden OEL with its pickup, and finds nothing on the clean dip.
+#[test]
+fn stepping_over_the_samples_in_the_refits_keeps_the_oel_and_the_clean_dip() {
+    check_with("oel", 101, None, true);
+    check_with("none", 101, None, true);
 }
 
 #[test]

@@ -1,7 +1,9 @@
 //! Playback benchmarks (divan): `cargo bench -p itaipu-dynamics`.
 //!
 //! * a 20 s synthetic event at 60 samples/s (dip, grid swing, 0.2 Hz frequency fall, PMU
-//!   noise) into GENSAE + SEXS + STAB3 + HYGOV, with RK4 at 1 ms and Dormand-Prince at rtol 1e-6;
+//!   noise) into GENSAE + SEXS + STAB3 + HYGOV, with RK4 at 1 ms and Dormand-Prince at rtol 1e-6,
+//!   and at the searches' rtol 1e-5 landing on every sample or stepping over the smoothed
+//!   input's samples (`soft_knots`);
 //! * the bundled Itaipu record (4.65 s, 280 samples) into its GENSAE + SEXS + STAB3 unit;
 //! * the forward sensitivities of the synthetic event to eight parameters (one pass), and of
 //!   the Itaipu record with its SEXS built in or as a user-defined diagram.
@@ -78,6 +80,26 @@ fn synthetic_20s_rk4_1ms(bencher: Bencher) {
 #[divan::bench(sample_count = 100)]
 fn synthetic_20s_dopri5_rtol_1e6(bencher: Bencher) {
     bench(bencher, synthetic(), dopri5());
+}
+
+/// The searches' tolerances (`itaipu_calib::problem::search_integrator`), `soft`: stepping
+/// over the samples inside the smoothed input's spline.
+fn search(soft_knots: bool) -> SimOptions {
+    SimOptions {
+        method: Method::Dopri5(Dopri5Options {
+            rtol: 1e-5,
+            atol: 1e-6,
+            h_max: 0.05,
+            max_steps: 25_000,
+            soft_knots,
+            ..Default::default()
+        }),
+    }
+}
+
+#[divan::bench(args = [false, true], sample_count = 100)]
+fn synthetic_20s_search_soft_knots(bencher: Bencher, soft: bool) {
+    bench(bencher, synthetic(), search(soft));
 }
 
 #[divan::bench(sample_count = 100)]

@@ -123,14 +123,9 @@ pub struct PreparedEvent {
 impl PreparedEvent {
     pub fn new(event: &Event) -> Self {
         let r = &event.record;
-        let (v_mag, v_ang) = event.playback_voltage();
         Self {
             name: event.name.clone(),
-            input: PlaybackInput {
-                time_s: r.time_s.clone(),
-                v_mag,
-                v_ang,
-            },
+            input: event.playback_input(),
             op_system: event.operating_point(),
             system_mva: event.system_mva,
             nominal_hz: event.nominal_hz,
@@ -210,7 +205,8 @@ where
     }
     ev.check_frequency(unit)?;
     let mut x = unit.initialise(&ev.machine_point(unit))?;
-    let mut sys = Playback::new(unit, &ev.input);
+    let over = matches!(&opts.method, Method::Dopri5(o) if o.soft_knots);
+    let mut sys = Playback::new(unit, &ev.input).over_samples(over);
     let stats = integrate::solve(
         &opts.method,
         &mut sys,

@@ -859,23 +859,123 @@ fn topo_order(deps: &[Vec<usize>]) -> Result<Vec<usize>, Vec<usize>> {
 }
 
 /// The played-back terminal voltage: magnitude and unwrapped angle, linear between samples,
-/// held constant outside the record.
+/// held constant outside the record; on the stretches a low-pass smoothed
+/// ([`crate::event::smoothing`]), a natural cubic spline through the smoothed samples for a
+/// playback that steps over them ([`PlaybackInput::at_spline`]).
 ///
 /// Interpolating (|V|, θ) rather than (v_re, v_im) keeps |V| exact between samples when the
 /// phasor rotates (off-nominal frequency); the two differ only at second order (`models.md`
-/// §1.1). The integrators stop at every sample instant, so no step straddles the kinks of the
-/// piecewise-linear input.
+/// §1.1). The integrators stop at every sample instant, so no step straddles a kink of the
+/// piecewise-linear input. The exception is an adaptive integrator that asks to step over the
+/// samples ([`crate::Dopri5Options::soft_knots`], a diagnosis re-fit's search): its playback
+/// ([`Playback::over_samples`]) interpolates the smoothed stretches by the spline, whose first
+/// and second derivatives are continuous there ([`PlaybackInput::soft_knot`]), and still stops
+/// at the stretches' edges and on the raw samples. Why a spline there: the smoothed voltage is
+/// band-limited far below the sample rate (4 Hz at 30-60 samples/s), so the spline follows it
+/// at least as well as a line does (a 2 Hz swing at 30 samples/s: 3e-5 against 1.1e-3 of a
+/// 0.05 pu amplitude, `tests/soft_knots.rs`), and the steps are then set by the unit's
+/// dynamics, not by the sample rate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlaybackInput {
     pub time_s: Vec<f64>,
     pub v_mag: Vec<f64>,
     pub v_ang: Vec<f64>,
+    /// The spline's second derivatives and which intervals it covers (`None`: linear
+    /// throughout).
+    spline: Option<InputSpline>,
 }
 
+/// The natural cubic splines of [`PlaybackInput`]'s smoothed stretches.
+#[derive(Debug, Clone, PartialEq)]
+struct InputSpline {
+    /// Second derivatives of |V| and θ at each sample (0 outside the stretches and at their
+    /// ends: natural end conditions).
+    m_mag: Vec<f64>,
+    m_ang: Vec<f64>,
+    /// Whether the interval `[t_k, t_k+1]` is a spline piece.
+    cubic: Vec<bool>,
+}
+
+/// Shortest stretch of smoothed samples interpolated by a spline (shorter ones stay linear).
+const SPLINE_MIN_SAMPLES: usize = 4;
+
 impl PlaybackInput {
-    /// `(|V|, θ)` at `t`, using and updating the search `cursor` (an index hint).
+    /// The input linear between every pair of samples (a record played as recorded).
+    pub fn linear(time_s: Vec<f64>, v_mag: Vec<f64>, v_ang: Vec<f64>) -> Self {
+        Self {
+            time_s,
+            v_mag,
+            v_ang,
+            spline: None,
+        }
+    }
+
+    /// The input with the samples `smoothed` marks (a low-passed record's stretches,
+    /// [`crate::event::smoothing::smoothed_input_marked`]) interpolated by a natural cubic
+    /// spline per run of consecutive marked samples, linear elsewhere.
+    pub fn with_splines(
+        time_s: Vec<f64>,
+        v_mag: Vec<f64>,
+        v_ang: Vec<f64>,
+        smoothed: &[bool],
+    ) -> Self {
+        let n = time_s.len();
+        let mut sp = InputSpline {
+            m_mag: vec![0.0; n],
+            m_ang: vec![0.0; n],
+            cubic: vec![false; n.saturating_sub(1)],
+        };
+        let mut k = 0;
+        while k < n {
+            if !smoothed.get(k).copied().unwrap_or(false) {
+                k += 1;
+                continue;
+            }
+            let a = k;
+            while k < n && smoothed.get(k).copied().unwrap_or(false) {
+                k += 1;
+            }
+            if k - a >= SPLINE_MIN_SAMPLES {
+                let t = &time_s[a..k];
+                natural_spline(t, &v_mag[a..k], &mut sp.m_mag[a..k]);
+                natural_spline(t, &v_ang[a..k], &mut sp.m_ang[a..k]);
+                sp.cubic[a..k - 1].iter_mut().for_each(|c| *c = true);
+            }
+        }
+        let spline = sp.cubic.iter().any(|c| *c).then_some(sp);
+        Self {
+            time_s,
+            v_mag,
+            v_ang,
+            spline,
+        }
+    }
+
+    /// Whether interior sample `k` lies inside a spline stretch (the input has continuous
+    /// first and second derivatives there): [`crate::integrate::OdeSystem::soft_knot`].
+    #[inline]
+    pub fn soft_knot(&self, k: usize) -> bool {
+        self.spline
+            .as_ref()
+            .is_some_and(|s| k > 0 && k < s.cubic.len() && s.cubic[k - 1] && s.cubic[k])
+    }
+
+    /// `(|V|, θ)` at `t`, linear between samples, using and updating the search `cursor` (an
+    /// index hint).
     #[inline(always)]
     pub fn at(&self, t: f64, cursor: &mut usize) -> (f64, f64) {
+        self.interpolate(t, cursor, false)
+    }
+
+    /// [`PlaybackInput::at`] with the spline on the smoothed stretches (linear elsewhere): the
+    /// input of a playback that steps over the samples there.
+    #[inline(always)]
+    pub fn at_spline(&self, t: f64, cursor: &mut usize) -> (f64, f64) {
+        self.interpolate(t, cursor, true)
+    }
+
+    #[inline(always)]
+    fn interpolate(&self, t: f64, cursor: &mut usize, spline: bool) -> (f64, f64) {
         let ts = &self.time_s;
         let n = ts.len();
         if t <= ts[0] {
@@ -892,11 +992,45 @@ impl PlaybackInput {
             k += 1;
         }
         *cursor = k;
-        let w = (t - ts[k]) / (ts[k + 1] - ts[k]);
-        (
-            self.v_mag[k] + w * (self.v_mag[k + 1] - self.v_mag[k]),
-            self.v_ang[k] + w * (self.v_ang[k + 1] - self.v_ang[k]),
-        )
+        let h = ts[k + 1] - ts[k];
+        let w = (t - ts[k]) / h;
+        let lin = |y: &[f64]| y[k] + w * (y[k + 1] - y[k]);
+        match self.spline.as_ref().filter(|_| spline) {
+            Some(s) if s.cubic[k] => {
+                // (A³ − A)·m_k + (B³ − B)·m_k+1, times h²/6, with A = 1 − w, B = w.
+                let a = 1.0 - w;
+                let (ca, cb) = ((a * a - 1.0) * a, (w * w - 1.0) * w);
+                let c = h * h / 6.0;
+                (
+                    lin(&self.v_mag) + c * (ca * s.m_mag[k] + cb * s.m_mag[k + 1]),
+                    lin(&self.v_ang) + c * (ca * s.m_ang[k] + cb * s.m_ang[k + 1]),
+                )
+            }
+            _ => (lin(&self.v_mag), lin(&self.v_ang)),
+        }
+    }
+}
+
+/// The second derivatives `m` of the natural cubic spline through `(t, y)` (`m` = 0 at both
+/// ends), by the tridiagonal system `h_i-1 m_i-1 + 2 (h_i-1 + h_i) m_i + h_i m_i+1 = 6 (Δ_i −
+/// Δ_i-1)` (`Δ_i` the slope of interval `i`), solved by Thomas's algorithm (diagonally
+/// dominant: no pivoting needed).
+fn natural_spline(t: &[f64], y: &[f64], m: &mut [f64]) {
+    let n = t.len();
+    m.iter_mut().for_each(|v| *v = 0.0);
+    if n < 3 {
+        return;
+    }
+    let (mut c, mut d) = (vec![0.0; n], vec![0.0; n]);
+    for i in 1..n - 1 {
+        let (h0, h1) = (t[i] - t[i - 1], t[i + 1] - t[i]);
+        let rhs = 6.0 * ((y[i + 1] - y[i]) / h1 - (y[i] - y[i - 1]) / h0);
+        let diag = 2.0 * (h0 + h1) - h0 * c[i - 1];
+        c[i] = h1 / diag;
+        d[i] = (rhs - h0 * d[i - 1]) / diag;
+    }
+    for i in (1..n - 1).rev() {
+        m[i] = d[i] - c[i] * m[i + 1];
     }
 }
 
@@ -909,6 +1043,9 @@ impl PlaybackInput {
 pub struct Playback<'a> {
     pub unit: &'a mut Unit,
     pub input: &'a PlaybackInput,
+    /// Whether the playback steps over the samples inside the input's spline stretches (and so
+    /// interpolates them by the spline): [`Playback::over_samples`].
+    over_samples: bool,
     cursor: usize,
     bus_t: f64,
     bus_x: Vec<f64>,
@@ -921,11 +1058,20 @@ impl<'a> Playback<'a> {
         Self {
             unit,
             input,
+            over_samples: false,
             cursor: 0,
             bus_t: f64::NAN,
             bus_x: vec![0.0; n],
             bus_valid: false,
         }
+    }
+
+    /// The playback for an integrator that steps over soft knots
+    /// ([`crate::Dopri5Options::soft_knots`]): the input is the spline on its smoothed
+    /// stretches, whose samples are then soft ([`PlaybackInput::soft_knot`]).
+    pub fn over_samples(mut self, yes: bool) -> Self {
+        self.over_samples = yes;
+        self
     }
     /// Evaluates all signals at `(t, x)` (for recording).
     #[inline]
@@ -933,7 +1079,11 @@ impl<'a> Playback<'a> {
         if self.bus_valid && t == self.bus_t && x == self.bus_x.as_slice() {
             return;
         }
-        let (v, th) = self.input.at(t, &mut self.cursor);
+        let (v, th) = if self.over_samples {
+            self.input.at_spline(t, &mut self.cursor)
+        } else {
+            self.input.at(t, &mut self.cursor)
+        };
         self.unit.set_terminal_voltage(v, th);
         self.unit.eval_outputs(t, x);
         self.bus_t = t;
@@ -964,6 +1114,9 @@ impl OdeSystem for Playback<'_> {
         // Modes (and possibly x) changed: outputs must be recomputed.
         self.bus_valid = false;
         changed
+    }
+    fn soft_knot(&self, k: usize) -> bool {
+        self.over_samples && self.input.soft_knot(k)
     }
 }
 

@@ -112,11 +112,11 @@ fn steady(u: &mut Unit, op: &InitPoint) -> ((f64, String), (f64, String)) {
     let x0 = u.initialise(op).unwrap_or_else(|e| panic!("init: {e}"));
     let w_b = 2.0 * std::f64::consts::PI * u.nominal_hz;
     let t_end = 10.0;
-    let input = PlaybackInput {
-        time_s: vec![0.0, t_end],
-        v_mag: vec![op.v_mag, op.v_mag],
-        v_ang: vec![op.v_ang, op.v_ang + w_b * op.speed_dev * t_end],
-    };
+    let input = PlaybackInput::linear(
+        vec![0.0, t_end],
+        vec![op.v_mag, op.v_mag],
+        vec![op.v_ang, op.v_ang + w_b * op.speed_dev * t_end],
+    );
     let names = u.state_names();
     let signals = u.signal_names().to_vec();
     let theta = u.signal_index("theta_term").unwrap();
@@ -468,11 +468,11 @@ fn ieeet1_dip(set: &[(&str, f64)]) -> (f64, f64, f64) {
         .position(|n| n == "exciter.v_r")
         .unwrap();
     let vr0 = x[k_vr];
-    let input = PlaybackInput {
-        time_s: vec![0.0, 1.0, 1.001, 2.0, 2.001, 4.0],
-        v_mag: vec![p.v_mag, p.v_mag, 0.5, 0.5, 1.15, 1.15],
-        v_ang: vec![p.v_ang; 6],
-    };
+    let input = PlaybackInput::linear(
+        vec![0.0, 1.0, 1.001, 2.0, 2.001, 4.0],
+        vec![p.v_mag, p.v_mag, 0.5, 0.5, 1.15, 1.15],
+        vec![p.v_ang; 6],
+    );
     let knots: Vec<f64> = (0..=4000).map(|k| k as f64 * 1e-3).collect();
     let (mut hi, mut lo) = (f64::MIN, f64::MAX);
     let mut sys = Playback::new(&mut u, &input);

@@ -120,11 +120,11 @@ fn worst_derivative(u: &mut Unit, op: &InitPoint) -> (f64, String) {
         .initialise(op)
         .unwrap_or_else(|e| panic!("init failed: {e}"));
     let w_b = 2.0 * std::f64::consts::PI * 60.0;
-    let input = PlaybackInput {
-        time_s: vec![0.0, 1.0],
-        v_mag: vec![op.v_mag, op.v_mag],
-        v_ang: vec![op.v_ang, op.v_ang + w_b * op.speed_dev],
-    };
+    let input = PlaybackInput::linear(
+        vec![0.0, 1.0],
+        vec![op.v_mag, op.v_mag],
+        vec![op.v_ang, op.v_ang + w_b * op.speed_dev],
+    );
     let names = u.state_names();
     let mut sys = Playback::new(u, &input);
     let mut dx = vec![0.0; x.len()];

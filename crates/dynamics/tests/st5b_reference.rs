@@ -102,11 +102,7 @@ fn compare(name: &str) -> (f64, f64) {
         speed_dev: 0.0,
     };
     let mut x = u.initialise(&op).unwrap();
-    let input = PlaybackInput {
-        time_s: t.clone(),
-        v_mag: v_t,
-        v_ang: vec![0.0; t.len()],
-    };
+    let input = PlaybackInput::linear(t.clone(), v_t, vec![0.0; t.len()]);
     let iefd = u.signal_index("efd").unwrap();
     let efd_ref = c.col("efd");
     let method = Method::Dopri5(Dopri5Options {

@@ -53,7 +53,12 @@ fn methods(ev: &PreparedEvent) -> Vec<Method> {
     .unwrap();
     vec![
         Method::Rk4 { h: 2e-3 },
-        Method::Dopri5(opts),
+        Method::Dopri5(opts.clone()),
+        // The samples observed on the dense output (the smoothed input's spline).
+        Method::Dopri5(Dopri5Options {
+            soft_knots: true,
+            ..opts
+        }),
         Method::Replay(logged.times()),
     ]
 }

@@ -7,11 +7,12 @@ use crate::bounds::{clamp_into, datasheet_prior, BoundError, PriorSource};
 use crate::evidence;
 use crate::fit::{search, FitOptions, Progress};
 use crate::problem::{
-    accurate_integrator, search_integrator, sum_of_squares, EventData, FreeParam, Problem,
-    SimulatedPq, WindowSums,
+    accurate_integrator, refit_search_integrator, search_integrator, sum_of_squares, EventData,
+    FreeParam, Problem, SimulatedPq, WindowSums,
 };
 use crate::spec::{Compare, Strategy};
 use itaipu_dynamics::event::Event;
+use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::unit::{ParamRef, Unit};
 
 use super::*;
@@ -140,8 +141,7 @@ pub(super) fn resolve(unit: &Unit, bounds: &[FreeBound]) -> Result<Vec<FreeParam
 /// start: jointly on their grid product when it is small (limits and time constants that trade
 /// against each other along a curved valley), otherwise one at a time with the others at their
 /// start. The best grid point becomes the start when it improves on it.
-pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)]) {
-    let sim = search_integrator();
+pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)], sim: &SimOptions) {
     let scanned: Vec<(usize, Vec<f64>)> = scans
         .iter()
         .map(|&(jj, n)| {
@@ -364,12 +364,18 @@ pub(super) fn refit(
             record(name, ph.wall_s, ph.simulations);
         }
     };
+    // The searches' playbacks ([`DiagnoseOptions::refit_over_samples`]).
+    let search_sim = if opts.refit_over_samples {
+        refit_search_integrator()
+    } else {
+        search_integrator()
+    };
     let timed_scan = |problem: &mut Problem, scans: &[(usize, usize)]| {
         if scans.is_empty() {
             return;
         }
         let (t0, s0) = (std::time::Instant::now(), problem.simulations());
-        scan(problem, scans);
+        scan(problem, scans, &search_sim);
         record(
             "grid scan",
             t0.elapsed().as_secs_f64(),
@@ -398,6 +404,7 @@ pub(super) fn refit(
         local_starts: 1,
         // No joint pass: a re-fit is one pass (`polish` off).
         joint_pso_iterations: None,
+        swarm_integrator: search_sim.clone(),
     };
     let mut x: Vec<f64> = free.iter().map(|f| f.start).collect();
     let mut simulations = 0;

@@ -87,6 +87,9 @@ pub struct FitOptions {
     /// Swarm iterations of the joint pass (`[calibration.pso] joint_iterations`); `None`: the
     /// stages' [`FitOptions::pso_iterations`] ([`FitOptions::joint_pass`]).
     pub joint_pso_iterations: Option<usize>,
+    /// The swarm's playbacks: [`crate::problem::search_integrator`] in a calibration,
+    /// [`crate::problem::refit_search_integrator`] in a diagnosis re-fit.
+    pub swarm_integrator: itaipu_dynamics::simulate::SimOptions,
 }
 
 impl FitOptions {
@@ -135,6 +138,7 @@ impl FitOptions {
             polish: spec.polish,
             local: spec.local,
             lm_stop: local::LmStop::CALIBRATION,
+            swarm_integrator: crate::problem::search_integrator(),
         }
     }
 }
@@ -458,5 +462,6 @@ pub fn quick_options(stages: &[&str], seed: u64) -> FitOptions {
         lm_stop: local::LmStop::CALIBRATION,
         local_starts: 1,
         joint_pso_iterations: None,
+        swarm_integrator: crate::problem::search_integrator(),
     }
 }

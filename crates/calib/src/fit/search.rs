@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 
 use crate::local;
-use crate::problem::{accurate_integrator, search_integrator, Problem};
+use crate::problem::{accurate_integrator, Problem};
 use crate::pso::{self, PsoOptions};
 use crate::spec::LocalMethod;
 use itaipu_dynamics::integrate::Method;
@@ -47,7 +47,7 @@ pub(crate) fn search(
     if use_pso && n > 0 && opts.pso_iterations > 0 {
         let (t0, sims0) = (std::time::Instant::now(), problem.simulations());
         progress.phase(stage, "pso", opts.pso_iterations as u64);
-        let sim = search_integrator();
+        let sim = &opts.swarm_integrator;
         let pso_opts = PsoOptions {
             particles: opts.particles,
             iterations: opts.pso_iterations,
@@ -66,7 +66,7 @@ pub(crate) fn search(
         // Each candidate is simulated only as far as it can still beat its particle's best
         // (`Problem::cost_bounded`): the swarm is bit for bit the one with whole playbacks.
         let res = pso::minimize_bounded(
-            |u: &[f64], bound: f64| problem.cost_bounded(&problem.from_unit(u), &sim, bound),
+            |u: &[f64], bound: f64| problem.cost_bounded(&problem.from_unit(u), sim, bound),
             n,
             u0.as_deref(),
             &pso_opts,

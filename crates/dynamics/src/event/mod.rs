@@ -612,10 +612,22 @@ impl Event {
     /// The |V| and angle the playback plays: the record's, low-passed between its
     /// discontinuities where [`Event::input_lowpass_hz`] asks for it.
     pub fn playback_voltage(&self) -> (Vec<f64>, Vec<f64>) {
+        let input = self.playback_input();
+        (input.v_mag, input.v_ang)
+    }
+
+    /// The input the playback interpolates: [`Event::playback_voltage`] at the record's
+    /// stamps, linear between them, with the natural cubic spline through its smoothed
+    /// stretches for a playback that steps over their samples ([`crate::unit::PlaybackInput`]).
+    pub fn playback_input(&self) -> crate::unit::PlaybackInput {
         let r = &self.record;
-        self.input_lowpass_hz
-            .and_then(|fc| smoothing::smoothed_input(&r.time_s, &r.v_mag_pu, &r.v_ang_rad, fc).ok())
-            .unwrap_or_else(|| (r.v_mag_pu.clone(), r.v_ang_rad.clone()))
+        let t = r.time_s.clone();
+        match self.input_lowpass_hz.and_then(|fc| {
+            smoothing::smoothed_input_marked(&r.time_s, &r.v_mag_pu, &r.v_ang_rad, fc).ok()
+        }) {
+            Some((m, a, smoothed)) => crate::unit::PlaybackInput::with_splines(t, m, a, &smoothed),
+            None => crate::unit::PlaybackInput::linear(t, r.v_mag_pu.clone(), r.v_ang_rad.clone()),
+        }
     }
 
     /// Whether the record holds the voltage angle (a phasor record).

@@ -118,18 +118,9 @@ fn smooth_between(
     fs: f64,
     cutoff_hz: f64,
 ) -> Result<Vec<f64>, FilterError> {
-    let pad = (SETTLE * fs / cutoff_hz).ceil() as usize;
+    let pad = pad_samples(fs, cutoff_hz);
     let mut out = x.to_vec();
-    let mut k = 0;
-    while k < x.len() {
-        if raw[k] {
-            k += 1;
-            continue;
-        }
-        let start = k;
-        while k < x.len() && !raw[k] {
-            k += 1;
-        }
+    for (start, k) in stretches(raw) {
         if k - start > pad {
             out[start..k].copy_from_slice(&lowpass_zero_phase_padded(
                 &x[start..k],
@@ -165,6 +156,20 @@ pub fn smoothed_input(
     v_ang: &[f64],
     cutoff_hz: f64,
 ) -> Result<(Vec<f64>, Vec<f64>), FilterError> {
+    smoothed_input_marked(time_s, v_mag, v_ang, cutoff_hz).map(|(m, a, _)| (m, a))
+}
+
+/// [`smoothed_input`] with the samples it smoothed marked `true` (those it kept raw: the
+/// edges, their margins and the stretches too short to filter, `false`).
+///
+/// # Errors
+/// As [`smoothed_input`].
+pub fn smoothed_input_marked(
+    time_s: &[f64],
+    v_mag: &[f64],
+    v_ang: &[f64],
+    cutoff_hz: f64,
+) -> Result<(Vec<f64>, Vec<f64>, Vec<bool>), FilterError> {
     let fs = check(time_s, cutoff_hz)?;
     // An edge in either channel (a fault moves both) keeps both raw there.
     let raw: Vec<bool> = edge_samples(v_mag)
@@ -172,10 +177,41 @@ pub fn smoothed_input(
         .zip(edge_samples(v_ang))
         .map(|(a, b)| *a || b)
         .collect();
+    let pad = pad_samples(fs, cutoff_hz);
+    let mut smoothed = vec![false; raw.len()];
+    for (a, b) in stretches(&raw) {
+        if b - a > pad {
+            smoothed[a..b].iter_mut().for_each(|s| *s = true);
+        }
+    }
     Ok((
         smooth_between(v_mag, &raw, fs, cutoff_hz)?,
         smooth_between(v_ang, &raw, fs, cutoff_hz)?,
+        smoothed,
     ))
+}
+
+/// The padding and shortest smoothed stretch in samples ([`SETTLE`] cut-off periods).
+fn pad_samples(fs: f64, cutoff_hz: f64) -> usize {
+    (SETTLE * fs / cutoff_hz).ceil() as usize
+}
+
+/// The runs `[a, b)` of samples not marked `raw`.
+fn stretches(raw: &[bool]) -> Vec<(usize, usize)> {
+    let mut out = vec![];
+    let mut k = 0;
+    while k < raw.len() {
+        if raw[k] {
+            k += 1;
+            continue;
+        }
+        let start = k;
+        while k < raw.len() && !raw[k] {
+            k += 1;
+        }
+        out.push((start, k));
+    }
+    out
 }
 
 #[cfg(test)]

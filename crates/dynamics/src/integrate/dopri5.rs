@@ -158,6 +158,8 @@ impl Dopri5 {
         O: FnMut(usize, f64, &[f64], &mut S) -> G,
         G: GoOn,
     {
+        // A logged run lands on every knot, as its replay does.
+        let soft = self.opts.soft_knots && log.is_none();
         let rule = Adaptive {
             opts: &self.opts,
             // The first step is set by `begin` (Hairer's `hinit` needs f at the start).
@@ -170,7 +172,7 @@ impl Dopri5 {
             shortened: false,
             log,
         };
-        drive(sys, x, knots, observer, rule)
+        drive(sys, x, knots, observer, rule, soft)
     }
 }
 
@@ -283,13 +285,15 @@ impl StepRule for Replayed<'_> {
 }
 
 /// The Dormand-Prince run over `knots` with the steps `rule` chooses (see [`super::solve`] for
-/// the contract).
+/// the contract); with `soft`, the steps pass the soft knots and observe them on their dense
+/// output ([`Dopri5Options::soft_knots`]).
 fn drive<S, O, R, G>(
     sys: &mut S,
     x: &mut [f64],
     knots: &[f64],
     mut observer: O,
     mut rule: R,
+    soft: bool,
 ) -> Result<Stats, SolveError>
 where
     S: OdeSystem,
@@ -312,22 +316,85 @@ where
     events.restart(sys, t, x);
     stats.rhs_evals += 1;
     rule.begin(sys, &mut step, &mut stats);
-    for (k, &t_knot) in knots.iter().enumerate().skip(1) {
-        while t < t_knot {
-            let t1 = rule.next_end(t, t_knot, &stats)?;
+    let mut passed = Passed::new(x.len());
+    let mut next = 1;
+    while next < knots.len() {
+        // The steps end on the next knot the right-hand side is not smooth across; the soft
+        // knots before it are observed on the steps' dense output as the steps pass them.
+        let mut hard = next;
+        while soft && hard + 1 < knots.len() && sys.soft_knot(hard) {
+            hard += 1;
+        }
+        let t_hard = knots[hard];
+        passed.upto = hard;
+        passed.next = next;
+        while t < t_hard {
+            let t1 = rule.next_end(t, t_hard, &stats)?;
             step.attempt(sys, t1);
             stats.rhs_evals += 6;
             if !rule.keep(&step, t, t1, &mut stats) {
                 continue;
             }
-            t = accept(sys, &mut step, &mut events, &mut stats, t1, x)?;
+            t = accept(
+                sys,
+                &mut step,
+                &mut events,
+                &mut stats,
+                t1,
+                x,
+                (knots, &mut passed),
+            )?;
             rule.accepted(t);
+            for j in 0..passed.ks.len() {
+                let k = passed.ks[j];
+                let n = x.len();
+                if !observer(k, knots[k], &passed.xs[j * n..(j + 1) * n], sys).go_on() {
+                    return Err(SolveError::Stopped { t: knots[k] });
+                }
+            }
         }
-        if !observer(k, t_knot, x, sys).go_on() {
-            return Err(SolveError::Stopped { t: t_knot });
+        if !observer(hard, t_hard, x, sys).go_on() {
+            return Err(SolveError::Stopped { t: t_hard });
         }
+        next = hard + 1;
     }
     Ok(stats)
+}
+
+/// The soft knots a step passed ([`OdeSystem::soft_knot`]), with their states from the step's
+/// dense output, for the observer: knots `next..upto` are still to pass.
+struct Passed {
+    next: usize,
+    upto: usize,
+    ks: Vec<usize>,
+    xs: Vec<f64>,
+    buf: Vec<f64>,
+}
+
+impl Passed {
+    fn new(n: usize) -> Self {
+        Self {
+            next: 0,
+            upto: 0,
+            ks: vec![],
+            xs: vec![],
+            buf: vec![0.0; n],
+        }
+    }
+
+    /// Takes the knots up to `t_end` (inclusive) from the step just made, before it advances.
+    fn take(&mut self, knots: &[f64], step: &Dopri5Step, t_end: f64) {
+        self.ks.clear();
+        self.xs.clear();
+        let (t0, h) = (step.t(), step.h());
+        while self.next < self.upto && knots[self.next] <= t_end {
+            let k = self.next;
+            step.dense(((knots[k] - t0) / h).clamp(0.0, 1.0), &mut self.buf);
+            self.ks.push(k);
+            self.xs.extend_from_slice(&self.buf);
+            self.next += 1;
+        }
+    }
 }
 
 /// Accepts the step just attempted from `step.t()` to `t1`: an event crossing inside it ends
@@ -341,6 +408,7 @@ fn accept<S: OdeSystem>(
     stats: &mut Stats,
     t1: f64,
     x: &mut [f64],
+    (knots, passed): (&[f64], &mut Passed),
 ) -> Result<f64, SolveError> {
     let t = step.t();
     check_finite(t1, step.x_end())?;
@@ -362,6 +430,7 @@ fn accept<S: OdeSystem>(
         }
     }
     stats.steps_accepted += 1;
+    passed.take(knots, step, t_end);
     step.advance();
     x.copy_from_slice(step.x_start());
     if fire {
@@ -407,7 +476,7 @@ where
         tiny: 1e3 * f64::EPSILON * span.max(1.0),
         max_steps: 2 * ends.len() + 2 * knots.len() + 1000,
     };
-    drive(sys, x, knots, observer, rule)
+    drive(sys, x, knots, observer, rule, false)
 }
 
 /// The first and last knot (`None` without knots: [`drive`] refuses them before any step).

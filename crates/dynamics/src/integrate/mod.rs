@@ -13,7 +13,10 @@
 //! knot: no step straddles a knot. Playback inputs are interpolated linearly between samples, so
 //! the right-hand side is smooth inside an interval and only continuous at the knots; stopping
 //! there keeps the error estimate honest. The observer is called at every knot (including the
-//! first) with the state there.
+//! first) with the state there. The one exception: a knot the system declares soft
+//! ([`OdeSystem::soft_knot`]: the input is a cubic spline there, a low-passed record's), which
+//! Dormand-Prince steps over, observing it on the step's dense output (fourth order: its error
+//! is of the step's own order, within the tolerance); RK4 still lands on it.
 //!
 //! **Discrete modes (limiters).** A system may expose event functions `g_i(t, x)`
 //! ([`OdeSystem::n_events`], [`OdeSystem::events`]). While a step is taken the system's modes
@@ -61,6 +64,14 @@ pub trait OdeSystem {
     /// Called at a located event and once before the first step: re-evaluates modes from the
     /// state, may project `x` (e.g. onto a limit). Returns `true` if a mode or `x` changed.
     fn handle_event(&mut self, _t: f64, _x: &mut [f64]) -> bool {
+        false
+    }
+
+    /// Whether the right-hand side is smooth across interior knot `k` (the input interpolated
+    /// by one polynomial piece on each side with continuous first and second derivatives): the
+    /// adaptive integrator may then step over it and hand the observer the state there from the
+    /// step's dense output ([`dopri5`]). `false` (the default) stops a step on every knot.
+    fn soft_knot(&self, _k: usize) -> bool {
         false
     }
 }
@@ -167,6 +178,14 @@ pub struct Dopri5Options {
     pub h_init: f64,
     /// Give up after this many steps (accepted + rejected).
     pub max_steps: usize,
+    /// Step over the knots the system declares soft ([`OdeSystem::soft_knot`]: inside a
+    /// smoothed input's spline), observing them on the steps' dense output, instead of ending a
+    /// step on every knot. For searches, which need a candidate's ranking, not its last digit:
+    /// the steps are then set by the dynamics, not by the sample rate. Off by default, and
+    /// ignored by a logged run ([`Method::Dopri5Logged`]), whose replay lands on every knot:
+    /// every derivative the project takes (sensitivities, replayed differences) is of the
+    /// knot-landing map, where the jump at a located switch is exact to the step's order.
+    pub soft_knots: bool,
 }
 
 impl Default for Dopri5Options {
@@ -177,6 +196,7 @@ impl Default for Dopri5Options {
             h_max: 0.1,
             h_init: 0.0,
             max_steps: 5_000_000,
+            soft_knots: false,
         }
     }
 }
