@@ -167,11 +167,11 @@ pub struct DiagnoseOptions {
     /// smoothed input's spline ([`crate::problem::refit_search_integrator`]) instead of landing
     /// on every sample ([`crate::problem::search_integrator`]); the local method, every χ²
     /// and every reported number are unchanged in kind. Off by default: measured on the 66
-    /// practice records (README, "The played-back voltage's noise"), the diagnosis median
-    /// 24.4 → 21.0 s and its maximum 63.1 → 44.6 s, every verdict and grade the same, but one
-    /// OEL re-fit (q36) ended in a valley 120 χ² units worse, its pickup 2.79 pu for 1.80: a
-    /// search landing elsewhere, which the default must not risk before the re-fits' searches
-    /// are made robust to it.
+    /// practice records (README, "The played-back voltage's noise"), every verdict and grade
+    /// the same and 10-19 % less diagnosis time (four records, idle), but one OEL re-fit (q36)
+    /// ended in a valley 120 χ² units worse, its pickup 2.79 pu for 1.80: its search ranked on
+    /// the spline what its local method polished on the line, which the default must not risk
+    /// before every playback of a smoothed record plays one input.
     pub refit_over_samples: bool,
     /// Also try the bundled effects outside the catalog ([`look_alike`]) in a full diagnosis
     /// (`causes` empty) where a candidate is significant: a residual one of them explains
