@@ -448,18 +448,22 @@ pub fn search_integrator() -> SimOptions {
 /// Integrator of a diagnosis re-fit's searches (swarms and grid scans) with
 /// [`crate::diagnose::DiagnoseOptions::refit_over_samples`]: [`search_integrator`] stepping over
 /// the samples inside a smoothed input's spline ([`Dopri5Options::soft_knots`]), observing them
-/// on the steps' dense output. The steps are then set by the unit's dynamics,
-/// not by the sample rate: on the bundled p01 with its nominal unit 58 % of the right-hand
-/// sides landing on every sample takes, on the synthetic 20 s dip 39 %
-/// (`dynamics/tests/soft_knots.rs`). Its J is within 1.8e-3 of [`accurate_integrator`]'s on p01
-/// (`tests/objective.rs`): the spline departs from the line between samples where the angle
-/// swings after a fault, and the χ² a re-fit reports is taken on the line. A re-fit searches around a calibrated unit (the option is off by
-/// default: README, "The played-back voltage's noise"); a calibration's swarm keeps
-/// [`search_integrator`]: it crosses the whole box, near-degenerate machines included,
-/// whose stiff playbacks its step budget was set to fail (practice p03: after a generator
-/// stage ending at X'_d = X''_d = X_l, every AVR candidate took 23 400 to 25 200 steps landing
-/// on the samples, mostly failed by the budget, and 22 000 stepping over them, all simulated:
-/// the fit 31 s → 160 s for the same J).
+/// on the steps' dense output.
+///
+/// The rule that allows it: a record low-passed at `f_c` well below its Nyquist frequency is
+/// band-limited, so the spline through its samples follows it (its error falls as `(f_c/f_s)⁴`,
+/// the line's as `(f_c/f_s)²`) and has continuous first and second derivatives at them; the
+/// steps are then set by the error control on the unit's own dynamics instead of by the sample
+/// spacing. Its cost: its J is not the line's (the spline departs from the line between samples
+/// where the angle swings after a fault), and the χ² a re-fit reports is taken on the line; the
+/// measured saving and the departure on both practice sets are in the README ("The played-back
+/// voltage's noise", "Between the samples").
+///
+/// Why a calibration's swarm keeps [`search_integrator`]: its step budget is a multiple of what
+/// a playback landing on every sample takes, set to fail the stiff and chattering candidates a
+/// swarm over the whole box meets (near-degenerate machines). Stepping over the samples lowers
+/// every candidate's step count, the stiff ones' included, so the same budget no longer fails
+/// them; a budget for this integrator would have to be derived again from its own step counts.
 pub fn refit_search_integrator() -> SimOptions {
     let Method::Dopri5(o) = search_integrator().method else {
         unreachable!("the search integrator is Dormand-Prince")

@@ -166,12 +166,12 @@ pub struct DiagnoseOptions {
     /// Let the re-fits' searches (swarms and grid scans) step over the samples inside a
     /// smoothed input's spline ([`crate::problem::refit_search_integrator`]) instead of landing
     /// on every sample ([`crate::problem::search_integrator`]); the local method, every χ²
-    /// and every reported number are unchanged in kind. Off by default: measured on the 66
-    /// practice records (README, "The played-back voltage's noise"), every verdict and grade
-    /// the same and 10-19 % less diagnosis time (four records, idle), but one OEL re-fit (q36)
-    /// ended in a valley 120 χ² units worse, its pickup 2.79 pu for 1.80: its search ranked on
-    /// the spline what its local method polished on the line, which the default must not risk
-    /// before every playback of a smoothed record plays one input.
+    /// and every reported number are unchanged in kind. Off by default: the search would rank
+    /// on the spline what the local method polishes on the line, two inputs whose J differ
+    /// after a fault by more than the gains a re-fit compares, so a search may hand the local
+    /// method another valley than it would on the line (measured on both practice sets, with
+    /// the verdicts, keys and times: README, "The played-back voltage's noise"). It can be the
+    /// default once every playback of a smoothed record plays one input.
     pub refit_over_samples: bool,
     /// Also try the bundled effects outside the catalog ([`look_alike`]) in a full diagnosis
     /// (`causes` empty) where a candidate is significant: a residual one of them explains

@@ -612,8 +612,10 @@ impl Event {
     /// The |V| and angle the playback plays: the record's, low-passed between its
     /// discontinuities where [`Event::input_lowpass_hz`] asks for it.
     pub fn playback_voltage(&self) -> (Vec<f64>, Vec<f64>) {
-        let input = self.playback_input();
-        (input.v_mag, input.v_ang)
+        let r = &self.record;
+        self.input_lowpass_hz
+            .and_then(|fc| smoothing::smoothed_input(&r.time_s, &r.v_mag_pu, &r.v_ang_rad, fc).ok())
+            .unwrap_or_else(|| (r.v_mag_pu.clone(), r.v_ang_rad.clone()))
     }
 
     /// The input the playback interpolates: [`Event::playback_voltage`] at the record's
