@@ -409,3 +409,59 @@ fn a_cause_file_can_ask_for_the_datasheet_start_of_a_limit() {
     assert!(read("uel.toml").extend(&base, &ctx).unwrap().from_datasheet);
     assert!(!droop().extend(&base, &ctx).unwrap().from_datasheet);
 }
+
+/// A cause file can declare the highest frequency its extension must reproduce
+/// (`band_top_hz`), as the catalog's shaft mode does: above the events' input cut-off its
+/// re-fits play the record as recorded, below it (or undeclared) the smoothed one; a value
+/// that is no positive number of hertz is refused naming the field.
+#[test]
+fn a_cause_file_can_declare_a_band_above_the_input_cut_off() {
+    let text = std::fs::read_to_string(data("causes/reactive_droop.toml")).unwrap();
+    let path = data("causes/declared.toml");
+    let with_band = |id: &str, band: &str| {
+        UserCause::parse(
+            &text.replace(
+                "id = \"reactive_droop\"",
+                &format!("id = \"{id}\"\nband_top_hz = {band}"),
+            ),
+            &path,
+        )
+    };
+    for bad in ["-3.0", "0", "\"12\"", "nan"] {
+        let e = with_band("fast_droop", bad).expect_err(bad).to_string();
+        assert!(
+            e.contains("band_top_hz") && e.contains("positive number of hertz"),
+            "{bad}: {e}"
+        );
+    }
+    let fast = with_band("fast_droop", "12.0").unwrap();
+    let slow = with_band("slow_droop", "2").unwrap();
+    let base = base_unit();
+    let ev = dip_event(&base, 5);
+    let cutoff = ev
+        .input_lowpass_hz
+        .expect("a trial record is played back smoothed");
+    assert!(2.0 < cutoff && cutoff < 12.0, "cut-off {cutoff} Hz");
+    let opts = DiagnoseOptions {
+        causes: vec![
+            "fast_droop".into(),
+            "slow_droop".into(),
+            "reactive_droop".into(),
+        ],
+        user_causes: vec![fast, slow, droop()],
+        look_alikes: false,
+        seed: 5,
+        ..Default::default()
+    };
+    let res = diagnose(&base, std::slice::from_ref(&ev), &[], &opts, &Silent).unwrap();
+    for c in &res.report.candidates {
+        assert!(c.applicable, "{}: {}", c.cause, c.note);
+        assert_eq!(
+            c.input_as_recorded,
+            c.cause == "fast_droop",
+            "{}: input as recorded {}",
+            c.cause,
+            c.input_as_recorded
+        );
+    }
+}

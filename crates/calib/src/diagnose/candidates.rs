@@ -241,8 +241,7 @@ impl Candidates<'_> {
         // The record as recorded for a cause whose mode lies above the input's cut-off, with
         // its baselines and surrogates played alike (cached apart from the others').
         let recorded = self.recorded.filter(|r| {
-            cause
-                .and_then(|c| c.band_top_hz(&r.ctx))
+            user_cause::band_top_hz(id, &r.ctx, &self.env.opts.user_causes)
                 .is_some_and(|top| r.cutoff_hz < top)
         });
         let (env, sp_null, sp_segments, ctx, evidence_before, key_prefix) = match recorded {

@@ -717,8 +717,7 @@ fn diagnose_run(
     // when some cause's band reaches above the events' cut-off.
     let band_top = ids
         .iter()
-        .filter_map(|id| catalog::cause(id))
-        .filter_map(|c| c.band_top_hz(&ctx))
+        .filter_map(|id| user_cause::band_top_hz(id, &ctx, &run_opts.user_causes))
         .reduce(f64::max);
     let recorded = RecordedInput::new(
         events,

@@ -12,6 +12,10 @@
 //! search_factor = 1                       # optional: longer swarm for this cause
 //! from_datasheet = false                  # optional: a limit's re-fit also starts from the
 //!                                         # datasheet values (Extension::from_datasheet)
+//! band_top_hz = 12.0                      # optional: the highest frequency its extension's
+//!                                         # dynamics must reproduce [Hz] (Cause::band_top_hz):
+//!                                         # above the events' input cut-off, its re-fits play
+//!                                         # the record as recorded
 //! [[block]]                               # one or more, as in a unit file's [[block]]
 //! name = "droop"
 //! model = "diagram"                       # or a library model
@@ -76,6 +80,9 @@ pub struct UserCause {
     search_factor: usize,
     /// The re-fit also starts from the datasheet values ([`Extension::from_datasheet`]).
     from_datasheet: bool,
+    /// The highest frequency the extension's dynamics must reproduce [Hz], as a catalog
+    /// cause's [`catalog::Cause::band_top_hz`] (`None`: the control band).
+    band_top_hz: Option<f64>,
     /// `(instance name, section, field prefix)`.
     blocks: Vec<(String, toml::Table, String)>,
     rewire: Vec<(String, Vec<(String, String)>)>,
@@ -128,6 +135,7 @@ impl UserCause {
             "extension",
             "search_factor",
             "from_datasheet",
+            "band_top_hz",
             "block",
             "rewire",
             "free",
@@ -181,6 +189,20 @@ impl UserCause {
             None => false,
             Some(toml::Value::Boolean(b)) => *b,
             Some(_) => return Err(err("from_datasheet", "must be true or false".into())),
+        };
+        // A mode the re-fits must reproduce: positive and finite (whether it lies above an
+        // event's cut-off is decided per event).
+        let band_top_hz = match t.get("band_top_hz") {
+            None => None,
+            Some(v) => match v.as_float().or_else(|| v.as_integer().map(|n| n as f64)) {
+                Some(f) if f.is_finite() && f > 0.0 => Some(f),
+                _ => {
+                    return Err(err(
+                        "band_top_hz",
+                        "must be a positive number of hertz".into(),
+                    ))
+                }
+            },
         };
 
         // Blocks: each built once here, so that a bad one is refused when the file is read.
@@ -306,6 +328,7 @@ impl UserCause {
             path: path.into(),
             search_factor,
             from_datasheet,
+            band_top_hz,
             blocks,
             rewire,
             free,
@@ -608,6 +631,15 @@ pub fn describe(id: &str, users: &[UserCause]) -> Option<(String, String)> {
         .iter()
         .find(|u| u.id == id)
         .map(|u| (u.title.clone(), u.extension.clone()))
+}
+
+/// The highest frequency cause `id`'s extension must reproduce [Hz]: a catalog cause's
+/// [`catalog::Cause::band_top_hz`], a user cause's declared `band_top_hz`.
+pub fn band_top_hz(id: &str, ctx: &Context, users: &[UserCause]) -> Option<f64> {
+    match users.iter().find(|u| u.id == id) {
+        Some(u) => u.band_top_hz,
+        None => catalog::cause(id).and_then(|c| c.band_top_hz(ctx)),
+    }
 }
 
 /// [`catalog::extend_all`] for a catalog cause (every variant), [`UserCause::extend`] for a
