@@ -399,7 +399,7 @@ fn print_report(r: &Diagnosis) {
     println!("{}", wrap(&noise, WIDTH, "noise    ", "         "));
     println!();
     println!(
-        "candidates (* = significant, ranked by the extended model's BIC; the others by ΔBIC; ~ = a look-alike outside the catalog, never named)"
+        "candidates (* = significant, ranked by the extended model's BIC; the others by ΔBIC; ! = passed the test, refused by a rule in its note; ~ = a look-alike outside the catalog, never named)"
     );
     println!(
         "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>2} {:1}  key parameters / note",
@@ -421,7 +421,13 @@ fn print_report(r: &Diagnosis) {
                 pct(g.fit_drop),
                 pct(g.held_drop),
                 g.k,
-                if c.significant { "*" } else { "" }
+                if c.significant {
+                    "*"
+                } else if c.passed_test {
+                    "!"
+                } else {
+                    ""
+                }
             ),
             None => format!(
                 "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>2} {:1}  ",

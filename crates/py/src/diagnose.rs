@@ -164,7 +164,7 @@ impl PyDiagnosis {
     }
 
     /// The candidates as a pandas DataFrame indexed by cause, in the report's order (columns
-    /// title, applicable, significant, look_alike, note, and the gains: delta_bic, fit_drop, held_drop, ...;
+    /// title, applicable, significant, passed_test, look_alike, note, and the gains: delta_bic, fit_drop, held_drop, ...;
     /// NaN where a cause was not applicable). Needs pandas.
     fn to_pandas<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let empty = vec![];
@@ -178,6 +178,7 @@ impl PyDiagnosis {
                     "title",
                     "applicable",
                     "significant",
+                    "passed_test",
                     "look_alike",
                     "note",
                 ] {

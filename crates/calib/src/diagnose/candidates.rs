@@ -293,6 +293,7 @@ impl Candidates<'_> {
             fixed: vec![],
             gains: None,
             significant: false,
+            passed_test: false,
             look_alike: false,
             by_evidence: false,
             signature: cause.map_or_else(Vec::new, |c| c.signature(evidence_before, ctx)),
@@ -568,6 +569,7 @@ impl Candidates<'_> {
             rms_q_ext,
         };
         rep.significant = passes(net_fit, net_held);
+        rep.passed_test = rep.significant;
         // The re-fit's free parameters (the extension's first), resolved once.
         let free = resolve(&ext.unit, &bounds).unwrap_or_default();
         let fitted: Vec<(String, f64)> = free

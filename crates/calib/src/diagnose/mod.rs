@@ -51,7 +51,9 @@
 //!    competitors. A named cause carries its posterior probability and a grade ([`Grade`]).
 //!    With no significant candidate the verdict is `none` (residual RMS within `noise_factor`
 //!    of the noise floor) or `unexplained` (with the window and signal where the residual
-//!    lives). In a full diagnosis where a candidate is significant, the bundled effects outside
+//!    lives); a candidate that passed the statistical test and was refused by the physical
+//!    checks above ([`CandidateReport::passed_test`]) makes it `unexplained` at the floor too
+//!    (an effect is there that the catalog does not name). In a full diagnosis where a candidate is significant, the bundled effects outside
 //!    the catalog ([`look_alike`]: a reactive droop, a transducer lag, a speed filter, a PSS
 //!    lead-lag, a UEL) are scored too and ranked with the others, never named: when one is the
 //!    best the verdict is `unexplained` (what the residual looks like, and the cause file that
@@ -373,6 +375,13 @@ pub struct CandidateReport {
     pub fixed: Vec<(String, f64)>,
     pub gains: Option<Gains>,
     pub significant: bool,
+    /// Its gain passed the statistical test (the fitted and held-out drops and the record's
+    /// evidence, as step 6 states them), whatever the physical checks then said. One that
+    /// passed and is not `significant` was refused by them (`note`: a fitted value no unit of
+    /// its cause has, an extension pressed against its range, a minority of the misfit): the
+    /// record holds an effect at least as large as the test can tell from noise, which this
+    /// cause is not.
+    pub passed_test: bool,
     /// A bundled effect outside the catalog ([`look_alike`]): tried against the others, never
     /// named.
     pub look_alike: bool,
@@ -757,9 +766,10 @@ fn diagnose_run(
         reports.push(rep);
     }
     // 4b. The look-alikes, after every cause that can be named (whose scores they leave as they
-    //     are), and only when one of those is significant: without a name to guard they could
-    //     only turn `none` or `unexplained` into `unexplained`.
-    if reports.iter().any(|r| r.significant) {
+    //     are), and only when one of those passed its test (significant, or refused by its
+    //     physical checks: then the verdict is `unexplained` and a look-alike may say what the
+    //     residual looks like): otherwise they could only turn `none` into `unexplained`.
+    if reports.iter().any(|r| r.significant || r.passed_test) {
         for l in &look_alikes {
             interrupted(opts, &reports)?;
             let (mut rep, _) = candidates.score(&l.id);

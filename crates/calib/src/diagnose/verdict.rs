@@ -48,7 +48,11 @@ fn top_window(s: &SignalEvidence) -> Option<&crate::evidence::WindowStats> {
 }
 
 /// The verdict when no cause is significant: `none` at the noise floor, else `unexplained`
-/// with where the residual lives.
+/// with where the residual lives. A candidate whose gain passed the statistical test and was
+/// refused by its physical checks ([`CandidateReport::passed_test`]) makes it `unexplained` at
+/// the noise floor too: the test that would have named a cause says an effect is there (its
+/// false-alarm rate is the naming's own, whatever refused the name), and the check says it is
+/// not that cause, so "the model needs no extension" would be false.
 pub(super) fn undecided(
     ev: &[EventEvidence],
     compared: &[&str],
@@ -112,7 +116,49 @@ pub(super) fn undecided(
     } else {
         ""
     };
-    if over <= opts.noise_factor {
+    // The refused candidate with the largest evidence (the reports are ranked by ΔBIC).
+    let refused = reports
+        .iter()
+        .filter(|r| r.passed_test && !r.significant)
+        .filter_map(|r| r.gains.as_ref().map(|g| (r, g)))
+        .max_by(|(_, a), (_, b)| a.record_evidence.total_cmp(&b.record_evidence));
+    if let Some((r, g)) = refused.filter(|_| over <= opts.noise_factor) {
+        let why = r.note.strip_prefix("not named: ").unwrap_or(&r.note);
+        let place = top.map_or(String::new(), |w| {
+            format!(
+                "; the largest residual is {} in the {} window ({:.2}-{:.2} s) on {event}",
+                s.signal, w.label, w.start_s, w.end_s
+            )
+        });
+        Verdict {
+            cause: "unexplained".into(),
+            title: format!(
+                "unexplained: a significant gain that {} cannot be",
+                r.cause
+            ),
+            statement: format!(
+                "Unexplained by the catalog. The residuals are near the noise level (largest: {} on {event}, RMS {:.2} × \
+                 the pre-event residual σ), yet the extension of {} ({}) lowers χ² on the fitted samples by {:.1} % and on the \
+                 held-out samples by {:.1} % (the record's evidence 2 ln B = {:.1}), a gain the test names a cause on; it is \
+                 not named: {why}. An effect the catalog does not hold is at work where {} acts{place}. If you know the \
+                 unit's setting that makes it, write a cause file for it and diagnose again with --user-cause.",
+                s.signal,
+                over,
+                r.cause,
+                r.extension,
+                100.0 * g.fit_drop,
+                100.0 * g.held_drop,
+                g.record_evidence,
+                r.cause
+            ),
+            key_parameters: vec![],
+            gains: None,
+            where_,
+            grade: None,
+            probability: None,
+            competing: vec![],
+        }
+    } else if over <= opts.noise_factor {
         Verdict {
             cause: "none".into(),
             title: "residual at the noise floor".into(),
@@ -673,6 +719,55 @@ mod tests {
         assert!(!v.statement.contains("recorded"), "{}", v.statement);
     }
 
+    /// A candidate whose gain passed the test and was refused by its physical checks makes a
+    /// residual near the noise floor `unexplained` (where it lives and why the cause was
+    /// refused); the same candidate without a passed test leaves it `none`, and above the
+    /// floor the residual's own verdict stands.
+    #[test]
+    fn a_refused_significant_gain_is_unexplained_not_none() {
+        let t: Vec<f64> = (0..600).map(|k| k as f64 / 60.0).collect();
+        let r: Vec<f64> = t.iter().map(|x| 0.05 * (3.0 * x).sin()).collect();
+        let eopts = EvidenceOptions {
+            windows: vec![("dip".into(), 1.0, 2.0), ("tail".into(), 2.0, 10.0)],
+            ..EvidenceOptions::default()
+        };
+        let mut ev = vec![EventEvidence {
+            event: "e".into(),
+            onset_s: 1.0,
+            signals: vec![analyse("P", &t, &r, &r, &[], &eopts)],
+            p_peak: None,
+        }];
+        ev[0].signals[0].rms_over_noise = 1.1;
+        let opts = DiagnoseOptions::default();
+        let why = "its extension presses against the upper end of its range (x = 2 in [0, 2])";
+        let mut refused = candidate("saturation", 300.0, 2, 40.0, false);
+        refused.passed_test = true;
+        refused.note = format!("not named: {why}");
+        let quiet = candidate("governor", 380.0, 2, -3.0, false);
+        let v = undecided(&ev, &["P", "Q"], &[quiet.clone(), refused.clone()], &opts);
+        assert_eq!(v.cause, "unexplained", "{}", v.statement);
+        says(&v.statement, why);
+        says(&v.statement, "extension of saturation");
+        says(&v.statement, "tail window (2.00-10.00 s) on e");
+        assert!(v.where_.is_some());
+        assert!(v.competing.is_empty());
+        // Through the ranking too: nothing significant, the refused gain decides.
+        let d = decide_on(vec![quiet.clone(), refused.clone()]);
+        assert_eq!(d.verdict.cause, "unexplained", "{}", d.verdict.statement);
+        // Without a passed test the same reports are `none`.
+        let untested = CandidateReport {
+            passed_test: false,
+            ..refused.clone()
+        };
+        let v = undecided(&ev, &["P", "Q"], &[quiet.clone(), untested], &opts);
+        assert_eq!(v.cause, "none", "{}", v.statement);
+        // Above the floor the residual's verdict, with its window, is unchanged.
+        ev[0].signals[0].rms_over_noise = 3.0;
+        let v = undecided(&ev, &["P", "Q"], &[refused, quiet], &opts);
+        assert_eq!(v.cause, "unexplained");
+        says(&v.statement, "Unexplained residual at P");
+    }
+
     /// An unexplained residual in the recorded field of a phasor playback says how the
     /// calibration may have left it (P and Q alone) and what to do; in a playback mode that
     /// compares E_fd without P it does not.
@@ -764,6 +859,7 @@ mod tests {
                 rms_q_ext: 0.005,
             }),
             significant,
+            passed_test: significant,
             look_alike: false,
             by_evidence: false,
             signature: vec![],
