@@ -47,6 +47,27 @@ fn top_window(s: &SignalEvidence) -> Option<&crate::evidence::WindowStats> {
         .max_by(|a, b| a.share_of_sse.total_cmp(&b.share_of_sse))
 }
 
+/// A verdict that names no cause and carries no gains, grade or competitors: its id, title,
+/// statement and where the residual lives.
+fn unnamed(
+    cause: &str,
+    title: String,
+    statement: String,
+    where_: Option<(String, String, f64, f64)>,
+) -> Verdict {
+    Verdict {
+        cause: cause.into(),
+        title,
+        statement,
+        key_parameters: vec![],
+        gains: None,
+        where_,
+        grade: None,
+        probability: None,
+        competing: vec![],
+    }
+}
+
 /// The verdict when no cause is significant: `none` at the noise floor, else `unexplained`
 /// with where the residual lives. A candidate whose gain passed the statistical test and was
 /// refused by its physical checks ([`CandidateReport::passed_test`]) makes it `unexplained` at
@@ -82,20 +103,15 @@ pub(super) fn undecided(
         })
         .unwrap_or_default();
     let Some((event, s)) = worst else {
-        return Verdict {
-            cause: "none".into(),
-            title: "no residual to explain".into(),
-            statement: format!(
+        return unnamed(
+            "none",
+            "no residual to explain".into(),
+            format!(
                 "No residual of the compared signals ({}).",
                 compared.join(", ")
             ),
-            key_parameters: vec![],
-            gains: None,
-            where_: None,
-            grade: None,
-            probability: None,
-            competing: vec![],
-        };
+            None,
+        );
     };
     let top = top_window(s);
     let where_ = top.map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s));
@@ -116,7 +132,7 @@ pub(super) fn undecided(
     } else {
         ""
     };
-    // The refused candidate with the largest evidence (the reports are ranked by ΔBIC).
+    // The refused candidate with the largest evidence for the record.
     let refused = reports
         .iter()
         .filter(|r| r.passed_test && !r.significant)
@@ -130,13 +146,13 @@ pub(super) fn undecided(
                 s.signal, w.label, w.start_s, w.end_s
             )
         });
-        Verdict {
-            cause: "unexplained".into(),
-            title: format!(
+        unnamed(
+            "unexplained",
+            format!(
                 "unexplained: a significant gain that {} cannot be",
                 r.cause
             ),
-            statement: format!(
+            format!(
                 "Unexplained by the catalog. The residuals are near the noise level (largest: {} on {event}, RMS {:.2} × \
                  the pre-event residual σ), yet the extension of {} ({}) lowers χ² on the fitted samples by {:.1} % and on the \
                  held-out samples by {:.1} % (the record's evidence 2 ln B = {:.1}), a gain the test names a cause on; it is \
@@ -151,30 +167,20 @@ pub(super) fn undecided(
                 g.record_evidence,
                 r.cause
             ),
-            key_parameters: vec![],
-            gains: None,
             where_,
-            grade: None,
-            probability: None,
-            competing: vec![],
-        }
+        )
     } else if over <= opts.noise_factor {
-        Verdict {
-            cause: "none".into(),
-            title: "residual at the noise floor".into(),
-            statement: format!(
+        unnamed(
+            "none",
+            "residual at the noise floor".into(),
+            format!(
                 "No cause named: the residuals are at the noise level (largest: {} on {event}, RMS {:.2} × the pre-event \
                  residual σ; Ljung-Box p = {:.2}) and no extension gains significantly.{best_try} The model needs no extension \
                  for these data.",
                 s.signal, over, s.whiteness.p_value
             ),
-            key_parameters: vec![],
-            gains: None,
             where_,
-            grade: None,
-            probability: None,
-            competing: vec![],
-        }
+        )
     } else if let Some(w) = top {
         let mode = s
             .modes
@@ -188,10 +194,10 @@ pub(super) fn undecided(
                 )
             })
             .unwrap_or_default();
-        Verdict {
-            cause: "unexplained".into(),
-            title: format!("unexplained residual at {} ({}, {:.2}-{:.2} s)", s.signal, w.label, w.start_s, w.end_s),
-            statement: format!(
+        unnamed(
+            "unexplained",
+            format!("unexplained residual at {} ({}, {:.2}-{:.2} s)", s.signal, w.label, w.start_s, w.end_s),
+            format!(
                 "Unexplained residual at {} in the {} window ({:.2}-{:.2} s, {:.0} % of its squared error) on {event}: RMS {:.2} × \
                  the pre-event residual σ, Ljung-Box p = {:.2}{mode}. No catalog extension explains it significantly.{best_try}{field_hint}",
                 s.signal,
@@ -202,30 +208,20 @@ pub(super) fn undecided(
                 over,
                 s.whiteness.p_value
             ),
-            key_parameters: vec![],
-            gains: None,
             where_,
-            grade: None,
-            probability: None,
-            competing: vec![],
-        }
+        )
     } else {
         // No window (a record too short to cut into any): the residual as a whole.
-        Verdict {
-            cause: "unexplained".into(),
-            title: format!("unexplained residual at {}", s.signal),
-            statement: format!(
+        unnamed(
+            "unexplained",
+            format!("unexplained residual at {}", s.signal),
+            format!(
                 "Unexplained residual at {} on {event}: RMS {:.2} × the pre-event residual σ, \
                  Ljung-Box p = {:.2}. No catalog extension explains it significantly.{best_try}{field_hint}",
                 s.signal, over, s.whiteness.p_value
             ),
-            key_parameters: vec![],
-            gains: None,
-            where_: None,
-            grade: None,
-            probability: None,
-            competing: vec![],
-        }
+            None,
+        )
     }
 }
 
@@ -558,17 +554,10 @@ fn listing(
         top_window(s).map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s))
     });
     Verdict {
-        cause: cause.into(),
-        title,
-        statement,
-        key_parameters: vec![],
-        gains: None,
-        where_,
-        grade: None,
-        probability: None,
         competing: std::iter::once((best.cause.clone(), 0.0))
             .chain(others)
             .collect(),
+        ..unnamed(cause, title, statement, where_)
     }
 }
 
