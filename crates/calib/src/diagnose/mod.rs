@@ -53,8 +53,9 @@
 //!    of the noise floor) or `unexplained` (with the window and signal where the residual
 //!    lives); a candidate that passed the statistical test and was refused by the physical
 //!    checks above ([`CandidateReport::passed_test`]) makes it `unexplained` at the floor too
-//!    (an effect is there that the catalog does not name). In a full diagnosis where a candidate is significant, the bundled effects outside
-//!    the catalog ([`look_alike`]: a reactive droop, a transducer lag, a speed filter, a PSS
+//!    (an effect is there that the catalog does not name). In a full diagnosis where a
+//!    candidate passed its test (significant or refused), the bundled effects outside the
+//!    catalog ([`look_alike`]: a reactive droop, a transducer lag, a speed filter, a PSS
 //!    lead-lag, a UEL) are scored too and ranked with the others, never named: when one is the
 //!    best the verdict is `unexplained` (what the residual looks like, and the cause file that
 //!    names it), when one is within `bic_threshold` of the best it is `inconclusive`.
@@ -176,7 +177,7 @@ pub struct DiagnoseOptions {
     /// default once every playback of a smoothed record plays one input.
     pub refit_over_samples: bool,
     /// Also try the bundled effects outside the catalog ([`look_alike`]) in a full diagnosis
-    /// (`causes` empty) where a candidate is significant: a residual one of them explains
+    /// (`causes` empty) where a candidate passed its test: a residual one of them explains
     /// better is then `unexplained` (or `inconclusive`), not the nearest catalog cause.
     pub look_alikes: bool,
     /// When set (by a signal handler, say), every later candidate evaluation of the re-fits
