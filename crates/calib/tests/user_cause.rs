@@ -174,11 +174,15 @@ fn a_hidden_droop_without_its_user_cause_gets_no_catalog_name() {
         "{}",
         v.statement
     );
-    // The catalog cause it beat is listed after it, with its BIC gap.
+    // The catalog causes it beat (significant against their own baselines) are listed after
+    // it, each with its BIC gap above the threshold (with a fifth of the practice voltage
+    // noise, stops 47-53: the saturation; at the practice level: a terminal load).
+    let beaten = &v.competing[1..];
     assert!(
-        v.competing[1..]
-            .iter()
-            .any(|(c, gap)| c == "saturation" && *gap > 10.0),
+        !beaten.is_empty()
+            && beaten.iter().all(|(c, gap)| {
+                itaipu_calib::diagnose::catalog::find(c).is_some() && *gap > 10.0
+            }),
         "{:?}",
         v.competing
     );

@@ -95,17 +95,16 @@ pub fn base_unit() -> Unit {
     .expect("the bundled synthetic unit parses")
 }
 
-/// PMU noise of the trials: 0.002 pu white noise on P and Q with 0.0014 pu quantisation (as in
-/// the Itaipu record) and 1e-4 pu / 1e-4 rad on the voltage phasor (TVE about 0.014 %, a good
-/// M-class PMU). The voltage is the playback's input: its noise reaches the simulated P and Q
-/// through the model (errors in variables), and at 5 × this level the bias it leaves comes
-/// close to what a flexible extension (a terminal load) needs to be named (see the README).
+/// PMU noise of the trials: the typical M-class PMU of [`PmuNoise::typical`] (0.002 pu white
+/// noise on P and Q with 0.0014 pu quantisation, as in the Itaipu record; 5e-4 pu on |V| and
+/// 5e-4 rad on the angle, the practice family's level). The voltage is the playback's input:
+/// its noise reaches the simulated P and Q through the model (errors in variables), which the
+/// default playback's 4 Hz smoothing of the record's voltage removes (README, "The played-back
+/// voltage's noise"). Before that smoothing the trials used a fifth of this voltage noise,
+/// since at this level the bias the noise left came close to what a flexible extension (a
+/// terminal load) needs to be named.
 pub fn trial_noise(seed: u64) -> PmuNoise {
-    PmuNoise {
-        v_sigma: 1e-4,
-        angle_sigma: 1e-4,
-        ..PmuNoise::typical(seed)
-    }
+    PmuNoise::typical(seed)
 }
 
 /// A trial with the defaults of the tests: 20 s at 60 samples/s, [`trial_noise`].
