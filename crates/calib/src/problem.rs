@@ -435,13 +435,7 @@ pub fn objective_weights(objective: Objective, w: Weights) -> (f64, f64) {
 /// the case's fit 10 % above its floor instead of 10 % below.)
 pub fn search_integrator() -> SimOptions {
     SimOptions {
-        method: Method::Dopri5(Dopri5Options {
-            rtol: 1e-5,
-            atol: 1e-6,
-            h_max: 0.05,
-            max_steps: 25_000,
-            ..Default::default()
-        }),
+        method: Method::Dopri5(Dopri5Options::search()),
     }
 }
 
@@ -465,13 +459,10 @@ pub fn search_integrator() -> SimOptions {
 /// every candidate's step count, the stiff ones' included, so the same budget no longer fails
 /// them; a budget for this integrator would have to be derived again from its own step counts.
 pub fn refit_search_integrator() -> SimOptions {
-    let Method::Dopri5(o) = search_integrator().method else {
-        unreachable!("the search integrator is Dormand-Prince")
-    };
     SimOptions {
         method: Method::Dopri5(Dopri5Options {
             soft_knots: true,
-            ..o
+            ..Dopri5Options::search()
         }),
     }
 }

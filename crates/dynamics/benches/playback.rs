@@ -82,17 +82,13 @@ fn synthetic_20s_dopri5_rtol_1e6(bencher: Bencher) {
     bench(bencher, synthetic(), dopri5());
 }
 
-/// The searches' tolerances (`itaipu_calib::problem::search_integrator`), `soft`: stepping
-/// over the samples inside the smoothed input's spline.
+/// The searches' tolerances ([`Dopri5Options::search`]), `soft`: stepping over the samples
+/// inside the smoothed input's spline.
 fn search(soft_knots: bool) -> SimOptions {
     SimOptions {
         method: Method::Dopri5(Dopri5Options {
-            rtol: 1e-5,
-            atol: 1e-6,
-            h_max: 0.05,
-            max_steps: 25_000,
             soft_knots,
-            ..Default::default()
+            ..Dopri5Options::search()
         }),
     }
 }

@@ -9,32 +9,15 @@
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::integrate::{solve, Dopri5Options, Method, Stats, StepLog};
 use itaipu_dynamics::simulate::{run_playback, simulate_pq, PreparedEvent, SimOptions};
-use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
-use itaipu_dynamics::unit::{Playback, PlaybackInput, Unit};
-use itaipu_dynamics::unit_file::read_unit;
+use itaipu_dynamics::unit::{Playback, PlaybackInput};
 
-fn unit() -> Unit {
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../data/synthetic/unit_gensae_sexs_stab3_hygov.toml");
-    read_unit(&path).unwrap()
-}
+mod playback_support;
+use playback_support::{synthetic_dip, synthetic_unit as unit};
 
 /// A 20 s fault dip into the synthetic unit at 60 samples/s with PMU noise (seed 5), played
 /// back smoothed at the default cut-off (the synthetic path's default).
 fn record() -> Event {
-    let profile = VoltageProfile {
-        duration_s: 20.0,
-        ..VoltageProfile::default()
-    };
-    let ev = synthesize(
-        "dip",
-        &unit(),
-        &profile,
-        60.0,
-        &PmuNoise::typical(5),
-        &SimOptions::default(),
-    )
-    .unwrap();
+    let ev = synthetic_dip(20.0, 5);
     assert_eq!(ev.input_lowpass_hz, Some(4.0), "the default playback");
     ev
 }
@@ -45,11 +28,8 @@ fn event() -> PreparedEvent {
 
 fn dopri(soft_knots: bool) -> Dopri5Options {
     Dopri5Options {
-        rtol: 1e-5,
-        atol: 1e-6,
-        h_max: 0.05,
         soft_knots,
-        ..Default::default()
+        ..Dopri5Options::search()
     }
 }
 

@@ -7,32 +7,13 @@ use itaipu_dynamics::mode::{simulate_mode, simulate_mode_watched, PlaybackMode};
 use itaipu_dynamics::simulate::{
     run_playback, simulate_pq, simulate_pq_watched, PreparedEvent, SimError, SimOptions,
 };
-use itaipu_dynamics::synthetic::{synthesize, PmuNoise, VoltageProfile};
-use itaipu_dynamics::unit::Unit;
-use itaipu_dynamics::unit_file::read_unit;
 
-fn unit() -> Unit {
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../data/synthetic/unit_gensae_sexs_stab3_hygov.toml");
-    read_unit(&path).unwrap()
-}
+mod playback_support;
+use playback_support::{synthetic_dip, synthetic_unit as unit};
 
 /// A 6 s dip into the synthetic unit at 60 samples/s (PMU noise, seed 2).
 fn event() -> PreparedEvent {
-    let profile = VoltageProfile {
-        duration_s: 6.0,
-        ..VoltageProfile::default()
-    };
-    let ev = synthesize(
-        "dip",
-        &unit(),
-        &profile,
-        60.0,
-        &PmuNoise::typical(2),
-        &SimOptions::default(),
-    )
-    .unwrap();
-    PreparedEvent::new(&ev)
+    PreparedEvent::new(&synthetic_dip(6.0, 2))
 }
 
 fn methods(ev: &PreparedEvent) -> Vec<Method> {
