@@ -39,13 +39,23 @@ pub struct VoltageProfile {
     /// Step of |V| at the event instant [pu] (0: none).
     pub v_step: f64,
     /// Ambient fluctuations over the whole record: Ornstein-Uhlenbeck processes on |V| [pu] and
-    /// the angle [rad] with these stationary standard deviations and correlation time (0: none).
+    /// the angle [rad] with these stationary standard deviations and correlation time (0: none),
+    /// band-limited by [`AMBIENT_BAND_HZ`].
     pub ambient_v_sigma: f64,
     pub ambient_angle_sigma: f64,
     pub ambient_tau_s: f64,
     /// Seed of the ambient fluctuations.
     pub seed: u64,
 }
+
+/// Upper edge of the ambient fluctuations' band [Hz]: the grid's voltage at a unit's terminal
+/// wanders with the loads, filtered by the grid's electromechanical dynamics (modes of 0.1-2 Hz,
+/// `models.md` §12.1), so its spectrum falls off above about 2 Hz. The Ornstein-Uhlenbeck
+/// samples pass through two first-order low-passes at this corner (critically damped, −40 dB a
+/// decade above it); without them the process steps at every sample (about 1.5 mrad of angle a
+/// sample at 60 samples/s, three times a PMU's angle noise), content a grid voltage does not
+/// have, which a playback that smooths its input as noise above 4 Hz could not follow.
+pub const AMBIENT_BAND_HZ: f64 = 2.0;
 
 impl Default for VoltageProfile {
     /// A 20 s, 60 samples/s event: 0.1 s dip to 0.7 pu at 1 s, a 0.8 Hz grid swing and a fall
@@ -153,6 +163,9 @@ impl VoltageProfile {
         };
         let innov = (1.0 - phi * phi).sqrt();
         let (mut ou_v, mut ou_a) = (0.0, 0.0);
+        // Two first-order low-passes at AMBIENT_BAND_HZ (exact discretisation of e^{−t/τ_f}).
+        let lp = (-2.0 * std::f64::consts::PI * AMBIENT_BAND_HZ * dt).exp();
+        let (mut v1, mut v2, mut a1, mut a2) = (0.0, 0.0, 0.0, 0.0);
         for k in 0..n {
             let tk = k as f64 / self.rate_hz;
             let in_dip = self.dip_v < self.v0 && tk >= self.dip_start_s && tk < t_clear;
@@ -176,8 +189,12 @@ impl VoltageProfile {
             if self.ambient_v_sigma > 0.0 || self.ambient_angle_sigma > 0.0 {
                 ou_v = phi * ou_v + innov * self.ambient_v_sigma * rng.sample();
                 ou_a = phi * ou_a + innov * self.ambient_angle_sigma * rng.sample();
-                mag += ou_v;
-                ang += ou_a;
+                v1 = lp * v1 + (1.0 - lp) * ou_v;
+                v2 = lp * v2 + (1.0 - lp) * v1;
+                a1 = lp * a1 + (1.0 - lp) * ou_a;
+                a2 = lp * a2 + (1.0 - lp) * a1;
+                mag += v2;
+                ang += a2;
             }
             t.push(tk);
             v.push(mag);
@@ -280,7 +297,11 @@ pub fn synthesize(
         start_s: 0.0,
         end_s: pre,
     };
-    let ev = Event::from_record(name, record, system_mva, truth.nominal_hz, Some(init), None)?;
+    let mut ev = Event::from_record(name, record, system_mva, truth.nominal_hz, Some(init), None)?;
+    // The true unit answers the true voltage, every frequency of it: the playback's default
+    // smoothing of a measured input ([`Event::playback_voltage`]) is for the noisy record the
+    // event becomes, not for the truth.
+    ev.input_lowpass_hz = None;
     let prepared = PreparedEvent::new(&ev);
     let (p, q) = simulate_pq(&mut unit, &prepared, opts)?;
     let mut rng = Normal::new(noise.seed);
@@ -623,6 +644,44 @@ mod tests {
         assert!((kept - 0.5).abs() < 0.03, "linear kept {kept}");
     }
 
+    /// The true unit answers its voltage as it is: the record's default playback smooths the
+    /// voltage at 4 Hz (for the measured input's noise), the truth must not. An ambient profile
+    /// has content above 4 Hz (little, band-limited at [`AMBIENT_BAND_HZ`]); the unit played
+    /// back on the noiseless record as recorded gives the record's P and Q, but for the slow
+    /// start from the pre-event means (P and Q wander there too): the difference's
+    /// sample-to-sample steps are below 1e-5 pu. With the truth played smoothed they are
+    /// 2.7e-4 pu here (6e-3 pu, three times a PMU's P noise, on the ambient profile before it was
+    /// band-limited, shaped by the unit's modes into a peak a diagnosis read as a shaft mode).
+    #[test]
+    fn the_truth_answers_every_frequency_of_its_voltage() {
+        let unit = crate::unit_file::parse_unit(
+            include_str!("../../../data/synthetic/unit_gensae_sexs_stab3_hygov.toml"),
+            std::path::Path::new("data/synthetic/unit_gensae_sexs_stab3_hygov.toml"),
+        )
+        .unwrap();
+        let profile = VoltageProfile::preset(EventKind::Ambient, 20.0, 60.0, 101);
+        let sim = SimOptions::default();
+        let ev = synthesize("ambient", &unit, &profile, 737.0, &PmuNoise::none(), &sim).unwrap();
+        assert_eq!(
+            ev.input_lowpass_hz,
+            Some(crate::event::smoothing::DEFAULT_CUTOFF_HZ)
+        );
+        let mut raw = ev.clone();
+        raw.set_input_lowpass(None).unwrap();
+        let (p, q) = simulate_pq(&mut unit.clone(), &PreparedEvent::new(&raw), &sim).unwrap();
+        let r = &ev.record;
+        for (name, sim, rec) in [("P", &p, &r.p_pu), ("Q", &q, &r.q_pu)] {
+            let d: Vec<f64> = sim.iter().zip(rec).map(|(a, b)| a - b).collect();
+            let steps =
+                d.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>() / (d.len() - 1) as f64;
+            assert!(
+                steps.sqrt() < 1e-5,
+                "{name}: steps of the difference {:.2e} pu",
+                steps.sqrt()
+            );
+        }
+    }
+
     #[test]
     fn presets_make_their_event() {
         let (_, v, a) = VoltageProfile::preset(EventKind::VoltageStep, 5.0, 60.0, 1).samples();
@@ -646,6 +705,15 @@ mod tests {
             sd(&v)
         );
         assert!(sd(&a) > 0.003, "ambient angle spread {}", sd(&a));
+        // Band-limited (AMBIENT_BAND_HZ): the fluctuation's own sample-to-sample steps stay
+        // below a typical PMU's angle noise (5e-4 rad), so what a 4 Hz playback smooths away is
+        // the noise's; the raw process steps by about 1.5e-3 rad a sample.
+        let steps: Vec<f64> = a.windows(2).map(|w| w[1] - w[0]).collect();
+        let rms = (steps.iter().map(|d| d * d).sum::<f64>() / steps.len() as f64).sqrt();
+        assert!(
+            rms < PmuNoise::typical(0).angle_sigma,
+            "ambient angle steps {rms:.2e}"
+        );
     }
 
     #[test]
