@@ -296,6 +296,31 @@ pub(super) fn decide(
             };
         }
     }
+    // The held-out samples contradict the fitted ranking: a rival's extended model predicts
+    // them decisively better than the best's. No name either.
+    if let [best, rivals @ ..] = significant.as_slice() {
+        let contradicting: Vec<(String, f64)> = rivals
+            .iter()
+            .filter(|r| held_out_gap(best, r) > opts.bic_threshold)
+            .map(|r| (r.cause.clone(), held_out_gap(best, r)))
+            .collect();
+        if !contradicting.is_empty() {
+            let verdict = contradicted(
+                best,
+                &contradicting,
+                reports,
+                evidence_before,
+                &compared,
+                opts,
+            );
+            return Decision {
+                verdict,
+                extended_unit: None,
+                after: vec![],
+                evidence_after: vec![],
+            };
+        }
+    }
     // A significant candidate has its re-fit and its gains (`Candidates::score` returns them
     // with every report it scores); one without them could not be named, and is not.
     // A look-alike outside the catalog explains the residual best: no catalog name.
@@ -468,6 +493,22 @@ pub(super) fn bic_gap(best: &CandidateReport, other: &CandidateReport) -> f64 {
     let n = (a.n_fit.max(1) as f64 / v).max(1.0);
     (comparable_chi2(b) - comparable_chi2(a)) / v
         + (other.parameters.len() as f64 - best.parameters.len() as f64) * n.ln()
+}
+
+/// How much better `other`'s extended model predicts the held-out samples than `best`'s: the
+/// difference of their held-out χ² deflated by the larger variance inflation, as [`bic_gap`]
+/// (no parameter term: neither re-fit saw those samples, so the difference is twice the log
+/// likelihood ratio of two predictions). Positive favours `other`. Zero when either has no
+/// gains or when one of them was played back as recorded and the other smoothed (their held-out
+/// χ² then hold different echoes of the voltage's noise, measured on the fitted samples only).
+pub(super) fn held_out_gap(best: &CandidateReport, other: &CandidateReport) -> f64 {
+    let (Some(a), Some(b)) = (&best.gains, &other.gains) else {
+        return 0.0;
+    };
+    if best.input_as_recorded != other.input_as_recorded {
+        return 0.0;
+    }
+    (a.chi2_held_ext - b.chi2_held_ext) / a.vif.max(b.vif).max(1.0)
 }
 
 /// The named candidate's approximate posterior probability (equal prior odds) among its
@@ -678,6 +719,77 @@ fn inconclusive(
         (ev, compared),
         best,
         competing.to_vec(),
+    )
+}
+
+/// The verdict when the fitted and the held-out samples disagree: `best` explains the fitted
+/// samples best (lowest BIC of the significant candidates' extended models), but each of
+/// `contradicting` (cause, [`held_out_gap`]) predicts the held-out samples better by more than
+/// the BIC threshold, the "very strong" level each cause had to pass against its baseline. A
+/// cause is named for what it predicts, not only for what it fits: a model that fits the
+/// samples it saw better and predicts the others worse has absorbed some of another effect's
+/// misfit (on a transducer lag outside the catalog, stop 56, a saturation fitted 3 % better
+/// than a PSS-lead look-alike, which predicted the held-out samples 10 % better). `inconclusive`,
+/// listing both.
+fn contradicted(
+    best: &CandidateReport,
+    contradicting: &[(String, f64)],
+    reports: &[CandidateReport],
+    ev: &[EventEvidence],
+    compared: &[&str],
+    opts: &DiagnoseOptions,
+) -> Verdict {
+    let name = |c: &CandidateReport| {
+        if c.look_alike {
+            format!(
+                "{} (outside the catalog: {})",
+                c.cause,
+                super::look_alike::file_of(&c.cause)
+            )
+        } else {
+            c.cause.clone()
+        }
+    };
+    let rivals: Vec<String> = contradicting
+        .iter()
+        .filter_map(|(c, gap)| {
+            reports.iter().find(|r| &r.cause == c).map(|r| {
+                format!(
+                    "{}, whose extended model predicts the held-out samples better by Δχ² = {gap:.1} (deflated by the \
+                     residual's variance inflation) although its BIC on the fitted samples is {:.1} above",
+                    name(r),
+                    bic_gap(best, r)
+                )
+            })
+        })
+        .collect();
+    let names: Vec<&str> = std::iter::once(best.cause.as_str())
+        .chain(contradicting.iter().map(|(c, _)| c.as_str()))
+        .collect();
+    listing(
+        "inconclusive",
+        format!("inconclusive: {}", names.join(" or ")),
+        format!(
+            "Inconclusive: the fitted and the held-out samples disagree. {} passes its test and explains the fitted \
+             samples best, but so does {}: more than {:.0} (Kass and Raftery's \"very strong\" level) on samples neither \
+             re-fit saw. A cause that fits better what it saw and predicts worse what it did not has absorbed part of \
+             another effect's misfit, so none is named. Test them apart with another event, or hold one of them out by \
+             knowledge of the unit.",
+            name(best),
+            rivals.join("; and "),
+            opts.bic_threshold
+        ),
+        (ev, compared),
+        best,
+        contradicting
+            .iter()
+            .filter_map(|(c, _)| {
+                reports
+                    .iter()
+                    .find(|r| &r.cause == c)
+                    .map(|r| (c.clone(), bic_gap(best, r)))
+            })
+            .collect(),
     )
 }
 
@@ -956,6 +1068,48 @@ mod tests {
             );
             assert_ne!(d.verdict.cause, "inconclusive");
         }
+    }
+
+    /// The held-out samples can overrule the fitted ranking: a significant rival whose extended
+    /// model predicts them better by more than the threshold (VIF-deflated) makes the verdict
+    /// `inconclusive` though the best fits decisively better; a smaller margin, or a rival
+    /// played back otherwise (as recorded against smoothed), does not.
+    #[test]
+    fn a_rival_that_predicts_the_held_out_samples_better_blocks_the_name() {
+        let held = |mut c: CandidateReport, chi2_held: f64| {
+            c.gains.as_mut().unwrap().chi2_held_ext = chi2_held;
+            c
+        };
+        let saturation = || held(candidate("saturation", 300.0, 3, 40.0, true), 400.0);
+        let lead = |chi2_held: f64| {
+            let mut c = held(candidate("pss_lead_lag", 340.0, 2, 40.0, true), chi2_held);
+            c.look_alike = true;
+            c
+        };
+        // On the fitted samples saturation is 40/2 − ln 500 = 13.8 ahead: decisive.
+        assert!((bic_gap(&saturation(), &lead(300.0)) - (20.0 - 500f64.ln())).abs() < 1e-9);
+        // Held out, the lead predicts 100 χ² better: 50 after deflation.
+        assert!((held_out_gap(&saturation(), &lead(300.0)) - 50.0).abs() < 1e-9);
+        let d = decide_on(vec![saturation(), lead(300.0)]);
+        assert_eq!(d.verdict.cause, "inconclusive", "{}", d.verdict.statement);
+        assert!(d.extended_unit.is_none());
+        assert_eq!(competitors(&d.verdict), ["saturation", "pss_lead_lag"]);
+        for s in [
+            "the fitted and the held-out samples disagree",
+            "Δχ² = 50.0",
+            "outside the catalog: data/causes/pss_lead_lag.toml",
+        ] {
+            says(&d.verdict.statement, s);
+        }
+        // 19 χ² better, 9.5 deflated: below the threshold, no contradiction.
+        let d = decide_on(vec![saturation(), lead(381.0)]);
+        assert_ne!(d.verdict.cause, "inconclusive", "{}", d.verdict.statement);
+        // Played back otherwise: the held-out χ² are not compared.
+        let mut recorded = lead(300.0);
+        recorded.input_as_recorded = true;
+        assert_eq!(held_out_gap(&saturation(), &recorded), 0.0);
+        let d = decide_on(vec![saturation(), recorded]);
+        assert_ne!(d.verdict.cause, "inconclusive", "{}", d.verdict.statement);
     }
 
     /// A candidate re-fitted on the record as recorded is compared with the others without its
