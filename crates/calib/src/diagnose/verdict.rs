@@ -664,6 +664,20 @@ fn outside_catalog(
     )
 }
 
+/// A candidate as the verdicts that list it name it: its id, and for a look-alike the bundled
+/// file that models it.
+fn display_name(c: &CandidateReport) -> String {
+    if c.look_alike {
+        format!(
+            "{} (outside the catalog: {})",
+            c.cause,
+            super::look_alike::file_of(&c.cause)
+        )
+    } else {
+        c.cause.clone()
+    }
+}
+
 /// The verdict when two or more significant candidates explain the residual within the BIC
 /// threshold of each other: `inconclusive`, with the competitors and where the residual lives.
 fn inconclusive(
@@ -675,15 +689,7 @@ fn inconclusive(
     opts: &DiagnoseOptions,
 ) -> Verdict {
     let describe = |c: &CandidateReport| {
-        let name = if c.look_alike {
-            format!(
-                "{} (outside the catalog: {})",
-                c.cause,
-                super::look_alike::file_of(&c.cause)
-            )
-        } else {
-            c.cause.clone()
-        };
+        let name = display_name(c);
         c.gains.as_ref().map_or(name.clone(), |g| {
             format!(
                 "{name} (ΔBIC {:.1} against its baseline, fitted χ² −{:.0} %, held out −{:.0} %)",
@@ -728,9 +734,7 @@ fn inconclusive(
 /// the BIC threshold, the "very strong" level each cause had to pass against its baseline. A
 /// cause is named for what it predicts, not only for what it fits: a model that fits the
 /// samples it saw better and predicts the others worse has absorbed some of another effect's
-/// misfit (on a transducer lag outside the catalog, stop 56, a saturation fitted 3 % better
-/// than a PSS-lead look-alike, which predicted the held-out samples 10 % better). `inconclusive`,
-/// listing both.
+/// misfit. `inconclusive`, listing both.
 fn contradicted(
     best: &CandidateReport,
     contradicting: &[(String, f64)],
@@ -739,17 +743,6 @@ fn contradicted(
     compared: &[&str],
     opts: &DiagnoseOptions,
 ) -> Verdict {
-    let name = |c: &CandidateReport| {
-        if c.look_alike {
-            format!(
-                "{} (outside the catalog: {})",
-                c.cause,
-                super::look_alike::file_of(&c.cause)
-            )
-        } else {
-            c.cause.clone()
-        }
-    };
     let rivals: Vec<String> = contradicting
         .iter()
         .filter_map(|(c, gap)| {
@@ -757,7 +750,7 @@ fn contradicted(
                 format!(
                     "{}, whose extended model predicts the held-out samples better by Δχ² = {gap:.1} (deflated by the \
                      residual's variance inflation) although its BIC on the fitted samples is {:.1} above",
-                    name(r),
+                    display_name(r),
                     bic_gap(best, r)
                 )
             })
@@ -775,7 +768,7 @@ fn contradicted(
              re-fit saw. A cause that fits better what it saw and predicts worse what it did not has absorbed part of \
              another effect's misfit, so none is named. Test them apart with another event, or hold one of them out by \
              knowledge of the unit.",
-            name(best),
+            display_name(best),
             rivals.join("; and "),
             opts.bic_threshold
         ),
