@@ -223,19 +223,20 @@ pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, TrialError
         nominal.set(r, v * f);
     }
     let spec = CalibSpec::parse(NOMINAL_SPEC, std::path::Path::new("nominal-spec.toml"))?;
+    let fit_opts = quick_options(&["tg"], t.seed);
     let fitted = fit(
         &nominal,
         &spec,
         std::slice::from_ref(&event),
         &[],
-        &quick_options(&["tg"], t.seed),
+        &fit_opts,
         &Silent,
     )?;
     let calibrated = fitted.unit;
     let mut opts = opts.clone();
     crate::job::merge_calibrated_set(
         &mut opts.refit,
-        &super::calibrated_set(&spec, &["tg".to_string()], &nominal, &calibrated),
+        &super::calibrated_set(&spec, &fit_opts.stages, &nominal, &calibrated),
         &calibrated,
     );
     let res = diagnose(

@@ -299,20 +299,13 @@ pub(super) fn decide(
     // The held-out samples contradict the fitted ranking: a rival's extended model predicts
     // them decisively better than the best's. No name either.
     if let [best, rivals @ ..] = significant.as_slice() {
-        let contradicting: Vec<(String, f64)> = rivals
+        let contradicting: Vec<(&CandidateReport, f64)> = rivals
             .iter()
-            .filter(|r| held_out_gap(best, r) > opts.bic_threshold)
-            .map(|r| (r.cause.clone(), held_out_gap(best, r)))
+            .map(|r| (*r, held_out_gap(best, r)))
+            .filter(|(_, gap)| *gap > opts.bic_threshold)
             .collect();
         if !contradicting.is_empty() {
-            let verdict = contradicted(
-                best,
-                &contradicting,
-                reports,
-                evidence_before,
-                &compared,
-                opts,
-            );
+            let verdict = contradicted(best, &contradicting, evidence_before, &compared, opts);
             return Decision {
                 verdict,
                 extended_unit: None,
@@ -730,34 +723,31 @@ fn inconclusive(
 
 /// The verdict when the fitted and the held-out samples disagree: `best` explains the fitted
 /// samples best (lowest BIC of the significant candidates' extended models), but each of
-/// `contradicting` (cause, [`held_out_gap`]) predicts the held-out samples better by more than
+/// `contradicting` (candidate, [`held_out_gap`]) predicts the held-out samples better by more than
 /// the BIC threshold, the "very strong" level each cause had to pass against its baseline. A
 /// cause is named for what it predicts, not only for what it fits: a model that fits the
 /// samples it saw better and predicts the others worse has absorbed some of another effect's
 /// misfit. `inconclusive`, listing both.
 fn contradicted(
     best: &CandidateReport,
-    contradicting: &[(String, f64)],
-    reports: &[CandidateReport],
+    contradicting: &[(&CandidateReport, f64)],
     ev: &[EventEvidence],
     compared: &[&str],
     opts: &DiagnoseOptions,
 ) -> Verdict {
     let rivals: Vec<String> = contradicting
         .iter()
-        .filter_map(|(c, gap)| {
-            reports.iter().find(|r| &r.cause == c).map(|r| {
-                format!(
-                    "{}, whose extended model predicts the held-out samples better by Δχ² = {gap:.1} (deflated by the \
-                     residual's variance inflation) although its BIC on the fitted samples is {:.1} above",
-                    display_name(r),
-                    bic_gap(best, r)
-                )
-            })
+        .map(|(r, gap)| {
+            format!(
+                "{}, whose extended model predicts the held-out samples better by Δχ² = {gap:.1} (deflated by the \
+                 residual's variance inflation) although its BIC on the fitted samples is {:.1} above",
+                display_name(r),
+                bic_gap(best, r)
+            )
         })
         .collect();
     let names: Vec<&str> = std::iter::once(best.cause.as_str())
-        .chain(contradicting.iter().map(|(c, _)| c.as_str()))
+        .chain(contradicting.iter().map(|(r, _)| r.cause.as_str()))
         .collect();
     listing(
         "inconclusive",
@@ -776,12 +766,7 @@ fn contradicted(
         best,
         contradicting
             .iter()
-            .filter_map(|(c, _)| {
-                reports
-                    .iter()
-                    .find(|r| &r.cause == c)
-                    .map(|r| (c.clone(), bic_gap(best, r)))
-            })
+            .map(|(r, _)| (r.cause.clone(), bic_gap(best, r)))
             .collect(),
     )
 }
