@@ -132,3 +132,65 @@ fn a_watched_playback_shows_the_samples_it_returns_and_stops_when_told() {
         }
     }
 }
+
+/// The work meter ([`attempts_on_this_thread`]) counts every step attempt of an adaptive run,
+/// accepted and rejected, a run its observer stopped and a run out of its budget included, and
+/// nothing for a replay.
+#[test]
+fn the_work_meter_counts_every_attempt_of_an_adaptive_run() {
+    use itaipu_dynamics::integrate::dopri5::attempts_on_this_thread;
+    let ev = event();
+    let opts = Dopri5Options {
+        rtol: 1e-6,
+        atol: 1e-7,
+        h_max: 0.05,
+        ..Default::default()
+    };
+    let sim = SimOptions {
+        method: Method::Dopri5(opts.clone()),
+    };
+    let a0 = attempts_on_this_thread();
+    let stats = run_playback(&mut unit(), &ev, &sim, |_, _, _| {}).unwrap();
+    let whole = stats.steps_accepted + stats.steps_rejected;
+    assert!(whole > 100, "{whole} attempts");
+    assert_eq!(attempts_on_this_thread() - a0, whole as u64);
+    // Stopped by its observer at sample 60 of 360 (an error that carries no counts): the
+    // attempts up to there, the same as the whole run's up to that sample.
+    let a1 = attempts_on_this_thread();
+    let upto = |k_stop: usize| {
+        let sim = sim.clone();
+        let ev = &ev;
+        move || run_playback(&mut unit(), ev, &sim, |k, _, _| k < k_stop)
+    };
+    assert!(matches!(
+        upto(60)(),
+        Err(SimError::Solve(SolveError::Stopped { .. }))
+    ));
+    let part = attempts_on_this_thread() - a1;
+    assert!(part > 0 && part < whole as u64 / 2, "{part} of {whole}");
+    let a2 = attempts_on_this_thread();
+    assert!(upto(60)().is_err());
+    assert_eq!(attempts_on_this_thread() - a2, part);
+    // Out of budget: every attempt it made before giving up.
+    let tight = SimOptions {
+        method: Method::Dopri5(Dopri5Options {
+            max_steps: 50,
+            ..opts.clone()
+        }),
+    };
+    let a3 = attempts_on_this_thread();
+    assert!(run_playback(&mut unit(), &ev, &tight, |_, _, _| {}).is_err());
+    assert_eq!(attempts_on_this_thread() - a3, 50);
+    // A replay of logged steps is not an adaptive run.
+    let log = itaipu_dynamics::integrate::StepLog::default();
+    let logged = SimOptions {
+        method: Method::Dopri5Logged(opts, log.clone()),
+    };
+    run_playback(&mut unit(), &ev, &logged, |_, _, _| {}).unwrap();
+    let a4 = attempts_on_this_thread();
+    let replay = SimOptions {
+        method: Method::Replay(log.times()),
+    };
+    run_playback(&mut unit(), &ev, &replay, |_, _, _| {}).unwrap();
+    assert_eq!(attempts_on_this_thread(), a4);
+}

@@ -176,6 +176,19 @@ impl Dopri5 {
     }
 }
 
+thread_local! {
+    static ATTEMPTS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// The step attempts (accepted and rejected) every adaptive Dormand-Prince run on the calling
+/// thread has made so far, a run that ran out of its budget or was stopped by its observer
+/// included: a work meter. A caller reads it before and after a playback it runs on one thread
+/// (nothing in a playback hands work to another thread) and takes the difference; replays are
+/// not counted.
+pub fn attempts_on_this_thread() -> u64 {
+    ATTEMPTS.with(|a| a.get())
+}
+
 /// Where each step of a Dormand-Prince run ends and whether it is kept: the one difference
 /// between an adaptive run ([`Adaptive`]) and a replay of its steps ([`Replayed`]), which share
 /// everything else ([`drive`]: the start, the knots, the stages, event location and handling).
@@ -220,6 +233,7 @@ impl StepRule for Adaptive<'_> {
         if stats.steps_accepted + stats.steps_rejected >= max_steps {
             return Err(SolveError::TooManySteps { t, max_steps });
         }
+        ATTEMPTS.with(|a| a.set(a.get() + 1));
         let h = self.ctl.h;
         if h <= 10.0 * f64::EPSILON * t.abs().max(self.span) {
             return Err(SolveError::StepUnderflow { t, h });
