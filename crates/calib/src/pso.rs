@@ -37,7 +37,9 @@
 //!    going while the cost keeps shrinking geometrically. Optionally, when every evaluation
 //!    has failed (cost at or above `failed_cost`) after `give_up_iterations` iterations
 //!    (`StopReason::NothingFeasible`): with no feasible point the swarm has nothing to follow,
-//!    and each failed evaluation may cost a whole step budget.
+//!    and each failed evaluation may cost a whole step budget. Likewise, with
+//!    [`minimize_bounded_or_give_up`], when the caller's measure of its candidates' cost says so
+//!    after `give_up_iterations` iterations (`StopReason::TooCostly`).
 //!
 //! The defaults (`w = 0.7298`, `c1 = c2 = 1.49618`) are the Clerc–Kennedy constriction
 //! coefficients, which give a convergent swarm without relying on the velocity clamp.
@@ -201,6 +203,9 @@ pub enum StopReason {
     /// Every evaluation failed (cost at or above `failed_cost`) through `give_up_iterations`
     /// iterations: a swarm with no feasible point has nothing to move towards.
     NothingFeasible,
+    /// The caller's measure of its candidates' cost ([`minimize_bounded_or_give_up`]) said,
+    /// after `give_up_iterations` iterations, that going on would cost too much.
+    TooCostly,
 }
 
 /// Outcome of [`minimize`].
@@ -273,11 +278,31 @@ pub fn minimize_bounded<F, P>(
     n: usize,
     start: Option<&[f64]>,
     opts: &PsoOptions,
-    mut on_iteration: P,
+    on_iteration: P,
 ) -> PsoResult
 where
     F: Fn(&[f64], f64) -> f64 + Sync,
     P: FnMut(usize, f64),
+{
+    minimize_bounded_or_give_up(cost, n, start, opts, on_iteration, || false)
+}
+
+/// [`minimize_bounded`] that also gives up when `too_costly()` says so after
+/// `give_up_iterations` iterations ([`StopReason::TooCostly`]; asked once, on the calling
+/// thread, after that iteration's evaluations: a caller measuring its candidates' work gets
+/// the same answer whatever the number of threads).
+pub fn minimize_bounded_or_give_up<F, P, C>(
+    cost: F,
+    n: usize,
+    start: Option<&[f64]>,
+    opts: &PsoOptions,
+    mut on_iteration: P,
+    too_costly: C,
+) -> PsoResult
+where
+    F: Fn(&[f64], f64) -> f64 + Sync,
+    P: FnMut(usize, f64),
+    C: Fn() -> bool,
 {
     if let Err(msg) = opts.validate() {
         panic!("invalid PSO options: {msg}");
@@ -412,6 +437,10 @@ where
             && !(gbest_cost < opts.failed_cost)
         {
             stopped_by = StopReason::NothingFeasible;
+            break;
+        }
+        if opts.give_up_iterations > 0 && t == opts.give_up_iterations && too_costly() {
+            stopped_by = StopReason::TooCostly;
             break;
         }
     }
@@ -1439,5 +1468,68 @@ mod tests {
         let with = minimize(f, 2, None, &o, |_, _| {});
         assert!(with.best_cost < 1e-6, "{}", with.best_cost);
         assert_eq!(with, without);
+    }
+
+    #[test]
+    fn a_swarm_its_caller_finds_too_costly_gives_up_once_asked() {
+        // The caller is asked once, after `give_up_iterations` iterations; a yes stops the
+        // swarm there with its best so far, a no leaves it as the swarm without the question.
+        let o = PsoOptions {
+            particles: 8,
+            iterations: 40,
+            stall_iterations: 0,
+            give_up_iterations: 5,
+            ..Default::default()
+        };
+        let f = |u: &[f64], _: f64| (u[0] - 0.3).powi(2) + (u[1] - 0.6).powi(2);
+        let asked = std::cell::Cell::new(0);
+        let costly = minimize_bounded_or_give_up(
+            f,
+            2,
+            None,
+            &o,
+            |_, _| {},
+            || {
+                asked.set(asked.get() + 1);
+                true
+            },
+        );
+        assert_eq!(costly.stopped_by, StopReason::TooCostly);
+        assert_eq!((costly.iterations, costly.evaluations), (5, 8 * 6));
+        assert_eq!(asked.get(), 1);
+        let plain = minimize_bounded(f, 2, None, &o, |_, _| {});
+        let fine = minimize_bounded_or_give_up(
+            f,
+            2,
+            None,
+            &o,
+            |_, _| {},
+            || {
+                asked.set(asked.get() + 1);
+                false
+            },
+        );
+        assert_eq!(asked.get(), 2);
+        assert_eq!(fine, plain);
+        assert_eq!(plain.iterations, 40);
+        // The stopped swarm is the whole one up to its stop.
+        assert_eq!(costly.history[..], plain.history[..6]);
+        // Without a give-up iteration the caller is never asked.
+        let never = PsoOptions {
+            give_up_iterations: 0,
+            ..o.clone()
+        };
+        let r = minimize_bounded_or_give_up(
+            f,
+            2,
+            None,
+            &never,
+            |_, _| {},
+            || {
+                asked.set(asked.get() + 1);
+                true
+            },
+        );
+        assert_eq!((r.stopped_by, asked.get()), (StopReason::MaxIterations, 2));
     }
 }
