@@ -46,8 +46,18 @@ fn print_stage(st: &itaipu_calib::fit::StageReport) {
         st.phases
             .iter()
             .map(|p| format!(
-                "[{} {} it, {:.5}, {}, {:.1} s, {} sims]",
-                p.phase, p.iterations, p.best_objective, p.stopped_by, p.wall_s, p.simulations
+                "[{} {} it, {:.5}, {}, {:.1} s, {} sims{}]",
+                p.phase,
+                p.iterations,
+                p.best_objective,
+                p.stopped_by,
+                p.wall_s,
+                p.simulations,
+                if p.steps_per_sample > 0.0 {
+                    format!(", {:.2} steps/sample", p.steps_per_sample)
+                } else {
+                    String::new()
+                }
             ))
             .collect::<Vec<_>>()
             .join(" ")

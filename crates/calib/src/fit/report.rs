@@ -194,6 +194,11 @@ pub struct PhaseReport {
     pub iterations: u64,
     pub best_objective: f64,
     pub stopped_by: String,
+    /// A swarm's integration step attempts per sample its candidates played (its work; about 1
+    /// for candidates followed at the record's resolution, `search::TOO_COSTLY_STEPS_PER_SAMPLE`
+    /// gives up); 0 for a local phase and in reports written before it was kept.
+    #[serde(default)]
+    pub steps_per_sample: f64,
     /// Wall time of the phase [s] (0 in reports written before it was kept).
     #[serde(default)]
     pub wall_s: f64,

@@ -21,6 +21,24 @@ use super::*;
 /// iterations.
 pub(crate) const SWARM_GIVE_UP_ITERATIONS: usize = 5;
 
+/// Step attempts per played sample above which a swarm's candidates, averaged over its first
+/// [`SWARM_GIVE_UP_ITERATIONS`] iterations, are too costly to go on with
+/// ([`pso::StopReason::TooCostly`]): the local method then starts from the stage's start, as
+/// after a swarm that found nothing feasible.
+///
+/// The rule: a playback lands on every sample, so a candidate the search integrator can follow
+/// at the record's resolution takes about one step per sample (fewer when the bounded
+/// evaluation stops it early); many more means its steps are held by the explicit method's
+/// stability, not by the record: a mode far faster than the samples can show, such as the
+/// near-singular flux equations of a machine the previous stage left at X'_d = X''_d = X_l,
+/// which every candidate of the next stage then inherits. The swarm cannot learn anything
+/// from such candidates at a normal swarm's cost. The value lies in the gap of the
+/// distribution measured on the 327 stage swarms of the 66 practice fits (stop 57, README,
+/// "Where the time goes"): every ordinary swarm at most 1.6 attempts per sample over its whole
+/// run (median 0.87); the three after p03's near-singular generator stage 8.1-9.0 over their
+/// first iterations (16 for the machine the same stage left at rtol 1e-5).
+pub(crate) const TOO_COSTLY_STEPS_PER_SAMPLE: f64 = 4.0;
+
 /// Runs the swarm (its first particle at the problem's start), then the local method; returns
 /// the best of the candidates on the accurate integrator (physical values) and the phase
 /// reports.
@@ -46,6 +64,13 @@ pub(crate) fn search(
     let mut from_swarm: Vec<Vec<f64>> = vec![];
     if use_pso && n > 0 && opts.pso_iterations > 0 {
         let (t0, sims0) = (std::time::Instant::now(), problem.simulations());
+        let attempts0 = problem.attempts();
+        // The swarm's work so far: step attempts per sample its candidates played.
+        let steps_per_sample = || {
+            let played = (problem.simulations() - sims0) as f64 / problem.events.len() as f64
+                * problem.samples() as f64;
+            (problem.attempts() - attempts0) as f64 / played.max(1.0)
+        };
         progress.phase(stage, "pso", opts.pso_iterations as u64);
         let sim = &opts.swarm_integrator;
         let pso_opts = PsoOptions {
@@ -65,18 +90,20 @@ pub(crate) fn search(
         let u0 = Some(problem.to_unit(&start)).filter(|u| u.iter().all(|v| v.is_finite()));
         // Each candidate is simulated only as far as it can still beat its particle's best
         // (`Problem::cost_bounded`): the swarm is bit for bit the one with whole playbacks.
-        let res = pso::minimize_bounded(
+        let res = pso::minimize_bounded_or_give_up(
             |u: &[f64], bound: f64| problem.cost_bounded(&problem.from_unit(u), sim, bound),
             n,
             u0.as_deref(),
             &pso_opts,
             |i, best| progress.iteration(i as u64, best),
+            || steps_per_sample() > TOO_COSTLY_STEPS_PER_SAMPLE,
         );
         phases.push(PhaseReport {
             phase: "pso".into(),
             iterations: res.iterations as u64,
             best_objective: res.best_cost,
             stopped_by: format!("{:?}", res.stopped_by),
+            steps_per_sample: steps_per_sample(),
             wall_s: t0.elapsed().as_secs_f64(),
             simulations: problem.simulations() - sims0,
         });
@@ -128,6 +155,7 @@ pub(crate) fn search(
             iterations: res.iterations,
             best_objective: res.best_cost,
             stopped_by: res.stopped_by.clone(),
+            steps_per_sample: 0.0,
             wall_s: t0.elapsed().as_secs_f64(),
             simulations: problem.simulations() - sims0,
         });
