@@ -1483,53 +1483,36 @@ mod tests {
         };
         let f = |u: &[f64], _: f64| (u[0] - 0.3).powi(2) + (u[1] - 0.6).powi(2);
         let asked = std::cell::Cell::new(0);
-        let costly = minimize_bounded_or_give_up(
-            f,
-            2,
-            None,
-            &o,
-            |_, _| {},
-            || {
-                asked.set(asked.get() + 1);
-                true
-            },
-        );
-        assert_eq!(costly.stopped_by, StopReason::TooCostly);
-        assert_eq!((costly.iterations, costly.evaluations), (5, 8 * 6));
+        // The swarm on `opts` whose caller answers `costly` (and counts the questions).
+        let run = |opts: &PsoOptions, costly: bool| {
+            minimize_bounded_or_give_up(
+                f,
+                2,
+                None,
+                opts,
+                |_, _| {},
+                || {
+                    asked.set(asked.get() + 1);
+                    costly
+                },
+            )
+        };
+        let stopped = run(&o, true);
+        assert_eq!(stopped.stopped_by, StopReason::TooCostly);
+        assert_eq!((stopped.iterations, stopped.evaluations), (5, 8 * 6));
         assert_eq!(asked.get(), 1);
         let plain = minimize_bounded(f, 2, None, &o, |_, _| {});
-        let fine = minimize_bounded_or_give_up(
-            f,
-            2,
-            None,
-            &o,
-            |_, _| {},
-            || {
-                asked.set(asked.get() + 1);
-                false
-            },
-        );
+        assert_eq!(run(&o, false), plain);
         assert_eq!(asked.get(), 2);
-        assert_eq!(fine, plain);
         assert_eq!(plain.iterations, 40);
         // The stopped swarm is the whole one up to its stop.
-        assert_eq!(costly.history[..], plain.history[..6]);
+        assert_eq!(stopped.history[..], plain.history[..6]);
         // Without a give-up iteration the caller is never asked.
         let never = PsoOptions {
             give_up_iterations: 0,
             ..o.clone()
         };
-        let r = minimize_bounded_or_give_up(
-            f,
-            2,
-            None,
-            &never,
-            |_, _| {},
-            || {
-                asked.set(asked.get() + 1);
-                true
-            },
-        );
-        assert_eq!((r.stopped_by, asked.get()), (StopReason::MaxIterations, 2));
+        assert_eq!(run(&never, true).stopped_by, StopReason::MaxIterations);
+        assert_eq!(asked.get(), 2);
     }
 }

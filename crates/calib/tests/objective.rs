@@ -159,35 +159,22 @@ fn the_search_integrators_agree_with_the_accurate_one_on_a_practice_record() {
         let s = run_playback(&mut case.unit.clone(), &data.prepared, o, |_, _, _| {}).unwrap();
         s.steps_accepted + s.steps_rejected
     };
-    let before = SimOptions {
-        method: itaipu_dynamics::integrate::Method::Dopri5(
-            itaipu_dynamics::integrate::Dopri5Options {
-                rtol: 1e-6,
-                atol: 1e-7,
-                h_max: 0.05,
-                max_steps: 25_000,
-                ..Default::default()
-            },
-        ),
+    // The searches' earlier tolerances, with the search's step size limit and budget.
+    let earlier = |rtol: f64, atol: f64| SimOptions {
+        method: itaipu_dynamics::integrate::Method::Dopri5(Dopri5Options {
+            rtol,
+            atol,
+            ..Dopri5Options::search()
+        }),
     };
-    let (now, then) = (steps(&search_integrator()), steps(&before));
+    let (now, then) = (steps(&search_integrator()), steps(&earlier(1e-6, 1e-7)));
     assert!(
         (now as f64) < 0.75 * then as f64,
         "the search integrator took {now} steps, the earlier tolerances {then}"
     );
     // And than rtol 1e-5, atol 1e-6, which it replaced at stop 57 (measured on this record
     // as recorded, 600 samples: 1316 steps against 1663; 2249 at rtol 1e-6).
-    let previous = SimOptions {
-        method: itaipu_dynamics::integrate::Method::Dopri5(
-            itaipu_dynamics::integrate::Dopri5Options {
-                rtol: 1e-5,
-                atol: 1e-6,
-                h_max: 0.05,
-                max_steps: 25_000,
-                ..Default::default()
-            },
-        ),
-    };
+    let previous = earlier(1e-5, 1e-6);
     let (prev, samples) = (steps(&previous), data.prepared.input.time_s.len());
     eprintln!("as recorded: {now} steps at the search's tolerances, {prev} at rtol 1e-5, {then} at 1e-6; {samples} samples");
     assert!(
