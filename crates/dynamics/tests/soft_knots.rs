@@ -109,16 +109,17 @@ fn worst(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
         .fold(0.0f64, |m, (x, y)| m.max((x - y).abs() / y.abs().max(1.0)))
 }
 
-/// On the 20 s dip, on the spline input at the search tolerance (rtol 1e-5): stepping over the
-/// soft samples, every state at every sample within 3 × rtol of rtol 1e-9's (each against its
-/// own scale, at least 1; measured 1.2e-5, and 2.0e-6 landing on every sample, whose steps the
-/// samples hold shorter than the tolerance asks), for at most 80 % of the right-hand sides
-/// landing on every sample takes (measured 39 %). A logged run lands on every sample whatever
-/// the option (its replay does): the same step ends as without it. The linear input moves the
-/// states further than either (after the fault is cleared the angle swings, and a line
-/// between samples cuts its corners: measured 1.5e-4 in the states, 4e-3 pu in P at the
-/// samples just after it, the PMU noise being 2e-3), which is why the option plays the spline:
-/// the samples are soft only on it.
+/// On the 20 s dip, on the spline input at the search tolerance (rtol 1e-4 since stop 57):
+/// stepping over the soft samples, every state at every sample within 3 × rtol of rtol 1e-9's
+/// (each against its own scale, at least 1; measured 5.8e-5, and 9.5e-6 landing on every
+/// sample, whose steps the samples hold shorter than the tolerance asks; at rtol 1e-5 1.2e-5
+/// and 2.0e-6), for at most 80 % of the right-hand sides landing on every sample takes
+/// (measured 35 %; 39 % at 1e-5). A logged run lands on every sample whatever the option (its
+/// replay does): the same step ends as without it. The linear input moves the states further
+/// than either (after the fault is cleared the angle swings, and a line between samples cuts
+/// its corners: measured 1.5e-4 in the states, 2.7 × the error stepping over at rtol 1e-4;
+/// 4e-3 pu in P at the samples just after it, the PMU noise being 2e-3), which is why the
+/// option plays the spline: the samples are soft only on it.
 #[test]
 fn stepping_over_soft_knots_keeps_the_states_for_fewer_evaluations() {
     let ev = event();
@@ -145,11 +146,12 @@ fn stepping_over_soft_knots_keeps_the_states_for_fewer_evaluations() {
         100.0 * s_soft.rhs_evals as f64 / s_hard.rhs_evals as f64
     );
     assert_eq!(soft.len(), ev.input.time_s.len(), "every sample observed");
+    let rtol = dopri(true).rtol;
     assert!(
-        e_soft < 3e-5 && e_hard < e_soft,
+        e_soft < 3.0 * rtol && e_hard < e_soft,
         "{e_soft:e} ({e_hard:e} landing)"
     );
-    assert!(e_input > 10.0 * e_soft, "{e_input:e}");
+    assert!(e_input > 2.0 * e_soft, "{e_input:e}");
     assert!(
         (s_soft.rhs_evals as f64) < 0.8 * s_hard.rhs_evals as f64,
         "{} against {}",
