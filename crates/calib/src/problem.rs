@@ -421,18 +421,16 @@ pub fn objective_weights(objective: Objective, w: Weights) -> (f64, f64) {
 /// Dormand-Prince at rtol 1e-4, atol 1e-5.
 ///
 /// What a search needs is the ranking of candidates; every result it hands on is polished by the
-/// local method and re-evaluated on [`accurate_integrator`]. The rule for its tolerance: its
-/// error in P and Q must stay far below the PMU's noise (2e-3 pu), so that it moves a
-/// candidate's χ² by much less than the χ² differences the search acts on. On the bundled p01
-/// (`tests/objective.rs`) rtol 1e-4 is within 1.2e-5 pu as recorded and 2.3e-5 pu smoothed
-/// (J within 7.5e-4 relative), a hundredth of the noise. Its steps come close to being held by
-/// the samples (the played-back input is linear between them): on the 66 practice fits a
-/// swarm's candidates took a median 0.87 step attempts per sample played (at most 1.6; below
-/// one where the bounded evaluation stopped them early). rtol 1e-5 took a fifth more on p01
-/// played as recorded (1663 steps against 1316 for 600 samples). Measured at stop 57 against
-/// rtol 1e-5, atol 1e-6 (both practice sets, two processes side by side): fit median 33.0 →
-/// 18.6 s, diagnosis median 38.4 → 26.0 s, every verdict, grade and key the same (README,
-/// "Where the time goes").
+/// local method and re-evaluated on [`accurate_integrator`]. The rule for its tolerance (a noise
+/// model): its error in P and Q must be a small fraction of the record's own noise σ, so that it
+/// moves a candidate's χ² by a small fraction of that χ² and the ranking the swarm acts on is the
+/// record's, not the integrator's. Checked on every record of both practice sets (their nominal
+/// units, the default playback; `cargo run --release -p itaipu-calib --example search_error`):
+/// the largest error at a sample is a median 5e-4 σ, at most 0.15 σ, and χ² moves by a median
+/// 3e-7 of itself, at most 3.3e-3. Its steps are then nearly held by the samples (the
+/// played-back input is linear between them): a median 1.00 step attempts per sample, at most
+/// 1.36; rtol 1e-5 took up to 2.4 times as many (a median 1.01 times: the records at 30
+/// samples/s, where the error control rather than the samples set the step, gain the most).
 ///
 /// The step budget is 25 000 steps, about 15 × what a 25 s event at 60 samples/s takes, so a
 /// candidate that chatters on a limiter is failed and penalised rather than simulated for

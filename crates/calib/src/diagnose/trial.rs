@@ -209,9 +209,8 @@ pub fn truth_and_event(t: &Trial) -> Result<(Unit, Event), TrialError> {
 /// The diagnosis re-frees the calibration's free parameters in every re-fit (added to
 /// `opts.refit`: [`super::calibrated_set`] merged by [`crate::job::merge_calibrated_set`]), as
 /// the command line, Python and the practice runner do: a re-fit whose baseline cannot move
-/// what the calibration bent lets any extension that mimics the bend gain (on the clean ambient
-/// record of seed 101 a terminal load was named so), and the trials measure the protocol a
-/// user gets.
+/// what the calibration bent lets any extension that mimics the bend gain, and the trials
+/// measure the protocol a user gets.
 pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, TrialError> {
     let (truth, event) = truth_and_event(t)?;
     let mut nominal = base_unit();
