@@ -12,7 +12,9 @@
 //! calibrated set, `CAUSES=a,b` tries those causes of the catalog only (for experiments: the
 //! verdict then weighs fewer rivals), `FIT_SEED=n` runs the fits' swarms with seed `n` instead
 //! of the spec's (another calibration of the same record: how much does a verdict depend on
-//! where the fit landed?), `PSO_ITERATIONS=n`, `LOCAL_STARTS=k`, `JOINT_ITERATIONS=n` set the
+//! where the fit landed?), `DIAG_SEED=n` runs the diagnosis with seed `n` (its surrogate
+//! records' noise and its re-fits' swarms: how much does a verdict depend on the diagnosis's
+//! own draws?), `PSO_ITERATIONS=n`, `LOCAL_STARTS=k`, `JOINT_ITERATIONS=n` set the
 //! spec's `[calibration.pso]` search (README, "Short swarms, several starts"),
 //! `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back low-passed at `f` Hz between
 //! their edges instead of the default 4 Hz, `INPUT_LOWPASS_HZ=none` as recorded
@@ -165,6 +167,9 @@ fn main() {
             let mut dopts = diagnose_options(&case, &spec, &opts.stages, &calibrated);
             if std::env::var("NO_REFIT").is_ok() {
                 dopts.refit.clear();
+            }
+            if let Some(seed) = std::env::var("DIAG_SEED").ok().and_then(|s| s.parse().ok()) {
+                dopts.seed = seed;
             }
             if let Ok(causes) = std::env::var("CAUSES") {
                 dopts.causes = causes.split(',').map(|c| c.trim().to_string()).collect();
