@@ -14,7 +14,8 @@
 //! of the spec's (another calibration of the same record: how much does a verdict depend on
 //! where the fit landed?), `DIAG_SEED=n` runs the diagnosis with seed `n` (its surrogate
 //! records' noise and its re-fits' swarms: how much does a verdict depend on the diagnosis's
-//! own draws?), `PSO_ITERATIONS=n`, `LOCAL_STARTS=k`, `JOINT_ITERATIONS=n` set the
+//! own draws?), `NULL_DRAWS=n` nets out the noise-fitting gain of n surrogate draws
+//! (`DiagnoseOptions::null_draws`), `PSO_ITERATIONS=n`, `LOCAL_STARTS=k`, `JOINT_ITERATIONS=n` set the
 //! spec's `[calibration.pso]` search (README, "Short swarms, several starts"),
 //! `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back low-passed at `f` Hz between
 //! their edges instead of the default 4 Hz, `INPUT_LOWPASS_HZ=none` as recorded
@@ -170,6 +171,12 @@ fn main() {
             }
             if let Some(seed) = std::env::var("DIAG_SEED").ok().and_then(|s| s.parse().ok()) {
                 dopts.seed = seed;
+            }
+            if let Some(n) = std::env::var("NULL_DRAWS")
+                .ok()
+                .and_then(|s| s.parse().ok())
+            {
+                dopts.null_draws = n;
             }
             if let Ok(causes) = std::env::var("CAUSES") {
                 dopts.causes = causes.split(',').map(|c| c.trim().to_string()).collect();

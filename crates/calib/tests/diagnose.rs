@@ -129,6 +129,56 @@ fn stepping_over_the_samples_in_the_refits_keeps_the_oel_and_the_clean_dip() {
     check_with("none", 101, None, true);
 }
 
+/// The noise-fitting gain a diagnosis nets out is the mean of its surrogate draws'
+/// (`DiagnoseOptions::null_draws`), the first draw being the one-draw diagnosis's own: a hidden
+/// terminal load (a gain that passes, so its surrogate re-fits run), that cause alone, with one
+/// draw and with three. The extension's own re-fit does not depend on the draws.
+#[test]
+fn the_noise_fitting_gain_netted_out_is_the_mean_of_its_draws() {
+    let t = scenario("terminal_load", 101, None);
+    let gains = |draws: usize| {
+        let o = run(
+            &t,
+            &DiagnoseOptions {
+                seed: 101,
+                look_alikes: false,
+                causes: vec!["terminal_load".into()],
+                null_draws: draws,
+                ..Default::default()
+            },
+        )
+        .unwrap_or_else(|e| panic!("{draws} draws: {e}"));
+        o.report
+            .candidates
+            .into_iter()
+            .find(|c| c.cause == "terminal_load")
+            .and_then(|c| c.gains)
+            .expect("the terminal load's gains")
+    };
+    let (one, three) = (gains(1), gains(3));
+    println!(
+        "one draw {:?}, three {:?}",
+        one.null_gains_fit, three.null_gains_fit
+    );
+    assert_eq!(one.null_gains_fit.len(), 1);
+    assert_eq!(three.null_gains_fit.len(), 3);
+    assert_eq!(one.null_gain_fit, one.null_gains_fit[0]);
+    assert_eq!(
+        three.null_gains_fit[0], one.null_gains_fit[0],
+        "the first draw is the same"
+    );
+    let mean = three.null_gains_fit.iter().sum::<f64>() / 3.0;
+    assert!((three.null_gain_fit - mean).abs() <= 1e-12 * mean.max(1.0));
+    assert!(
+        three.null_gains_fit[1..]
+            .iter()
+            .any(|g| *g != three.null_gains_fit[0]),
+        "the draws are other records"
+    );
+    assert_eq!(one.chi2_fit_ext, three.chi2_fit_ext);
+    assert_eq!(one.chi2_fit_base, three.chi2_fit_base);
+}
+
 #[test]
 fn a_pss_out_of_service_is_named() {
     check("pss_state", 101, None);

@@ -143,8 +143,8 @@ pub(super) struct Candidates<'a> {
     pub evidence: &'a [EventEvidence],
     /// The re-fits on the record's split.
     pub env: RefitEnv<'a>,
-    /// The surrogate's split.
-    pub sp_null: &'a Split,
+    /// The surrogates' splits, one per draw.
+    pub sp_null: &'a [Split],
     /// The split on contiguous segments for the second held-out test (without held-out events;
     /// [`SEGMENT_S`]).
     pub sp_segments: Option<&'a Split>,
@@ -168,7 +168,7 @@ pub(super) struct RecordedInput {
     pub evidence: Vec<EventEvidence>,
     pub ctx: Context,
     pub sp: Split,
-    pub sp_null: Split,
+    pub sp_null: Vec<Split>,
     pub sp_segments: Option<Split>,
 }
 
@@ -179,7 +179,7 @@ impl RecordedInput {
     pub(super) fn new(
         events: &[Event],
         held_out: &[Event],
-        surrogates: (&[Event], &[Event]),
+        surrogates: &[(Vec<Event>, Vec<Event>)],
         band_top: Option<f64>,
         (reference, pb): (&Unit, &Playback),
         segments: bool,
@@ -205,7 +205,10 @@ impl RecordedInput {
         };
         let (ev, ho) = (raw(events), raw(held_out));
         let sp = split(&ev, &ho, block_s)?;
-        let sp_null = split(&raw(surrogates.0), &raw(surrogates.1), block_s)?;
+        let mut sp_null = Vec::with_capacity(surrogates.len());
+        for (e, h) in surrogates {
+            sp_null.push(split(&raw(e), &raw(h), block_s)?);
+        }
         let sp_segments = if segments {
             Some(split(&ev, &ho, SEGMENT_S)?)
         } else {
@@ -247,7 +250,7 @@ impl Candidates<'_> {
         let (env, sp_null, sp_segments, ctx, evidence_before, key_prefix) = match recorded {
             Some(r) => (
                 self.env.on(&r.sp),
-                &r.sp_null,
+                r.sp_null.as_slice(),
                 r.sp_segments.as_ref(),
                 &r.ctx,
                 r.evidence.as_slice(),
@@ -263,7 +266,7 @@ impl Candidates<'_> {
             ),
         };
         let (opts, progress) = (env.opts, env.progress);
-        let env_null = env.on(sp_null);
+        let envs_null: Vec<RefitEnv> = sp_null.iter().map(|s| env.on(s)).collect();
         // The voltage noise's echo in the fitted χ² as recorded: the reference unit (no
         // parameter free) on both playbacks.
         let input_echo = match recorded {
@@ -481,46 +484,63 @@ impl Candidates<'_> {
         // The noise-fitting part of the gain, measured on the surrogate events (only for a
         // candidate whose raw gain could pass: the correction only lowers it).
         let (mut null_fit, mut null_held) = (0.0, 0.0);
+        let mut null_fits: Vec<f64> = vec![];
         if passes(raw_fit, raw_held) {
-            let nkey = format!("null:{key}");
-            if !baselines.contains_key(&nkey) {
-                if let Ok(b) = refit(
-                    &env_null,
-                    unit,
-                    &base_bounds,
-                    &[],
-                    &Label::new(RefitKind::Surrogate, format!("{id} null baseline")),
-                ) {
-                    baselines.insert(nkey.clone(), b);
+            // One draw or several: the noise-fitting gain is their mean over the draws whose
+            // re-fits ran.
+            let mut sum_held = 0.0;
+            for (draw, env_null) in envs_null.iter().enumerate() {
+                let nkey = if draw == 0 {
+                    format!("null:{key}")
+                } else {
+                    format!("null{draw}:{key}")
+                };
+                if !baselines.contains_key(&nkey) {
+                    if let Ok(b) = refit(
+                        env_null,
+                        unit,
+                        &base_bounds,
+                        &[],
+                        &Label::new(RefitKind::Surrogate, format!("{id} null baseline")),
+                    ) {
+                        baselines.insert(nkey.clone(), b);
+                    }
                 }
-            }
-            // The standard search budget: on the surrogate the reference is exact and the
-            // start is its optimum, so the longer search a bent calibration needs buys nothing.
-            match (baselines.get(&nkey), refit(&env_null, &ext.unit, &bounds, &ext.ties, &Label::new(RefitKind::Surrogate, format!("{id} null")))) {
-                (Some(b0), Ok(r0)) => {
-                    // The null baseline again from where the extension's null re-fit ended, as
-                    // on the record: the noise-fitting gain is the extension's, not a luckier
-                    // search.
-                    let mut b0 = b0.clone_scores();
-                    if b0.chi2_fit > r0.chi2_fit && !base_bounds.is_empty() {
-                        if let Some(b2) = baseline_from(&env_null, unit, &base_bounds, &r0, &Label::new(RefitKind::Surrogate, format!("{id} null baseline again"))) {
-                            if b2.chi2_fit < b0.chi2_fit {
-                                b0 = b2.clone_scores();
+                // The standard search budget: on the surrogate the reference is exact and the
+                // start is its optimum, so the longer search a bent calibration needs buys
+                // nothing.
+                match (baselines.get(&nkey), refit(env_null, &ext.unit, &bounds, &ext.ties, &Label::new(RefitKind::Surrogate, format!("{id} null")))) {
+                    (Some(b0), Ok(r0)) => {
+                        // The null baseline again from where the extension's null re-fit ended,
+                        // as on the record: the noise-fitting gain is the extension's, not a
+                        // luckier search.
+                        let mut b0 = b0.clone_scores();
+                        if b0.chi2_fit > r0.chi2_fit && !base_bounds.is_empty() {
+                            if let Some(b2) = baseline_from(env_null, unit, &base_bounds, &r0, &Label::new(RefitKind::Surrogate, format!("{id} null baseline again"))) {
+                                if b2.chi2_fit < b0.chi2_fit {
+                                    b0 = b2.clone_scores();
+                                }
                             }
                         }
+                        // Only the residuals' part of the surrogate's gain is noise fitting. Its
+                        // priors' part is not: the surrogate was made by the reference, whose
+                        // calibration may have bent datasheet values to absorb the cause, so an
+                        // extension that returns them gains that part there as on the record,
+                        // and netting it out would make an absorbed cause unnameable by
+                        // construction.
+                        let (b_fit, b_held) = b0.residuals_chi2();
+                        let (e_fit, e_held) = r0.clone_scores().residuals_chi2();
+                        null_fits.push((b_fit - e_fit).max(0.0));
+                        sum_held += (b_held - e_held).max(0.0);
+                        rep.simulations += r0.simulations;
                     }
-                    // Only the residuals' part of the surrogate's gain is noise fitting. Its
-                    // priors' part is not: the surrogate was made by the reference, whose
-                    // calibration may have bent datasheet values to absorb the cause, so an
-                    // extension that returns them gains that part there as on the record, and
-                    // netting it out would make an absorbed cause unnameable by construction.
-                    let (b_fit, b_held) = b0.residuals_chi2();
-                    let (e_fit, e_held) = r0.clone_scores().residuals_chi2();
-                    null_fit = (b_fit - e_fit).max(0.0);
-                    null_held = (b_held - e_held).max(0.0);
-                    rep.simulations += r0.simulations;
+                    _ => rep.note = "the surrogate (noise-only) re-fit failed: the gain is not corrected for noise fitting".into(),
                 }
-                _ => rep.note = "the surrogate (noise-only) re-fit failed: the gain is not corrected for noise fitting".into(),
+            }
+            if !null_fits.is_empty() {
+                let n = null_fits.len() as f64;
+                null_fit = null_fits.iter().sum::<f64>() / n;
+                null_held = sum_held / n;
             }
         }
         let base_ref: &Refit = base_again.as_ref().unwrap_or(&baselines[&key]);
@@ -553,6 +573,7 @@ impl Candidates<'_> {
             chi2_held_ext: r.chi2_held,
             null_gain_fit: null_fit,
             null_gain_held: null_held,
+            null_gains_fit: null_fits,
             fit_drop: net_fit / base.chi2_fit.max(1e-300),
             held_drop: net_held / base.chi2_held.max(1e-300),
             held_drop_segments,

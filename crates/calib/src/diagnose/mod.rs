@@ -176,6 +176,16 @@ pub struct DiagnoseOptions {
     /// the verdicts, keys and times: README, "The played-back voltage's noise"). It can be the
     /// default once every playback of a smoothed record plays one input.
     pub refit_over_samples: bool,
+    /// Surrogate records a candidate's noise-fitting gain is measured on (at least 1; default
+    /// 1): the gain it nets out is their mean. One draw's gain is a random variable, and a
+    /// verdict whose net gain lies within its spread of a threshold follows the draw: between
+    /// the seeds 1 and 2 it moved by a median 3.1 χ² units over the 71 candidates of both
+    /// practice sets whose gain was netted (at most 39), and p06's terminal load went from
+    /// named to `none` on it (0.0002 against 3.43, README "The verdict and the diagnosis's own
+    /// draws"). The mean of n draws spreads √n less, for n times the surrogate re-fits (a
+    /// twelfth of a diagnosis's time per draw on the practice sets). Measured with 4 (README,
+    /// same section): not yet the default.
+    pub null_draws: usize,
     /// Also try the bundled effects outside the catalog ([`look_alike`]) in a full diagnosis
     /// (`causes` empty) where a candidate passed its test: a residual one of them explains
     /// better is then `unexplained` (or `inconclusive`), not the nearest catalog cause.
@@ -212,6 +222,7 @@ impl Default for DiagnoseOptions {
             noise_factor: 1.5,
             mode: None,
             refit_over_samples: false,
+            null_draws: 1,
             look_alikes: true,
             cancel: None,
         }
@@ -329,6 +340,10 @@ pub struct Gains {
     /// (fitted and held-out samples).
     pub null_gain_fit: f64,
     pub null_gain_held: f64,
+    /// The fitted samples' noise-fitting gain of each surrogate draw whose re-fits ran
+    /// ([`DiagnoseOptions::null_draws`]; `null_gain_fit` is their mean); empty where no
+    /// surrogate re-fit ran (a gain that could not pass).
+    pub null_gains_fit: Vec<f64>,
     /// Net relative drop on the fitted samples:
     /// `(chi2_fit_base − chi2_fit_ext − null_gain_fit)/chi2_fit_base`.
     pub fit_drop: f64,
@@ -732,7 +747,7 @@ fn diagnose_run(
     let recorded = RecordedInput::new(
         events,
         held_out,
-        (&surrogates.0, &surrogates.1),
+        &surrogates,
         band_top,
         (unit, &pb),
         sp_segments.is_some(),

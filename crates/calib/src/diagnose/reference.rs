@@ -60,10 +60,11 @@ pub(super) struct Reference {
     pub before: Vec<(String, Traces)>,
     /// Per event: the reference's evidence.
     pub evidence: Vec<EventEvidence>,
-    /// The split of the surrogate events (and surrogate held-out events).
-    pub sp_null: Split,
-    /// The surrogate events and surrogate held-out events themselves.
-    pub surrogates: (Vec<Event>, Vec<Event>),
+    /// The splits of the surrogate records, one per draw ([`DiagnoseOptions::null_draws`]):
+    /// each the surrogate events and surrogate held-out events.
+    pub sp_null: Vec<Split>,
+    /// The surrogate events and surrogate held-out events themselves, per draw.
+    pub surrogates: Vec<(Vec<Event>, Vec<Event>)>,
 }
 
 /// The unit with its set-point offsets (nuisance) re-fitted on the split `sp`, its traces and
@@ -126,31 +127,39 @@ pub(super) fn reference(
         };
         surrogate_in_mode(e, pb, outs, seed).map_err(DiagnoseError::Setup)
     };
-    let mut surrogate_held = vec![];
-    for (k, e) in held_out.iter().enumerate() {
-        let seed = opts.seed.wrapping_add(1000 + k as u64);
-        if !pb.is_pq_phasor() {
-            surrogate_held.push(in_mode(e, None, seed)?);
-            continue;
-        }
-        let (_, tr) = fitness(&reference.unit, e, true)
-            .map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
-        surrogate_held.push(surrogate(e, &tr, seed).map_err(DiagnoseError::Setup)?);
-    }
-    let surrogate_events: Vec<Event> = events
-        .iter()
-        .zip(before.iter().zip(&outputs_before))
-        .enumerate()
-        .map(|(k, (e, ((_, tr), outs)))| {
-            let seed = opts.seed.wrapping_add(k as u64);
-            if pb.is_pq_phasor() {
-                surrogate(e, tr, seed).map_err(DiagnoseError::Setup)
-            } else {
-                in_mode(e, outs.as_ref(), seed)
+    let mut sp_null = vec![];
+    let mut surrogates = vec![];
+    for draw in 0..opts.null_draws.max(1) {
+        // The first draw's seeds are the diagnosis's own (one draw: as before); each further
+        // draw shifts them by a large odd stride.
+        let shift = (draw as u64).wrapping_mul(1_000_003);
+        let mut surrogate_held = vec![];
+        for (k, e) in held_out.iter().enumerate() {
+            let seed = opts.seed.wrapping_add(1000 + k as u64).wrapping_add(shift);
+            if !pb.is_pq_phasor() {
+                surrogate_held.push(in_mode(e, None, seed)?);
+                continue;
             }
-        })
-        .collect::<Result<_, _>>()?;
-    let sp_null = split(&surrogate_events, &surrogate_held, opts.block_s)?;
+            let (_, tr) = fitness(&reference.unit, e, true)
+                .map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
+            surrogate_held.push(surrogate(e, &tr, seed).map_err(DiagnoseError::Setup)?);
+        }
+        let surrogate_events: Vec<Event> = events
+            .iter()
+            .zip(before.iter().zip(&outputs_before))
+            .enumerate()
+            .map(|(k, (e, ((_, tr), outs)))| {
+                let seed = opts.seed.wrapping_add(k as u64).wrapping_add(shift);
+                if pb.is_pq_phasor() {
+                    surrogate(e, tr, seed).map_err(DiagnoseError::Setup)
+                } else {
+                    in_mode(e, outs.as_ref(), seed)
+                }
+            })
+            .collect::<Result<_, _>>()?;
+        sp_null.push(split(&surrogate_events, &surrogate_held, opts.block_s)?);
+        surrogates.push((surrogate_events, surrogate_held));
+    }
     profile.add(
         "diagnosis",
         "evidence and surrogate records",
@@ -164,7 +173,7 @@ pub(super) fn reference(
         before,
         evidence: evidence_before,
         sp_null,
-        surrogates: (surrogate_events, surrogate_held),
+        surrogates,
     })
 }
 

@@ -922,6 +922,7 @@ mod tests {
                 chi2_held_ext: 400.0,
                 null_gain_fit: 0.0,
                 null_gain_held: 0.0,
+                null_gains_fit: vec![],
                 fit_drop: 0.1,
                 held_drop: 0.2,
                 held_drop_segments: None,
