@@ -177,14 +177,15 @@ pub struct DiagnoseOptions {
     /// default once every playback of a smoothed record plays one input.
     pub refit_over_samples: bool,
     /// Surrogate records a candidate's noise-fitting gain is measured on (at least 1; default
-    /// 1): the gain it nets out is their mean. One draw's gain is a random variable, and a
-    /// verdict whose net gain lies within its spread of a threshold follows the draw: between
-    /// the seeds 1 and 2 it moved by a median 3.1 χ² units over the 71 candidates of both
-    /// practice sets whose gain was netted (at most 39), and p06's terminal load went from
-    /// named to `none` on it (0.0002 against 3.43, README "The verdict and the diagnosis's own
-    /// draws"). The mean of n draws spreads √n less, for n times the surrogate re-fits (a
-    /// twelfth of a diagnosis's time per draw on the practice sets). Measured with 4 (README,
-    /// same section): not yet the default.
+    /// 1): the gain it nets out is their mean. The rule (a statistic): one draw's noise-fitting
+    /// gain is a random variable whose spread is several χ² units, as large as the margin by
+    /// which a net gain may clear `min_fit_drop` or `bic_threshold`, so such a verdict follows
+    /// the draw; the mean of n draws spreads √n less, for n times the surrogate re-fits (a
+    /// twelfth of a diagnosis's time per draw). Measured on both practice sets (66 records,
+    /// seeds 1 and 2, README "The verdict and the diagnosis's own draws"): one draw's gain moved
+    /// between the seeds by a median 3.1 χ² units over the 71 candidates netted (at most 39),
+    /// and one right name of 48 turned `none` on it; the mean of 4 by a median 0.9 (at most
+    /// 20), naming 41 and 40 of 48 right where one draw names 42 and 41. Not yet the default.
     pub null_draws: usize,
     /// Also try the bundled effects outside the catalog ([`look_alike`]) in a full diagnosis
     /// (`causes` empty) where a candidate passed its test: a residual one of them explains

@@ -127,6 +127,18 @@ pub(super) fn reference(
         };
         surrogate_in_mode(e, pb, outs, seed).map_err(DiagnoseError::Setup)
     };
+    // The reference's playback of each held-out event (its traces, or in a playback mode its
+    // compared channels), once for every draw.
+    let mut held_played = vec![];
+    for e in held_out {
+        held_played.push(if pb.is_pq_phasor() {
+            let (_, tr) = fitness(&reference.unit, e, true)
+                .map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
+            (Some(tr), None)
+        } else {
+            (None, Some(pb.outputs(&reference.unit, e)?))
+        });
+    }
     let mut sp_null = vec![];
     let mut surrogates = vec![];
     for draw in 0..opts.null_draws.max(1) {
@@ -134,15 +146,12 @@ pub(super) fn reference(
         // draw shifts them by a large odd stride.
         let shift = (draw as u64).wrapping_mul(1_000_003);
         let mut surrogate_held = vec![];
-        for (k, e) in held_out.iter().enumerate() {
+        for (k, (e, (tr, outs))) in held_out.iter().zip(&held_played).enumerate() {
             let seed = opts.seed.wrapping_add(1000 + k as u64).wrapping_add(shift);
-            if !pb.is_pq_phasor() {
-                surrogate_held.push(in_mode(e, None, seed)?);
-                continue;
-            }
-            let (_, tr) = fitness(&reference.unit, e, true)
-                .map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
-            surrogate_held.push(surrogate(e, &tr, seed).map_err(DiagnoseError::Setup)?);
+            surrogate_held.push(match tr {
+                Some(tr) => surrogate(e, tr, seed).map_err(DiagnoseError::Setup)?,
+                None => in_mode(e, outs.as_ref(), seed)?,
+            });
         }
         let surrogate_events: Vec<Event> = events
             .iter()
