@@ -169,6 +169,13 @@ fn the_noise_fitting_gain_netted_out_is_the_mean_of_its_draws() {
     );
     let mean = three.null_gains_fit.iter().sum::<f64>() / 3.0;
     assert!((three.null_gain_fit - mean).abs() <= 1e-12 * mean.max(1.0));
+    // The held-out samples' gain per draw, the same draws: its mean is the one netted out.
+    assert_eq!(one.null_gains_held.len(), 1);
+    assert_eq!(three.null_gains_held.len(), 3);
+    assert_eq!(one.null_gain_held, one.null_gains_held[0]);
+    assert_eq!(three.null_gains_held[0], one.null_gains_held[0]);
+    let mean_held = three.null_gains_held.iter().sum::<f64>() / 3.0;
+    assert!((three.null_gain_held - mean_held).abs() <= 1e-12 * mean_held.max(1.0));
     assert!(
         three.null_gains_fit[1..]
             .iter()

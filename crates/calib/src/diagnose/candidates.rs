@@ -483,66 +483,26 @@ impl Candidates<'_> {
         let passes = |d_fit: f64, d_held: f64| passes(d_fit, d_held, &base);
         // The noise-fitting part of the gain, measured on the surrogate events (only for a
         // candidate whose raw gain could pass: the correction only lowers it).
-        let (mut null_fit, mut null_held) = (0.0, 0.0);
-        let mut null_fits: Vec<f64> = vec![];
-        if passes(raw_fit, raw_held) {
-            // One draw or several: the noise-fitting gain is their mean over the draws whose
-            // re-fits ran.
-            let mut sum_held = 0.0;
-            for (draw, env_null) in envs_null.iter().enumerate() {
-                let nkey = if draw == 0 {
-                    format!("null:{key}")
-                } else {
-                    format!("null{draw}:{key}")
-                };
-                if !baselines.contains_key(&nkey) {
-                    if let Ok(b) = refit(
-                        env_null,
-                        unit,
-                        &base_bounds,
-                        &[],
-                        &Label::new(RefitKind::Surrogate, format!("{id} null baseline")),
-                    ) {
-                        baselines.insert(nkey.clone(), b);
-                    }
-                }
-                // The standard search budget: on the surrogate the reference is exact and the
-                // start is its optimum, so the longer search a bent calibration needs buys
-                // nothing.
-                match (baselines.get(&nkey), refit(env_null, &ext.unit, &bounds, &ext.ties, &Label::new(RefitKind::Surrogate, format!("{id} null")))) {
-                    (Some(b0), Ok(r0)) => {
-                        // The null baseline again from where the extension's null re-fit ended,
-                        // as on the record: the noise-fitting gain is the extension's, not a
-                        // luckier search.
-                        let mut b0 = b0.clone_scores();
-                        if b0.chi2_fit > r0.chi2_fit && !base_bounds.is_empty() {
-                            if let Some(b2) = baseline_from(env_null, unit, &base_bounds, &r0, &Label::new(RefitKind::Surrogate, format!("{id} null baseline again"))) {
-                                if b2.chi2_fit < b0.chi2_fit {
-                                    b0 = b2.clone_scores();
-                                }
-                            }
-                        }
-                        // Only the residuals' part of the surrogate's gain is noise fitting. Its
-                        // priors' part is not: the surrogate was made by the reference, whose
-                        // calibration may have bent datasheet values to absorb the cause, so an
-                        // extension that returns them gains that part there as on the record,
-                        // and netting it out would make an absorbed cause unnameable by
-                        // construction.
-                        let (b_fit, b_held) = b0.residuals_chi2();
-                        let (e_fit, e_held) = r0.clone_scores().residuals_chi2();
-                        null_fits.push((b_fit - e_fit).max(0.0));
-                        sum_held += (b_held - e_held).max(0.0);
-                        rep.simulations += r0.simulations;
-                    }
-                    _ => rep.note = "the surrogate (noise-only) re-fit failed: the gain is not corrected for noise fitting".into(),
-                }
+        let null = if passes(raw_fit, raw_held) {
+            let null = noise_fitting_gain(
+                &envs_null,
+                baselines,
+                unit,
+                &base_bounds,
+                &ext,
+                &bounds,
+                &key,
+                id,
+            );
+            rep.simulations += null.simulations;
+            if null.failed {
+                rep.note = "the surrogate (noise-only) re-fit failed: the gain is not corrected for noise fitting".into();
             }
-            if !null_fits.is_empty() {
-                let n = null_fits.len() as f64;
-                null_fit = null_fits.iter().sum::<f64>() / n;
-                null_held = sum_held / n;
-            }
-        }
+            null
+        } else {
+            NoiseFitting::default()
+        };
+        let (null_fit, null_held) = (null.mean_fit(), null.mean_held());
         let base_ref: &Refit = base_again.as_ref().unwrap_or(&baselines[&key]);
         // Per compared channel (P and Q first in the phasor playback).
         let signals: Vec<&str> = match env.compare {
@@ -573,7 +533,8 @@ impl Candidates<'_> {
             chi2_held_ext: r.chi2_held,
             null_gain_fit: null_fit,
             null_gain_held: null_held,
-            null_gains_fit: null_fits,
+            null_gains_fit: null.fits,
+            null_gains_held: null.helds,
             fit_drop: net_fit / base.chi2_fit.max(1e-300),
             held_drop: net_held / base.chi2_held.max(1e-300),
             held_drop_segments,
@@ -943,6 +904,96 @@ fn refit_locally(
         ..env.opts.clone()
     };
     refit(&env.with(&local), unit, &start, ties, label)
+}
+
+/// The noise-fitting gain of an extension ([`noise_fitting_gain`]): per surrogate draw whose
+/// re-fits ran, the residuals' χ² drop on the fitted and on the held-out samples.
+#[derive(Default)]
+struct NoiseFitting {
+    fits: Vec<f64>,
+    helds: Vec<f64>,
+    simulations: usize,
+    /// A draw's re-fits did not run.
+    failed: bool,
+}
+
+impl NoiseFitting {
+    fn mean(v: &[f64]) -> f64 {
+        if v.is_empty() {
+            0.0
+        } else {
+            v.iter().sum::<f64>() / v.len() as f64
+        }
+    }
+    fn mean_fit(&self) -> f64 {
+        Self::mean(&self.fits)
+    }
+    fn mean_held(&self) -> f64 {
+        Self::mean(&self.helds)
+    }
+}
+
+/// The gain the same re-fits (the baseline's over `base_bounds`, the extension's over
+/// `bounds`) achieve on each surrogate record of `envs_null` (the reference's own simulation
+/// with the noise drawn again, where only noise can be fitted). Each draw's baseline is cached
+/// in `baselines` under its own key (the first draw's `null:{key}`, the one-draw diagnosis's).
+#[allow(clippy::too_many_arguments)]
+fn noise_fitting_gain(
+    envs_null: &[RefitEnv],
+    baselines: &mut BTreeMap<String, Refit>,
+    unit: &Unit,
+    base_bounds: &[FreeBound],
+    ext: &Extension,
+    bounds: &[FreeBound],
+    key: &str,
+    id: &str,
+) -> NoiseFitting {
+    let mut out = NoiseFitting::default();
+    for (draw, env_null) in envs_null.iter().enumerate() {
+        let nkey = if draw == 0 {
+            format!("null:{key}")
+        } else {
+            format!("null{draw}:{key}")
+        };
+        if !baselines.contains_key(&nkey) {
+            let label = Label::new(RefitKind::Surrogate, format!("{id} null baseline"));
+            if let Ok(b) = refit(env_null, unit, base_bounds, &[], &label) {
+                baselines.insert(nkey.clone(), b);
+            }
+        }
+        // The standard search budget: on the surrogate the reference is exact and the start is
+        // its optimum, so the longer search a bent calibration needs buys nothing.
+        let label = Label::new(RefitKind::Surrogate, format!("{id} null"));
+        let (Some(b0), Ok(r0)) = (
+            baselines.get(&nkey),
+            refit(env_null, &ext.unit, bounds, &ext.ties, &label),
+        ) else {
+            out.failed = true;
+            continue;
+        };
+        // The null baseline again from where the extension's null re-fit ended, as on the
+        // record: the noise-fitting gain is the extension's, not a luckier search.
+        let mut b0 = b0.clone_scores();
+        if b0.chi2_fit > r0.chi2_fit && !base_bounds.is_empty() {
+            let label = Label::new(RefitKind::Surrogate, format!("{id} null baseline again"));
+            if let Some(b2) = baseline_from(env_null, unit, base_bounds, &r0, &label) {
+                if b2.chi2_fit < b0.chi2_fit {
+                    b0 = b2.clone_scores();
+                }
+            }
+        }
+        // Only the residuals' part of the surrogate's gain is noise fitting. Its priors' part
+        // is not: the surrogate was made by the reference, whose calibration may have bent
+        // datasheet values to absorb the cause, so an extension that returns them gains that
+        // part there as on the record, and netting it out would make an absorbed cause
+        // unnameable by construction.
+        let (b_fit, b_held) = b0.residuals_chi2();
+        let (e_fit, e_held) = r0.clone_scores().residuals_chi2();
+        out.fits.push((b_fit - e_fit).max(0.0));
+        out.helds.push((b_held - e_held).max(0.0));
+        out.simulations += r0.simulations;
+    }
+    out
 }
 
 #[cfg(test)]

@@ -345,6 +345,9 @@ pub struct Gains {
     /// ([`DiagnoseOptions::null_draws`]; `null_gain_fit` is their mean); empty where no
     /// surrogate re-fit ran (a gain that could not pass).
     pub null_gains_fit: Vec<f64>,
+    /// The held-out samples' noise-fitting gain of the same draws (`null_gain_held` is their
+    /// mean).
+    pub null_gains_held: Vec<f64>,
     /// Net relative drop on the fitted samples:
     /// `(chi2_fit_base − chi2_fit_ext − null_gain_fit)/chi2_fit_base`.
     pub fit_drop: f64,

@@ -923,6 +923,7 @@ mod tests {
                 null_gain_fit: 0.0,
                 null_gain_held: 0.0,
                 null_gains_fit: vec![],
+                null_gains_held: vec![],
                 fit_drop: 0.1,
                 held_drop: 0.2,
                 held_drop_segments: None,
