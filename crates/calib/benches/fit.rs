@@ -239,6 +239,7 @@ fn swarm_whole_or_bounded(bencher: Bencher, how: &str) {
                 Some(&u0),
                 &opts,
                 |_, _| {},
+                || false,
             )
         }
     });

@@ -38,7 +38,7 @@
 //!    has failed (cost at or above `failed_cost`) after `give_up_iterations` iterations
 //!    (`StopReason::NothingFeasible`): with no feasible point the swarm has nothing to follow,
 //!    and each failed evaluation may cost a whole step budget. Likewise, with
-//!    [`minimize_bounded_or_give_up`], when the caller's measure of its candidates' cost says so
+//!    [`minimize_bounded`], when the caller's measure of its candidates' cost says so
 //!    after `give_up_iterations` iterations (`StopReason::TooCostly`).
 //!
 //! The defaults (`w = 0.7298`, `c1 = c2 = 1.49618`) are the Clerc–Kennedy constriction
@@ -203,7 +203,7 @@ pub enum StopReason {
     /// Every evaluation failed (cost at or above `failed_cost`) through `give_up_iterations`
     /// iterations: a swarm with no feasible point has nothing to move towards.
     NothingFeasible,
-    /// The caller's measure of its candidates' cost ([`minimize_bounded_or_give_up`]) said,
+    /// The caller's measure of its candidates' cost ([`minimize_bounded`]) said,
     /// after `give_up_iterations` iterations, that going on would cost too much.
     TooCostly,
 }
@@ -261,37 +261,25 @@ where
     F: Fn(&[f64]) -> f64 + Sync,
     P: FnMut(usize, f64),
 {
-    minimize_bounded(|x, _| cost(x), n, start, opts, on_iteration)
+    minimize_bounded(|x, _| cost(x), n, start, opts, on_iteration, || false)
 }
 
-/// [`minimize`] with a cost that may stop early: `cost(x, bound)` must return the exact cost of
-/// `x` when it is below `bound`, and may return any value at or above `bound` otherwise.
+/// [`minimize`] with a cost that may stop early and a caller that may give up: the one general
+/// entry point ([`minimize`] is this with the exact cost and no giving up).
 ///
-/// The bound handed over is the particle's personal best (`+∞` before it has one). The swarm
-/// reads a new cost only through `c < pbest_cost[i]`, and the global best only moves with a
-/// personal best, so a cost that stops once it is known to reach the bound changes nothing:
-/// the result and the `on_iteration` calls are bit-for-bit those of [`minimize`] with the exact
-/// cost. A sum of non-negative terms (a least-squares objective simulated in time) can stop as
-/// soon as its partial sum reaches the bound.
-pub fn minimize_bounded<F, P>(
-    cost: F,
-    n: usize,
-    start: Option<&[f64]>,
-    opts: &PsoOptions,
-    on_iteration: P,
-) -> PsoResult
-where
-    F: Fn(&[f64], f64) -> f64 + Sync,
-    P: FnMut(usize, f64),
-{
-    minimize_bounded_or_give_up(cost, n, start, opts, on_iteration, || false)
-}
-
-/// [`minimize_bounded`] that also gives up when `too_costly()` says so after
-/// `give_up_iterations` iterations ([`StopReason::TooCostly`]; asked once, on the calling
-/// thread, after that iteration's evaluations: a caller measuring its candidates' work gets
-/// the same answer whatever the number of threads).
-pub fn minimize_bounded_or_give_up<F, P, C>(
+/// `cost(x, bound)` must return the exact cost of `x` when it is below `bound`, and may return
+/// any value at or above `bound` otherwise. The bound handed over is the particle's personal
+/// best (`+∞` before it has one). The swarm reads a new cost only through `c < pbest_cost[i]`,
+/// and the global best only moves with a personal best, so a cost that stops once it is known
+/// to reach the bound changes nothing: the result and the `on_iteration` calls are bit-for-bit
+/// those with the exact cost. A sum of non-negative terms (a least-squares objective simulated
+/// in time) can stop as soon as its partial sum reaches the bound.
+///
+/// `too_costly()` is asked once, after iteration `give_up_iterations` (never when that is 0),
+/// on the calling thread after that iteration's evaluations; when it says so the swarm stops
+/// there ([`StopReason::TooCostly`]): a caller measuring its candidates' work gets the same
+/// answer whatever the number of threads. `|| false` never gives up.
+pub fn minimize_bounded<F, P, C>(
     cost: F,
     n: usize,
     start: Option<&[f64]>,
@@ -1033,6 +1021,7 @@ mod tests {
             None,
             &o,
             |_, _| {},
+            || false,
         );
         assert!(bitwise_eq(&exact, &bounded));
         let asked = asked.into_inner().unwrap();
@@ -1485,7 +1474,7 @@ mod tests {
         let asked = std::cell::Cell::new(0);
         // The swarm on `opts` whose caller answers `costly` (and counts the questions).
         let run = |opts: &PsoOptions, costly: bool| {
-            minimize_bounded_or_give_up(
+            minimize_bounded(
                 f,
                 2,
                 None,
@@ -1501,7 +1490,7 @@ mod tests {
         assert_eq!(stopped.stopped_by, StopReason::TooCostly);
         assert_eq!((stopped.iterations, stopped.evaluations), (5, 8 * 6));
         assert_eq!(asked.get(), 1);
-        let plain = minimize_bounded(f, 2, None, &o, |_, _| {});
+        let plain = minimize_bounded(f, 2, None, &o, |_, _| {}, || false);
         assert_eq!(run(&o, false), plain);
         assert_eq!(asked.get(), 2);
         assert_eq!(plain.iterations, 40);

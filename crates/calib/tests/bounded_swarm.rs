@@ -118,6 +118,7 @@ fn check(pb: &Problem, what: &str) {
         Some(&u0),
         &opts,
         |_, _| {},
+        || false,
     );
     assert_eq!(bounded.best, whole.best, "{what}");
     assert_eq!(

@@ -93,7 +93,7 @@ pub(crate) fn search(
         let u0 = Some(problem.to_unit(&start)).filter(|u| u.iter().all(|v| v.is_finite()));
         // Each candidate is simulated only as far as it can still beat its particle's best
         // (`Problem::cost_bounded`): the swarm is bit for bit the one with whole playbacks.
-        let res = pso::minimize_bounded_or_give_up(
+        let res = pso::minimize_bounded(
             |u: &[f64], bound: f64| problem.cost_bounded(&problem.from_unit(u), sim, bound),
             n,
             u0.as_deref(),
