@@ -68,6 +68,39 @@ fn unnamed(
     }
 }
 
+/// The tests of a candidate's significance ([`DiagnoseOptions`]: `min_fit_drop`,
+/// `min_held_drop`, `bic_threshold`) that its net gains `g` fall short of, as the verdict's
+/// statement gives them, so that an engineer reading `none` sees which test an effect missed
+/// and by how much. (A held-out blocks' shortfall is forgiven by the segments' second test,
+/// reported apart in the candidate's note.)
+pub(super) fn short_of(g: &Gains, opts: &DiagnoseOptions) -> Vec<String> {
+    let mut out = vec![];
+    if g.fit_drop < opts.min_fit_drop {
+        out.push(format!(
+            "the fitted χ² down {:.1} %, under {:.1} %",
+            100.0 * g.fit_drop,
+            100.0 * opts.min_fit_drop
+        ));
+    }
+    if g.held_drop < opts.min_held_drop {
+        out.push(format!(
+            "the held-out χ² down {:.1} %, under {:.1} %",
+            100.0 * g.held_drop,
+            100.0 * opts.min_held_drop
+        ));
+    }
+    if g.record_evidence <= opts.bic_threshold {
+        out.push(format!(
+            "2 ln B {:.1}, not above {:.0}",
+            g.record_evidence, opts.bic_threshold
+        ));
+    }
+    if out.is_empty() {
+        out.push("its held-out blocks and segments do not confirm it".into());
+    }
+    out
+}
+
 /// The verdict when no cause is significant: `none` at the noise floor, else `unexplained`
 /// with where the residual lives. A candidate whose gain passed the statistical test and was
 /// refused by its physical checks ([`CandidateReport::passed_test`]) makes it `unexplained` at
@@ -97,7 +130,7 @@ pub(super) fn undecided(
                 if r.note.starts_with("not named") {
                     format!(", {}", r.note)
                 } else {
-                    ", not significant".to_string()
+                    format!(", not significant ({})", short_of(g, opts).join("; "))
                 }
             )
         })
@@ -845,6 +878,36 @@ mod tests {
         let v = undecided(&ev, &["P", "Q"], &[refused, quiet], &opts);
         assert_eq!(v.cause, "unexplained");
         says(&v.statement, "Unexplained residual at P");
+    }
+
+    /// A `none` verdict says which significance tests its best candidate fell short of, and by
+    /// how much: a candidate short of the fitted drop's floor alone names that floor only; one
+    /// short of every test names all three.
+    #[test]
+    fn a_none_verdict_names_the_tests_its_best_candidate_missed() {
+        let mut ev = evidence();
+        ev[0].signals[0].rms_over_noise = 1.1;
+        let opts = DiagnoseOptions::default();
+        let mut near = candidate("governor", 380.0, 2, 12.0, false);
+        if let Some(g) = near.gains.as_mut() {
+            (g.fit_drop, g.held_drop, g.record_evidence) = (0.016, 0.02, 37.0);
+        }
+        let v = undecided(&ev, &["P", "Q"], &[near.clone()], &opts);
+        assert_eq!(v.cause, "none", "{}", v.statement);
+        says(
+            &v.statement,
+            "not significant (the fitted χ² down 1.6 %, under 2.0 %)",
+        );
+        let mut far = near;
+        if let Some(g) = far.gains.as_mut() {
+            (g.fit_drop, g.held_drop, g.record_evidence) = (0.003, -0.004, 0.5);
+        }
+        let v = undecided(&ev, &["P", "Q"], &[far], &opts);
+        says(
+            &v.statement,
+            "not significant (the fitted χ² down 0.3 %, under 2.0 %; the held-out χ² down -0.4 %, \
+             under 1.0 %; 2 ln B 0.5, not above 10)",
+        );
     }
 
     /// An unexplained residual in the recorded field of a phasor playback says how the
