@@ -134,6 +134,59 @@ pub(super) fn record_evidence(delta_bic: f64, d_held: f64, vif: f64) -> f64 {
     delta_bic + d_held.max(0.0) / vif.max(1.0)
 }
 
+/// A candidate's gains over its baseline as the significance tests read them
+/// ([`DiagnoseOptions`]: `bic_threshold`, `min_fit_drop`, `min_held_drop`): the fitted and
+/// held-out χ² drops `d_fit`, `d_held` (net of noise fitting, or raw where the question is
+/// whether they could pass), the baseline's χ² on each half and its variance inflation, the
+/// extension's added parameters `k` and the fitted samples `n`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct GainTest {
+    pub d_fit: f64,
+    pub d_held: f64,
+    pub chi2_fit: f64,
+    pub chi2_held: f64,
+    pub vif: f64,
+    pub k: usize,
+    pub n: f64,
+}
+
+impl GainTest {
+    /// ΔBIC on the fitted blocks: `Δχ²/VIF − k ln(N/VIF)`.
+    pub fn delta_bic(&self) -> f64 {
+        self.d_fit / self.vif - self.k as f64 * (self.n / self.vif).max(1.0).ln()
+    }
+
+    /// The whole record's evidence `2 ln B` ([`record_evidence`]).
+    pub fn evidence(&self) -> f64 {
+        record_evidence(self.delta_bic(), self.d_held, self.vif)
+    }
+
+    /// The fitted blocks' gain passes: ΔBIC above the threshold and the fitted χ² down by
+    /// `min_fit_drop` at least.
+    pub fn fits(&self, opts: &DiagnoseOptions) -> bool {
+        self.delta_bic() > opts.bic_threshold && self.fitted_floor(opts)
+    }
+
+    /// The held-out blocks' χ² down by `min_held_drop` at least.
+    pub fn held(&self, opts: &DiagnoseOptions) -> bool {
+        self.d_held >= opts.min_held_drop * self.chi2_held
+    }
+
+    fn fitted_floor(&self, opts: &DiagnoseOptions) -> bool {
+        self.d_fit >= opts.min_fit_drop * self.chi2_fit
+    }
+
+    /// Significant: the fitted χ² down by its floor, and either the held-out χ² down by its
+    /// floor with the whole record's evidence above the threshold, or (the held-out blocks not
+    /// confirming) the fitted ΔBIC above it and the segments' second test passed
+    /// (`segments_pass`).
+    pub fn passes(&self, segments_pass: bool, opts: &DiagnoseOptions) -> bool {
+        self.fitted_floor(opts)
+            && ((self.held(opts) && self.evidence() > opts.bic_threshold)
+                || (segments_pass && self.fits(opts)))
+    }
+}
+
 /// What the scoring of every candidate shares: the reference unit and its context and evidence,
 /// the fitted/held-out split and its surrogate, the noise weights, the options, and
 /// the baselines re-fitted so far (by [`bounds_key`], re-used across candidates).
@@ -405,21 +458,22 @@ impl Candidates<'_> {
         let bounds: Vec<FreeBound> = ext.free().cloned().collect();
         let k = ext.extension_free.len() + ext.discrete_params;
         let n = r.n_fit.max(1) as f64;
-        let bic = |d_fit: f64, vif: f64| d_fit / vif - k as f64 * (n / vif).max(1.0).ln();
-        let fits = |d_fit: f64, base: &Scores| {
-            bic(d_fit, base.vif) > opts.bic_threshold && d_fit >= opts.min_fit_drop * base.chi2_fit
+        let test = |d_fit: f64, d_held: f64, base: &Scores| GainTest {
+            d_fit,
+            d_held,
+            chi2_fit: base.chi2_fit,
+            chi2_held: base.chi2_held,
+            vif: base.vif,
+            k,
+            n,
         };
-        // The evidence of the whole record (`record_evidence`): the fitted blocks' ΔBIC plus
-        // the held-out blocks' predictive gain `Δχ²_held/VIF`.
-        let evidence =
-            |d_fit: f64, d_held: f64, vif: f64| record_evidence(bic(d_fit, vif), d_held, vif);
         // The second held-out test, on contiguous segments (without held-out events), for an
         // extension whose fitted gain passes but whose held-out blocks do not confirm it.
         let segments = {
             let b = baselines[&key].clone_scores();
-            let (d_fit, d_held) = (b.chi2_fit - r.chi2_fit, b.chi2_held - r.chi2_held);
+            let t = test(b.chi2_fit - r.chi2_fit, b.chi2_held - r.chi2_held, &b);
             sp_segments
-                .filter(|_| fits(d_fit, &b) && d_held < opts.min_held_drop * b.chi2_held)
+                .filter(|_| t.fits(opts) && !t.held(opts))
                 .and_then(|sp_segments| {
                     segments_test(
                         &env.on(sp_segments),
@@ -438,15 +492,6 @@ impl Candidates<'_> {
             rep.simulations += t.simulations;
         }
         let held_drop_segments = segments.as_ref().map(SegmentsTest::drop);
-        // Significant: the fitted and held-out χ² down by their floors and the whole record's
-        // evidence above the threshold, or (held-out blocks not confirming) the fitted ΔBIC above
-        // it and the segments' second test passed.
-        let passes = |d_fit: f64, d_held: f64, base: &Scores| {
-            let held = d_held >= opts.min_held_drop * base.chi2_held;
-            d_fit >= opts.min_fit_drop * base.chi2_fit
-                && ((held && evidence(d_fit, d_held, base.vif) > opts.bic_threshold)
-                    || (segments_pass && fits(d_fit, base)))
-        };
         // The baseline again from the interacting values the extension's re-fit found (the
         // extension's search may have found a better set-point than the baseline's own): the
         // baseline is the best over the same parameters, so no gain comes from optimisation luck.
@@ -454,11 +499,12 @@ impl Candidates<'_> {
         // Kept for this cause alone: the shared cache holds each baseline as its own search
         // found it, so that a cause's gain does not depend on which causes were tried before it.
         let b = &baselines[&key];
-        let could_pass = passes(
+        let could_pass = test(
             b.chi2_fit - r.chi2_fit,
             b.chi2_held - r.chi2_held,
             &b.clone_scores(),
-        );
+        )
+        .passes(segments_pass, opts);
         let mut base_again: Option<Refit> = None;
         if !base_bounds.is_empty() && could_pass {
             if let Some(b2) = baseline_from(
@@ -479,8 +525,8 @@ impl Candidates<'_> {
         };
         let raw_fit = base.chi2_fit - r.chi2_fit;
         let raw_held = base.chi2_held - r.chi2_held;
-        let bic = |d_fit: f64| bic(d_fit, base.vif);
-        let passes = |d_fit: f64, d_held: f64| passes(d_fit, d_held, &base);
+        let passes =
+            |d_fit: f64, d_held: f64| test(d_fit, d_held, &base).passes(segments_pass, opts);
         // The noise-fitting part of the gain, measured on the surrogate events (only for a
         // candidate whose raw gain could pass: the correction only lowers it).
         let null = if passes(raw_fit, raw_held) {
@@ -525,6 +571,7 @@ impl Candidates<'_> {
         };
         let ((rms_p_base, rms_p_ext), (rms_q_base, rms_q_ext)) = (of("P"), of("Q"));
         let (net_fit, net_held) = (raw_fit - null_fit, raw_held - null_held);
+        let net = test(net_fit, net_held, &base);
         let gains = Gains {
             chi2_fit_base: base.chi2_fit,
             chi2_fit_ext: r.chi2_fit,
@@ -538,8 +585,8 @@ impl Candidates<'_> {
             fit_drop: net_fit / base.chi2_fit.max(1e-300),
             held_drop: net_held / base.chi2_held.max(1e-300),
             held_drop_segments,
-            delta_bic: bic(net_fit),
-            record_evidence: evidence(net_fit, net_held, base.vif),
+            delta_bic: net.delta_bic(),
+            record_evidence: net.evidence(),
             vif: base.vif,
             k,
             n_fit: r.n_fit,
@@ -550,7 +597,7 @@ impl Candidates<'_> {
             rms_p_ext,
             rms_q_ext,
         };
-        rep.significant = passes(net_fit, net_held);
+        rep.significant = net.passes(segments_pass, opts);
         rep.passed_test = rep.significant;
         // The re-fit's free parameters (the extension's first), resolved once.
         let free = resolve(&ext.unit, &bounds).unwrap_or_default();
