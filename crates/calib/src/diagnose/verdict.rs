@@ -75,19 +75,13 @@ fn unnamed(
 /// reported apart in the candidate's note.)
 pub(super) fn short_of(g: &Gains, opts: &DiagnoseOptions) -> Vec<String> {
     let mut out = vec![];
-    if g.fit_drop < opts.min_fit_drop {
-        out.push(format!(
-            "the fitted χ² down {:.1} %, under {:.1} %",
-            100.0 * g.fit_drop,
-            100.0 * opts.min_fit_drop
-        ));
-    }
-    if g.held_drop < opts.min_held_drop {
-        out.push(format!(
-            "the held-out χ² down {:.1} %, under {:.1} %",
-            100.0 * g.held_drop,
-            100.0 * opts.min_held_drop
-        ));
+    for (half, drop, floor) in [
+        ("fitted", g.fit_drop, opts.min_fit_drop),
+        ("held-out", g.held_drop, opts.min_held_drop),
+    ] {
+        if drop < floor {
+            out.push(shortfall(half, drop, floor));
+        }
     }
     if g.record_evidence <= opts.bic_threshold {
         out.push(format!(
@@ -99,6 +93,23 @@ pub(super) fn short_of(g: &Gains, opts: &DiagnoseOptions) -> Vec<String> {
         out.push("its held-out blocks and segments do not confirm it".into());
     }
     out
+}
+
+/// A relative χ² change short of its floor, as a statement gives it: "the fitted χ² down 1.6 %,
+/// under 2.0 %", "the held-out χ² up 0.4 %" (a rise is short of any floor), "the fitted χ²
+/// unchanged" (below the 0.05 % the statement prints).
+fn shortfall(half: &str, drop: f64, floor: f64) -> String {
+    let pct = 100.0 * drop;
+    if pct.abs() < 0.05 {
+        format!("the {half} χ² unchanged")
+    } else if pct < 0.0 {
+        format!("the {half} χ² up {:.1} %", -pct)
+    } else {
+        format!(
+            "the {half} χ² down {pct:.1} %, under {:.1} %",
+            100.0 * floor
+        )
+    }
 }
 
 /// The verdict when no cause is significant: `none` at the noise floor, else `unexplained`
@@ -881,32 +892,46 @@ mod tests {
     }
 
     /// A `none` verdict says which significance tests its best candidate fell short of, and by
-    /// how much: a candidate short of the fitted drop's floor alone names that floor only; one
-    /// short of every test names all three.
+    /// how much: a candidate short of the held-out floor alone names that floor only; one short
+    /// of every test names all three, a rise as a rise; a change under what the statement
+    /// prints as unchanged (not "-0.0 %"); a fitted floor set by the user is named too.
     #[test]
     fn a_none_verdict_names_the_tests_its_best_candidate_missed() {
         let mut ev = evidence();
         ev[0].signals[0].rms_over_noise = 1.1;
         let opts = DiagnoseOptions::default();
-        let mut near = candidate("governor", 380.0, 2, 12.0, false);
-        if let Some(g) = near.gains.as_mut() {
-            (g.fit_drop, g.held_drop, g.record_evidence) = (0.016, 0.02, 37.0);
-        }
-        let v = undecided(&ev, &["P", "Q"], &[near.clone()], &opts);
+        let with = |fit: f64, held: f64, evidence: f64| {
+            let mut c = candidate("governor", 380.0, 2, 12.0, false);
+            if let Some(g) = c.gains.as_mut() {
+                (g.fit_drop, g.held_drop, g.record_evidence) = (fit, held, evidence);
+            }
+            c
+        };
+        let v = undecided(&ev, &["P", "Q"], &[with(0.016, 0.009, 26.4)], &opts);
         assert_eq!(v.cause, "none", "{}", v.statement);
         says(
             &v.statement,
-            "not significant (the fitted χ² down 1.6 %, under 2.0 %)",
+            "not significant (the held-out χ² down 0.9 %, under 1.0 %)",
         );
-        let mut far = near;
-        if let Some(g) = far.gains.as_mut() {
-            (g.fit_drop, g.held_drop, g.record_evidence) = (0.003, -0.004, 0.5);
-        }
-        let v = undecided(&ev, &["P", "Q"], &[far], &opts);
+        let v = undecided(&ev, &["P", "Q"], &[with(-0.003, -0.004, 0.5)], &opts);
         says(
             &v.statement,
-            "not significant (the fitted χ² down 0.3 %, under 2.0 %; the held-out χ² down -0.4 %, \
-             under 1.0 %; 2 ln B 0.5, not above 10)",
+            "not significant (the fitted χ² up 0.3 %; the held-out χ² up 0.4 %; 2 ln B 0.5, not \
+             above 10)",
+        );
+        let v = undecided(&ev, &["P", "Q"], &[with(-0.0002, 0.02, 5.0)], &opts);
+        says(
+            &v.statement,
+            "not significant (the fitted χ² unchanged; 2 ln B 5.0, not above 10)",
+        );
+        let floor = DiagnoseOptions {
+            min_fit_drop: 0.02,
+            ..DiagnoseOptions::default()
+        };
+        let v = undecided(&ev, &["P", "Q"], &[with(0.016, 0.02, 37.0)], &floor);
+        says(
+            &v.statement,
+            "not significant (the fitted χ² down 1.6 %, under 2.0 %)",
         );
     }
 
