@@ -118,6 +118,28 @@ impl Pressed {
     }
 }
 
+/// The fitted blocks' floor: a relative χ² drop `rel` (net of noise fitting) of at least
+/// `min_fit_drop`. The one definition of the floors and of the ΔBIC threshold, which the
+/// significance test ([`GainTest`]), the grade and a `none` verdict's statement all read.
+pub(super) fn fit_floor_met(rel: f64, opts: &DiagnoseOptions) -> bool {
+    rel >= opts.min_fit_drop
+}
+
+/// The held-out blocks' floor: a relative χ² drop `rel` of at least `min_held_drop`.
+pub(super) fn held_floor_met(rel: f64, opts: &DiagnoseOptions) -> bool {
+    rel >= opts.min_held_drop
+}
+
+/// A ΔBIC (or the record's evidence `2 ln B`, on the same scale) above `bic_threshold`.
+pub(super) fn bic_met(delta_bic: f64, opts: &DiagnoseOptions) -> bool {
+    delta_bic > opts.bic_threshold
+}
+
+/// A χ² drop `d` relative to the baseline's `chi2`.
+fn relative(d: f64, chi2: f64) -> f64 {
+    d / chi2.max(1e-300)
+}
+
 /// The evidence for an extension over its baseline from the whole record, `2 ln B`: the fitted
 /// blocks' marginal likelihood ratio by Schwarz's approximation (`delta_bic`, the parameters'
 /// Occam penalty in it) plus the held-out blocks' predictive likelihood ratio at the values
@@ -164,16 +186,16 @@ impl GainTest {
     /// The fitted blocks' gain passes: ΔBIC above the threshold and the fitted χ² down by
     /// `min_fit_drop` at least.
     pub fn fits(&self, opts: &DiagnoseOptions) -> bool {
-        self.delta_bic() > opts.bic_threshold && self.fitted_floor(opts)
+        bic_met(self.delta_bic(), opts) && self.fitted_floor(opts)
     }
 
     /// The held-out blocks' χ² down by `min_held_drop` at least.
     pub fn held(&self, opts: &DiagnoseOptions) -> bool {
-        self.d_held >= opts.min_held_drop * self.chi2_held
+        held_floor_met(relative(self.d_held, self.chi2_held), opts)
     }
 
     fn fitted_floor(&self, opts: &DiagnoseOptions) -> bool {
-        self.d_fit >= opts.min_fit_drop * self.chi2_fit
+        fit_floor_met(relative(self.d_fit, self.chi2_fit), opts)
     }
 
     /// Significant: the fitted χ² down by its floor, and either the held-out χ² down by its
@@ -182,7 +204,7 @@ impl GainTest {
     /// (`segments_pass`).
     pub fn passes(&self, segments_pass: bool, opts: &DiagnoseOptions) -> bool {
         self.fitted_floor(opts)
-            && ((self.held(opts) && self.evidence() > opts.bic_threshold)
+            && ((self.held(opts) && bic_met(self.evidence(), opts))
                 || (segments_pass && self.fits(opts)))
     }
 }
@@ -582,8 +604,8 @@ impl Candidates<'_> {
             null_gain_held: null_held,
             null_gains_fit: null.fits,
             null_gains_held: null.helds,
-            fit_drop: net_fit / base.chi2_fit.max(1e-300),
-            held_drop: net_held / base.chi2_held.max(1e-300),
+            fit_drop: relative(net_fit, base.chi2_fit),
+            held_drop: relative(net_held, base.chi2_held),
             held_drop_segments,
             delta_bic: net.delta_bic(),
             record_evidence: net.evidence(),
@@ -717,7 +739,7 @@ impl SegmentsTest {
 
     /// Informative ([`SEGMENT_OVERFIT`]) and the held-out drop at least the threshold.
     fn passes(&self, opts: &DiagnoseOptions) -> bool {
-        self.overfit <= SEGMENT_OVERFIT && self.drop() >= opts.min_held_drop
+        self.overfit <= SEGMENT_OVERFIT && held_floor_met(self.drop(), opts)
     }
 
     fn note(&self) -> String {

@@ -8,6 +8,7 @@ use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
 
+use super::candidates::{bic_met, fit_floor_met, held_floor_met};
 use super::*;
 
 pub(super) fn fmt_num(v: f64) -> String {
@@ -75,15 +76,13 @@ fn unnamed(
 /// reported apart in the candidate's note.)
 pub(super) fn short_of(g: &Gains, opts: &DiagnoseOptions) -> Vec<String> {
     let mut out = vec![];
-    for (half, drop, floor) in [
-        ("fitted", g.fit_drop, opts.min_fit_drop),
-        ("held-out", g.held_drop, opts.min_held_drop),
-    ] {
-        if drop < floor {
-            out.push(shortfall(half, drop, floor));
-        }
+    if !fit_floor_met(g.fit_drop, opts) {
+        out.push(shortfall("fitted", g.fit_drop, opts.min_fit_drop));
     }
-    if g.record_evidence <= opts.bic_threshold {
+    if !held_floor_met(g.held_drop, opts) {
+        out.push(shortfall("held-out", g.held_drop, opts.min_held_drop));
+    }
+    if !bic_met(g.record_evidence, opts) {
         out.push(format!(
             "2 ln B {:.1}, not above {:.0}",
             g.record_evidence, opts.bic_threshold
@@ -580,8 +579,8 @@ pub(super) fn posterior(named: &CandidateReport, reports: &[CandidateReport]) ->
 /// close behind).
 pub(super) fn grade(probability: f64, g: &Gains, opts: &DiagnoseOptions) -> Grade {
     if probability >= STRONG_PROBABILITY
-        && g.held_drop >= opts.min_held_drop
-        && g.delta_bic > opts.bic_threshold
+        && held_floor_met(g.held_drop, opts)
+        && bic_met(g.delta_bic, opts)
     {
         Grade::Strong
     } else {
