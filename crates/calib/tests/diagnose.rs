@@ -375,6 +375,9 @@ fn bad_requests_are_setup_errors() {
     ));
 }
 
+/// One thread scores the candidates one after another, two score them side by side (each with
+/// the baselines re-fitted before its batch and its own): every candidate's numbers, its
+/// baseline's and its noise-fitting gain the same to the bit.
 #[test]
 fn a_seed_gives_the_same_diagnosis_on_one_and_two_threads() {
     let t = scenario("measurement_skew", 7, None);
@@ -405,7 +408,15 @@ fn a_seed_gives_the_same_diagnosis_on_one_and_two_threads() {
             .map(|c| {
                 (
                     c.cause.clone(),
-                    c.gains.as_ref().map(|g| g.chi2_fit_ext.to_bits()),
+                    c.gains.as_ref().map(|g| {
+                        [
+                            g.chi2_fit_ext,
+                            g.chi2_fit_base,
+                            g.chi2_held_base,
+                            g.null_gain_fit,
+                        ]
+                        .map(f64::to_bits)
+                    }),
                     c.parameters
                         .iter()
                         .map(|p| p.result.to_bits())

@@ -309,19 +309,113 @@ impl RecordedInput {
     }
 }
 
+/// The baselines one candidate reads: those re-fitted before its batch (`shared`, read-only
+/// while the batch's candidates are scored side by side) and those it re-fits itself (`own`,
+/// merged into the shared map after the batch). Every re-fit of a given set of bounds on a given
+/// split is the same (the search's seed is the diagnosis's, not the candidate's), so which
+/// candidate re-fitted a baseline first changes no number.
+pub(super) struct BaselineCache<'m> {
+    shared: &'m BTreeMap<String, Refit>,
+    own: BTreeMap<String, Refit>,
+}
+
+impl<'m> BaselineCache<'m> {
+    pub(super) fn new(shared: &'m BTreeMap<String, Refit>) -> Self {
+        Self {
+            shared,
+            own: BTreeMap::new(),
+        }
+    }
+
+    pub(super) fn get(&self, key: &str) -> Option<&Refit> {
+        self.own.get(key).or_else(|| self.shared.get(key))
+    }
+
+    pub(super) fn contains_key(&self, key: &str) -> bool {
+        self.get(key).is_some()
+    }
+
+    pub(super) fn insert(&mut self, key: String, r: Refit) {
+        self.own.insert(key, r);
+    }
+
+    /// The baseline under `key`, which the caller has inserted or found.
+    fn at(&self, key: &str) -> &Refit {
+        self.get(key)
+            .expect("a baseline re-fitted before it is read")
+    }
+
+    /// The baselines this candidate re-fitted.
+    pub(super) fn into_own(self) -> BTreeMap<String, Refit> {
+        self.own
+    }
+}
+
+/// A candidate's report, its re-fit (for a named cause's standard errors) and the baselines it
+/// re-fitted.
+pub(super) type Scored = (
+    CandidateReport,
+    Option<RefitRecord>,
+    BTreeMap<String, Refit>,
+);
+
 impl Candidates<'_> {
+    /// Scores the causes `ids` side by side (each candidate's re-fits in parallel with the
+    /// others', their swarms on the same pool), in the order given: the same reports as
+    /// scoring them one after another ([`BaselineCache`]), with the threads a candidate's own
+    /// re-fit leaves idle (its local method's steps and its serial phases) used by the others.
+    pub(super) fn score_all(
+        &mut self,
+        ids: &[&str],
+    ) -> Vec<(CandidateReport, Option<RefitRecord>)> {
+        use rayon::prelude::*;
+        // The voltage noise's echo, measured once before the batch when a cause needs it.
+        if self.input_echo.is_none() && ids.iter().any(|id| self.recorded_for(id).is_some()) {
+            let label = Label::new(RefitKind::Reference, "input echo");
+            let r = self.recorded.expect("a cause played as recorded");
+            let echo = match (
+                refit(&self.env.on(&r.sp), self.unit, &[], &[], &label),
+                refit(&self.env, self.unit, &[], &[], &label),
+            ) {
+                (Ok(a), Ok(b)) => (a.chi2_fit - b.chi2_fit).max(0.0),
+                _ => 0.0,
+            };
+            self.input_echo = Some(echo);
+        }
+        let this = &*self;
+        let scored: Vec<Scored> = ids
+            .par_iter()
+            .with_max_len(1)
+            .map(|id| this.score(id, BaselineCache::new(&this.baselines)))
+            .collect();
+        let mut out = Vec::with_capacity(scored.len());
+        for (rep, refit, own) in scored {
+            for (k, r) in own {
+                self.baselines.entry(k).or_insert(r);
+            }
+            out.push((rep, refit));
+        }
+        out
+    }
+
+    /// The record played back as recorded, for a cause whose mode lies above the input's
+    /// cut-off (its baselines and surrogates played alike, cached apart from the others').
+    fn recorded_for(&self, id: &str) -> Option<&RecordedInput> {
+        self.recorded.filter(|r| {
+            user_cause::band_top_hz(id, &r.ctx, &self.env.opts.user_causes)
+                .is_some_and(|top| r.cutoff_hz < top)
+        })
+    }
+
     /// Scores the cause `id`: its report, and its re-fit when it has one (for the standard
     /// errors of a named cause).
-    pub(super) fn score(&mut self, id: &str) -> (CandidateReport, Option<RefitRecord>) {
+    fn score(&self, id: &str, mut baselines: BaselineCache) -> Scored {
         let unit = self.unit;
         // A catalog cause (its evidence rules and signature), or a user cause (none).
         let cause = catalog::cause(id);
         // The record as recorded for a cause whose mode lies above the input's cut-off, with
         // its baselines and surrogates played alike (cached apart from the others').
-        let recorded = self.recorded.filter(|r| {
-            user_cause::band_top_hz(id, &r.ctx, &self.env.opts.user_causes)
-                .is_some_and(|top| r.cutoff_hz < top)
-        });
+        let recorded = self.recorded_for(id);
         let (env, sp_null, sp_segments, ctx, evidence_before, key_prefix) = match recorded {
             Some(r) => (
                 self.env.on(&r.sp),
@@ -346,18 +440,8 @@ impl Candidates<'_> {
         // parameter free) on both playbacks.
         let input_echo = match recorded {
             None => 0.0,
-            Some(_) => *self.input_echo.get_or_insert_with(|| {
-                let label = Label::new(RefitKind::Reference, "input echo");
-                match (
-                    refit(&env, unit, &[], &[], &label),
-                    refit(&self.env, unit, &[], &[], &label),
-                ) {
-                    (Ok(a), Ok(b)) => (a.chi2_fit - b.chi2_fit).max(0.0),
-                    _ => 0.0,
-                }
-            }),
+            Some(_) => self.input_echo.expect("measured before the batch"),
         };
-        let baselines = &mut self.baselines;
         // `diagnose_run` refused every id that is neither the catalog's nor a user cause's.
         let (title, extension) = user_cause::describe(id, &opts.user_causes).expect("checked");
         let t0 = Instant::now();
@@ -383,16 +467,16 @@ impl Candidates<'_> {
         };
         if let Some(why) = cause.and_then(|c| ctx.not_seen(c.acts())) {
             rep.note = format!("not applicable: {why}");
-            return (rep, None);
+            return (rep, None, baselines.into_own());
         }
         let exts: Vec<Extension> = match user_cause::extend_all(id, unit, ctx, &opts.user_causes) {
             Err(catalog::CauseError::NotApplicable(why)) => {
                 rep.note = format!("not applicable: {why}");
-                return (rep, None);
+                return (rep, None, baselines.into_own());
             }
             Err(e) => {
                 rep.note = format!("could not build the extension: {e}");
-                return (rep, None);
+                return (rep, None, baselines.into_own());
             }
             Ok(exts) => exts,
         };
@@ -428,14 +512,14 @@ impl Candidates<'_> {
                 }
                 Err(msg) => {
                     rep.note = format!("the baseline re-fit failed: {msg}");
-                    return (rep, None);
+                    return (rep, None, baselines.into_own());
                 }
             }
         }
         let mut r = match fit_extension(
             &env,
             &ext,
-            &baselines[&key],
+            baselines.at(&key),
             !base_bounds.is_empty(),
             &Label::new(RefitKind::Extension, id),
         ) {
@@ -444,7 +528,7 @@ impl Candidates<'_> {
                 rep.note =
                     format!("the extended unit does not simulate at the best candidate: {msg}");
                 rep.wall_s = t0.elapsed().as_secs_f64();
-                return (rep, None);
+                return (rep, None, baselines.into_own());
             }
         };
         // The cause's other structures: the one with the best information criterion is kept
@@ -455,7 +539,7 @@ impl Candidates<'_> {
         let ic = |r: &Refit, x: &Extension| {
             r.chi2_fit + x.extension_free.len() as f64 * (r.n_fit.max(1) as f64).ln()
         };
-        if ic(&r, &ext) >= baselines[&key].chi2_fit {
+        if ic(&r, &ext) >= baselines.at(&key).chi2_fit {
             exts.clear();
         }
         for alt in exts {
@@ -463,7 +547,7 @@ impl Candidates<'_> {
             if let Ok(r2) = fit_extension(
                 &env,
                 &alt,
-                &baselines[&key],
+                baselines.at(&key),
                 !base_bounds.is_empty(),
                 &label,
             ) {
@@ -492,7 +576,7 @@ impl Candidates<'_> {
         // The second held-out test, on contiguous segments (without held-out events), for an
         // extension whose fitted gain passes but whose held-out blocks do not confirm it.
         let segments = {
-            let b = baselines[&key].clone_scores();
+            let b = baselines.at(&key).clone_scores();
             let t = test(b.chi2_fit - r.chi2_fit, b.chi2_held - r.chi2_held, &b);
             sp_segments
                 .filter(|_| t.fits(opts) && !t.held(opts))
@@ -502,7 +586,7 @@ impl Candidates<'_> {
                         unit,
                         &base_bounds,
                         &ext,
-                        baselines,
+                        &mut baselines,
                         &key,
                         id,
                     )
@@ -520,7 +604,7 @@ impl Candidates<'_> {
         // Only for a gain that could pass: a better baseline only lowers it.
         // Kept for this cause alone: the shared cache holds each baseline as its own search
         // found it, so that a cause's gain does not depend on which causes were tried before it.
-        let b = &baselines[&key];
+        let b = &baselines.at(&key);
         let could_pass = test(
             b.chi2_fit - r.chi2_fit,
             b.chi2_held - r.chi2_held,
@@ -536,13 +620,13 @@ impl Candidates<'_> {
                 &r,
                 &Label::new(RefitKind::BaselineAgain, format!("{id} baseline again")),
             ) {
-                if b2.chi2_fit < baselines[&key].chi2_fit {
+                if b2.chi2_fit < baselines.at(&key).chi2_fit {
                     base_again = Some(b2);
                 }
             }
         }
         let (base, base_rms) = {
-            let b: &Refit = base_again.as_ref().unwrap_or(&baselines[&key]);
+            let b: &Refit = base_again.as_ref().unwrap_or(baselines.at(&key));
             (b.clone_scores(), b.rms.clone())
         };
         let raw_fit = base.chi2_fit - r.chi2_fit;
@@ -554,7 +638,7 @@ impl Candidates<'_> {
         let null = if passes(raw_fit, raw_held) {
             let null = noise_fitting_gain(
                 &envs_null,
-                baselines,
+                &mut baselines,
                 unit,
                 &base_bounds,
                 &ext,
@@ -571,7 +655,7 @@ impl Candidates<'_> {
             NoiseFitting::default()
         };
         let (null_fit, null_held) = (null.mean_fit(), null.mean_held());
-        let base_ref: &Refit = base_again.as_ref().unwrap_or(&baselines[&key]);
+        let base_ref: &Refit = base_again.as_ref().unwrap_or(baselines.at(&key));
         // Per compared channel (P and Q first in the phasor playback).
         let signals: Vec<&str> = match env.compare {
             None => vec!["P", "Q"],
@@ -717,7 +801,7 @@ impl Candidates<'_> {
         rep.simulations += r.simulations + base_ref.simulations;
         rep.failed_candidates = r.failures;
         rep.wall_s = t0.elapsed().as_secs_f64();
-        (rep, Some((r, bounds, ext.ties)))
+        (rep, Some((r, bounds, ext.ties)), baselines.into_own())
     }
 }
 
@@ -775,7 +859,7 @@ fn segments_test(
     unit: &Unit,
     base_bounds: &[FreeBound],
     ext: &Extension,
-    baselines: &mut BTreeMap<String, Refit>,
+    baselines: &mut BaselineCache,
     key: &str,
     id: &str,
 ) -> Option<SegmentsTest> {
@@ -785,7 +869,7 @@ fn segments_test(
         let b = refit(env, unit, base_bounds, &[], &label).ok()?;
         baselines.insert(lkey.clone(), b);
     }
-    let bl = &baselines[&lkey];
+    let bl = baselines.at(&lkey);
     let label = Label::new(RefitKind::Segments, format!("{id} on segments"));
     let rl = fit_extension(env, ext, bl, !base_bounds.is_empty(), &label).ok()?;
     // Per held-out sample, against the baseline re-fitted on the blocks: a baseline that
@@ -795,7 +879,7 @@ fn segments_test(
     Some(SegmentsTest {
         base_held: bl.chi2_held,
         ext_held: rl.chi2_held,
-        overfit: per(bl) / per(&baselines[key]).max(1e-300),
+        overfit: per(bl) / per(baselines.at(key)).max(1e-300),
         simulations: rl.simulations,
     })
 }
@@ -1009,7 +1093,7 @@ impl NoiseFitting {
 #[allow(clippy::too_many_arguments)]
 fn noise_fitting_gain(
     envs_null: &[RefitEnv],
-    baselines: &mut BTreeMap<String, Refit>,
+    baselines: &mut BaselineCache,
     unit: &Unit,
     base_bounds: &[FreeBound],
     ext: &Extension,

@@ -25,6 +25,11 @@
 //!    surrogates played back as recorded (`candidates::RecordedInput`), and is compared with
 //!    the other causes without the echo of the voltage's noise that input adds
 //!    ([`Gains::input_echo`]).
+//!    The candidates are scored side by side (`candidates::Candidates::score_all`, their re-fits'
+//!    swarms on the same thread pool): a baseline re-fitted before the batch is shared, one a
+//!    candidate needs that is not yet there it re-fits itself, and a re-fit depends only on its
+//!    bounds, split and the diagnosis's seed, so the reports are those of one cause after
+//!    another, on any number of threads.
 //! 5. **Gain.** `Δχ²` on the fitted samples, the relative drop of the fitted and of the held-out
 //!    χ², each net of the gain the same re-fits achieve on a surrogate of the events (the
 //!    reference's own simulation with the noise drawn again: pure noise fitting; the residuals'
@@ -259,8 +264,8 @@ pub enum DiagnoseError {
         msg: String,
         error: Option<itaipu_dynamics::simulate::SimError>,
     },
-    /// Stopped by [`DiagnoseOptions::cancel`]; `tried` lists the causes tried up to then (the
-    /// last one possibly cut short). Nothing of the run is kept.
+    /// Stopped by [`DiagnoseOptions::cancel`]; `tried` lists the causes tried up to then (those
+    /// scored side by side when it came possibly cut short). Nothing of the run is kept.
     #[error("interrupted (causes tried: {})", if tried.is_empty() { "none".to_string() } else { tried.join(", ") })]
     Interrupted { tried: Vec<String> },
 }
@@ -788,25 +793,27 @@ fn diagnose_run(
     };
     let mut reports = vec![];
     let mut refits: BTreeMap<String, RefitRecord> = BTreeMap::new();
-    for id in ids {
-        interrupted(opts, &reports)?;
-        let (rep, refit) = candidates.score(id);
+    interrupted(opts, &reports)?;
+    for (id, (rep, refit)) in ids.iter().zip(candidates.score_all(&ids)) {
         if let Some(r) = refit {
             refits.insert(id.to_string(), r);
         }
         reports.push(rep);
     }
+    // A batch cancelled part-way names every cause it started (its re-fits stop at the flag).
+    interrupted(opts, &reports)?;
     // 4b. The look-alikes, after every cause that can be named (whose scores they leave as they
     //     are), and only when one of those passed its test (significant, or refused by its
     //     physical checks: then the verdict is `unexplained` and a look-alike may say what the
     //     residual looks like): otherwise they could only turn `none` into `unexplained`.
     if reports.iter().any(|r| r.significant || r.passed_test) {
-        for l in &look_alikes {
-            interrupted(opts, &reports)?;
-            let (mut rep, _) = candidates.score(&l.id);
+        interrupted(opts, &reports)?;
+        let ids: Vec<&str> = look_alikes.iter().map(|l| l.id.as_str()).collect();
+        for (mut rep, _) in candidates.score_all(&ids) {
             rep.look_alike = true;
             reports.push(rep);
         }
+        interrupted(opts, &reports)?;
     }
 
     // 5. Rank and decide.
