@@ -320,7 +320,7 @@ pub(super) struct BaselineCache<'m> {
 }
 
 impl<'m> BaselineCache<'m> {
-    pub(super) fn new(shared: &'m BTreeMap<String, Refit>) -> Self {
+    fn new(shared: &'m BTreeMap<String, Refit>) -> Self {
         Self {
             shared,
             own: BTreeMap::new(),
@@ -344,20 +344,7 @@ impl<'m> BaselineCache<'m> {
         self.get(key)
             .expect("a baseline re-fitted before it is read")
     }
-
-    /// The baselines this candidate re-fitted.
-    pub(super) fn into_own(self) -> BTreeMap<String, Refit> {
-        self.own
-    }
 }
-
-/// A candidate's report, its re-fit (for a named cause's standard errors) and the baselines it
-/// re-fitted.
-pub(super) type Scored = (
-    CandidateReport,
-    Option<RefitRecord>,
-    BTreeMap<String, Refit>,
-);
 
 impl Candidates<'_> {
     /// Scores the causes `ids` side by side (each candidate's re-fits in parallel with the
@@ -370,30 +357,35 @@ impl Candidates<'_> {
     ) -> Vec<(CandidateReport, Option<RefitRecord>)> {
         use rayon::prelude::*;
         // The voltage noise's echo, measured once before the batch when a cause needs it.
-        if self.input_echo.is_none() && ids.iter().any(|id| self.recorded_for(id).is_some()) {
-            let label = Label::new(RefitKind::Reference, "input echo");
-            let r = self.recorded.expect("a cause played as recorded");
-            let echo = match (
-                refit(&self.env.on(&r.sp), self.unit, &[], &[], &label),
-                refit(&self.env, self.unit, &[], &[], &label),
-            ) {
-                (Ok(a), Ok(b)) => (a.chi2_fit - b.chi2_fit).max(0.0),
-                _ => 0.0,
-            };
-            self.input_echo = Some(echo);
+        if self.input_echo.is_none() {
+            if let Some(r) = ids.iter().find_map(|id| self.recorded_for(id)) {
+                let label = Label::new(RefitKind::Reference, "input echo");
+                let echo = match (
+                    refit(&self.env.on(&r.sp), self.unit, &[], &[], &label),
+                    refit(&self.env, self.unit, &[], &[], &label),
+                ) {
+                    (Ok(a), Ok(b)) => (a.chi2_fit - b.chi2_fit).max(0.0),
+                    _ => 0.0,
+                };
+                self.input_echo = Some(echo);
+            }
         }
         let this = &*self;
-        let scored: Vec<Scored> = ids
+        let scored: Vec<_> = ids
             .par_iter()
             .with_max_len(1)
-            .map(|id| this.score(id, BaselineCache::new(&this.baselines)))
+            .map(|id| {
+                let mut cache = BaselineCache::new(&this.baselines);
+                let scored = this.score(id, &mut cache);
+                (scored, cache.own)
+            })
             .collect();
         let mut out = Vec::with_capacity(scored.len());
-        for (rep, refit, own) in scored {
+        for (scored, own) in scored {
             for (k, r) in own {
                 self.baselines.entry(k).or_insert(r);
             }
-            out.push((rep, refit));
+            out.push(scored);
         }
         out
     }
@@ -409,7 +401,11 @@ impl Candidates<'_> {
 
     /// Scores the cause `id`: its report, and its re-fit when it has one (for the standard
     /// errors of a named cause).
-    fn score(&self, id: &str, mut baselines: BaselineCache) -> Scored {
+    fn score(
+        &self,
+        id: &str,
+        baselines: &mut BaselineCache,
+    ) -> (CandidateReport, Option<RefitRecord>) {
         let unit = self.unit;
         // A catalog cause (its evidence rules and signature), or a user cause (none).
         let cause = catalog::cause(id);
@@ -467,16 +463,16 @@ impl Candidates<'_> {
         };
         if let Some(why) = cause.and_then(|c| ctx.not_seen(c.acts())) {
             rep.note = format!("not applicable: {why}");
-            return (rep, None, baselines.into_own());
+            return (rep, None);
         }
         let exts: Vec<Extension> = match user_cause::extend_all(id, unit, ctx, &opts.user_causes) {
             Err(catalog::CauseError::NotApplicable(why)) => {
                 rep.note = format!("not applicable: {why}");
-                return (rep, None, baselines.into_own());
+                return (rep, None);
             }
             Err(e) => {
                 rep.note = format!("could not build the extension: {e}");
-                return (rep, None, baselines.into_own());
+                return (rep, None);
             }
             Ok(exts) => exts,
         };
@@ -512,7 +508,7 @@ impl Candidates<'_> {
                 }
                 Err(msg) => {
                     rep.note = format!("the baseline re-fit failed: {msg}");
-                    return (rep, None, baselines.into_own());
+                    return (rep, None);
                 }
             }
         }
@@ -528,7 +524,7 @@ impl Candidates<'_> {
                 rep.note =
                     format!("the extended unit does not simulate at the best candidate: {msg}");
                 rep.wall_s = t0.elapsed().as_secs_f64();
-                return (rep, None, baselines.into_own());
+                return (rep, None);
             }
         };
         // The cause's other structures: the one with the best information criterion is kept
@@ -586,7 +582,7 @@ impl Candidates<'_> {
                         unit,
                         &base_bounds,
                         &ext,
-                        &mut baselines,
+                        baselines,
                         &key,
                         id,
                     )
@@ -604,7 +600,7 @@ impl Candidates<'_> {
         // Only for a gain that could pass: a better baseline only lowers it.
         // Kept for this cause alone: the shared cache holds each baseline as its own search
         // found it, so that a cause's gain does not depend on which causes were tried before it.
-        let b = &baselines.at(&key);
+        let b = baselines.at(&key);
         let could_pass = test(
             b.chi2_fit - r.chi2_fit,
             b.chi2_held - r.chi2_held,
@@ -638,7 +634,7 @@ impl Candidates<'_> {
         let null = if passes(raw_fit, raw_held) {
             let null = noise_fitting_gain(
                 &envs_null,
-                &mut baselines,
+                baselines,
                 unit,
                 &base_bounds,
                 &ext,
@@ -801,7 +797,7 @@ impl Candidates<'_> {
         rep.simulations += r.simulations + base_ref.simulations;
         rep.failed_candidates = r.failures;
         rep.wall_s = t0.elapsed().as_secs_f64();
-        (rep, Some((r, bounds, ext.ties)), baselines.into_own())
+        (rep, Some((r, bounds, ext.ties)))
     }
 }
 
