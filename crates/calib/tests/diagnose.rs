@@ -377,7 +377,8 @@ fn bad_requests_are_setup_errors() {
 
 /// One thread scores the candidates one after another, two score them side by side (each with
 /// the baselines re-fitted before its batch and its own): every candidate's numbers, its
-/// baseline's and its noise-fitting gain the same to the bit.
+/// baseline's and its noise-fitting gain the same to the bit; and a baseline two causes of the
+/// batch share re-fitted once.
 #[test]
 fn a_seed_gives_the_same_diagnosis_on_one_and_two_threads() {
     let t = scenario("measurement_skew", 7, None);
@@ -385,7 +386,13 @@ fn a_seed_gives_the_same_diagnosis_on_one_and_two_threads() {
     // Diagnose the truth without its measurement block (the base unit), two causes, small budget.
     let _ = truth;
     let opts = DiagnoseOptions {
-        causes: vec!["measurement_skew".into(), "terminal_load".into()],
+        // Saturation and the OEL re-free the same field-side parameters: one baseline.
+        causes: vec![
+            "measurement_skew".into(),
+            "terminal_load".into(),
+            "saturation".into(),
+            "oel".into(),
+        ],
         particles: 8,
         pso_iterations: 5,
         lbfgs_iterations: 4,
@@ -427,6 +434,23 @@ fn a_seed_gives_the_same_diagnosis_on_one_and_two_threads() {
     };
     assert_eq!(key(&a), key(&b));
     assert_eq!(a.report.verdict.cause, "measurement_skew");
+    // Each baseline re-fitted once, side by side as one after another (two causes of a batch
+    // that share one do not both re-fit it).
+    let baselines = |r: &itaipu_calib::diagnose::DiagnoseResult| {
+        r.report
+            .profile
+            .iter()
+            .filter(|p| p.kind == "baselines" && p.phase == "whole re-fit")
+            .map(|p| p.refits)
+            .sum::<usize>()
+    };
+    assert_eq!(baselines(&a), baselines(&b));
+    let applicable = a.report.candidates.iter().filter(|c| c.applicable).count();
+    assert!(
+        baselines(&a) < applicable,
+        "{} baselines for {applicable} causes",
+        baselines(&a)
+    );
 }
 
 #[test]

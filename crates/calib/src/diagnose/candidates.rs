@@ -310,8 +310,10 @@ impl RecordedInput {
 }
 
 /// The baselines one candidate reads: those re-fitted before its batch (`shared`, read-only
-/// while the batch's candidates are scored side by side) and those it re-fits itself (`own`,
-/// merged into the shared map after the batch). Every re-fit of a given set of bounds on a given
+/// while the batch's candidates are scored side by side: every main baseline the batch needs,
+/// [`Candidates::score_all`]) and those it re-fits itself (`own`, merged into the shared map
+/// after the batch: its surrogates' and segments' baselines, and a main one whose re-fit before
+/// the batch failed). Every re-fit of a given set of bounds on a given
 /// split is the same (the search's seed is the diagnosis's, not the candidate's), so which
 /// candidate re-fitted a baseline first changes no number.
 pub(super) struct BaselineCache<'m> {
@@ -346,6 +348,17 @@ impl<'m> BaselineCache<'m> {
     }
 }
 
+/// The playback a candidate is scored on ([`Candidates::played_for`]).
+struct Played<'c> {
+    recorded: Option<&'c RecordedInput>,
+    env: RefitEnv<'c>,
+    sp_null: &'c [Split],
+    sp_segments: Option<&'c Split>,
+    ctx: &'c Context,
+    evidence: &'c [EventEvidence],
+    key_prefix: &'static str,
+}
+
 impl Candidates<'_> {
     /// Scores the causes `ids` side by side (each candidate's re-fits in parallel with the
     /// others', their swarms on the same pool), in the order given: the same reports as
@@ -370,6 +383,32 @@ impl Candidates<'_> {
                 self.input_echo = Some(echo);
             }
         }
+        // The batch's main baselines not re-fitted yet, each once (causes that re-free the same
+        // parameters share one), side by side; each is the re-fit its first cause would have
+        // made, so no number changes. One that fails is left to its causes, whose reports say so.
+        let this = &*self;
+        let mut todo: Vec<(String, RefitEnv, Vec<FreeBound>, &str)> = vec![];
+        for id in ids {
+            let played = this.played_for(id);
+            if let Ok((_, base_bounds, key)) = this.extensions(id, &played) {
+                if !this.baselines.contains_key(&key) && todo.iter().all(|t| t.0 != key) {
+                    todo.push((key, played.env, base_bounds, id));
+                }
+            }
+        }
+        let fitted: Vec<_> = todo
+            .par_iter()
+            .with_max_len(1)
+            .map(|(key, env, base_bounds, id)| {
+                let label = Label::new(RefitKind::Baseline, format!("{id} baseline"));
+                (key.clone(), refit(env, this.unit, base_bounds, &[], &label))
+            })
+            .collect();
+        for (key, r) in fitted {
+            if let Ok(r) = r {
+                self.baselines.insert(key, r);
+            }
+        }
         let this = &*self;
         let scored: Vec<_> = ids
             .par_iter()
@@ -388,6 +427,68 @@ impl Candidates<'_> {
             out.push(scored);
         }
         out
+    }
+
+    /// What cause `id` is scored on: the record as the other causes are, or played back as
+    /// recorded for a cause whose mode lies above the input's cut-off, with its baselines and
+    /// surrogates played alike (cached apart from the others', under `key_prefix`).
+    fn played_for(&self, id: &str) -> Played<'_> {
+        match self.recorded_for(id) {
+            Some(r) => Played {
+                recorded: Some(r),
+                env: self.env.on(&r.sp),
+                sp_null: &r.sp_null,
+                sp_segments: r.sp_segments.as_ref(),
+                ctx: &r.ctx,
+                evidence: &r.evidence,
+                key_prefix: "as recorded:",
+            },
+            None => Played {
+                recorded: None,
+                env: self.env,
+                sp_null: self.sp_null,
+                sp_segments: self.sp_segments,
+                ctx: self.ctx,
+                evidence: self.evidence,
+                key_prefix: "",
+            },
+        }
+    }
+
+    /// Cause `id`'s extensions of the unit (the first its main structure, the others its
+    /// refinements; the calibration's set values applied), its baseline's bounds (the
+    /// interacting parameters the unit as given has: a replaced block's parameters are the
+    /// extension's) and the baseline's key in the cache; `Err` with the report's note when the
+    /// cause does not apply to the record or its extension cannot be built.
+    fn extensions(
+        &self,
+        id: &str,
+        played: &Played,
+    ) -> Result<(Vec<Extension>, Vec<FreeBound>, String), String> {
+        let unit = self.unit;
+        if let Some(why) = catalog::cause(id).and_then(|c| played.ctx.not_seen(c.acts())) {
+            return Err(format!("not applicable: {why}"));
+        }
+        let opts = played.env.opts;
+        let exts = match user_cause::extend_all(id, unit, played.ctx, &opts.user_causes) {
+            Err(catalog::CauseError::NotApplicable(why)) => {
+                return Err(format!("not applicable: {why}"))
+            }
+            Err(e) => return Err(format!("could not build the extension: {e}")),
+            Ok(exts) => exts,
+        };
+        let exts: Vec<Extension> = exts
+            .into_iter()
+            .map(|e| with_calibrated_set(e, opts))
+            .collect();
+        let base_bounds: Vec<FreeBound> = exts[0]
+            .interacting_free
+            .iter()
+            .filter(|b| unit.param(&b.param).is_ok())
+            .map(|b| b.starting_in(unit))
+            .collect();
+        let key = format!("{}{}", played.key_prefix, bounds_key(&base_bounds));
+        Ok((exts, base_bounds, key))
     }
 
     /// The record played back as recorded, for a cause whose mode lies above the input's
@@ -409,27 +510,16 @@ impl Candidates<'_> {
         let unit = self.unit;
         // A catalog cause (its evidence rules and signature), or a user cause (none).
         let cause = catalog::cause(id);
-        // The record as recorded for a cause whose mode lies above the input's cut-off, with
-        // its baselines and surrogates played alike (cached apart from the others').
-        let recorded = self.recorded_for(id);
-        let (env, sp_null, sp_segments, ctx, evidence_before, key_prefix) = match recorded {
-            Some(r) => (
-                self.env.on(&r.sp),
-                r.sp_null.as_slice(),
-                r.sp_segments.as_ref(),
-                &r.ctx,
-                r.evidence.as_slice(),
-                "as recorded:",
-            ),
-            None => (
-                self.env,
-                self.sp_null,
-                self.sp_segments,
-                self.ctx,
-                self.evidence,
-                "",
-            ),
-        };
+        let played = self.played_for(id);
+        let Played {
+            recorded,
+            env,
+            sp_null,
+            sp_segments,
+            ctx,
+            evidence: evidence_before,
+            ..
+        } = played;
         let (opts, progress) = (env.opts, env.progress);
         let envs_null: Vec<RefitEnv> = sp_null.iter().map(|s| env.on(s)).collect();
         // The voltage noise's echo in the fitted χ² as recorded: the reference unit (no
@@ -461,40 +551,21 @@ impl Candidates<'_> {
             distortion: vec![],
             input_as_recorded: recorded.is_some(),
         };
-        if let Some(why) = cause.and_then(|c| ctx.not_seen(c.acts())) {
-            rep.note = format!("not applicable: {why}");
-            return (rep, None);
-        }
-        let exts: Vec<Extension> = match user_cause::extend_all(id, unit, ctx, &opts.user_causes) {
-            Err(catalog::CauseError::NotApplicable(why)) => {
-                rep.note = format!("not applicable: {why}");
+        let (mut exts, base_bounds, key) = match self.extensions(id, &played) {
+            Ok(x) => x,
+            Err(note) => {
+                rep.note = note;
                 return (rep, None);
             }
-            Err(e) => {
-                rep.note = format!("could not build the extension: {e}");
-                return (rep, None);
-            }
-            Ok(exts) => exts,
         };
-        let mut exts: Vec<Extension> = exts
-            .into_iter()
-            .map(|e| with_calibrated_set(e, opts))
-            .collect();
         let mut ext = exts.remove(0);
         rep.applicable = true;
         rep.extension = ext.description.clone();
         rep.fixed = ext.fixed.clone();
         progress.message(&format!("diagnose: {id}: {}", ext.description));
 
-        // Baseline: the unit as given, re-fitted over the same interacting parameters.
-        // (Only those the unit as given has: a replaced block's parameters are the extension's.)
-        let base_bounds: Vec<FreeBound> = ext
-            .interacting_free
-            .iter()
-            .filter(|b| unit.param(&b.param).is_ok())
-            .map(|b| b.starting_in(unit))
-            .collect();
-        let key = format!("{key_prefix}{}", bounds_key(&base_bounds));
+        // Baseline: the unit as given, re-fitted over the same interacting parameters (unless
+        // the batch or another cause re-fitted it already).
         if !baselines.contains_key(&key) {
             match refit(
                 &env,
