@@ -24,15 +24,26 @@ fn in_mode(mode: PlaybackMode) -> DiagnoseOptions {
 fn a_clean_step_test_diagnosed_open_loop_names_nothing() {
     let unit = truth();
     let ev = noisy_step_test(&unit, 11);
-    let d = diagnose(
-        &unit,
-        std::slice::from_ref(&ev),
-        &[],
-        &in_mode(PlaybackMode::ExciterAlone),
-        &Silent,
-    )
-    .unwrap()
-    .report;
+    // One thread, so that the re-fits run one after another and their whole times add up to at
+    // most the diagnosis's wall time (the profile check below); on more threads the candidates'
+    // re-fits overlap and their sum exceeds it. The report is the same on any number of threads
+    // (`tests/diagnose.rs`, `a_seed_gives_the_same_diagnosis_on_one_and_two_threads`).
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let d = pool
+        .install(|| {
+            diagnose(
+                &unit,
+                std::slice::from_ref(&ev),
+                &[],
+                &in_mode(PlaybackMode::ExciterAlone),
+                &Silent,
+            )
+        })
+        .unwrap()
+        .report;
     assert_eq!(d.verdict.cause, "none", "{}", d.verdict.statement);
     assert_eq!(d.noise.sigmas.len(), 1);
     let (signal, sigma) = &d.noise.sigmas[0];
@@ -62,7 +73,8 @@ fn a_clean_step_test_diagnosed_open_loop_names_nothing() {
         .unwrap();
     assert!(lim.applicable, "{}", lim.note);
     // The profile accounts for the run: one reference re-fit, at least one extension re-fit per
-    // applicable cause, and the re-fits' whole times within the diagnosis' wall time.
+    // applicable cause, and the re-fits' whole times (one after another) within the diagnosis'
+    // wall time.
     let refits = |kind: &str| {
         d.profile
             .iter()

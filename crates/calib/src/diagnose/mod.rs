@@ -562,6 +562,8 @@ pub struct Diagnosis {
 /// `extensions`, `baseline again`, `segments test`, `surrogate (noise-only) re-fits`; or
 /// `diagnosis` for the steps outside the re-fits) in one phase (`grid scan`, `swarm`, `local`,
 /// `χ² (accurate)`, `whole re-fit` which counts the re-fits and holds their whole wall time).
+/// The times are summed over the re-fits of a row; the candidates' re-fits run side by side, so
+/// on several threads the sums can exceed the diagnosis's wall time (on one they cannot).
 #[derive(Debug, Clone, Serialize)]
 pub struct ProfileRow {
     pub kind: String,
