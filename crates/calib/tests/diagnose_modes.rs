@@ -32,18 +32,17 @@ fn a_clean_step_test_diagnosed_open_loop_names_nothing() {
         .num_threads(1)
         .build()
         .unwrap();
-    let d = pool
-        .install(|| {
-            diagnose(
-                &unit,
-                std::slice::from_ref(&ev),
-                &[],
-                &in_mode(PlaybackMode::ExciterAlone),
-                &Silent,
-            )
-        })
+    let d = pool.install(|| {
+        diagnose(
+            &unit,
+            std::slice::from_ref(&ev),
+            &[],
+            &in_mode(PlaybackMode::ExciterAlone),
+            &Silent,
+        )
         .unwrap()
-        .report;
+        .report
+    });
     assert_eq!(d.verdict.cause, "none", "{}", d.verdict.statement);
     assert_eq!(d.noise.sigmas.len(), 1);
     let (signal, sigma) = &d.noise.sigmas[0];

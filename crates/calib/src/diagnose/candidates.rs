@@ -348,6 +348,10 @@ impl<'m> BaselineCache<'m> {
     }
 }
 
+/// A cause's extensions, its baseline's bounds and the baseline's key in the cache
+/// ([`Candidates::extensions`]).
+type Extended = (Vec<Extension>, Vec<FreeBound>, String);
+
 /// The playback a candidate is scored on ([`Candidates::played_for`]).
 struct Played<'c> {
     recorded: Option<&'c RecordedInput>,
@@ -359,7 +363,7 @@ struct Played<'c> {
     key_prefix: &'static str,
 }
 
-impl Candidates<'_> {
+impl<'a> Candidates<'a> {
     /// Scores the causes `ids` side by side (each candidate's re-fits in parallel with the
     /// others', their swarms on the same pool), in the order given: the same reports as
     /// scoring them one after another ([`BaselineCache`]), with the threads a candidate's own
@@ -383,25 +387,34 @@ impl Candidates<'_> {
                 self.input_echo = Some(echo);
             }
         }
+        // Each cause's playback and extensions, built once: the batch's baselines and the
+        // cause's scoring read them.
+        let setups: Vec<(&str, Played<'a>, Result<Extended, String>)> = ids
+            .iter()
+            .map(|&id| {
+                let played = self.played_for(id);
+                let extended = self.extensions(id, &played);
+                (id, played, extended)
+            })
+            .collect();
         // The batch's main baselines not re-fitted yet, each once (causes that re-free the same
         // parameters share one), side by side; each is the re-fit its first cause would have
         // made, so no number changes. One that fails is left to its causes, whose reports say so.
-        let this = &*self;
-        let mut todo: Vec<(String, RefitEnv, Vec<FreeBound>, &str)> = vec![];
-        for id in ids {
-            let played = this.played_for(id);
-            if let Ok((_, base_bounds, key)) = this.extensions(id, &played) {
-                if !this.baselines.contains_key(&key) && todo.iter().all(|t| t.0 != key) {
-                    todo.push((key, played.env, base_bounds, id));
+        let mut todo: Vec<(&str, &RefitEnv, &[FreeBound], &str)> = vec![];
+        for (id, played, extended) in &setups {
+            if let Ok((_, base_bounds, key)) = extended {
+                if !self.baselines.contains_key(key) && todo.iter().all(|t| t.0 != key) {
+                    todo.push((key, &played.env, base_bounds, id));
                 }
             }
         }
+        let unit = self.unit;
         let fitted: Vec<_> = todo
             .par_iter()
             .with_max_len(1)
-            .map(|(key, env, base_bounds, id)| {
+            .map(|&(key, env, base_bounds, id)| {
                 let label = Label::new(RefitKind::Baseline, format!("{id} baseline"));
-                (key.clone(), refit(env, this.unit, base_bounds, &[], &label))
+                (key.to_string(), refit(env, unit, base_bounds, &[], &label))
             })
             .collect();
         for (key, r) in fitted {
@@ -410,12 +423,12 @@ impl Candidates<'_> {
             }
         }
         let this = &*self;
-        let scored: Vec<_> = ids
-            .par_iter()
+        let scored: Vec<_> = setups
+            .into_par_iter()
             .with_max_len(1)
-            .map(|id| {
+            .map(|(id, played, extended)| {
                 let mut cache = BaselineCache::new(&this.baselines);
-                let scored = this.score(id, &mut cache);
+                let scored = this.score(id, played, extended, &mut cache);
                 (scored, cache.own)
             })
             .collect();
@@ -432,7 +445,7 @@ impl Candidates<'_> {
     /// What cause `id` is scored on: the record as the other causes are, or played back as
     /// recorded for a cause whose mode lies above the input's cut-off, with its baselines and
     /// surrogates played alike (cached apart from the others', under `key_prefix`).
-    fn played_for(&self, id: &str) -> Played<'_> {
+    fn played_for(&self, id: &str) -> Played<'a> {
         match self.recorded_for(id) {
             Some(r) => Played {
                 recorded: Some(r),
@@ -460,11 +473,7 @@ impl Candidates<'_> {
     /// interacting parameters the unit as given has: a replaced block's parameters are the
     /// extension's) and the baseline's key in the cache; `Err` with the report's note when the
     /// cause does not apply to the record or its extension cannot be built.
-    fn extensions(
-        &self,
-        id: &str,
-        played: &Played,
-    ) -> Result<(Vec<Extension>, Vec<FreeBound>, String), String> {
+    fn extensions(&self, id: &str, played: &Played) -> Result<Extended, String> {
         let unit = self.unit;
         if let Some(why) = catalog::cause(id).and_then(|c| played.ctx.not_seen(c.acts())) {
             return Err(format!("not applicable: {why}"));
@@ -493,24 +502,26 @@ impl Candidates<'_> {
 
     /// The record played back as recorded, for a cause whose mode lies above the input's
     /// cut-off (its baselines and surrogates played alike, cached apart from the others').
-    fn recorded_for(&self, id: &str) -> Option<&RecordedInput> {
+    fn recorded_for(&self, id: &str) -> Option<&'a RecordedInput> {
         self.recorded.filter(|r| {
             user_cause::band_top_hz(id, &r.ctx, &self.env.opts.user_causes)
                 .is_some_and(|top| r.cutoff_hz < top)
         })
     }
 
-    /// Scores the cause `id`: its report, and its re-fit when it has one (for the standard
-    /// errors of a named cause).
+    /// Scores the cause `id` on its playback `played` with its extensions `extended`
+    /// ([`Candidates::extensions`]): its report, and its re-fit when it has one (for the
+    /// standard errors of a named cause).
     fn score(
         &self,
         id: &str,
+        played: Played,
+        extended: Result<Extended, String>,
         baselines: &mut BaselineCache,
     ) -> (CandidateReport, Option<RefitRecord>) {
         let unit = self.unit;
         // A catalog cause (its evidence rules and signature), or a user cause (none).
         let cause = catalog::cause(id);
-        let played = self.played_for(id);
         let Played {
             recorded,
             env,
@@ -551,7 +562,7 @@ impl Candidates<'_> {
             distortion: vec![],
             input_as_recorded: recorded.is_some(),
         };
-        let (mut exts, base_bounds, key) = match self.extensions(id, &played) {
+        let (mut exts, base_bounds, key) = match extended {
             Ok(x) => x,
             Err(note) => {
                 rep.note = note;

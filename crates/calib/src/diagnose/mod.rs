@@ -26,10 +26,10 @@
 //!    the other causes without the echo of the voltage's noise that input adds
 //!    ([`Gains::input_echo`]).
 //!    The candidates are scored side by side (`candidates::Candidates::score_all`, their re-fits'
-//!    swarms on the same thread pool): a baseline re-fitted before the batch is shared, one a
-//!    candidate needs that is not yet there it re-fits itself, and a re-fit depends only on its
-//!    bounds, split and the diagnosis's seed, so the reports are those of one cause after
-//!    another, on any number of threads.
+//!    swarms on the same thread pool): the batch's main baselines are re-fitted first, once
+//!    each, and shared; a surrogate's or the segments' baseline a candidate re-fits itself; and
+//!    a re-fit depends only on its bounds, split and the diagnosis's seed, so the reports are
+//!    those of one cause after another, on any number of threads.
 //! 5. **Gain.** `Δχ²` on the fitted samples, the relative drop of the fitted and of the held-out
 //!    χ², each net of the gain the same re-fits achieve on a surrogate of the events (the
 //!    reference's own simulation with the noise drawn again: pure noise fitting; the residuals'
