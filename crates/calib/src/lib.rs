@@ -31,6 +31,8 @@
 
 pub mod bounds;
 pub mod diagnose;
+#[cfg(test)]
+mod docs_examples;
 pub mod error;
 pub mod evidence;
 /// The zero-phase low-pass of the measurement (and of the played-back input: `itaipu_dynamics`).
