@@ -7,7 +7,7 @@
 //!   commands (`simulate`, `import`, `synth`, `dyr`, `models`, `diagram`) run, in order, in a
 //!   scratch folder beside the repository's `data/`, and must end with the exit code their line
 //!   states (`# ... exit N`; 0 otherwise). With the slow checks (`ITAIPU_SLOW_TESTS=1` or the
-//!   `slow` feature) every command runs, `fit` and `diagnose` too. Other commands are checked
+//!   `slow-tests` feature) every command runs, `fit` and `diagnose` too. Other commands are checked
 //!   for what they name: a `cargo` package or example, a script;
 //! * TOML blocks parse, and read as what their marker says (`<!-- check: calibration -->`, `event
 //!   DIR` (its CSV from DIR), `unit`, `file PATH`: the block is that file, byte for byte);
@@ -30,7 +30,7 @@ fn repo() -> PathBuf {
 }
 
 fn slow() -> bool {
-    cfg!(feature = "slow") || std::env::var_os("ITAIPU_SLOW_TESTS").is_some()
+    cfg!(feature = "slow-tests") || std::env::var_os("ITAIPU_SLOW_TESTS").is_some()
 }
 
 /// The documentation's files: the README and `docs/*.md` (not the lab notebook).
@@ -430,11 +430,14 @@ fn classify(line: &Line) -> Kind {
                     assert!(ex.is_file(), "{}: no example {}", line.at, ex.display());
                 }
                 if let Some(i) = w.iter().position(|x| x == "--test") {
-                    let t = root
-                        .join(dir)
-                        .join("tests")
-                        .join(format!("{}.rs", w[i + 1]));
-                    assert!(t.is_file(), "{}: no test target {}", line.at, t.display());
+                    let manifest = std::fs::read_to_string(root.join(dir).join("Cargo.toml"));
+                    let target = format!("name = \"{}\"", w[i + 1]);
+                    assert!(
+                        manifest.unwrap().contains(&target),
+                        "{}: {p} has no test target {}",
+                        line.at,
+                        w[i + 1]
+                    );
                 }
                 if let Some(i) = w.iter().position(|x| x == "--bench") {
                     let t = root
