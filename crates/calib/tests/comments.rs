@@ -7,12 +7,17 @@
 
 use std::path::{Path, PathBuf};
 
+/// The repository's root.
+fn repo_root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .canonicalize()
+        .expect("the repository's root")
+}
+
 /// Every `.rs` file under `crates/*/src`.
 fn library_sources() -> Vec<PathBuf> {
-    let crates = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .canonicalize()
-        .expect("crates/");
+    let crates = repo_root().join("crates");
     let mut out = vec![];
     for c in std::fs::read_dir(&crates).unwrap() {
         let src = c.unwrap().path().join("src");
@@ -133,8 +138,7 @@ fn library_comments_name_no_practice_case_and_no_history() {
         let text = std::fs::read_to_string(&path).unwrap();
         for (k, line) in text.lines().enumerate() {
             if let Some(why) = comment(line).and_then(offence) {
-                let root = path.ancestors().nth(4).unwrap_or(Path::new(""));
-                let shown = path.strip_prefix(root).unwrap_or(&path);
+                let shown = path.strip_prefix(repo_root()).unwrap_or(&path);
                 hits.push(format!("{}:{}: {why}", shown.display(), k + 1));
             }
         }
