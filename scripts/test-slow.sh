@@ -5,7 +5,9 @@
 #    (crates/calib/tests/no_panic.rs; the test command runs 64);
 # 3. the practice sets (data/practice: 66 records made by an independent implementation, one
 #    calibration spec for all, the answer keys read only to score), fitted and diagnosed as a
-#    user does, and the scores checked against the project's bars (`--check`).
+#    user does, and the scores checked against the project's bars (`--check`);
+# 4. the documentation's examples with every command run end to end (crates/cli/tests/docs.rs,
+#    tests/python/test_docs.py; the test command runs the quick ones).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -22,3 +24,7 @@ mkdir -p "$out"
 # The runner writes out/ in its working folder.
 (cd "$out" && cargo run --release --locked --manifest-path "$repo/Cargo.toml" -p itaipu-calib \
   --example practice -- "$repo/data/practice" --check)
+
+echo "== the documentation's examples, every command run end to end"
+cargo test --release --locked -p itaipu-calib-cli --features slow-tests --test it docs
+ITAIPU_SLOW_TESTS=1 "${ITAIPU_VENV:-target/venv}/bin/python" -m pytest tests/python/test_docs.py -q

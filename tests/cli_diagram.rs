@@ -59,7 +59,7 @@ fn the_diagram_unit_simulates_and_calibrates_like_the_builtin_unit() {
     // swarm's best, Levenberg-Marquardt steps into candidates whose limiters chatter (T_B near
     // 0.01 s), where the 1e-12 between the diagram and the built-in block decides whether a
     // simulation ends within its step budget, and the two runs part there. (The full `fit` of
-    // either ends at the same J, 0.8732: README, "User-defined control models".)
+    // either ends at the same J.)
     let (fd, fb) = (tmp.path().join("fd"), tmp.path().join("fb"));
     let mut swarm_only = FIT_BUDGET;
     assert_eq!(swarm_only[4], "--lbfgs-iterations");

@@ -129,9 +129,9 @@ Synthetic events
 ----------------
 :func:`synth` makes an in-memory Event by playing a grid-side voltage profile into a true unit,
 with PMU noise and quantisation (the generator behind ``itaipu-calib synth``):
-``synth(unit, kind="dip"|"frequency"|"step"|"ambient", duration=20.0, rate=60.0,
-pq_sigma=0.002, v_sigma=0.0005, quantum=0.0014, skew_ms=0.0, seed=1, hide=None,
-return_truth=False)``. ``hide`` hides catalog causes in the truth, in order, as the command
+``synth(unit, kind="dip"|"frequency"|"step"|"ambient", duration=..., rate=..., pq_sigma=...,
+v_sigma=..., quantum=..., skew_ms=..., seed=..., hide=None, return_truth=False)`` (the defaults:
+``help(synth)`` or :func:`options`). ``hide`` hides catalog causes in the truth, in order, as the command
 line's ``--hide``: ``[(cause, {param: value}), ...]`` or ``{cause: {param: value}}``
 (parameters not given keep the extension's starting values; an unknown cause or parameter
 raises ``ValueError``, a truth that cannot initialise :class:`InitError`). With
@@ -178,6 +178,11 @@ library defines one:
 Bad options raise ``ValueError``; arguments of the wrong type ``TypeError``.
 """
 
+import functools as _functools
+import inspect as _inspect
+from typing import Any as _Any, Callable as _Callable, TypeVar as _TypeVar
+
+from . import _core
 from ._core import (
     CalibrationError,
     Diagnosis,
@@ -205,12 +210,35 @@ from ._core import (
     load_unit,
     models,
     noise_sigma,
+    options,
     read_dyr,
-    simulate,
     stages,
-    synth,
     write_dyr,
 )
+
+_F = _TypeVar("_F", bound=_Callable[..., _Any])
+
+
+def _declared(func: _F, command: str) -> _F:
+    """``func`` with the defaults its signature shows read from the option declaration
+    (:func:`options`), where the compiled function takes them from: ``help()`` and
+    :func:`inspect.signature` then show the values, not ``...``."""
+    declared = {o["python"]: o["default"] for o in _core.options()
+                if o["command"] == command and o["python"]}
+    sig = _inspect.signature(func)
+    params = [p.replace(default=declared[p.name]) if p.default is Ellipsis and p.name in declared
+              else p for p in sig.parameters.values()]
+
+    @_functools.wraps(func)
+    def call(*args: _Any, **kwargs: _Any) -> _Any:
+        return func(*args, **kwargs)
+
+    call.__signature__ = sig.replace(parameters=params)  # type: ignore[attr-defined]
+    return call  # type: ignore[return-value]
+
+
+simulate = _declared(_core.simulate, "simulate")
+synth = _declared(_core.synth, "synth")
 
 __all__ = [
     "CalibrationError",
@@ -239,6 +267,7 @@ __all__ = [
     "load_unit",
     "models",
     "noise_sigma",
+    "options",
     "read_dyr",
     "simulate",
     "stages",

@@ -217,11 +217,11 @@ def simulate(
     event: Union[_PathLike, Event],
     unit: Union[_PathLike, Unit],
     *,
-    method: str = "dopri5",
-    rtol: float = 1e-6,
-    atol: float = 1e-7,
-    step: float = 0.001,
-    mode: str = "phasor",
+    method: str = ...,
+    rtol: float = ...,
+    atol: float = ...,
+    step: float = ...,
+    mode: str = ...,
 ) -> Traces: ...
 def fit(
     events: _Events,
@@ -245,15 +245,15 @@ def causes() -> List[Dict[str, Any]]: ...
 def synth(
     unit: Union[_PathLike, Unit],
     *,
-    kind: str = "dip",
-    duration: float = 20.0,
-    rate: float = 60.0,
+    kind: str = ...,
+    duration: float = ...,
+    rate: float = ...,
     system_mva: Optional[float] = None,
-    pq_sigma: float = 0.002,
-    v_sigma: float = 0.0005,
-    quantum: float = 0.0014,
-    skew_ms: float = 0.0,
-    seed: int = 1,
+    pq_sigma: float = ...,
+    v_sigma: float = ...,
+    quantum: float = ...,
+    skew_ms: float = ...,
+    seed: int = ...,
     name: Optional[str] = None,
     hide: Optional[_Hide] = None,
     return_truth: Literal[False] = False,
@@ -262,15 +262,15 @@ def synth(
 def synth(
     unit: Union[_PathLike, Unit],
     *,
-    kind: str = "dip",
-    duration: float = 20.0,
-    rate: float = 60.0,
+    kind: str = ...,
+    duration: float = ...,
+    rate: float = ...,
     system_mva: Optional[float] = None,
-    pq_sigma: float = 0.002,
-    v_sigma: float = 0.0005,
-    quantum: float = 0.0014,
-    skew_ms: float = 0.0,
-    seed: int = 1,
+    pq_sigma: float = ...,
+    v_sigma: float = ...,
+    quantum: float = ...,
+    skew_ms: float = ...,
+    seed: int = ...,
     name: Optional[str] = None,
     hide: Optional[_Hide] = None,
     return_truth: Literal[True],
@@ -294,6 +294,7 @@ def diagnose(
 ) -> Diagnosis: ...
 def noise_sigma(values: Sequence[float]) -> float: ...
 def defaults() -> Dict[str, Dict[str, int]]: ...
+def options() -> List[Dict[str, Any]]: ...
 def stages() -> List[str]: ...
 def _cli_main(argv: Sequence[str]) -> int: ...
 def _check_out(out: _PathLike, overwrite: bool = False) -> None: ...

@@ -366,3 +366,29 @@ def test_the_stub_matches_the_module():
                         "--allowlist", str(Path(__file__).parent / "stubtest_allowlist.txt")],
                        capture_output=True, text=True, cwd=ROOT / "target")
     assert r.returncode == 0, r.stdout + r.stderr
+
+
+# --- the option declaration ---------------------------------------------------------------------
+
+
+def test_the_defaults_python_shows_and_uses_are_the_declared_ones():
+    """simulate's and synth's defaults come from the library's declaration (ic.options(), the
+    same table the command line and docs/options.md read): the signature shows them, and a call
+    without the argument behaves as one with the declared value."""
+    import inspect
+    declared = {(o["command"], o["python"]): o for o in ic.options() if o["python"]}
+    for name in ("simulate", "synth"):
+        sig = inspect.signature(getattr(ic, name))
+        shown = {k: p.default for k, p in sig.parameters.items()
+                 if (name, k) in declared and declared[(name, k)]["default"] is not None}
+        assert shown, name
+        for k, v in shown.items():
+            assert v == declared[(name, k)]["default"], (name, k)
+    assert declared[("synth", "duration")]["cli"] == "--duration"
+    assert declared[("fit", "stages")]["cli"] == "--stage"
+    assert declared[("diagnose", "particles")]["default"] is None
+    assert str(ic.defaults()["diagnose"]["particles"]) in declared[("diagnose", "particles")]["default_text"]
+    d = declared[("synth", "duration")]["default"]
+    a = ic.synth(TRUTH, duration=d, seed=3)
+    b = ic.synth(TRUTH, seed=3)
+    np.testing.assert_array_equal(a.p_pu, b.p_pu)

@@ -16,7 +16,7 @@
 //! records' noise and its re-fits' swarms: how much does a verdict depend on the diagnosis's
 //! own draws?), `NULL_DRAWS=n` nets out the noise-fitting gain of n surrogate draws
 //! (`DiagnoseOptions::null_draws`), `PSO_ITERATIONS=n`, `LOCAL_STARTS=k`, `JOINT_ITERATIONS=n` set the
-//! spec's `[calibration.pso]` search (README, "Short swarms, several starts"),
+//! spec's `[calibration.pso]` search (docs/calibration.md, "The search in a stage"),
 //! `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back low-passed at `f` Hz between
 //! their edges instead of the default 4 Hz, `INPUT_LOWPASS_HZ=none` as recorded
 //! (`Event::set_input_lowpass`), `REFIT_OVER_SAMPLES=1` lets the diagnosis re-fits' searches

@@ -385,8 +385,8 @@ pub fn prepare_fit(
 /// A phasor stage to run that compares P and Q alone on events that all record the field
 /// (E_fd, X_ad I_fd): said, with `channels = "recorded"` as the fix. P and Q alone leave X_d and
 /// the exciter's gain free to bend until the simulated field runs off the recorded one by many
-/// noise widths (measured on the practice records: 2-7 σ on E_fd, 7-31 σ on X_ad I_fd), which
-/// can hide a ceiling or a saturation inside the calibration.
+/// noise widths (nothing in P and Q pins the field's own scale), which can hide a ceiling or a
+/// saturation inside the calibration.
 pub fn field_warnings(
     events: &[&Event],
     spec: &CalibSpec,

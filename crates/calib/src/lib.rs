@@ -14,8 +14,9 @@
 //!   cross-correlation with the inputs, spectrum, matrix-pencil modes).
 //! * [`practice`]: the practice set of independent events, its one spec and its answer keys.
 //! * [`fit`]: stages, strategies and reports.
-//! * [`request`]: the validated options of both front ends (command line, Python), and their
-//!   defaults.
+//! * [`options`]: the options of both front ends (command line, Python) declared once: names,
+//!   defaults and help, from which the option reference `docs/options.md` is rendered.
+//! * [`request`]: those options checked, once, for both front ends.
 //! * [`job`]: the fit and the diagnosis as every front end runs them: inputs, plausibility,
 //!   reports, output files.
 //! * [`error`]: [`Error`], the one error type every error of the crate and the engine converts
@@ -30,6 +31,8 @@
 
 pub mod bounds;
 pub mod diagnose;
+#[cfg(test)]
+mod docs_examples;
 pub mod error;
 pub mod evidence;
 /// The zero-phase low-pass of the measurement (and of the played-back input: `itaipu_dynamics`).
@@ -39,6 +42,7 @@ pub mod identify;
 pub mod job;
 pub mod local;
 pub mod noise;
+pub mod options;
 pub mod output;
 pub mod practice;
 pub mod problem;

@@ -241,19 +241,14 @@ pub const LM_FD_STEP: f64 = 1e-4;
 
 /// Tolerance of the runs whose steps a Levenberg-Marquardt Jacobian on replays
 /// ([`LmStop::replay`]) replays when the residuals are simulated tighter (at [`LM_RTOL`]). A
-/// replayed column is the exact derivative of the playback discretised on those steps; it differs from the true derivative
-/// by how the frozen steps' own error changes with the parameter, which is largest for fast
-/// time constants: the exciter's T_E column is 1.8e-2 off at rtol 1e-6, 1.2e-3 at 1e-7, where
-/// slow parameters' columns are 1e-6-1e-5 off, and differences of two adaptive runs 1e-4 for all
-/// (test `replayed_columns_agree_with_accurate_central_differences`; the rtol-1e-7 and adaptive
-/// figures from a scratch variant of it).
+/// replayed column is the exact derivative of the playback discretised on those steps; it
+/// differs from the true derivative by how the frozen steps' own error changes with the
+/// parameter, which is largest for fast time constants (the exciter's T_E) and shrinks with the
+/// tolerance (test `replayed_columns_agree_with_accurate_central_differences`).
 /// Levenberg-Marquardt needs a descent direction, not the derivative (each step is checked on
-/// the objective itself), and rtol-1e-6 steps (the default simulation's tolerance) are about two
-/// thirds of rtol 1e-7's: the bundled Itaipu fit's local phases took 1.14 s where replays of
-/// the rtol-1e-7 run's own steps took 1.73 s, both to J 0.829 (the adaptive differences:
-/// 0.8605, the joint pass from the datasheet ending on "converged" at 0.8626 where the replays
-/// went on to 0.831). At 1e-5 the columns are too coarse: the same joint pass from the
-/// datasheet stalled at J 1.05.
+/// the objective itself), so the default simulation's tolerance, whose steps are fewer than
+/// rtol 1e-7's, is enough; a decade looser, the columns are too coarse to follow a curved
+/// valley.
 pub const JACOBIAN_RTOL: f64 = 1e-6;
 
 /// Step of the forward differences between two replays of the same steps, in box coordinates.
@@ -338,12 +333,10 @@ impl LmStop {
     /// Its Jacobians are differences of adaptive runs, not replays ([`Self::replay`] off). The
     /// rule: a calibration's result must be a function of the record, not of its file format,
     /// so a search is only used where its end moves with the data no more than the data's own
-    /// precision moves the objective. Measured at stop 34: the bundled record imported from
-    /// COMTRADE (32-bit samples: its start J within 1e-8 of the CSV's) ends, on replays, 3 % above
-    /// the CSV's (J 0.8540 for 0.8294; the replays' search goes on into a valley the 4.65 s
-    /// record does not pin, 14 of 22 parameters not determined), where the differences end at
-    /// 0.8605 on both. On the 66 practice fits the replays were neutral (mean of
-    /// ln(J_replay/J_differences) +0.03 %, median 0, every verdict the same).
+    /// precision moves the objective. On replays the search goes on into valleys a short record
+    /// does not pin, where its end follows the last bits of the data (a record and its COMTRADE
+    /// export, equal to 32-bit precision, end several per cent apart); on differences both end
+    /// alike.
     pub const CALIBRATION: LmStop = LmStop {
         small_decrease: 1e-6,
         small_steps: 3,
@@ -353,42 +346,25 @@ impl LmStop {
     };
     /// A diagnosis re-fit, which only compares χ² values: two steps below 1e-5 (0.02 of a χ² of
     /// 2 000, nothing a ΔBIC of 10 can see), simulated at rtol 1e-6 (every re-fit's χ² is taken
-    /// on the accurate integrator).
-    /// - The calibration's rule took a sixth of the diagnosis' time on practice p17 and p18
-    ///   (41.3 and 37.1 s against 34.4 and 31.5 s) for the same verdicts.
-    /// - rtol 1e-6 instead of [`LM_RTOL`] took the diagnosis of p17 and p18 from 33.5 and 33.0 s
-    ///   to 23.9 and 25.2 s, with the same verdict on all 22 practice cases and every key
-    ///   parameter within its tolerance.
-    /// - Jacobians from differences of adaptive runs, not replays. The rule: a ΔBIC (a
-    ///   likelihood ratio) compares two maxima, so the baseline's re-fit and the extension's
-    ///   must be searched alike; a search that reaches further in the larger model inflates
-    ///   the ratio by what the smaller one left unreached, which no noise model accounts for.
-    ///   Measured on both practice sets (66 cases, stop 34): with replays in the re-fits the
-    ///   extensions' re-fits reached further than their baselines' and one of the 18 clean
-    ///   cases was named (saturation, ΔBIC 121, where the same unit on differences gains
-    ///   1 %); no effect case gained a right name. Until the baselines' re-fits reach as far
-    ///   (issue 26), the re-fits keep the differences their thresholds were set on.
-    /// - Used for the calibration too, the rule moved the bundled Itaipu fit into another
-    ///   valley: J 0.862 with T'_d0 = T''_d0 to 1e-6, where [`Self::CALIBRATION`] gives 0.873
-    ///   with T'_d0 4.7 > T''_d0 0.48. For the stages only (the joint pass polishing their
-    ///   result at the calibration's rule), it saved nothing measurable on the practice fits
-    ///   and moved their calibrated units enough to change two diagnoses (p04's OEL pickup
-    ///   2.81 for 1.84; p09 named a shaft mode).
+    /// on the accurate integrator, so the search's tolerance moves where it stops, not the
+    /// numbers compared).
     /// - Jacobians by forward sensitivities ([`Self::sensitivities`]) wherever every block of
-    ///   the re-fitted unit has dual equations: every catalog extension does (the OEL since
-    ///   stop 40), so a baseline's re-fit and its extension's are searched alike, as the rule
-    ///   above asks. The rule for adopting a change of search method: no verdict or grade may
-    ///   change on either practice set, and the scored key values may move only well inside
-    ///   their tolerance (5 % of the key), since a Jacobian changes where a search stops, not
-    ///   what the data say. Measured on both sets (66 records, 18 scored keys, stop 40, two
-    ///   processes side by side): every verdict and grade as on differences, `none` on the 18
-    ///   clean records, keys 18/21; the 18 key values moved by a median of 0.001 % of the key
-    ///   and at most 0.93 %; the diagnosis's median time 34.5 → 28.4 s, fit + diagnose 68.4 →
-    ///   60.5 s (maximum 108 → 100 s). A user cause is a diagram, which has dual equations
-    ///   since stop 42, so it is searched as the catalog's causes are; a unit holding a block
-    ///   without them is re-fitted on differences while its baseline has sensitivities: its
-    ///   search then reaches no further than the baseline's, the side of the rule that can
-    ///   miss a cause but not invent one.
+    ///   the re-fitted unit has dual equations (every catalog extension and every diagram
+    ///   does), never replays. The rule: a ΔBIC (a likelihood ratio) compares two maxima, so
+    ///   the baseline's re-fit and the extension's must be searched alike; a search that
+    ///   reaches further in the larger model inflates the ratio by what the smaller one left
+    ///   unreached, which no noise model accounts for. Replays of the extension's steps reach
+    ///   further than its baseline's; sensitivities give both the same reach. A unit holding a
+    ///   block without dual equations is re-fitted on differences while its baseline has
+    ///   sensitivities: its search then reaches no further than the baseline's, the side of
+    ///   the rule that can miss a cause but not invent one.
+    /// - The rule for adopting a change of search method here: no verdict or grade may change
+    ///   on the practice sets, and the scored key values may move only well inside their
+    ///   tolerance (5 % of the key), since a Jacobian changes where a search stops, not what
+    ///   the data say.
+    /// - Not the calibration's rule ([`Self::CALIBRATION`]): there the record, not a
+    ///   comparison, must pin the result, and a looser search ends elsewhere in a valley the
+    ///   record does not pin.
     pub const COMPARISON: LmStop = LmStop {
         small_decrease: 1e-5,
         small_steps: 2,
@@ -402,9 +378,8 @@ impl LmStop {
 /// [`LM_RTOL`] for a calibration). Unlike L-BFGS, which builds curvature from differences of
 /// gradients and stalls on the step-size noise of an adaptive integrator, LM takes its curvature
 /// from the Jacobian itself, where a relative error of ~1e-7/[`LM_FD_STEP`] = 1e-3 is harmless
-/// (every result is re-evaluated on the accurate integrator); at 1e-7 a 25 s record at 60
-/// samples/s takes about 2.8 steps per sample where 1e-8 took 4 (practice p18: 4 241 steps for
-/// 5 927).
+/// (every result is re-evaluated on the accurate integrator), and a tighter tolerance only
+/// adds steps.
 pub fn lm_integrator(rtol: f64) -> SimOptions {
     SimOptions {
         method: Method::Dopri5(itaipu_dynamics::integrate::Dopri5Options {

@@ -424,21 +424,17 @@ pub fn objective_weights(objective: Objective, w: Weights) -> (f64, f64) {
 /// local method and re-evaluated on [`accurate_integrator`]. The rule for its tolerance (a noise
 /// model): its error in P and Q must be a small fraction of the record's own noise σ, so that it
 /// moves a candidate's χ² by a small fraction of that χ² and the ranking the swarm acts on is the
-/// record's, not the integrator's. Checked on every record of both practice sets (their nominal
-/// units, the default playback; `cargo run --release -p itaipu-calib --example search_error`):
-/// the largest error at a sample is a median 5e-4 σ, at most 0.15 σ, and χ² moves by a median
-/// 3e-7 of itself, at most 3.3e-3. Its steps are then nearly held by the samples (the
-/// played-back input is linear between them): a median 1.00 step attempts per sample, at most
-/// 1.36; rtol 1e-5 took up to 2.4 times as many (a median 1.01 times: the records at 30
-/// samples/s, where the error control rather than the samples set the step, gain the most).
+/// record's, not the integrator's (`cargo run --release -p itaipu-calib --example search_error`
+/// measures both on a set of records). Its steps are then nearly held by the samples (the
+/// played-back input is linear between them): about one step attempt per sample, where a
+/// tighter tolerance lets the error control, rather than the samples, set the step.
 ///
 /// The step budget is 25 000 steps, about 15 × what a 25 s event at 60 samples/s takes, so a
 /// candidate that chatters on a limiter is failed and penalised rather than simulated for
-/// seconds. (A budget proportional to the record, 8 steps per sample, was tried: it also fails
-/// the near-degenerate machines, X'_d → X''_d → X_l, a generator stage passes through on its way,
-/// 48 570 steps for the 1 800 samples of practice p03, and that stage then ended elsewhere and
-/// the case's fit 10 % above its floor instead of 10 % below.) A swarm all of whose candidates
-/// are that costly gives up instead (`fit::search::TOO_COSTLY_STEPS_PER_SAMPLE`).
+/// seconds. (A budget proportional to the record would also fail the near-degenerate machines,
+/// X'_d → X''_d → X_l, that a generator stage passes through on its way to a good fit.) A swarm
+/// all of whose candidates are that costly gives up instead
+/// (`fit::search::TOO_COSTLY_STEPS_PER_SAMPLE`).
 pub fn search_integrator() -> SimOptions {
     SimOptions {
         method: Method::Dopri5(Dopri5Options::search()),
@@ -455,9 +451,9 @@ pub fn search_integrator() -> SimOptions {
 /// the line's as `(f_c/f_s)²`) and has continuous first and second derivatives at them; the
 /// steps are then set by the error control on the unit's own dynamics instead of by the sample
 /// spacing. Its cost: its J is not the line's (the spline departs from the line between samples
-/// where the angle swings after a fault), and the χ² a re-fit reports is taken on the line; the
-/// measured saving and the departure on both practice sets are in the README ("The played-back
-/// voltage's noise", "Between the samples").
+/// where the angle swings after a fault), and the χ² a re-fit reports is taken on the line, so a
+/// search that ranks on the spline and polishes on the line can end in another valley: an
+/// option, off by default.
 ///
 /// Why a calibration's swarm keeps [`search_integrator`]: its step budget is a multiple of what
 /// a playback landing on every sample takes, set to fail the stiff and chattering candidates a

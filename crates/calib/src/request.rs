@@ -226,12 +226,14 @@ pub struct SimulateRequest {
 }
 
 impl Default for SimulateRequest {
+    /// [`crate::options::SIMULATE`].
     fn default() -> Self {
+        let d = crate::options::SIMULATE;
         Self {
-            method: "dopri5".into(),
-            rtol: 1e-6,
-            atol: 1e-7,
-            step: 0.001,
+            method: d.method.into(),
+            rtol: d.rtol,
+            atol: d.atol,
+            step: d.step,
         }
     }
 }
@@ -279,8 +281,8 @@ impl SimulateRequest {
 // -------------------------------------------------------------------------------------------
 
 /// The defaults of a search (a swarm, then the local method), declared once: read by the
-/// library, the command line's help, the Python module (`itaipu_calib.defaults()`) and the
-/// README (checked by a test).
+/// library, the option declaration ([`crate::options`]: the command line's help and the option
+/// reference) and the Python module (`itaipu_calib.defaults()`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub struct SearchDefaults {
     pub seed: u64,
@@ -306,49 +308,6 @@ pub const FIT_SEARCH: SearchDefaults = SearchDefaults {
     pso_iterations: crate::spec::DEFAULT_PSO_ITERATIONS,
     local_iterations: crate::spec::DEFAULT_LOCAL_ITERATIONS,
 };
-
-/// Every option of the search that a user can set, with its help text (front-end neutral; the
-/// defaults come from [`SearchDefaults`]), as `(name, help)`: the command line builds its
-/// `--help` from it and Python its documentation.
-pub const SEARCH_OPTIONS: &[(&str, &str)] = &[
-    (
-        "seed",
-        "Random seed of the swarms. Same seed, same numbers, on any number of threads.",
-    ),
-    ("particles", "Swarm size (at least 2)."),
-    ("pso_iterations", "Maximum swarm iterations."),
-    (
-        "local_iterations",
-        "Maximum iterations of the local method after the swarm (Levenberg-Marquardt steps, or \
-         L-BFGS iterations with `local = \"lbfgs\"` in the spec).",
-    ),
-    ("threads", "Worker threads (default: all cores)."),
-];
-
-/// The help of search option `name` for a front end: its text, then the defaults of `fit` (per
-/// stage, where the spec does not set them) and `diagnose` (per candidate re-fit).
-pub fn search_help(name: &str) -> String {
-    let text = SEARCH_OPTIONS
-        .iter()
-        .find(|(n, _)| *n == name)
-        .map_or("", |(_, h)| h);
-    let pick = |d: &SearchDefaults| -> Option<String> {
-        match name {
-            "seed" => Some(d.seed.to_string()),
-            "particles" => Some(d.particles.to_string()),
-            "pso_iterations" => Some(d.pso_iterations.to_string()),
-            "local_iterations" => Some(d.local_iterations.to_string()),
-            _ => None,
-        }
-    };
-    match (pick(&FIT_SEARCH), pick(&DIAGNOSE_SEARCH)) {
-        (Some(f), Some(d)) => format!(
-            "{text} Default: fit, the spec's, else {f} (per stage); diagnose, {d} (per candidate \
-             re-fit)."
-        ),
-        _ => text.to_string(),
-    }
-}
 
 /// Swarm, local-method and thread settings given by the user; `None` keeps the spec's or the
 /// command's default ([`SearchDefaults`]).
@@ -714,17 +673,19 @@ pub struct SynthRequest {
 }
 
 impl Default for SynthRequest {
+    /// [`crate::options::SYNTH`].
     fn default() -> Self {
+        let d = crate::options::SYNTH;
         Self {
-            kind: SynthKind::Dip,
-            duration: 20.0,
-            rate: 60.0,
+            kind: d.kind.parse().expect("the declared kind is a kind"),
+            duration: d.duration,
+            rate: d.rate,
             system_mva: None,
-            pq_sigma: 0.002,
-            v_sigma: 0.0005,
-            quantum: 0.0014,
-            skew_ms: 0.0,
-            seed: 1,
+            pq_sigma: d.pq_sigma,
+            v_sigma: d.v_sigma,
+            quantum: d.quantum,
+            skew_ms: d.skew_ms,
+            seed: d.seed,
             name: None,
             hides: vec![],
         }

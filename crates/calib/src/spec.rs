@@ -357,9 +357,9 @@ pub const DEFAULT_PSO_ITERATIONS: usize = 100;
 pub const DEFAULT_LOCAL_ITERATIONS: u64 = 100;
 /// Starts of the local method after a stage's swarm when the spec does not say: the swarm's best
 /// alone. A short swarm with several starts (`iterations = 35`, `local_starts = 4`,
-/// `joint_iterations = 100`) fits the 66 practice records in two thirds of the time at the same
-/// J, but one of its fits lands in a valley where the diagnosis names a wrong cause (README,
-/// "Calibration", "Short swarms, several starts"): not the default.
+/// `joint_iterations = 100`) fits faster at about the same J, but a shorter swarm lands more
+/// often in a valley a longer one leaves, where a clean record can look like a missing cause
+/// to the diagnosis: not the default.
 pub const DEFAULT_LOCAL_STARTS: usize = 1;
 /// Swarm seed when the spec does not say.
 pub const DEFAULT_SEED: u64 = 1;

@@ -7,6 +7,7 @@ mod common;
 
 mod bounded_swarm;
 mod bounds;
+mod comments;
 mod diagnose;
 mod fuzz_spec;
 mod gradient;

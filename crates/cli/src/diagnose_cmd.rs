@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use itaipu_calib::diagnose::{catalog, CandidateReport, Diagnosis, RefitRequest};
 use itaipu_calib::evidence::SignalEvidence;
 use itaipu_calib::job;
+use itaipu_calib::options::{cli_help, Command::Diagnose};
 use itaipu_calib::request::{parse_refit, DiagnoseRequest};
 
 use crate::fit_cmd::Reporter;
@@ -36,22 +37,11 @@ pub struct DiagnoseArgs {
     /// effect the calibration absorbed by bending right values is still seen.
     #[arg(long, value_name = "DIR", conflicts_with = "unit")]
     fit: Option<PathBuf>,
-    /// Cause(s) of the catalog to try (repeatable or comma-separated), e.g.
-    /// `--cause measurement_skew,saturation`. Default: the whole catalog.
-    #[arg(long, value_name = "ID", num_args = 1.., value_delimiter = ',')]
+    #[arg(long, value_name = "ID", num_args = 1.., value_delimiter = ',', help = cli_help(Diagnose, "causes"))]
     cause: Vec<String>,
-    /// A cause written by the user (repeatable): a TOML file declaring the blocks its model
-    /// extension adds (user-defined diagrams or library models), the ports of the unit it
-    /// rewires and the parameters the re-fit frees (see data/causes/reactive_droop.toml). It is
-    /// tried after the catalog's causes, or alone with `--cause ITS_ID`.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", help = cli_help(Diagnose, "user_causes"))]
     user_cause: Vec<PathBuf>,
-    /// Calibrated parameter(s) to free again in every re-fit, baselines and extensions alike
-    /// (repeatable or comma-separated): `PARAM` within the model's declared range, or
-    /// `PARAM=MIN:MAX`, e.g. `--refit machine.h,exciter.k=50:200`. For the stage parameters a
-    /// calibration may have bent to make up for the missing cause; they are polished with
-    /// L-BFGS after each candidate's global search.
-    #[arg(long, value_name = "PARAM[=MIN:MAX]", num_args = 1.., value_delimiter = ',')]
+    #[arg(long, value_name = "PARAM[=MIN:MAX]", num_args = 1.., value_delimiter = ',', help = cli_help(Diagnose, "refit"))]
     refit: Vec<String>,
     /// Output folder (diagnosis.json, extended.toml, plots, report.html). Default:
     /// out/diagnose-<first event>, or a new numbered folder beside it. An existing --out folder
@@ -61,18 +51,9 @@ pub struct DiagnoseArgs {
     /// Allow writing into an existing, non-empty --out folder.
     #[arg(long)]
     force: bool,
-    /// Playback of the events: phasor (default; the measured |V| and angle imposed, P and Q
-    /// compared) or, for a record without an angle (a staged test), exciter_alone (the AVR
-    /// open loop, compared on E_fd), machine_from_efd (compared on Q) or closed_loop (the unit
-    /// against its grid equivalent, compared on |V|, Q and E_fd). Each compared channel is
-    /// weighted by its own noise floor.
-    #[arg(long, value_parser = crate::simulate_cmd::mode_parser())]
+    #[arg(long, value_parser = crate::simulate_cmd::mode_parser(), help = cli_help(Diagnose, "mode"))]
     mode: Option<itaipu_dynamics::mode::PlaybackMode>,
-    /// Do not try the look-alikes outside the catalog (the bundled reactive droop, transducer
-    /// lag, speed filter, PSS lead-lag and UEL), which a full diagnosis with a significant
-    /// candidate scores so that a residual one of them explains better gets no catalog name.
-    /// Faster, and a wrong name is then more likely.
-    #[arg(long)]
+    #[arg(long, help = cli_help(Diagnose, "look_alikes"))]
     no_look_alikes: bool,
     #[command(flatten)]
     search: SearchArgs,

@@ -9,6 +9,7 @@ use clap::builder::{PossibleValuesParser, TypedValueParser};
 use indicatif::{ProgressBar, ProgressStyle};
 use itaipu_calib::fit::{FitControl, FitError, Progress, Resume, StageOutput, StageReport};
 use itaipu_calib::job;
+use itaipu_calib::options::{cli_help, option, Command::Fit, DefaultValue};
 use itaipu_calib::request::{FitRequest, Stage};
 use itaipu_calib::spec::Strategy;
 use itaipu_dynamics::event::Event;
@@ -26,13 +27,9 @@ use crate::{
 #[derive(clap::Args, Debug)]
 #[command(after_help = EXIT_CODES)]
 pub struct FitArgs {
-    /// Stage(s) to run: gen (machine, E_fd and P_m held), avr, pss, tg, or all (every stage the
-    /// spec lists). Several stages (`--stage gen,avr,pss`) run in the fixed order gen, avr, pss,
-    /// tg, each starting from the previous result.
-    #[arg(long, value_delimiter = ',', num_args = 1.., default_value = "all", value_parser = stage_parser())]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_value = stages_default(), value_parser = stage_parser(), help = cli_help(Fit, "stages"))]
     stage: Vec<Stage>,
-    /// How stages are combined (default: the spec's, else sequential).
-    #[arg(long, value_parser = strategy_parser())]
+    #[arg(long, value_parser = strategy_parser(), help = cli_help(Fit, "strategy"))]
     strategy: Option<Strategy>,
     /// Event file(s) to fit together (summed objective). Default: the bundled Itaipu record.
     #[arg(long, value_name = "FILE", num_args = 1..)]
@@ -65,9 +62,16 @@ pub struct FitArgs {
     /// Do not draw the plots.
     #[arg(long)]
     no_plot: bool,
-    /// Skip the final joint refinement of all stages' parameters on the full unit.
-    #[arg(long)]
+    #[arg(long, help = cli_help(Fit, "polish"))]
     no_polish: bool,
+}
+
+/// `--stage`'s declared default.
+fn stages_default() -> &'static str {
+    match option(Fit, "stages").default {
+        DefaultValue::Text(t) => t,
+        _ => "all",
+    }
 }
 
 /// `--stage`: the library's stage names ([`Stage::NAMES`]), parsed by [`Stage`]'s `FromStr`.

@@ -17,7 +17,7 @@
 
 use std::ffi::OsString;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 pub mod diagnose_cmd;
 pub mod diagram_cmd;
@@ -27,6 +27,7 @@ pub mod fit_cmd;
 pub mod import_cmd;
 pub mod inputs;
 pub mod models_cmd;
+pub mod options_doc;
 pub mod output;
 pub mod report;
 pub mod search;
@@ -65,8 +66,8 @@ enum Cmd {
     #[command(after_help = EXIT_CODES)]
     Simulate(simulate_cmd::SimulateArgs),
     /// Calibrate a unit model against one or more events, stage by stage (generator, AVR, PSS,
-    /// governor), each by a particle swarm then L-BFGS. With no arguments: the bundled Itaipu
-    /// record, unit and calibration spec (RaPId's problem).
+    /// governor), each by a particle swarm then a local method (Levenberg-Marquardt by default).
+    /// With no arguments: the bundled Itaipu record, unit and calibration spec (RaPId's problem).
     Fit(fit_cmd::FitArgs),
     /// Diagnose what a (calibrated) unit still gets wrong on events: residual evidence, each
     /// cause of the catalog tried as a model extension and re-fitted, the gain judged by ΔBIC
@@ -95,6 +96,12 @@ enum Cmd {
     /// the wiring. FILE is a diagram definition or a unit file (every diagram block in it, or
     /// the one named by --block).
     Diagram(diagram_cmd::DiagramArgs),
+}
+
+/// The command line's definition (every command and option), for the option reference and the
+/// documentation's tests.
+pub fn command() -> clap::Command {
+    Cli::command()
 }
 
 /// Parses `args` (including the program name) and runs the command; returns the exit code.

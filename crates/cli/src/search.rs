@@ -1,7 +1,8 @@
 //! Swarm, local-method and thread options shared by `fit` and `diagnose`: their help text and
-//! defaults come from the library ([`itaipu_calib::request::search_help`]).
+//! defaults come from the library ([`itaipu_calib::options::search_help`]).
 
-use itaipu_calib::request::{search_help, Search};
+use itaipu_calib::options::search_help;
+use itaipu_calib::request::Search;
 
 use crate::CliError;
 

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::ValueEnum;
+use itaipu_calib::options::{cli_help, Command::Simulate, SIMULATE};
 use itaipu_calib::request::SimulateRequest;
 use itaipu_dynamics::event::{Channel, Event};
 use itaipu_dynamics::integrate::Method;
@@ -35,26 +36,18 @@ pub struct SimulateArgs {
     /// Allow writing into an existing, non-empty --out folder.
     #[arg(long)]
     force: bool,
-    /// Integrator.
-    #[arg(long, value_enum, default_value_t = MethodArg::Dopri5)]
+    #[arg(long, value_enum, default_value = SIMULATE.method, help = cli_help(Simulate, "method"))]
     method: MethodArg,
-    /// RK4 step [s] (with --method rk4).
-    #[arg(long, default_value_t = 0.001, value_name = "SECONDS")]
+    #[arg(long, default_value_t = SIMULATE.step, value_name = "SECONDS", help = cli_help(Simulate, "step"))]
     step: f64,
-    /// Relative tolerance (with --method dopri5).
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(long, default_value_t = SIMULATE.rtol, help = cli_help(Simulate, "rtol"))]
     rtol: f64,
-    /// Absolute tolerance (with --method dopri5).
-    #[arg(long, default_value_t = 1e-7)]
+    #[arg(long, default_value_t = SIMULATE.atol, help = cli_help(Simulate, "atol"))]
     atol: f64,
     /// Do not draw plot.svg.
     #[arg(long)]
     no_plot: bool,
-    /// Playback mode: phasor (the measured |V| and angle imposed), exciter_alone (the AVR open
-    /// loop on the measured |V|, compared on E_fd), machine_from_efd (the machine on the
-    /// measured E_fd, |V| and P, compared on Q) or closed_loop (the unit against its grid
-    /// equivalent). A record without an angle needs one of the last three.
-    #[arg(long, default_value = "phasor", value_parser = mode_parser())]
+    #[arg(long, default_value = SIMULATE.mode, value_parser = mode_parser(), help = cli_help(Simulate, "mode"))]
     mode: PlaybackMode,
 }
 

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::ValueEnum;
+use itaipu_calib::options::{cli_help, Command::Synth, SYNTH};
 use itaipu_calib::request::{HideSpec, SynthRequest};
 use itaipu_dynamics::unit_file::unit_to_toml;
 
@@ -16,44 +17,27 @@ pub struct SynthArgs {
     /// data/synthetic/unit_gensae_sexs_stab3_hygov.toml).
     #[arg(long, value_name = "FILE")]
     unit: Option<PathBuf>,
-    /// What happens on the grid side (the event is at 1 s).
-    #[arg(long, value_enum, default_value_t = KindArg::Dip)]
+    #[arg(long, value_enum, default_value = SYNTH.kind, help = cli_help(Synth, "kind"))]
     kind: KindArg,
-    /// Record length [s].
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = SYNTH.duration, help = cli_help(Synth, "duration"))]
     duration: f64,
-    /// PMU reporting rate [samples/s] (30 or 60).
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = SYNTH.rate, help = cli_help(Synth, "rate"))]
     rate: f64,
-    /// System base of the written P and Q [MVA] (default: the unit's machine base).
-    #[arg(long)]
+    #[arg(long, help = cli_help(Synth, "system_mva"))]
     system_mva: Option<f64>,
-    /// White noise on P and Q [pu] (default 0.002; 0 for none).
-    #[arg(long, default_value_t = 0.002)]
+    #[arg(long, default_value_t = SYNTH.pq_sigma, help = cli_help(Synth, "pq_sigma"))]
     pq_sigma: f64,
-    /// White noise on |V| [pu] and on the angle [rad] (default 0.0005 each).
-    #[arg(long, default_value_t = 0.0005)]
+    #[arg(long, default_value_t = SYNTH.v_sigma, help = cli_help(Synth, "v_sigma"))]
     v_sigma: f64,
-    /// Quantisation step of P and Q [pu] (default 0.0014, as in the Itaipu record; 0 for none).
-    #[arg(long, default_value_t = 0.0014)]
+    #[arg(long, default_value_t = SYNTH.quantum, help = cli_help(Synth, "quantum"))]
     quantum: f64,
-    /// Hidden effect: the power channels lag the voltage channel by this much [ms] (applied by
-    /// the PMU noise model, not by a block in the truth).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = SYNTH.skew_ms, help = cli_help(Synth, "skew_ms"))]
     skew_ms: f64,
-    /// Hide a cause of the diagnosis catalog in the truth (repeatable, applied in order): the
-    /// catalog's model extension with the given values, e.g.
-    /// `torsional_mode:shaft.f_torsion_hz=5,shaft.zeta=0.05`, `exciter_limit:exciter.e_max=2.8`,
-    /// `terminal_load:load.p_load=0.04,load.q_load=0.03`,
-    /// `measurement_skew:measurement.pq_delay_s=0.012`. Parameters not given keep the
-    /// extension's starting values. truth.toml is then the extended unit.
-    #[arg(long, value_name = "CAUSE[:PARAM=VALUE,...]")]
+    #[arg(long, value_name = "CAUSE[:PARAM=VALUE,...]", help = cli_help(Synth, "hide"))]
     hide: Vec<String>,
-    /// Seed of the noise and of the ambient fluctuations.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = SYNTH.seed, help = cli_help(Synth, "seed"))]
     seed: u64,
-    /// Event name (default: synthetic-<kind>-<seed>).
-    #[arg(long)]
+    #[arg(long, help = cli_help(Synth, "name"))]
     name: Option<String>,
     /// Output folder for event.toml, <name>.csv, truth.toml and truth.json (default:
     /// out/synth-<name>). An existing folder is never overwritten unless --force is given.

@@ -1,5 +1,6 @@
 //! The integration tests of `itaipu-calib-cli`, one binary: each file beside this one is a
 //! module.
 
+mod docs;
 mod interrupt;
 mod table1;

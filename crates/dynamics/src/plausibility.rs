@@ -35,10 +35,9 @@
 //!   record, mirrored.
 //!
 //! The rating is the unit's when known, else the pre-event |P + jQ| (a lower bound of it, which
-//! makes the implied change smaller and the rule more cautious). On the bundled Itaipu record
-//! it finds the README's erratic |V| at 4.40-4.65 s (steps up to 0.29 pu, Q moving by 0.003 pu);
-//! on none of the 66 practice records does it fire. A warning: the samples may still be
-//! played back (the bundled event keeps them, as RaPId's objective does).
+//! makes the implied change smaller and the rule more cautious). The bundled Itaipu record ends
+//! in such a drop-out (its erratic |V| after 4.4 s, Q barely moving). A warning: the samples may
+//! still be played back (the bundled event keeps them, as RaPId's objective does).
 //! [`check_unit`] warns about parameters far outside the model library's ranges and about
 //! machine saturation data that is no magnetisation curve (`S(1.2) <= S(1.0)`).
 

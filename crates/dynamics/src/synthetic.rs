@@ -353,10 +353,9 @@ pub const DELAY_HALF_WIDTH: usize = 16;
 /// are band-limited (IEEE C37.118 filters), so this is a time shift of the signal, and the fit
 /// sees no other effect of it. Linear interpolation is not: at a fraction u it keeps
 /// (1 − u)² + u² of white noise's variance, half at half a sample, so the simulated P and Q
-/// (noisy where they follow the measured voltage's noise) fitted χ² better at every half sample
-/// whatever the real skew: on the 66 practice cases the delay re-fit settled near half a sample
-/// on governor records with no skew (χ² gains of 39 to 130) and at 0.52 and 0.65 samples on two
-/// ambient records skewed by 1.61 and 1.31 samples.
+/// (noisy where they follow the measured voltage's noise) fit χ² better near every half sample
+/// whatever the real skew: a delay re-fit then settles near half a sample on records with no
+/// skew at all.
 ///
 /// A whole number of samples is an exact shift. A non-uniform grid (gaps, a changed rate) is
 /// delayed by linear interpolation on its times.

@@ -379,7 +379,7 @@ pub(crate) fn diagnose(
         local_iterations,
     )?;
     let unit = unit.filter(|u| !u.is_none());
-    // The order was (unit, events) before issue 14: still accepted, with a warning.
+    // The old order (unit, events): still accepted, with a warning.
     let (events, unit) = match unit {
         Some(u) if swapped_events_unit(py, events, u)? => {
             PyErr::warn(

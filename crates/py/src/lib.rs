@@ -33,7 +33,7 @@ use crate::errors::{
 };
 use crate::event::{check, load_event, PyEvent};
 use crate::fit::PyFitResult;
-use crate::library::{check_out, defaults, models, noise_sigma, stages};
+use crate::library::{check_out, defaults, models, noise_sigma, options, stages};
 use crate::traces::PyTraces;
 use crate::unit::{load_unit, PyUnit};
 
@@ -72,6 +72,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(noise_sigma, m)?)?;
     m.add_function(wrap_pyfunction!(defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(options, m)?)?;
     m.add_function(wrap_pyfunction!(stages, m)?)?;
     m.add_function(wrap_pyfunction!(check_out, m)?)?;
     m.add_function(wrap_pyfunction!(cli::_cli_main, m)?)?;

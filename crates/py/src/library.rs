@@ -93,3 +93,33 @@ pub(crate) fn check_out(py: Python<'_>, out: std::path::PathBuf, overwrite: bool
     use crate::errors::IntoPyErr;
     itaipu_calib::output::check_out(Some(&out), overwrite).map_err(|e| e.into_pyerr(py))
 }
+
+/// The options both front ends take, declared once in the library (`itaipu_calib::options`):
+/// a list of dicts with command ('simulate', 'fit', 'diagnose', 'synth'), name, cli (the
+/// command line's option, e.g. '--stage', or None), python (the keyword argument, or None),
+/// default (what Python uses when the argument is not given; None: the command decides, as
+/// `default_text` says) and help. docs/options.md is rendered from the same declaration.
+#[pyfunction]
+pub(crate) fn options(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    use itaipu_calib::options::{DefaultValue, OPTIONS};
+    use itaipu_calib::request::Style;
+    let out = PyList::empty(py);
+    for o in OPTIONS {
+        let d = PyDict::new(py);
+        d.set_item("command", o.command.name())?;
+        d.set_item("name", o.name)?;
+        d.set_item("cli", o.cli.map(|c| format!("--{c}")))?;
+        d.set_item("python", o.python)?;
+        match o.default {
+            DefaultValue::Text(t) => d.set_item("default", t)?,
+            DefaultValue::Real(x) => d.set_item("default", x)?,
+            DefaultValue::Int(n) => d.set_item("default", n)?,
+            DefaultValue::Switch(on) => d.set_item("default", on)?,
+            DefaultValue::Unset(_) | DefaultValue::Search(_) => d.set_item("default", py.None())?,
+        }
+        d.set_item("default_text", o.default_text())?;
+        d.set_item("help", o.help(Style::Python))?;
+        out.append(d)?;
+    }
+    Ok(out)
+}

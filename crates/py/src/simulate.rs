@@ -14,6 +14,7 @@ use crate::errors::{request_error, Failure, IntoPyErr};
 use crate::event::PyEvent;
 use crate::traces::PyTraces;
 use crate::unit::PyUnit;
+use itaipu_calib::options::SIMULATE;
 use itaipu_calib::request::SimulateRequest;
 
 /// Plays the measured terminal voltage of `event` into `unit` and records every signal.
@@ -22,13 +23,14 @@ use itaipu_calib::request::SimulateRequest;
 /// `load_event` / `load_unit`. `method` is "dopri5" (adaptive Dormand-Prince 5(4), tolerances
 /// `rtol`, `atol`) or "rk4" (fixed step of at most `step` seconds). `mode` is the playback
 /// mode: "phasor" (the measured |V| and angle imposed), "exciter_alone", "machine_from_efd" or
-/// "closed_loop" (records without an angle; see the README, "Playback modes"). The GIL is
-/// released while files are read and the model is integrated.
+/// "closed_loop" (records without an angle; docs/playback.md). Defaults: `options()` (the
+/// declaration both front ends read). The GIL is released while files are read and the model
+/// is integrated.
 ///
 /// Raises EventError, UnitModelError, InitError, SimulationError (and ValueError for bad
 /// options, TypeError for bad argument types).
 #[pyfunction]
-#[pyo3(signature = (event, unit, *, method = "dopri5", rtol = 1e-6, atol = 1e-7, step = 0.001, mode = "phasor"))]
+#[pyo3(signature = (event, unit, *, method = SIMULATE.method, rtol = SIMULATE.rtol, atol = SIMULATE.atol, step = SIMULATE.step, mode = SIMULATE.mode))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn simulate(
     py: Python<'_>,

@@ -13,6 +13,7 @@ use crate::errors::{request_error, Failure, IntoPyErr};
 use crate::event::PyEvent;
 use crate::interrupt;
 use crate::unit::PyUnit;
+use itaipu_calib::options::SYNTH;
 use itaipu_calib::request::{HideSpec, SynthRequest, Synthesized};
 
 /// Makes a realistic synthetic event from the engine (the same generator as
@@ -21,7 +22,8 @@ use itaipu_calib::request::{HideSpec, SynthRequest, Synthesized};
 /// samples/s, with white noise on P and Q (`pq_sigma` pu) and on |V| and the angle
 /// (`v_sigma`), quantisation of P and Q (`quantum` pu), and optionally a hidden delay of the
 /// power channels (`skew_ms`). Returns an Event (in memory; P and Q on `system_mva`, default
-/// the unit's machine base). Deterministic for a seed. The GIL is released while it runs.
+/// the unit's machine base). Deterministic for a seed. Defaults: `options()` (the declaration
+/// both front ends read). The GIL is released while it runs.
 ///
 /// `hide` hides causes of the diagnosis catalog in the truth, in order, as the command line's
 /// `--hide`: a list of `(cause, {param: value})` tuples (or bare cause names), or a dict
@@ -32,7 +34,7 @@ use itaipu_calib::request::{HideSpec, SynthRequest, Synthesized};
 /// Raises UnitModelError, InitError (also when a hidden cause keeps the truth from
 /// initialising), SimulationError; ValueError for bad options, an unknown cause or parameter.
 #[pyfunction]
-#[pyo3(signature = (unit, *, kind = "dip", duration = 20.0, rate = 60.0, system_mva = None, pq_sigma = 0.002, v_sigma = 0.0005, quantum = 0.0014, skew_ms = 0.0, seed = 1, name = None, hide = None, return_truth = false))]
+#[pyo3(signature = (unit, *, kind = SYNTH.kind, duration = SYNTH.duration, rate = SYNTH.rate, system_mva = None, pq_sigma = SYNTH.pq_sigma, v_sigma = SYNTH.v_sigma, quantum = SYNTH.quantum, skew_ms = SYNTH.skew_ms, seed = SYNTH.seed, name = None, hide = None, return_truth = false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn synth(
     py: Python<'_>,

@@ -1,5 +1,5 @@
 //! Residual evidence: what a calibrated simulation still gets wrong, read from the residual
-//! `r = simulated − measured` of one signal (issue 4, "Residual evidence").
+//! `r = simulated − measured` of one signal.
 //!
 //! For one signal, [`analyse`] reports
 //!

@@ -9,9 +9,9 @@ use crate::fit::{CORRELATION_LIMIT, CORRELATION_REPORT};
 use crate::spec::{Objective, Weights};
 
 /// Relative standard error up to which a parameter is **determined** by the data: 10 %, the
-/// spread a datasheet value is typically trusted to (the practice family's nominal errors are
-/// 20-50 %; the models' typical ranges span about ±10 % around a unit's value). A fit that pins
-/// a parameter tighter than the datasheet does has told the engineer something.
+/// spread a datasheet value is typically trusted to (the models' typical ranges span about
+/// ±10 % around a unit's value; a vendor's model is often off by 20-50 %). A fit that pins a
+/// parameter tighter than the datasheet does has told the engineer something.
 pub const DETERMINED_LIMIT: f64 = 0.10;
 /// Relative standard error above which a parameter is **not determined**: a 1-σ interval that
 /// holds zero (and any value of the same sign up to twice the estimate) says nothing of it.

@@ -14,11 +14,10 @@ use super::*;
 
 /// Iterations after which a swarm none of whose candidates has simulated gives up
 /// ([`pso::StopReason::NothingFeasible`]). A stage may start from a unit no candidate near it
-/// simulates within the search's step budget (practice p03: a generator stage ending on a
-/// near-degenerate machine, X'_d = X''_d = X_l, made every AVR, PSS and governor candidate
-/// fail after the full 25 000 steps, 1 240 of them a stage, 13-15 s each); the local method,
-/// with its larger budget, then starts from the stage's start as it would after 30 such
-/// iterations.
+/// simulates within the search's step budget (a generator stage ending on a near-degenerate
+/// machine, X'_d = X''_d = X_l, can make every later candidate fail after the full step budget);
+/// the local method, with its larger budget, then starts from the stage's start as it would
+/// after any number of such iterations: five show that the swarm learns nothing.
 pub(crate) const SWARM_GIVE_UP_ITERATIONS: usize = 5;
 
 /// Step attempts per played sample above which a swarm's candidates, averaged over its first
@@ -35,11 +34,9 @@ pub(crate) const SWARM_GIVE_UP_ITERATIONS: usize = 5;
 /// frequency f_s/2). Such a mode is no dynamics the record can confirm, only the near-singular
 /// equations of a unit at the edge of its ordering (say a machine left at X'_d = X''_d = X_l by
 /// the previous stage, which every candidate of the next one inherits), and the swarm cannot
-/// learn anything from such candidates at a normal swarm's cost. Checked on both practice sets
-/// (stop 57): ordinary candidates take a median 1.00 attempts per sample on the records'
-/// nominal units (at most 1.36, `--example search_error`), and the 327 stage swarms of the 66
-/// fits a median 0.87 (at most 1.62); the only swarms above 4 were those after a stage that
-/// ended on such a machine (8.1-9.0).
+/// learn anything from such candidates at a normal swarm's cost. Ordinary candidates take about
+/// one attempt per sample (`--example search_error` measures it on a set of records), far below
+/// the limit.
 pub(crate) const TOO_COSTLY_STEPS_PER_SAMPLE: f64 = 4.0;
 
 /// Runs the swarm (its first particle at the problem's start), then the local method; returns
@@ -186,8 +183,8 @@ pub(crate) const DISTINCT_START: f64 = 0.1;
 /// Why: a swarm's iterations after it has found the valleys only refine its best, which the
 /// local method does in a few steps; what the local method cannot do is leave the valley it
 /// starts in. So a shorter swarm can hand over its best few distinct points for the local method
-/// to polish each (`[calibration.pso] local_starts`; measured on the 66 practice fits, README
-/// "Short swarms, several starts": not the default).
+/// to polish each (`[calibration.pso] local_starts`; not the default: a shorter swarm also
+/// lands more often in a valley a longer one leaves).
 pub(crate) fn distinct_bests(res: &pso::PsoResult, k: usize, penalty: f64) -> Vec<Vec<f64>> {
     let mut picked: Vec<&[f64]> = vec![&res.best];
     for (c, p) in &res.personal_bests {
@@ -466,12 +463,11 @@ mod tests {
     /// crossed inside steps (no event locates them), where a Runge-Kutta step is first-order, so
     /// the adaptive reference itself carries step-size noise there. Measured: replays of the
     /// accurate steps 1e-4 to 1.3e-2 off the reference (the largest the transducer's T_R, 10 ms),
-    /// on rtol-1e-6 steps 2e-4 to 3.6e-2; central differences of accurate adaptive runs, the
-    /// identifiability report's method before replays, 3e-4 to 6.7e-2 off the same reference.
-    /// Since the diagrams have dual equations (stop 42) the identifiability Jacobian is their
-    /// sensitivities on the accurate steps (9.7e-5 to 1.3e-2), and the sensitivities on the
-    /// rtol-1e-6 steps match that replay's differences (2.3e-4 to 3.6e-2): both differentiate
-    /// the discrete playback, whose kinks the reference resolves.
+    /// on rtol-1e-6 steps 2e-4 to 3.6e-2; central differences of accurate adaptive runs 3e-4 to
+    /// 6.7e-2 off the same reference. The diagrams have dual equations, so the identifiability
+    /// Jacobian is their sensitivities on the accurate steps (9.7e-5 to 1.3e-2), and the
+    /// sensitivities on the rtol-1e-6 steps match that replay's differences (2.3e-4 to
+    /// 3.6e-2): both differentiate the discrete playback, whose kinks the reference resolves.
     #[test]
     fn replayed_columns_agree_on_user_defined_diagrams() {
         let path =

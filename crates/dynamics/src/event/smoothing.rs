@@ -4,10 +4,9 @@
 //! is not in the unit's true input, yet the model answers it, most of all through the stator's
 //! algebraic response behind X''_d: ∂Q/∂|V| and ∂P/∂θ are a few pu per pu, so a PMU's white
 //! voltage noise of 5e-4 pu per component becomes a simulated P and Q noise of about 1.5e-3 pu,
-//! as large as the P and Q channels' own (2e-3 pu on the practice records). That simulated noise
-//! is absent from the recorded P and Q, and a least-squares fit lowers it by weakening the
-//! fast response: X''_d rises (to X'_d, its order bound, on a third of the practice records), X_q
-//! and X_d bend to keep the slow response. This is the attenuation bias of errors in variables;
+//! as large as the P and Q channels' own (a PMU's 2e-3 pu). That simulated noise is absent from
+//! the recorded P and Q, and a least-squares fit lowers it by weakening the fast response:
+//! X''_d rises (up to X'_d, its order bound), X_q and X_d bend to keep the slow response. This is the attenuation bias of errors in variables;
 //! no amount of data removes it.
 //!
 //! **What.** A zero-phase low-pass ([`crate::filter::lowpass_zero_phase`], Butterworth run
@@ -55,9 +54,9 @@ pub const SETTLE: f64 = 3.0;
 /// [Hz]: twice the upper edge of the electromechanical band (2 Hz, where the swing modes the
 /// machine, AVR, PSS and governor models are calibrated on end). The zero-phase filter's gain
 /// `1/(1 + (f/f_c)⁴)` is 0.996 at 1 Hz and 0.94 at 2 Hz, and it keeps `1.11 f_c/f_Nyquist` of a
-/// white noise's variance: 15 % at 60 samples/s (a 30 Hz Nyquist frequency). Measured on the 66
-/// practice records (README, "The played-back voltage's noise"): the median error of X''_d
-/// falls from 16 % to 3 %. A mode the model must reproduce above the cut-off (a shaft's
+/// white noise's variance: 15 % at 60 samples/s (a 30 Hz Nyquist frequency), so the simulated
+/// P and Q noise the played-back voltage brings falls by √(1/0.15) ≈ 2.6 and with it the bias of
+/// X''_d. A mode the model must reproduce above the cut-off (a shaft's
 /// torsional mode) needs the record as recorded: the diagnosis plays it so for the causes that
 /// add one.
 pub const DEFAULT_CUTOFF_HZ: f64 = 4.0;

@@ -1,5 +1,5 @@
 //! Forward sensitivities: the derivatives of a playback's states and of P and Q with respect to
-//! the unit's parameters, integrated with the states (issue 28).
+//! the unit's parameters, integrated with the states.
 //!
 //! Every block with dual equations ([`crate::Block::seed_dual`]) evaluates its outputs and
 //! derivatives on [`Dual`] numbers; the unit's right-hand side then gives, with `ẋ = f(t, x, p)`,
