@@ -1,3 +1,8 @@
-//! Turbine-governors.
-pub mod constant_pm;
-pub mod hygov;
+//! Turbine-governors, one file each (docs/model-library.md), and the governor roles they declare
+//! ([`roles`]).
+pub mod roles;
+
+crate::library! {
+    hygov,
+    constant_pm,
+}
