@@ -1,5 +1,5 @@
-//! Excitation systems (AVRs): SEXS, ST5B, IEEET1, ESST1A, the blocks they share and the
-//! exciter roles every exciter declares ([`roles`]).
+//! Excitation systems (AVRs), one file each (docs/model-library.md), the blocks they share and
+//! the exciter roles every exciter declares ([`roles`]).
 pub mod blocks;
 pub mod roles;
 
@@ -8,4 +8,5 @@ crate::library! {
     st5b,
     ieeet1,
     esst1a,
+    esst4b,
 }

@@ -4,5 +4,7 @@ pub mod roles;
 
 crate::library! {
     hygov,
+    tgov1,
+    ieeeg1,
     constant_pm,
 }

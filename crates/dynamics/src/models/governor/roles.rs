@@ -13,7 +13,8 @@
 //! | `governor_lead_lag` | a lead-lag on the speed signal: IEEEG1 `(1 + sT2)/(1 + sT1)` |
 //! | `servo_time_constant` | the gate or valve servo: HYGOV `T_g`, TGOV1 `T1`, IEEEG1 `T3` |
 //! | `turbine_time_constant` | the prime mover's main lag: HYGOV `T_w`, IEEEG1 `T4` (steam chest) |
-//! | `reheat` | the reheater: TGOV1's lead-lag `(1 + sT2)/(1 + sT3)` (as a lead-lag), IEEEG1's `T5` (as a lag: lead not applicable) |
+//! | `reheat_time_constant` | the reheater's lag: TGOV1 `T3`, IEEEG1 `T5` |
+//! | `reheat_lead` | the lead of a reheater lead-lag (the high-pressure fraction times T_RH): TGOV1 `T2` |
 //! | `output_max`, `output_min` | the gate, valve or power limits |
 //! | `rate_max`, `rate_min` | the opening and closing rate limits (a symmetric limit plays both) |
 //! | `damping` | turbine damping on Δω |
@@ -34,7 +35,8 @@ pub struct GovernorRoles {
     pub governor_lead_lag: LeadLagRole,
     pub servo_time_constant: ParamRole,
     pub turbine_time_constant: ParamRole,
-    pub reheat: LeadLagRole,
+    pub reheat_time_constant: ParamRole,
+    pub reheat_lead: ParamRole,
     pub output_max: ParamRole,
     pub output_min: ParamRole,
     pub rate_max: ParamRole,
@@ -56,7 +58,8 @@ impl GovernorRoles {
             governor_lead_lag: ll(),
             servo_time_constant: n(),
             turbine_time_constant: n(),
-            reheat: ll(),
+            reheat_time_constant: n(),
+            reheat_lead: n(),
             output_max: n(),
             output_min: n(),
             rate_max: n(),
@@ -67,7 +70,7 @@ impl GovernorRoles {
     }
 
     /// The single-parameter roles as `(role name, role)`.
-    pub fn params(&self) -> [(&'static str, &ParamRole); 12] {
+    pub fn params(&self) -> [(&'static str, &ParamRole); 14] {
         [
             ("droop", &self.droop),
             ("speed_gain", &self.speed_gain),
@@ -75,6 +78,8 @@ impl GovernorRoles {
             ("reset_time_constant", &self.reset_time_constant),
             ("servo_time_constant", &self.servo_time_constant),
             ("turbine_time_constant", &self.turbine_time_constant),
+            ("reheat_time_constant", &self.reheat_time_constant),
+            ("reheat_lead", &self.reheat_lead),
             ("output_max", &self.output_max),
             ("output_min", &self.output_min),
             ("rate_max", &self.rate_max),
@@ -85,16 +90,13 @@ impl GovernorRoles {
     }
 
     /// The lead-lag roles as `(role name, role)`.
-    pub fn lead_lags(&self) -> [(&'static str, &LeadLagRole); 2] {
-        [
-            ("governor_lead_lag", &self.governor_lead_lag),
-            ("reheat", &self.reheat),
-        ]
+    pub fn lead_lags(&self) -> [(&'static str, &LeadLagRole); 1] {
+        [("governor_lead_lag", &self.governor_lead_lag)]
     }
 
     /// The parameters a playback of P identifies on a frequency excursion, the ones a default
-    /// calibration frees: the droop (or its gain), the dashpot, the governor lead-lag and the
-    /// servo, turbine and reheat time constants. The limits and rate limits act only when
+    /// calibration frees: the droop (or its gain), the dashpot, the servo, turbine and reheat
+    /// time constants and the governor lead-lag. The limits and rate limits act only when
     /// reached, and the damping and offset are nuisances: not freed by default.
     pub fn identifiable(&self) -> Vec<String> {
         let mut out: Vec<String> = [
@@ -104,16 +106,15 @@ impl GovernorRoles {
             &self.reset_time_constant,
             &self.servo_time_constant,
             &self.turbine_time_constant,
+            &self.reheat_time_constant,
+            &self.reheat_lead,
         ]
         .iter()
         .filter_map(|r| r.name().map(String::from))
         .collect();
-        for ll in [&self.governor_lead_lag, &self.reheat] {
-            if let Some((a, b)) = ll.names() {
-                out.extend([a.to_string(), b.to_string()]);
-            }
+        if let Some((a, b)) = self.governor_lead_lag.names() {
+            out.extend([a.to_string(), b.to_string()]);
         }
-        out.dedup();
         out
     }
 

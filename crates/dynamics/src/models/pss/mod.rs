@@ -5,4 +5,5 @@ pub mod roles;
 crate::library! {
     stab3,
     ieeest,
+    pss2a,
 }
