@@ -29,6 +29,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod bounds;
+pub mod default_spec;
 pub mod diagnose;
 pub mod error;
 pub mod evidence;
