@@ -91,10 +91,11 @@ LEGACY = {
 CASES = {
     # ESST4B: a proportional voltage regulator (K_IR = 0: ANDES's tracking anti-windup and the
     # non-windup state agree) whose output V_R reaches VRMAX in the dip; the field regulator with
-    # integral action and the E_fd feedback K_G = 1 (its limits not reached); the bridge on
-    # VBMAX at the operating point (V_E F_EX = 4.6 > 4.5) and below it in the dip; compound
-    # source (K_I, X_L, THETAP) and a commutation factor that takes I_N = K_C X_adI_fd / V_E past
-    # 0.433 (F_EX's second segment) in the dip.
+    # integral action and the E_fd feedback K_G = 1 (its limits not reached); compound source
+    # (K_I, X_L, THETAP) and a commutation factor that takes I_N = K_C X_adI_fd / V_E past 0.433
+    # (F_EX's second segment) in the dip. VBMAX is not reached: the bridge's V_E F_EX is highest
+    # at the operating point, and ANDES 2.0 does not initialise ESST4B with the bridge on VBMAX
+    # (its initial field regulator output E_fd0 / V_B leaves a residual of 0.084 pu in E_fd).
     "esst4b": dict(section="exciter", model="ESST4B", profile="dip", params=dict(
         TR=0.02, KPR=20.0, KIR=0.0, VRMAX=2.0, VRMIN=-2.0, TA=0.05, KPM=1.0, KIM=2.0,
         VMMAX=99.0, VMMIN=-99.0, KG=1.0, KP=5.0, KI=0.1, VBMAX=4.5, KC=0.9, XL=0.124,

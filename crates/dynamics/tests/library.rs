@@ -86,7 +86,7 @@ fn worst_derivative(u: &mut Unit, op: &InitPoint) -> Result<(f64, String), Strin
         } else {
             *d
         };
-        if !(d.abs() <= worst.0) {
+        if d.abs() > worst.0 || d.is_nan() {
             worst = (d.abs(), names[k].clone());
         }
     }

@@ -596,10 +596,12 @@ mod tests {
     }
 
     #[test]
-    fn starts_in_steady_state_with_either_field_regulator() {
-        for k_im in [0.0, 2.0] {
+    fn starts_in_steady_state_with_either_field_regulator_and_the_bridge_on_vbmax() {
+        // VBMAX 5 is below V_E F_EX ≈ 9.6 at this point: the bridge starts on its limit.
+        for (k_im, vb_max) in [(0.0, 11.63), (2.0, 11.63), (0.0, 5.0), (2.0, 5.0)] {
             let p = Esst4bParams {
                 k_im,
+                vb_max,
                 k_g: 0.1,
                 k_i: 0.2,
                 theta_p: 15.0,
@@ -609,10 +611,17 @@ mod tests {
             let map: Vec<usize> = (0..9).collect();
             let mut io = Io::new(&mut bus, &map);
             b.outputs(0.0, &x, &mut io);
-            assert!((io.get(port::EFD) - 2.3).abs() < 1e-14, "K_IM {k_im}: {}", io.get(port::EFD));
+            assert!(
+                (io.get(port::EFD) - 2.3).abs() < 1e-14,
+                "K_IM {k_im}, VBMAX {vb_max}: {}",
+                io.get(port::EFD)
+            );
             let mut dx = [1.0; 4];
             b.derivatives(0.0, &x, &io, &mut dx);
-            assert!(dx.iter().all(|d| d.abs() < 1e-13), "K_IM {k_im}: {dx:?}");
+            assert!(
+                dx.iter().all(|d| d.abs() < 1e-13),
+                "K_IM {k_im}, VBMAX {vb_max}: {dx:?}"
+            );
         }
     }
 

@@ -273,7 +273,7 @@ fn derivatives<S: Scalar>(
     dx[7] = b.ll2.derivative(x[7], u[7]);
     let (m, n) = mn;
     for k in RTF..RTF + m * n {
-        dx[k] = if (k - RTF) % m == 0 {
+        dx[k] = if (k - RTF).is_multiple_of(m) {
             b.rtf_lead.derivative(x[k], u[k])
         } else {
             b.rtf_lag.derivative(x[k], u[k])
