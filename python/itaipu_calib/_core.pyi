@@ -188,6 +188,7 @@ def read_dyr(
     nominal_hz: Optional[float] = None,
     zr: Optional[float] = None,
     zx: Optional[float] = None,
+    skip_unsupported: bool = False,
 ) -> Unit: ...
 def write_dyr(
     unit: Unit,

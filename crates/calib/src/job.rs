@@ -238,7 +238,8 @@ pub struct FitInputs {
 
 impl FitInputs {
     /// Reads the spec of a fit: `calib` when given, else the unit file's own `[calibration]`
-    /// table.
+    /// table, else (a unit without one, a `.dyr`) the default spec by roles
+    /// ([`crate::default_spec`]).
     pub fn read_spec(
         calib: Option<&Path>,
         unit_path: Option<&Path>,
@@ -254,6 +255,21 @@ impl FitInputs {
             path: path.to_path_buf(),
             source,
         })?;
+        // No spec given and none in the unit (a unit file without [calibration], a .dyr): the
+        // default spec by roles (crate::default_spec), its text kept as the fit's spec.
+        let is_dyr = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("dyr"));
+        let has_table = || {
+            text.parse::<toml::Table>()
+                .is_ok_and(|t| t.contains_key("calibration"))
+        };
+        if calib.is_none() && (is_dyr || !has_table()) {
+            let unit = load_unit(path)?.unit;
+            let text = crate::default_spec::default_spec_text(&unit);
+            let spec = CalibSpec::parse(&text, path)?;
+            return Ok((spec, path.to_path_buf(), text));
+        }
         let spec = CalibSpec::parse(&text, path)?;
         Ok((spec, path.to_path_buf(), text))
     }

@@ -30,6 +30,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod bounds;
+pub mod default_spec;
 pub mod diagnose;
 #[cfg(test)]
 mod docs_examples;

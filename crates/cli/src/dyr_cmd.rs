@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use clap::Subcommand;
 use itaipu_dynamics::dyr::{
-    read_dyr, resolve_bases, side_file, write_dyr_file, DyrError, DyrUnit, DyrWriteError,
-    DyrWriteOptions, PartialBases,
+    list_units, read_dyr_with, resolve_bases, side_file, write_dyr_file, DyrError, DyrReadOptions,
+    DyrUnit, DyrWriteError, DyrWriteOptions, PartialBases,
 };
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::plausibility::{self, Severity};
@@ -23,8 +23,11 @@ pub struct DyrArgs {
 
 #[derive(Subcommand, Debug)]
 pub enum DyrCmd {
-    /// Read one unit's records (GENSAE, GENSAL, GENROU, GENCLS, SEXS, STAB3, IEEEST, HYGOV)
-    /// into a unit file; other records are reported by line.
+    /// Read one unit's records into a unit file (`itaipu-calib models` lists the models with a
+    /// record). A record of a model the engine lacks is refused (exit 4, nothing written)
+    /// naming the line, the model and what the unit would lack, unless --skip-unsupported. A
+    /// file of several units: --list lists them, --bus and --id choose one.
+    #[command(after_help = READ_EXIT_CODES)]
     Read(ReadArgs),
     /// Write a unit file as .dyr records and a side file of bases (<out stem>.bases.toml), only
     /// if the .dyr read back is the unit: played back on the event(s) within 1e-6 pu of the
@@ -74,7 +77,19 @@ pub struct ReadArgs {
     /// Overwrite an existing --out file.
     #[arg(long)]
     pub force: bool,
+    /// List the units of the file (bus, machine id, records, which are supported) and write
+    /// nothing.
+    #[arg(long)]
+    pub list: bool,
+    /// Build the unit without the records of models the engine lacks (each a warning, kept in
+    /// the unit file as `lacks` and repeated by every report on the unit). Without it such a
+    /// record is refused.
+    #[arg(long)]
+    pub skip_unsupported: bool,
 }
+
+/// `dyr read`'s exit codes.
+const READ_EXIT_CODES: &str = "Exit codes: 0 read (or listed), 2 usage error (a base missing, several units and none chosen), 4 bad .dyr: a malformed record, or a record of a model the engine lacks (nothing written; --skip-unsupported builds the unit without it), 7 the output file exists (without --force) or cannot be written.";
 
 #[derive(clap::Args, Debug)]
 pub struct WriteArgs {
@@ -116,12 +131,14 @@ fn dyr_error(e: DyrError) -> CliError {
 }
 
 /// Reads a unit from a .dyr with bases from the options, the side file, or `<stem>.bases.toml`
-/// (a missing base is a usage error, exit 2; a bad file exit 4).
+/// (a missing base is a usage error, exit 2; a bad file or a record of a model the engine lacks
+/// without `skip_unsupported`, exit 4; several units and none chosen, exit 2 with the list).
 pub fn load_dyr(
     path: &Path,
     bus: Option<i64>,
     id: Option<&str>,
     b: &BasesArgs,
+    skip_unsupported: bool,
 ) -> Result<DyrUnit, CliError> {
     let over = PartialBases {
         mbase: b.mbase,
@@ -141,7 +158,21 @@ pub fn load_dyr(
         (None, Some(_)) => return Err(CliError::new(2, "--id needs --bus")),
         (None, None) => None,
     };
-    read_dyr(path, select, &bases).map_err(dyr_error)
+    let opts = DyrReadOptions {
+        select,
+        skip_unsupported,
+    };
+    read_dyr_with(path, &bases, &opts).map_err(|e| match &e {
+        DyrError::Selection { .. } if select.is_none() => {
+            let listing = std::fs::read_to_string(path)
+                .ok()
+                .and_then(|t| list_units(&t, path).ok())
+                .map(|u| u.iter().map(|l| format!("\n  {l}")).collect::<String>())
+                .unwrap_or_default();
+            CliError::new(2, format!("{e}: give --bus and --id{listing}"))
+        }
+        _ => dyr_error(e),
+    })
 }
 
 fn refuse_existing(p: &Path, force: bool) -> Result<(), CliError> {
@@ -165,12 +196,27 @@ fn write(p: &Path, text: &str) -> Result<(), CliError> {
 pub fn cmd_dyr(a: &DyrArgs) -> Result<(), CliError> {
     match &a.cmd {
         DyrCmd::Read(r) => {
+            if r.list {
+                let text = std::fs::read_to_string(&r.file).map_err(|e| {
+                    CliError::new(4, format!("{}: cannot read: {e}", r.file.display()))
+                })?;
+                for u in list_units(&text, &r.file).map_err(dyr_error)? {
+                    println!("{u}");
+                }
+                return Ok(());
+            }
             let out = r
                 .out
                 .clone()
                 .unwrap_or_else(|| r.file.with_extension("toml"));
             refuse_existing(&out, r.force)?;
-            let d = load_dyr(&r.file, r.bus, r.id.as_deref(), &r.bases)?;
+            let d = load_dyr(
+                &r.file,
+                r.bus,
+                r.id.as_deref(),
+                &r.bases,
+                r.skip_unsupported,
+            )?;
             for w in &d.warnings {
                 eprintln!("warning: {w}");
             }

@@ -91,6 +91,10 @@ enum Cmd {
     Models {
         /// Show one model only (e.g. GENSAE), or `diagram` for the diagram primitives.
         name: Option<String>,
+        /// Print the library as the Markdown table of docs/model-library.md (model, role,
+        /// standard, `.dyr` record, roles) instead.
+        #[arg(long)]
+        table: bool,
     },
     /// Draw a user-defined diagram as Graphviz dot text (render with `dot -Tsvg`), to check
     /// the wiring. FILE is a diagram definition or a unit file (every diagram block in it, or
@@ -129,7 +133,7 @@ where
     }
     let result = match cli.cmd {
         Cmd::Simulate(a) => simulate_cmd::cmd_simulate(&a),
-        Cmd::Models { name } => models_cmd::cmd_models(name.as_deref()),
+        Cmd::Models { name, table } => models_cmd::cmd_models(name.as_deref(), table),
         Cmd::Diagram(a) => diagram_cmd::cmd_diagram(&a),
         Cmd::Fit(a) => fit_cmd::cmd_fit(&a),
         Cmd::Diagnose(a) => diagnose_cmd::cmd_diagnose(&a),

@@ -5,8 +5,13 @@ use itaipu_dynamics::registry;
 
 use crate::CliError;
 
-/// Lists every model, or the one named (`diagram`: the diagram primitives).
-pub fn cmd_models(name: Option<&str>) -> Result<(), CliError> {
+/// Lists every model, or the one named (`diagram`: the diagram primitives); `table`: the
+/// library as docs/model-library.md's Markdown table.
+pub fn cmd_models(name: Option<&str>, table: bool) -> Result<(), CliError> {
+    if table {
+        print!("{}", registry::library_table());
+        return Ok(());
+    }
     if name.is_some_and(|n| n.eq_ignore_ascii_case("diagram")) {
         print!("{}", itaipu_dynamics::diagram::describe_primitives());
         return Ok(());
@@ -21,11 +26,22 @@ pub fn cmd_models(name: Option<&str>) -> Result<(), CliError> {
                 ),
             )
         })?],
-        None => registry::MODELS.iter().collect(),
+        None => registry::all().collect(),
     };
     for m in models {
         let b = m.create();
         println!("{} [{}]: {}", m.name, m.role.section(), m.summary);
+        println!("  follows: {}", m.reference);
+        if let Some(r) = &m.dyr {
+            println!(
+                "  .dyr:   IBUS '{}' ID {} /",
+                m.name,
+                r.field_names(b.as_ref()).join(" ")
+            );
+        }
+        if let Some(roles) = registry::roles_line(b.as_ref()) {
+            println!("  roles:  {roles}");
+        }
         println!("  states: {}", b.state_names().join(", "));
         let ports: Vec<String> = b
             .ports()

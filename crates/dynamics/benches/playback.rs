@@ -211,3 +211,123 @@ fn itaipu_sensitivities_8_parameters_builtin_sexs(bencher: Bencher) {
 fn itaipu_sensitivities_8_parameters_diagram_sexs(bencher: Bencher) {
     itaipu_sensitivities(bencher, itaipu_sexs_diagram());
 }
+
+/// The thermal unit (GENROU, ESST4B, PSS2A, IEEEG1, `data/thermal/unit.dyr`) with both washouts
+/// of PSS2A's power input and its speed transducer present, and the same unit with the PSS2A
+/// written from diagram primitives (`data/diagrams/pss2a.toml`) in its place; on a 10 s fault
+/// dip with a 0.2 Hz frequency fall.
+fn thermal(pss_diagram: bool) -> (Unit, PreparedEvent) {
+    use itaipu_dynamics::dyr::{parse_dyr, DyrBases};
+    let path = data("thermal/unit.dyr");
+    let bases = DyrBases {
+        mbase: 700.0,
+        nominal_hz: 60.0,
+        zr: Some(0.0025),
+        zx: None,
+        name: None,
+    };
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut u = parse_dyr(&text, &path, None, &bases).unwrap().unit;
+    for (p, v) in [("pss.tw4", 5.0), ("pss.t6", 0.05)] {
+        let r = u.param(p).unwrap();
+        u.set(r, v);
+    }
+    let event = synthesize(
+        "bench",
+        &u,
+        &VoltageProfile {
+            duration_s: 10.0,
+            ..Default::default()
+        },
+        700.0,
+        &PmuNoise::typical(1),
+        &SimOptions::default(),
+    )
+    .unwrap();
+    if pss_diagram {
+        let toml = itaipu_dynamics::unit_file::unit_to_toml(&u);
+        let mut out = String::new();
+        let mut in_pss = false;
+        for line in toml.lines() {
+            if line.starts_with('[') {
+                in_pss = line == "[pss]";
+            }
+            if in_pss && line.starts_with("model = ") {
+                out.push_str("model = \"diagram\"\ndiagram = \"../diagrams/pss2a.toml\"\n");
+            } else if !(in_pss && (line.starts_with("m = ") || line.starts_with("n = "))) {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+        u = itaipu_dynamics::unit_file::parse_unit(&out, &data("thermal/pss2a_diagram.toml"))
+            .unwrap();
+    }
+    (u, PreparedEvent::new(&event))
+}
+
+/// Built-in PSS2A against the same PSS2A from diagram primitives, per playback of the thermal
+/// unit (RK4 at 1 ms: the same number of right-hand sides for both).
+#[divan::bench(sample_count = 30)]
+fn thermal_rk4_1ms_builtin_pss2a(bencher: Bencher) {
+    bench(
+        bencher,
+        thermal(false),
+        SimOptions {
+            method: Method::Rk4 { h: 1e-3 },
+        },
+    );
+}
+
+#[divan::bench(sample_count = 30)]
+fn thermal_rk4_1ms_diagram_pss2a(bencher: Bencher) {
+    bench(
+        bencher,
+        thermal(true),
+        SimOptions {
+            method: Method::Rk4 { h: 1e-3 },
+        },
+    );
+}
+
+/// One right-hand side of the thermal unit at its initial state: with the built-in PSS2A, with
+/// the diagram, and without a stabiliser (the difference is the stabiliser's own cost).
+fn rhs(bencher: Bencher, pss: Option<bool>) {
+    use itaipu_dynamics::integrate::OdeSystem;
+    use itaipu_dynamics::unit::{Playback, PlaybackInput};
+    let (mut u, _) = thermal(pss == Some(true));
+    if pss.is_none() {
+        u = u.without(&["pss"]).unwrap();
+    }
+    let op = itaipu_dynamics::block::InitPoint {
+        v_mag: 1.0,
+        v_ang: 0.3,
+        p: 0.8,
+        q: 0.2,
+        speed_dev: 0.0,
+    };
+    let x = u.initialise(&op).unwrap();
+    let input = PlaybackInput::linear(vec![0.0, 1.0], vec![1.0, 1.0], vec![0.3, 0.3]);
+    let mut sys = Playback::new(&mut u, &input);
+    let mut dx = vec![0.0; x.len()];
+    let mut t = 0.0;
+    bencher.bench_local(|| {
+        // A new time each call, so that the bus is evaluated again.
+        t += 1e-9;
+        sys.rhs(divan::black_box(t), &x, &mut dx);
+    });
+}
+
+#[divan::bench(sample_count = 200)]
+fn thermal_rhs_without_pss(bencher: Bencher) {
+    rhs(bencher, None);
+}
+
+#[divan::bench(sample_count = 200)]
+fn thermal_rhs_builtin_pss2a(bencher: Bencher) {
+    rhs(bencher, Some(false));
+}
+
+#[divan::bench(sample_count = 200)]
+fn thermal_rhs_diagram_pss2a(bencher: Bencher) {
+    rhs(bencher, Some(true));
+}

@@ -304,6 +304,18 @@ pub trait Block: Send + Sync {
         None
     }
 
+    /// For a governor: which of its parameters plays each governor role (droop, servo and
+    /// turbine time constants, limits, …; [`crate::models::governor::roles`]). Default: `None`.
+    fn governor_roles(&self) -> Option<crate::models::governor::roles::GovernorRoles> {
+        None
+    }
+
+    /// For a stabiliser: which of its parameters plays each stabiliser role (gain, washout,
+    /// lead-lags, output limits; [`crate::models::pss::roles`]). Default: `None`.
+    fn pss_roles(&self) -> Option<crate::models::pss::roles::PssRoles> {
+        None
+    }
+
     fn clone_box(&self) -> Box<dyn Block>;
 }
 

@@ -483,7 +483,7 @@ impl ModeUnit {
                 let g = u
                     .instances()
                     .iter()
-                    .find(|i| i.block.model() == crate::models::grid::MODEL)
+                    .find(|i| i.block.model() == crate::models::grid::MODEL.name)
                     .ok_or_else(|| {
                         setup(
                             mode,

@@ -96,7 +96,7 @@ pub struct Finding {
     pub severity: Severity,
     /// Stable identifier: `time_gap`, `dropout`, `edge_dropout`, `angle_radians`, `frequency`,
     /// `time_scale`, `absorbing_p`, `above_rating`, `absurd_value`, `spike`, `parameter_range`,
-    /// `saturation`.
+    /// `saturation`, `model_missing`.
     pub kind: &'static str,
     /// The file the data are in (the CSV, or the unit file).
     pub file: PathBuf,
@@ -688,6 +688,18 @@ fn short(v: f64) -> String {
 /// Also saturation data that is no curve (`S(1.0) > 0`, `S(1.2) <= S(1.0)`).
 pub fn check_unit(unit: &Unit, file: &Path) -> Vec<Finding> {
     let mut out = vec![];
+    for l in &unit.lacks {
+        out.push(Finding {
+            severity: Severity::Warning,
+            kind: "model_missing",
+            file: file.to_path_buf(),
+            line: None,
+            time_s: None,
+            column: "lacks".into(),
+            message: format!("the unit lacks a model of its source: {l}"),
+            fix: "the results are those of a unit without it: add the model to the library (docs/model-library.md) or model it with a diagram".into(),
+        });
+    }
     for (path, spec, v) in unit.params() {
         let (lo, hi) = spec.range;
         if !(lo.is_finite() && hi.is_finite() && hi > lo) {

@@ -1,17 +1,17 @@
-//! The catalogue of block models by name, as written in unit files (`model = "GENSAE"`).
+//! The catalogue of block models by name, as written in unit files (`model = "GENSAE"`) and
+//! `.dyr` records.
+//!
+//! **One model, one file.** Each model file declares, beside its equations, one [`ModelInfo`]
+//! (`pub const MODEL`): its name, role, summary, the standard it follows and its PSS/E `.dyr`
+//! record ([`DyrRecord`]: field order, flags, input codes). The file is registered by one line,
+//! its module name in the `crate::library!` list of its folder's `mod.rs`
+//! (`models/exciter/mod.rs` for an exciter). Everything else reads the entry: unit files, the
+//! `.dyr` reader and writer, `itaipu-calib models`, Python's `models()`, the calibrator's
+//! default spec (through the roles the block declares) and docs/model-library.md's table.
+//! How to add a model: docs/model-library.md.
 
 use crate::block::Block;
-use crate::models::exciter::{esst1a::Esst1a, ieeet1::Ieeet1, sexs::Sexs, st5b::St5b};
-use crate::models::extensions::{
-    oel::Oel, pmu_measurement::PmuMeasurement, sexs_bus_fed::SexsBusFed,
-    speed_deadband::SpeedDeadband, terminal_load::TerminalLoad, two_mass_shaft::TwoMassShaft,
-};
-use crate::models::governor::{constant_pm::ConstantPm, hygov::Hygov};
-use crate::models::grid::GridEquivalent;
-use crate::models::machine::{
-    gencls::Gencls, genrou::Genrou, gensae::Gensae, gensal::Gensal, Machine,
-};
-use crate::models::pss::{ieeest::Ieeest, stab3::Stab3};
+use crate::dyr::DyrRecord;
 
 /// What a model is for; the unit file section it normally goes in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,14 +33,36 @@ impl Role {
             Role::Other => "block",
         }
     }
+
+    /// What a unit without a block of this role does instead (for the warning about a model
+    /// the unit lacks).
+    pub fn absence(self) -> &'static str {
+        match self {
+            Role::Machine => "nothing to simulate",
+            Role::Exciter => {
+                "E_fd held at its initial value E_fd0: no voltage regulation in P and Q"
+            }
+            Role::Pss => "V_S held at 0: no damping from the stabiliser in P and Q",
+            Role::Governor => "P_m held at its initial value P_m0: no frequency response in P",
+            Role::Other => "its action missing",
+        }
+    }
 }
 
-/// One catalogue entry.
+/// One catalogue entry: what the rest of the tool knows of a model. Declared once, in the
+/// model's own file, as `pub const MODEL: ModelInfo`.
 pub struct ModelInfo {
+    /// Name in unit files and `.dyr` records (e.g. `ESST4B`).
     pub name: &'static str,
     pub role: Role,
+    /// One line: what the model is.
     pub summary: &'static str,
-    make: fn() -> Box<dyn Block>,
+    /// The standard or manual the equations follow, and the limiter convention (one line).
+    pub reference: &'static str,
+    /// A new block with typical parameter values.
+    pub make: fn() -> Box<dyn Block>,
+    /// Its PSS/E `.dyr` record (`None`: no PSS/E record, e.g. a model extension).
+    pub dyr: Option<DyrRecord>,
 }
 
 impl ModelInfo {
@@ -50,110 +72,142 @@ impl ModelInfo {
     }
 }
 
-/// All models.
-pub static MODELS: &[ModelInfo] = &[
-    ModelInfo {
-        name: "GENSAE",
-        role: Role::Machine,
-        summary: "salient-pole machine, exponential saturation on |ψ''| (both axes)",
-        make: || Box::new(Machine::new(Gensae::default())),
-    },
-    ModelInfo {
-        name: "GENSAL",
-        role: Role::Machine,
-        summary: "salient-pole machine, quadratic saturation on E'q (d-axis)",
-        make: || Box::new(Machine::new(Gensal::default())),
-    },
-    ModelInfo {
-        name: "GENROU",
-        role: Role::Machine,
-        summary: "round-rotor machine, quadratic saturation on |ψ''|",
-        make: || Box::new(Machine::new(Genrou::default())),
-    },
-    ModelInfo {
-        name: "GENCLS",
-        role: Role::Machine,
-        summary: "classical machine, constant E' behind X'd",
-        make: || Box::new(Machine::new(Gencls::default())),
-    },
-    ModelInfo { name: "SEXS", role: Role::Exciter, summary: "simplified excitation system", make: || Box::new(Sexs::default()) },
-    ModelInfo {
-        name: "SEXS_bus_fed",
-        role: Role::Exciter,
-        summary: "SEXS with a bus-fed ceiling V_t·VRMAX − KC·X_adI_fd (extension, models.md §12.3)",
-        make: || Box::new(SexsBusFed::default()),
-    },
-    ModelInfo {
-        name: "ST5B",
-        role: Role::Exciter,
-        summary: "IEEE 421.5-2005 ST5B static exciter: bus-fed bridge, K_C commutation drop, UEL/OEL gates",
-        make: || Box::new(St5b::default()),
-    },
-    ModelInfo {
-        name: "IEEET1",
-        role: Role::Exciter,
-        summary: "IEEE type 1 DC exciter with rate feedback and quadratic saturation",
-        make: || Box::new(Ieeet1::default()),
-    },
-    ModelInfo {
-        name: "ESST1A",
-        role: Role::Exciter,
-        summary: "IEEE 421.5-2005 ST1A static exciter: bus-fed ceiling with K_C, field current limiter, UEL/VOS input codes",
-        make: || Box::new(Esst1a::default()),
-    },
-    ModelInfo { name: "STAB3", role: Role::Pss, summary: "power-input stabiliser (PSS/E STAB3)", make: || Box::new(Stab3::default()) },
-    ModelInfo { name: "IEEEST", role: Role::Pss, summary: "IEEE 1981 stabiliser", make: || Box::new(Ieeest::default()) },
-    ModelInfo { name: "HYGOV", role: Role::Governor, summary: "hydro turbine-governor", make: || Box::new(Hygov::default()) },
-    ModelInfo {
-        name: "constant_pm",
-        role: Role::Governor,
-        summary: "constant mechanical power (no governor action)",
-        make: || Box::new(ConstantPm::default()),
-    },
-    ModelInfo {
-        name: "two_mass_shaft",
-        role: Role::Other,
-        summary: "turbine mass and elastic shaft between governor and machine (extension, §12.1)",
-        make: || Box::new(TwoMassShaft::default()),
-    },
-    ModelInfo {
-        name: "pmu_measurement",
-        role: Role::Other,
-        summary: "PMU effects on the recorded P and Q: channel skew, VT/CT phase error, ratio errors",
-        make: || Box::new(PmuMeasurement::default()),
-    },
-    ModelInfo {
-        name: "speed_deadband",
-        role: Role::Other,
-        summary: "intentional governor speed deadband, no-jump type (extension, §12.2)",
-        make: || Box::new(SpeedDeadband::default()),
-    },
-    ModelInfo {
-        name: "oel",
-        role: Role::Other,
-        summary: "inverse-time over-excitation limiter, summing-point type (extension, §12.4)",
-        make: || Box::new(Oel::default()),
-    },
-    ModelInfo {
-        name: "terminal_load",
-        role: Role::Other,
-        summary: "static voltage-dependent load between the machine and the measurement point (extension)",
-        make: || Box::new(TerminalLoad::default()),
-    },
-    ModelInfo {
-        name: "grid_equivalent",
-        role: Role::Other,
-        summary: "network seen from the terminal: Z_e = R_e + jX_e to an infinite bus (closed_loop playback only)",
-        make: || Box::new(GridEquivalent::default()),
-    },
-];
+/// Declares the model files of a folder and the list the registry reads: one module name per
+/// model, each module defining `pub const MODEL: ModelInfo`. The registration line of a new
+/// model is its name in this list.
+///
+/// ```text
+/// crate::library! {
+///     sexs,
+///     esst4b,
+/// }
+/// ```
+#[macro_export]
+macro_rules! library {
+    ($($model:ident),* $(,)?) => {
+        $(pub mod $model;)*
+        /// The models of this folder, in the order `itaipu-calib models` lists them.
+        pub const MODELS: &[&$crate::registry::ModelInfo] = &[$(&$model::MODEL),*];
+    };
+}
+
+/// Every model: machines, exciters, stabilisers, governors, then the other blocks.
+pub fn all() -> impl Iterator<Item = &'static ModelInfo> + Clone {
+    use crate::models::{exciter, extensions, governor, grid, machine, pss};
+    machine::MODELS
+        .iter()
+        .chain(exciter::MODELS)
+        .chain(pss::MODELS)
+        .chain(governor::MODELS)
+        .chain(extensions::MODELS)
+        .copied()
+        .chain(std::iter::once(&grid::MODEL))
+}
+
+/// Every model, as [`all`] lists them.
+pub static MODELS: std::sync::LazyLock<Vec<&'static ModelInfo>> =
+    std::sync::LazyLock::new(|| all().collect());
 
 /// Looks a model up by name (case-insensitive).
 pub fn find(name: &str) -> Option<&'static ModelInfo> {
-    MODELS.iter().find(|m| m.name.eq_ignore_ascii_case(name))
+    all().find(|m| m.name.eq_ignore_ascii_case(name))
 }
 
 /// Names of all models, for error messages.
 pub fn names() -> String {
-    MODELS.iter().map(|m| m.name).collect::<Vec<_>>().join(", ")
+    all().map(|m| m.name).collect::<Vec<_>>().join(", ")
+}
+
+/// The models with a PSS/E record, for messages.
+pub fn dyr_names() -> Vec<&'static str> {
+    all().filter(|m| m.dyr.is_some()).map(|m| m.name).collect()
+}
+
+/// The roles a block declares, `role = parameter` for each that applies (`None` for a block
+/// without roles): one line for `itaipu-calib models` and the library table.
+pub fn roles_line(b: &dyn Block) -> Option<String> {
+    use crate::models::exciter::roles::{LeadLagRole, ParamRole};
+    fn join(params: &[(&str, &ParamRole)], lls: &[(&str, &LeadLagRole)]) -> String {
+        let mut v: Vec<String> = params
+            .iter()
+            .filter_map(|(role, r)| r.name().map(|n| format!("{role} = {n}")))
+            .collect();
+        v.extend(lls.iter().filter_map(|(role, r)| match r {
+            LeadLagRole::LeadLag { lead, lag } => Some(format!("{role} = ({lead}, {lag})")),
+            LeadLagRole::RatioLag { ratio, lag } => {
+                Some(format!("{role} = ({ratio}·{lag}, {lag})"))
+            }
+            LeadLagRole::NotApplicable(_) => None,
+        }));
+        v.join(", ")
+    }
+    if let Some(r) = b.exciter_roles() {
+        let tgr = crate::models::exciter::roles::TGR_ROLE_NAME;
+        return Some(join(&r.params(), &[(tgr, &r.transient_gain_reduction)]));
+    }
+    if let Some(r) = b.governor_roles() {
+        return Some(join(&r.params(), &r.lead_lags()));
+    }
+    b.pss_roles().map(|r| join(&r.params(), &r.lead_lags()))
+}
+
+/// The library as a Markdown table (docs/model-library.md's, which a test keeps equal to this):
+/// one row per model with its role, the standard it follows, its `.dyr` record and its roles.
+pub fn library_table() -> String {
+    let mut s = String::from(
+        "| model | role | follows | `.dyr` record after `IBUS 'MODEL' ID` | roles (role = parameter) |\n|---|---|---|---|---|\n",
+    );
+    for m in all() {
+        let b = m.create();
+        let record = match &m.dyr {
+            Some(r) if r.is_empty() => "(none)".to_string(),
+            Some(r) => r.field_names(b.as_ref()).join(" "),
+            None => "no PSS/E record".to_string(),
+        };
+        let roles = roles_line(b.as_ref()).unwrap_or_else(|| "—".into());
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} |\n",
+            m.name,
+            m.role.section(),
+            m.reference.replace('|', "\\|"),
+            record,
+            if roles.is_empty() {
+                "—".into()
+            } else {
+                roles
+            }
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_unique_and_every_entry_builds_its_own_model() {
+        let mut seen = std::collections::HashSet::new();
+        for m in all() {
+            assert!(seen.insert(m.name.to_ascii_uppercase()), "{} twice", m.name);
+            let b = m.create();
+            assert_eq!(b.model(), m.name, "{}'s MODEL builds another model", m.name);
+            assert!(
+                !m.summary.is_empty() && !m.reference.is_empty(),
+                "{}",
+                m.name
+            );
+        }
+    }
+
+    #[test]
+    fn every_dyr_record_names_parameters_and_ports_of_its_model() {
+        for m in all() {
+            let Some(r) = &m.dyr else { continue };
+            let b = m.create();
+            if let Err(e) = r.check(b.as_ref()) {
+                panic!("{}: {e}", m.name);
+            }
+        }
+    }
 }

@@ -104,6 +104,10 @@ pub struct Unit {
     pub machine_mva: f64,
     /// Nominal frequency [Hz].
     pub nominal_hz: f64,
+    /// What the unit lacks of the model it was read from, one sentence each (a `.dyr` record
+    /// of a model the engine lacks, left out on request): kept by the unit file and repeated
+    /// as a warning by every report on the unit ([`crate::plausibility::check_unit`]).
+    pub lacks: Vec<String>,
     instances: Vec<Instance>,
     /// Signals written by the playback driver besides `v_term` and `theta_term`
     /// ([`Unit::add_external`]); on the bus right after those two.
@@ -126,6 +130,7 @@ impl Unit {
             description: String::new(),
             machine_mva,
             nominal_hz,
+            lacks: Vec::new(),
             instances: Vec::new(),
             externals: Vec::new(),
             signals: Vec::new(),
@@ -210,6 +215,7 @@ impl Unit {
     pub fn without(&self, names: &[&str]) -> Result<Unit, UnitError> {
         let mut u = Unit::new(&self.name, self.machine_mva, self.nominal_hz);
         u.description = self.description.clone();
+        u.lacks = self.lacks.clone();
         u.externals = self.externals.clone();
         for inst in self
             .instances

@@ -3,6 +3,8 @@
 //! ```toml
 //! name = "Itaipu 60 Hz unit"
 //! description = "free text"
+//! lacks = ["…"]        # optional: what the unit lacks of the model it was read from
+//!                      # (a .dyr record left out); every report repeats it
 //! machine_mva = 737.0
 //! nominal_hz = 60.0
 //!
@@ -103,12 +105,19 @@ pub fn parse_unit(text: &str, path: &Path) -> Result<Unit, UnitFileError> {
             msg: e.to_string().trim().replace('\n', " "),
         })?;
     for key in table.keys() {
-        let known = ["name", "description", "machine_mva", "nominal_hz", "block"];
+        let known = [
+            "name",
+            "description",
+            "lacks",
+            "machine_mva",
+            "nominal_hz",
+            "block",
+        ];
         if !known.contains(&key.as_str())
             && !ROLE_SECTIONS.contains(&key.as_str())
             && !FOREIGN_SECTIONS.contains(&key.as_str())
         {
-            return Err(field(key, "unknown key (expected name, description, machine_mva, nominal_hz, [machine], [exciter], [pss], [governor], [[block]], [calibration])".into()));
+            return Err(field(key, "unknown key (expected name, description, lacks, machine_mva, nominal_hz, [machine], [exciter], [pss], [governor], [[block]], [calibration])".into()));
         }
     }
     let name = match table.get("name") {
@@ -145,6 +154,12 @@ pub fn parse_unit(text: &str, path: &Path) -> Result<Unit, UnitFileError> {
             .as_str()
             .ok_or_else(|| field("description", "must be a string".into()))?
             .to_string();
+    }
+    if let Some(v) = table.get("lacks") {
+        let bad = || field("lacks", "must be an array of strings".into());
+        for x in v.as_array().ok_or_else(bad)? {
+            unit.lacks.push(x.as_str().ok_or_else(bad)?.to_string());
+        }
     }
     if !table.contains_key("machine") {
         return Err(field(
@@ -501,6 +516,10 @@ pub fn unit_to_toml(unit: &Unit) -> String {
     let _ = writeln!(s, "name = {}", toml_str(&unit.name));
     if !unit.description.is_empty() {
         let _ = writeln!(s, "description = {}", toml_str(&unit.description));
+    }
+    if !unit.lacks.is_empty() {
+        let items: Vec<String> = unit.lacks.iter().map(|l| toml_str(l)).collect();
+        let _ = writeln!(s, "lacks = [\n  {},\n]", items.join(",\n  "));
     }
     let _ = writeln!(s, "machine_mva = {:?}", unit.machine_mva);
     let _ = writeln!(s, "nominal_hz = {:?}", unit.nominal_hz);

@@ -1,5 +1,5 @@
 //! Exciters beyond SEXS (IEEET1, ESST1A) against ANDES 2.0 (`data/andes/README.md`,
-//! `tools/andes_exciter_reference.py`): the ANDES playback case with its SEXS replaced by the
+//! `tools/andes_reference.py`): the ANDES playback case with its SEXS replaced by the
 //! exciter under test and no PSS (ANDES's IEEET1 has no stabiliser input), ANDES's terminal
 //! voltage played back into the same unit written as our GENSAL + exciter + HYGOV.
 //!

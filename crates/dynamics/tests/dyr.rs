@@ -1,13 +1,15 @@
 //! PSS/E `.dyr`: the bundled Itaipu unit written by hand as a `.dyr` reads to the unit file's
 //! parameters and plays back identically; read → write → read keeps every parameter bit for bit
 //! for each supported model; malformed files are typed errors naming the file and the line;
-//! unsupported records are warnings naming the line.
+//! an unsupported record is refused naming the line and what the unit would lack, unless the
+//! unit is to be built without it (then warnings, and the unit records what it lacks).
 
 use std::path::{Path, PathBuf};
 
 use itaipu_dynamics::dyr::{
-    parse_dyr, read_dyr, side_file, write_dyr, write_dyr_checked, write_dyr_file, DyrBases,
-    DyrError, DyrWrite, DyrWriteError, DyrWriteOptions, PartialBases, ROUND_TRIP_TOL_PU,
+    parse_dyr, parse_dyr_with, read_dyr, side_file, write_dyr, write_dyr_checked, write_dyr_file,
+    DyrBases, DyrError, DyrReadOptions, DyrWrite, DyrWriteError, DyrWriteOptions, PartialBases,
+    ROUND_TRIP_TOL_PU,
 };
 use itaipu_dynamics::event::{Event, Record};
 use itaipu_dynamics::plausibility::check_unit;
@@ -269,7 +271,7 @@ fn malformed_records_are_errors_naming_file_and_line() {
 }
 
 #[test]
-fn unsupported_records_are_warnings_naming_the_line_and_the_unit_is_built_without_them() {
+fn an_unsupported_record_is_refused_naming_the_line_and_what_the_unit_would_lack_unless_asked() {
     let text = "\
 1 'GENSAE' 1 7 0.05 0.1 4.5 0 0.95 0.65 0.3 0.22 0.15 0.1 0.3 /
 1 'ESAC1A' 1 1 1 0 0.01 0 0 1 1 100 0.1 /
@@ -281,7 +283,40 @@ fn unsupported_records_are_warnings_naming_the_line_and_the_unit_is_built_withou
         zx: Some(0.25),
         ..bases(737.0, None)
     };
-    let d = parse_dyr(text, Path::new("u.dyr"), None, &b).unwrap();
+    // By default a record of a model the engine lacks is refused: the unit would not be the
+    // file's. The error names each such line, the model and what the unit would lack.
+    let e = match parse_dyr(text, Path::new("u.dyr"), None, &b) {
+        Ok(_) => panic!("a unit without its ESAC1A and user governor was read"),
+        Err(e) => e,
+    };
+    assert_eq!(e.kind(), "unsupported");
+    let msg = e.to_string();
+    assert!(
+        msg.starts_with("u.dyr line 2: model ESAC1A (bus 1, id '1') is not supported"),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("a second exciter record beside SEXS on line 4"),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("u.dyr line 3: user model MYGOV (bus 1, id '1') is not supported")
+            && msg.contains("the governor (P_m held at its initial value"),
+        "{msg}"
+    );
+    // Asked to build without them: warnings, and the unit records what it lacks.
+    let opts = DyrReadOptions {
+        select: None,
+        skip_unsupported: true,
+    };
+    let d = parse_dyr_with(text, Path::new("u.dyr"), &b, &opts).unwrap();
+    assert_eq!(d.unit.lacks.len(), 2, "{:?}", d.unit.lacks);
+    assert!(
+        d.unit.lacks[1].contains("user model MYGOV (u.dyr line 3)"),
+        "{:?}",
+        d.unit.lacks
+    );
+
     let w: Vec<String> = d.warnings.iter().map(|w| w.to_string()).collect();
     assert!(
         w.iter()

@@ -23,14 +23,16 @@ fn dyr_err(py: Python<'_>, e: DyrError) -> PyErr {
     }
 }
 
-/// Reads one unit from a PSS/E .dyr (GENSAE, GENSAL, GENROU, GENCLS, SEXS, STAB3, IEEEST,
-/// HYGOV). `bus`/`id` select the unit (optional when the file holds one machine). Bases come
-/// from `bases` (a side file, TOML: mbase, nominal_hz, zr, zx, name), else `<stem>.bases.toml`
-/// beside the .dyr, with `mbase`, `nominal_hz`, `zr`, `zx` on top. Unsupported records are
-/// reported as `UserWarning`s naming the line. Raises UnitModelError (kind 'syntax', 'record',
-/// 'selection', 'bases', 'unit', 'io').
+/// Reads one unit from a PSS/E .dyr (the models with a record: `models()`). `bus`/`id` select
+/// the unit (optional when the file holds one machine). Bases come from `bases` (a side file,
+/// TOML: mbase, nominal_hz, zr, zx, name), else `<stem>.bases.toml` beside the .dyr, with
+/// `mbase`, `nominal_hz`, `zr`, `zx` on top. A record of a model the engine lacks raises
+/// UnitModelError (kind 'unsupported'), naming the line and what the unit would lack, unless
+/// `skip_unsupported`: then the unit is built without it, with a `UserWarning` naming the
+/// line. Raises UnitModelError (kind 'syntax', 'record', 'unsupported', 'selection', 'bases',
+/// 'unit', 'io').
 #[pyfunction]
-#[pyo3(signature = (path, *, bus=None, id=None, bases=None, mbase=None, nominal_hz=None, zr=None, zx=None))]
+#[pyo3(signature = (path, *, bus=None, id=None, bases=None, mbase=None, nominal_hz=None, zr=None, zx=None, skip_unsupported=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn read_dyr(
     py: Python<'_>,
@@ -42,6 +44,7 @@ pub fn read_dyr(
     nominal_hz: Option<f64>,
     zr: Option<f64>,
     zx: Option<f64>,
+    skip_unsupported: bool,
 ) -> PyResult<PyUnit> {
     let over = PartialBases {
         mbase,
@@ -58,7 +61,11 @@ pub fn read_dyr(
     let d = py
         .detach(|| {
             let b = dyr::resolve_bases(&path, bases.as_deref(), &over)?;
-            dyr::read_dyr(&path, select, &b)
+            let opts = dyr::DyrReadOptions {
+                select,
+                skip_unsupported,
+            };
+            dyr::read_dyr_with(&path, &b, &opts)
         })
         .map_err(|e| dyr_err(py, e))?;
     for w in &d.warnings {

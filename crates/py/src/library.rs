@@ -13,7 +13,7 @@ use itaipu_dynamics::registry::MODELS;
 #[pyfunction]
 pub(crate) fn models<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
     let out = PyList::empty(py);
-    for m in MODELS {
+    for m in MODELS.iter() {
         let block = m.create();
         let params = PyList::empty(py);
         for s in block.params().specs() {

@@ -7,19 +7,10 @@
 //! separated by blanks or commas; strings may be quoted with `'` or `"`; Fortran exponents
 //! (`1.5D-3`) are accepted.
 //!
-//! | model  | ICONs     | CONs (PSS/E order)                                                     |
-//! |--------|-----------|------------------------------------------------------------------------|
-//! | GENSAE | —         | T'd0 T''d0 T''q0 H D Xd Xq X'd X''d Xl S(1.0) S(1.2)                    |
-//! | GENSAL | —         | T'd0 T''d0 T''q0 H D Xd Xq X'd X''d Xl S(1.0) S(1.2)                    |
-//! | GENROU | —         | T'd0 T''d0 T'q0 T''q0 H D Xd Xq X'd X'q X''d Xl S(1.0) S(1.2)           |
-//! | GENCLS | —         | H D                                                                    |
-//! | SEXS   | —         | TA/TB TB K TE EMIN EMAX                                                |
-//! | ST5B   | —         | TR TC1 TB1 TC2 TB2 KR VRMAX VRMIN T1 KC TUC1 TUB1 TUC2 TUB2 TOC1 TOB1 TOC2 TOB2 |
-//! | IEEET1 | —         | TR KA TA VRMAX VRMIN KE TE KF TF SWITCH E1 SE(E1) E2 SE(E2)            |
-//! | ESST1A | UEL VOS   | TR VIMAX VIMIN TC TB TC1 TB1 KA TA VAMAX VAMIN VRMAX VRMIN KC KF TF KLR ILR |
-//! | STAB3  | —         | Tt TX1 TX2 KX VLIM                                                     |
-//! | IEEEST | IC IB     | A1 A2 A3 A4 A5 A6 T1 T2 T3 T4 T5 T6 KS LSMAX LSMIN VCU VCL              |
-//! | HYGOV  | —         | R r Tr Tf Tg VELM GMAX GMIN TW At Dturb qNL                             |
+//! Which models have a record, and its layout (ICONs, CONs in PSS/E order, input codes), is
+//! declared with each model ([`crate::registry::ModelInfo::dyr`], a [`DyrRecord`]):
+//! `itaipu-calib models` and docs/model-library.md list them. The reader and writer here
+//! interpret the layout and name no model.
 //!
 //! What the `.dyr` does not hold comes from the power-flow machine record, given on the command
 //! line or in a small side file ([`DyrBases`], TOML): `mbase` (MVA), `nominal_hz`, `zr` (ZSORCE
@@ -27,26 +18,28 @@
 //! GENCLS's X'd; for the other machines PSS/E's X'', checked against the record's X''d).
 //! PSS/E has a single X'': GENSAE and GENSAL read it into both X''d and X''q.
 //!
-//! ESST1A's ICONs UEL (where V_UEL enters: 1 summed at the error, 2 or 3 an HV gate) and VOS
-//! (where V_S enters: 1 at the error, 2 after the regulator) are the block's options `uel`, `vos`.
+//! An ICON is a block option (ESST1A's UEL and VOS codes, PSS2A's M and N), an input-signal
+//! code (IEEEST's IC, PSS2A's ICS1 and ICS2: 1 rotor speed deviation `speed`, 3 electrical
+//! power `pe`, 5 terminal voltage `v_term`; bus frequency, accelerating power and dV/dt have no
+//! signal in the engine and are refused), or a remote bus or second machine, where only 0 (the
+//! unit's own) is supported.
 //!
-//! IEEEST's input code IC selects the signal its input port is wired to: 1 rotor speed
-//! deviation (`speed`), 3 electrical power (`pe`), 5 terminal voltage (`v_term`); the other codes
-//! (bus frequency, accelerating power, dV/dt) and a remote bus IB ≠ 0 have no signal in the
-//! engine and are refused.
-//!
-//! Records of the selected unit whose model the engine lacks are reported by line as warnings
-//! and left out; records of other units are counted in one warning. Malformed records (no `/`,
-//! a bus number that is not an integer, a CON that is not a number, the wrong number of CONs, a
-//! second model in the same role, parameters the model refuses) are [`DyrError`]s naming the
-//! file and the line.
+//! A record of the selected unit whose model the engine lacks is an error
+//! ([`DyrError::Unsupported`]) naming the line, the model and what the unit would lack without
+//! it, unless the read is asked to build the unit without it
+//! ([`DyrReadOptions::skip_unsupported`]): then each is a warning and an entry of the unit's
+//! [`crate::unit::Unit::lacks`], which the unit file keeps and every report repeats. Records of
+//! other units are counted in one warning; [`list_units`] lists a file's units. Malformed records
+//! (no `/`, a bus number that is not an integer, a CON that is not a number, the wrong number of
+//! CONs, a second model in the same role, parameters the model refuses) are [`DyrError`]s naming
+//! the file and the line.
 //!
 //! Writing is checked ([`write_dyr_file`], `round_trip.rs`): the records are read back and
 //! compared with the unit, parameter by parameter and, given events, by playing both back; a
 //! `.dyr` that is not the unit (X''q ≠ X''d, a set-point offset, an extension block, …) is
 //! refused with J of both unless a lossy write is asked for.
 //!
-//! Layout: `records.rs` holds the per-model CON tables, `bases.rs` the side file of bases,
+//! Layout: `layout.rs` holds the record layout a model declares, `bases.rs` the side file of bases,
 //! `read.rs` the record syntax and the reader, `write.rs` the writer, `round_trip.rs` the checked
 //! writer; this file the errors and warnings they share.
 
@@ -56,14 +49,24 @@ use std::path::PathBuf;
 use crate::unit::UnitError;
 
 mod bases;
+mod layout;
 mod read;
-mod records;
 mod round_trip;
 mod write;
 
 pub use bases::{resolve_bases, side_file, DyrBases, PartialBases};
-pub use read::{parse_dyr, parse_records, read_dyr, DyrUnit, RawRecord};
-pub use records::supported_models;
+pub use layout::{
+    DyrRecord, Icon, InputCode, MachineFields, Tie, ZsorceX, ONE_X_PP, STABILISER_INPUTS,
+};
+pub use read::{
+    guess_role, list_units, parse_dyr, parse_dyr_with, parse_records, read_dyr, read_dyr_with,
+    DyrReadOptions, DyrUnit, RawRecord, UnitListing,
+};
+
+/// The models the `.dyr` reader and writer know (those whose registry entry has a record).
+pub fn supported_models() -> Vec<&'static str> {
+    crate::registry::dyr_names()
+}
 pub use round_trip::{
     write_dyr_checked, write_dyr_file, DyrWrite, DyrWriteError, DyrWriteOptions, EventCheck, Loss,
     ROUND_TRIP_TOL_PU,
@@ -93,6 +96,16 @@ pub enum DyrError {
         model: String,
         msg: String,
     },
+    /// Records of the selected unit whose models the engine lacks, `(line, model, what the unit
+    /// would lack without it)`: refused unless the unit is to be built without them
+    /// ([`DyrReadOptions::skip_unsupported`]).
+    #[error("{}", unsupported_message(path, *bus, id, records))]
+    Unsupported {
+        path: PathBuf,
+        bus: i64,
+        id: String,
+        records: Vec<(usize, String, String)>,
+    },
     /// The unit asked for is not in the file, or none was asked for and the file holds several.
     #[error("{}: {msg}", path.display())]
     Selection { path: PathBuf, msg: String },
@@ -115,11 +128,35 @@ impl DyrError {
             DyrError::Io { .. } => "io",
             DyrError::Syntax { .. } => "syntax",
             DyrError::Record { .. } => "record",
+            DyrError::Unsupported { .. } => "unsupported",
             DyrError::Selection { .. } => "selection",
             DyrError::Bases { .. } => "bases",
             DyrError::Unit { .. } => "unit",
         }
     }
+}
+
+fn unsupported_message(
+    path: &std::path::Path,
+    bus: i64,
+    id: &str,
+    records: &[(usize, String, String)],
+) -> String {
+    let each: Vec<String> = records
+        .iter()
+        .map(|(line, model, lacks)| {
+            format!(
+                "{} line {line}: {model} (bus {bus}, id '{id}') is not supported; without it the unit would lack {lacks}",
+                path.display()
+            )
+        })
+        .collect();
+    format!(
+        "{}. Nothing read: a unit without {} is not the unit of the file (models with a record: {}); build it without on purpose with skip_unsupported (the command line's --skip-unsupported), and every report will say what it lacks",
+        each.join("; "),
+        if records.len() == 1 { "it" } else { "them" },
+        supported_models().join(", ")
+    )
 }
 
 /// Something the reader or writer could not carry over, or found implausible.

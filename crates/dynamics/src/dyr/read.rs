@@ -3,10 +3,10 @@
 
 use std::path::Path;
 
-use super::records::{alias_of, dyr_model, icon_option, supported_models, DyrModel, IEEEST_INPUTS};
+use super::layout::{Icon, ZsorceX};
 use super::{DyrBases, DyrError, DyrWarning};
 use crate::block::Block;
-use crate::registry::{self, Role};
+use crate::registry::{self, ModelInfo, Role};
 use crate::unit::Unit;
 
 /// One record as written: its first line and its fields.
@@ -141,25 +141,113 @@ pub struct DyrUnit {
     pub warnings: Vec<DyrWarning>,
 }
 
-/// Reads the unit `select` = (bus, id) from a `.dyr` file (any unit if the file holds one).
+/// How to read a `.dyr`: which unit, and whether records of models the engine lacks may be
+/// left out.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DyrReadOptions<'a> {
+    /// The unit `(bus, machine id)`; `None`: the file's only unit.
+    pub select: Option<(i64, &'a str)>,
+    /// Build the unit without the records of models the engine lacks (each a warning and an
+    /// entry of [`Unit::lacks`], which every report repeats). Default: such a record is an
+    /// error ([`DyrError::Unsupported`]).
+    pub skip_unsupported: bool,
+}
+
+/// One unit of a `.dyr` as listed by [`list_units`]: its bus, machine id and records.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnitListing {
+    pub bus: i64,
+    pub id: String,
+    /// `(line, model, supported)` of each record, in file order.
+    pub records: Vec<(usize, String, bool)>,
+}
+
+impl std::fmt::Display for UnitListing {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "bus {} id '{}':", self.bus, self.id)?;
+        for (line, model, ok) in &self.records {
+            write!(
+                f,
+                " {model} (line {line}{})",
+                if *ok { "" } else { ", not supported" }
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// The units of a `.dyr` (every distinct bus and machine id, in file order) with their records.
+pub fn list_units(text: &str, path: &Path) -> Result<Vec<UnitListing>, DyrError> {
+    let mut out: Vec<UnitListing> = vec![];
+    for r in parse_records(text, path)? {
+        let supported = dyr_model(&r.model).is_some();
+        match out.iter_mut().find(|u| u.bus == r.bus && u.id == r.id) {
+            Some(u) => u.records.push((r.line, r.model.clone(), supported)),
+            None => out.push(UnitListing {
+                bus: r.bus,
+                id: r.id.clone(),
+                records: vec![(r.line, r.model.clone(), supported)],
+            }),
+        }
+    }
+    Ok(out)
+}
+
+/// Reads the unit `select` = (bus, id) from a `.dyr` file (any unit if the file holds one); a
+/// record of a model the engine lacks is an error ([`read_dyr_with`] to leave it out).
 pub fn read_dyr(
     path: &Path,
     select: Option<(i64, &str)>,
     bases: &DyrBases,
 ) -> Result<DyrUnit, DyrError> {
+    read_dyr_with(
+        path,
+        bases,
+        &DyrReadOptions {
+            select,
+            skip_unsupported: false,
+        },
+    )
+}
+
+/// [`read_dyr`] with the options spelled out.
+pub fn read_dyr_with(
+    path: &Path,
+    bases: &DyrBases,
+    opts: &DyrReadOptions,
+) -> Result<DyrUnit, DyrError> {
     let text = std::fs::read_to_string(path).map_err(|source| DyrError::Io {
         path: path.into(),
         source,
     })?;
-    parse_dyr(&text, path, select, bases)
+    parse_dyr_with(&text, path, bases, opts)
 }
 
-/// Parses `.dyr` text; `path` is used in messages and for the default unit name.
+/// Parses `.dyr` text; `path` is used in messages and for the default unit name. A record of a
+/// model the engine lacks is an error.
 pub fn parse_dyr(
     text: &str,
     path: &Path,
     select: Option<(i64, &str)>,
     bases: &DyrBases,
+) -> Result<DyrUnit, DyrError> {
+    parse_dyr_with(
+        text,
+        path,
+        bases,
+        &DyrReadOptions {
+            select,
+            skip_unsupported: false,
+        },
+    )
+}
+
+/// [`parse_dyr`] with the options spelled out.
+pub fn parse_dyr_with(
+    text: &str,
+    path: &Path,
+    bases: &DyrBases,
+    opts: &DyrReadOptions,
 ) -> Result<DyrUnit, DyrError> {
     let records = parse_records(text, path)?;
     let warn = |line: Option<usize>, msg: String| DyrWarning {
@@ -167,13 +255,13 @@ pub fn parse_dyr(
         line,
         msg,
     };
-    let (bus, id) = match select {
+    let (bus, id) = match opts.select {
         Some((b, i)) => (b, i.trim().to_string()),
         None => {
             let mut units: Vec<(i64, String)> = vec![];
             for r in &records {
                 if dyr_model(&r.model).map(|m| m.role) == Some(Role::Machine)
-                    || r.model.starts_with("GEN")
+                    || guess_role(&r.model).0 == Role::Machine
                 {
                     let u = (r.bus, r.id.clone());
                     if !units.contains(&u) {
@@ -186,8 +274,10 @@ pub fn parse_dyr(
                 0 => {
                     return Err(DyrError::Selection {
                         path: path.into(),
-                        msg: "no machine record (GENSAE, GENSAL, GENROU, GENCLS) in the file"
-                            .into(),
+                        msg: format!(
+                            "no machine record ({}) in the file",
+                            machine_names().join(", ")
+                        ),
                     })
                 }
                 _ => {
@@ -196,7 +286,7 @@ pub fn parse_dyr(
                         msg: format!(
                         "the file holds {} machines ({}); choose one by bus number and machine id",
                         units.len(),
-                        list_units(&units)
+                        list_units_short(&units)
                     ),
                     })
                 }
@@ -204,7 +294,8 @@ pub fn parse_dyr(
         }
     };
     let mut warnings = vec![];
-    let mut chosen: Vec<(&RawRecord, &'static DyrModel)> = vec![];
+    let mut chosen: Vec<(&RawRecord, &'static ModelInfo)> = vec![];
+    let mut unsupported: Vec<&RawRecord> = vec![];
     let mut others: Vec<(i64, String)> = vec![];
     let mut n_other = 0usize;
     for r in &records {
@@ -217,21 +308,7 @@ pub fn parse_dyr(
             continue;
         }
         let Some(m) = dyr_model(&r.model) else {
-            let name = if r.model == "USRMDL" {
-                format!(
-                    "user model {}",
-                    r.data.first().map(|d| d.0.as_str()).unwrap_or("?")
-                )
-            } else {
-                format!("model {}", r.model)
-            };
-            warnings.push(warn(
-                Some(r.line),
-                format!(
-                    "{name} (bus {bus}, id '{id}') is not supported (supported: {}); the unit is built without it",
-                    supported_models().join(", ")
-                ),
-            ));
+            unsupported.push(r);
             continue;
         };
         if let Some((first, _)) = chosen.iter().find(|(_, c)| c.role == m.role) {
@@ -249,7 +326,7 @@ pub fn parse_dyr(
         }
         chosen.push((r, m));
     }
-    if chosen.is_empty() {
+    if chosen.is_empty() && unsupported.is_empty() {
         return Err(DyrError::Selection {
             path: path.into(),
             msg: format!(
@@ -257,17 +334,62 @@ pub fn parse_dyr(
                 if others.is_empty() {
                     String::new()
                 } else {
-                    format!(" (units in the file: {})", list_units(&others))
+                    format!(" (units in the file: {})", list_units_short(&others))
                 }
             ),
         });
+    }
+    // What the unit would lack without each unsupported record.
+    let lacking: Vec<(usize, String, String)> = unsupported
+        .iter()
+        .map(|r| {
+            let name = record_name(r);
+            let model = match r.model.as_str() {
+                "USRMDL" => r.data.first().map_or("USRMDL", |d| d.0.as_str()),
+                m => m,
+            };
+            let (role, kind) = guess_role(model);
+            let lacks = match chosen
+                .iter()
+                .find(|(_, m)| m.role == role && role != Role::Other)
+            {
+                Some((c, m)) => format!(
+                    "nothing (it is a second {} record beside {} on line {})",
+                    role.section(),
+                    m.name,
+                    c.line
+                ),
+                None if role == Role::Other => kind.to_string(),
+                None => format!("{kind} ({})", role.absence()),
+            };
+            (r.line, name, lacks)
+        })
+        .collect();
+    if !lacking.is_empty() && !opts.skip_unsupported {
+        return Err(DyrError::Unsupported {
+            path: path.into(),
+            bus,
+            id: id.clone(),
+            records: lacking,
+        });
+    }
+    let mut lacks = vec![];
+    for (line, name, what) in &lacking {
+        let msg = format!(
+            "{name} (bus {bus}, id '{id}') is not supported; the unit is built without it, as asked: {what}"
+        );
+        warnings.push(warn(Some(*line), msg));
+        lacks.push(format!(
+            "{name} ({} line {line}) not supported, left out: {what}",
+            path.display()
+        ));
     }
     if n_other > 0 {
         warnings.push(warn(
             None,
             format!(
                 "{n_other} record(s) of other units ignored ({})",
-                list_units(&others)
+                list_units_short(&others)
             ),
         ));
     }
@@ -275,8 +397,18 @@ pub fn parse_dyr(
         return Err(DyrError::Selection {
             path: path.into(),
             msg: format!(
-                "bus {bus} id '{id}' has no machine record (GENSAE, GENSAL, GENROU, GENCLS); found {}",
-                chosen.iter().map(|(r, _)| format!("{} (line {})", r.model, r.line)).collect::<Vec<_>>().join(", ")
+                "bus {bus} id '{id}' has no machine record ({}); found {}",
+                machine_names().join(", "),
+                chosen
+                    .iter()
+                    .map(|(r, _)| format!("{} (line {})", r.model, r.line))
+                    .chain(
+                        unsupported
+                            .iter()
+                            .map(|r| format!("{} (line {}, not supported)", r.model, r.line))
+                    )
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         });
     };
@@ -289,6 +421,7 @@ pub fn parse_dyr(
     });
     let mut unit = Unit::new(&name, bases.mbase, bases.nominal_hz);
     unit.description = format!("read from {} (bus {bus}, id '{id}')", path.display());
+    unit.lacks = lacks;
     let mut used = vec![];
     // Machine first, then exciter, PSS, governor (the state order of unit files).
     let order = [Role::Machine, Role::Exciter, Role::Pss, Role::Governor];
@@ -328,7 +461,69 @@ pub fn parse_dyr(
     })
 }
 
-fn list_units(u: &[(i64, String)]) -> String {
+/// The registry's machine models with a record, for messages.
+fn machine_names() -> Vec<&'static str> {
+    registry::all()
+        .filter(|m| m.role == Role::Machine && m.dyr.is_some())
+        .map(|m| m.name)
+        .collect()
+}
+
+/// `model X` or `user model X` (a USRMDL record names its model in its first field).
+fn record_name(r: &RawRecord) -> String {
+    if r.model == "USRMDL" {
+        format!(
+            "user model {}",
+            r.data.first().map(|d| d.0.as_str()).unwrap_or("?")
+        )
+    } else {
+        format!("model {}", r.model)
+    }
+}
+
+/// What a model the engine lacks most likely is, by PSS/E's naming of its library (the role,
+/// and a name for it). A record whose role cannot be told is `Role::Other`.
+pub fn guess_role(model: &str) -> (Role, &'static str) {
+    let m = model.to_ascii_uppercase();
+    let starts = |prefixes: &[&str]| prefixes.iter().any(|p| m.starts_with(p));
+    if starts(&[
+        "PSS", "STAB", "IEEEST", "IEE2ST", "ST2CUT", "PTIST", "STBSVC",
+    ]) {
+        (Role::Pss, "the stabiliser")
+    } else if starts(&["GEN", "CIMTR", "FRECHG", "CGEN"]) {
+        (Role::Machine, "the machine")
+    } else if starts(&[
+        "ES", "EX", "IEEET", "IEEEX", "SCRX", "SEXS", "REXS", "URST", "AC7B", "AC8B", "ST5B",
+        "ST6B", "ST7B", "BBSEX", "BUDCZT", "CELIN", "EMAC", "ESURRY", "IVOEX", "OEX",
+    ]) {
+        (Role::Exciter, "the exciter")
+    } else if m.contains("GOV")
+        || m.contains("HYG")
+        || starts(&[
+            "TGOV", "IEEEG", "IEESGO", "GAST", "TG", "GGOV", "DEGOV", "PIDGOV", "CRCMGV", "URGS",
+            "SHAF", "WPIDHY", "WEHGOV", "WESGOV", "H6E", "IVOGO",
+        ])
+    {
+        (Role::Governor, "the governor")
+    } else if starts(&["MAXEX", "OEL", "UEL", "MNLEX", "SCL"]) {
+        (
+            Role::Other,
+            "an excitation limiter (its limiting action missing)",
+        )
+    } else if starts(&["COMP", "IEEEVC", "REMCMP"]) {
+        (
+            Role::Other,
+            "a voltage compensator (the regulated voltage is then |V_t|)",
+        )
+    } else {
+        (
+            Role::Other,
+            "a model whose role cannot be told from its name (its action missing)",
+        )
+    }
+}
+
+fn list_units_short(u: &[(i64, String)]) -> String {
     let mut s: Vec<String> = u
         .iter()
         .take(12)
@@ -342,9 +537,16 @@ fn list_units(u: &[(i64, String)]) -> String {
 
 type Rewire = Vec<(String, String)>;
 
+/// The registry entry of a model with a `.dyr` record.
+fn dyr_model(name: &str) -> Option<&'static ModelInfo> {
+    registry::find(name).filter(|m| m.dyr.is_some())
+}
+
+/// A block from its record: the ICONs (options, input wiring, zeros), the CONs, the machine's
+/// fields from the bases, then the block's own parameter checks.
 fn build(
     r: &RawRecord,
-    m: &DyrModel,
+    m: &ModelInfo,
     bases: &DyrBases,
     path: &Path,
     warnings: &mut Vec<DyrWarning>,
@@ -355,44 +557,44 @@ fn build(
         model: m.name.into(),
         msg,
     };
-    let n = m.icons.len() + m.cons.len();
+    let layout = m.dyr.as_ref().expect("a model with a record");
+    let mut block = m.create();
+    let n = layout.len();
     if r.data.len() != n {
-        let names: Vec<String> = m
-            .icons
-            .iter()
-            .map(|s| s.to_string())
-            .chain(m.cons.iter().map(|c| alias_of(m, c)))
-            .collect();
         return Err(err(
             r.line,
             format!(
                 "{n} values expected after the machine id ({}), found {}",
-                names.join(" "),
+                layout.field_names(block.as_ref()).join(" "),
                 r.data.len()
             ),
         ));
     }
-    let info = registry::find(m.name).expect("every .dyr model is in the registry");
-    let mut block = info.create();
-    let mut rewire = vec![];
     let mut icons = vec![];
-    for (k, icon) in m.icons.iter().enumerate() {
+    for (k, icon) in layout.icons.iter().enumerate() {
         let (text, line) = &r.data[k];
-        let v: i64 = text
-            .parse()
-            .map_err(|_| err(*line, format!("ICON {icon} = '{text}' is not an integer")))?;
+        let v: i64 = text.parse().map_err(|_| {
+            err(
+                *line,
+                format!("ICON {} = '{text}' is not an integer", icon.name()),
+            )
+        })?;
         icons.push(v);
     }
-    for (k, con) in m.cons.iter().enumerate() {
-        let (text, line) = &r.data[m.icons.len() + k];
+    for (k, con) in layout.cons.iter().enumerate() {
+        let (text, line) = &r.data[layout.icons.len() + k];
+        let alias = || {
+            block
+                .params()
+                .specs()
+                .iter()
+                .find(|s| s.name == *con)
+                .map_or(con.to_string(), |s| s.alias.to_string())
+        };
         let v = parse_number(text).ok_or_else(|| {
             err(
                 *line,
-                format!(
-                    "CON {} ({}) = '{text}' is not a number",
-                    k + 1,
-                    alias_of(m, con)
-                ),
+                format!("CON {} ({}) = '{text}' is not a number", k + 1, alias()),
             )
         })?;
         let idx = block
@@ -401,14 +603,65 @@ fn build(
             .expect("CON names are canonical parameter names");
         block.params_mut().set(idx, v);
     }
-    for (k, icon) in m.icons.iter().enumerate() {
-        if let Some((opt, _)) = icon_option(m.name, icon) {
-            block
-                .set_option(opt, &icons[k].to_string())
-                .map_err(|e| err(r.data[k].1, format!("ICON {icon}: {e}")))?;
+    let mut rewire = vec![];
+    for (k, icon) in layout.icons.iter().enumerate() {
+        let (v, line) = (icons[k], r.data[k].1);
+        match icon {
+            Icon::Option { name, key, .. } => block
+                .set_option(key, &v.to_string())
+                .map_err(|e| err(line, format!("ICON {name}: {e}")))?,
+            Icon::Input { name, port, codes } => {
+                let supported = || {
+                    codes
+                        .iter()
+                        .filter(|c| c.signal.is_some())
+                        .map(|c| format!("{} {}", c.code, c.meaning))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
+                let sig = match codes.iter().find(|c| c.code == v) {
+                    Some(c) => c.signal.ok_or_else(|| {
+                        err(
+                            line,
+                            format!(
+                                "input code {name} = {v} ({}) has no signal in the engine (supported: {})",
+                                c.meaning,
+                                supported()
+                            ),
+                        )
+                    })?,
+                    None => {
+                        return Err(err(
+                            line,
+                            format!(
+                                "input code {name} = {v} has no signal in the engine (supported: {})",
+                                supported()
+                            ),
+                        ))
+                    }
+                };
+                let default = block
+                    .ports()
+                    .iter()
+                    .find(|p| p.name == *port)
+                    .map(|p| p.signal)
+                    .expect("checked by the registry test");
+                if sig != default {
+                    rewire.push((port.to_string(), sig.to_string()));
+                }
+            }
+            Icon::Zero { name, meaning } => {
+                if v != 0 {
+                    return Err(err(
+                        line,
+                        format!("{meaning} {name} = {v}: only 0 (the unit's own bus and machine) is supported"),
+                    ));
+                }
+            }
+            Icon::Ignored { .. } => {}
         }
     }
-    let mut set = |name: &str, v: f64| {
+    let set = |block: &mut Box<dyn Block>, name: &str, v: f64| {
         let idx = block.params().index_of(name).expect("canonical parameter");
         block.params_mut().set(idx, v);
     };
@@ -417,28 +670,29 @@ fn build(
         line: Some(r.line),
         msg,
     };
-    match m.role {
-        Role::Machine => {
-            set("r_a", bases.zr.unwrap_or(0.0));
-            if bases.zr.is_none() {
-                warnings.push(wline(format!(
-                    "{}: R_a = 0 (ZSORCE R not given: zr in the bases)",
-                    m.name
-                )));
-            }
-            if m.name == "GENCLS" {
+    if let Some(mf) = &layout.machine {
+        set(&mut block, "r_a", bases.zr.unwrap_or(0.0));
+        if bases.zr.is_none() {
+            warnings.push(wline(format!(
+                "{}: R_a = 0 (ZSORCE R not given: zr in the bases)",
+                m.name
+            )));
+        }
+        match mf.zsorce_x {
+            ZsorceX::Sets(p) => {
                 let zx = bases.zx.ok_or_else(|| DyrError::Bases {
                     path: path.into(),
                     field: "zx".into(),
-                    msg: format!("missing: GENCLS (line {}) takes X'd from ZSORCE X of the power-flow record", r.line),
+                    msg: format!(
+                        "missing: {} (line {}) takes {p} from ZSORCE X of the power-flow record",
+                        m.name, r.line
+                    ),
                 })?;
-                set("x_d_prime", zx);
-            } else {
-                let pos = m.cons.iter().position(|c| *c == "x_d_pp").expect("X''d");
-                let xpp = parse_number(&r.data[pos].0).expect("parsed above");
-                if matches!(m.name, "GENSAE" | "GENSAL") {
-                    set("x_q_pp", xpp);
-                }
+                set(&mut block, p, zx);
+            }
+            ZsorceX::Equals(p) => {
+                let pos = layout.cons.iter().position(|c| *c == p).expect("a CON");
+                let xpp = parse_number(&r.data[layout.icons.len() + pos].0).expect("parsed above");
                 if let Some(zx) = bases.zx {
                     if (zx - xpp).abs() > 1e-6 * xpp.abs().max(1.0) {
                         warnings.push(wline(format!(
@@ -449,32 +703,12 @@ fn build(
                 }
             }
         }
-        Role::Pss if m.name == "IEEEST" => {
-            let (ic, ib) = (icons[0], icons[1]);
-            let Some((_, sig, _)) = IEEEST_INPUTS.iter().find(|(c, _, _)| *c == ic) else {
-                return Err(err(
-                    r.data[0].1,
-                    format!(
-                        "input code IC = {ic} has no signal in the engine (supported: {})",
-                        IEEEST_INPUTS
-                            .iter()
-                            .map(|(c, _, d)| format!("{c} {d}"))
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    ),
-                ));
-            };
-            if ib != 0 {
-                return Err(err(
-                    r.data[1].1,
-                    format!("remote bus IB = {ib}: only the unit's own bus (IB = 0) is supported"),
-                ));
-            }
-            if *sig != "speed" {
-                rewire.push(("u".to_string(), sig.to_string()));
-            }
+        for t in mf.ties {
+            let v = block
+                .params()
+                .get(block.params().index_of(t.from.0).expect("tied parameter"));
+            set(&mut block, t.to.0, v);
         }
-        _ => {}
     }
     block.validate().map_err(|e| err(r.line, e.to_string()))?;
     Ok((block, rewire))

@@ -517,14 +517,27 @@ fn compare_block(a: &Instance, b: &Instance, lost: &mut Vec<Loss>) {
                 what: format!("{} port {p}", a.name),
                 unit: format!("wired to {x}"),
                 written: format!("wired to {y}"),
-                why: if ma == "IEEEST" && p == "u" {
-                    "IEEEST's input codes reach speed, P_e and |V| only".into()
-                } else {
-                    "PSS/E has no such connection".into()
-                },
+                why: input_codes_reach(ma, p)
+                    .unwrap_or_else(|| "PSS/E has no such connection".into()),
             });
         }
     }
+}
+
+/// For a port an input-code ICON of `model`'s record wires: the signals its codes reach.
+fn input_codes_reach(model: &str, port: &str) -> Option<String> {
+    let layout = crate::registry::find(model)?.dyr?;
+    layout.icons.iter().find_map(|i| match i {
+        super::Icon::Input { port: p, codes, .. } if *p == port => Some(format!(
+            "{model}'s input codes reach {} only",
+            codes
+                .iter()
+                .filter_map(|c| c.signal)
+                .collect::<Vec<_>>()
+                .join(", ")
+        )),
+        _ => None,
+    })
 }
 
 /// Why the `.dyr` record of `model` does not give parameter `name` back.

@@ -2,8 +2,8 @@
 
 use std::fmt::Write as _;
 
-use super::records::{dyr_model, icon_option, IEEEST_INPUTS};
-use crate::registry::{self, Role};
+use super::layout::Icon;
+use crate::registry;
 use crate::unit::{Instance, Unit};
 
 /// A unit written as `.dyr` text and its side file, with what could not be written.
@@ -28,7 +28,8 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
     let mut zx = None;
     for inst in unit.instances() {
         let b = &inst.block;
-        let m = dyr_model(b.model()).filter(|m| m.role.section() == inst.name);
+        let m =
+            registry::find(b.model()).filter(|m| m.dyr.is_some() && m.role.section() == inst.name);
         let Some(m) = m else {
             if b.model() != "constant_pm" {
                 warnings.push(format!(
@@ -42,95 +43,96 @@ pub fn write_dyr(unit: &Unit, bus: i64, id: &str) -> DyrText {
             }
             continue;
         };
+        let layout = m.dyr.as_ref().expect("filtered");
         let ps = b.params();
         let get = |n: &str| ps.get(ps.index_of(n).expect("canonical parameter"));
         let mut vals: Vec<String> = vec![];
         let rew = inst.rewiring();
-        if m.name == "IEEEST" {
-            let sig = rew
-                .iter()
-                .find(|(p, _)| p == "u")
-                .map(|(_, s)| s.as_str())
-                .unwrap_or("speed");
-            let ic = IEEEST_INPUTS
-                .iter()
-                .find(|(_, s, _)| *s == sig)
-                .map(|(c, _, _)| *c);
-            match ic {
-                Some(c) => vals.push(c.to_string()),
-                None => {
-                    warnings.push(format!(
-                        "IEEEST input wired to '{sig}', which has no PSS/E input code: written as IC = 1 (speed)"
-                    ));
-                    vals.push("1".into());
+        let opts = b.options();
+        // The ports an input code writes, the options an ICON holds.
+        let mut coded_ports = vec![];
+        let mut icon_keys = vec![];
+        for icon in layout.icons {
+            match icon {
+                Icon::Option { key, default, .. } => {
+                    icon_keys.push(*key);
+                    let v = opts
+                        .iter()
+                        .find(|(k, _)| k == key)
+                        .map(|(_, v)| v.as_str())
+                        .unwrap_or(default);
+                    vals.push(v.to_string());
                 }
-            }
-            vals.push("0".into());
-        } else {
-            // ICONs that are block options (ESST1A's UEL and VOS codes).
-            let opts = b.options();
-            for icon in m.icons {
-                let (opt, default) = icon_option(m.name, icon).expect("ICON mapped to an option");
-                let v = opts
-                    .iter()
-                    .find(|(k, _)| *k == opt)
-                    .map(|(_, v)| v.as_str())
-                    .unwrap_or(default);
-                vals.push(v.to_string());
+                Icon::Input { name, port, codes } => {
+                    coded_ports.push(*port);
+                    let default = b
+                        .ports()
+                        .iter()
+                        .find(|p| p.name == *port)
+                        .map_or(*port, |p| p.signal);
+                    let sig = rew
+                        .iter()
+                        .find(|(p, _)| p == port)
+                        .map(|(_, s)| s.as_str())
+                        .unwrap_or(default);
+                    match codes.iter().find(|c| c.signal == Some(sig)) {
+                        Some(c) => vals.push(c.code.to_string()),
+                        None => {
+                            let first = codes
+                                .iter()
+                                .find(|c| c.signal == Some(default))
+                                .or_else(|| codes.iter().find(|c| c.signal.is_some()))
+                                .expect("checked by the registry test");
+                            warnings.push(format!(
+                                "{} input {port} wired to '{sig}', which has no PSS/E input code: written as {name} = {} ({})",
+                                m.name, first.code, first.meaning
+                            ));
+                            vals.push(first.code.to_string());
+                        }
+                    }
+                }
+                Icon::Zero { .. } | Icon::Ignored { .. } => vals.push("0".into()),
             }
         }
         for (p, s) in &rew {
-            if !(m.name == "IEEEST" && p == "u") {
+            if !coded_ports.contains(&p.as_str()) {
                 warnings.push(format!(
                     "{} port '{p}' rewired to '{s}': PSS/E has no such connection, not written",
                     inst.name
                 ));
             }
         }
-        for c in m.cons {
+        for c in layout.cons {
             vals.push(fmt_num(get(c)));
         }
-        if m.role == Role::Machine {
+        let mut held: Vec<&str> = layout.cons.to_vec();
+        if let Some(mf) = &layout.machine {
             zr = Some(get("r_a"));
-            if m.name == "GENCLS" {
-                zx = Some(get("x_d_prime"));
-            } else {
-                zx = Some(get("x_d_pp"));
-                if matches!(m.name, "GENSAE" | "GENSAL") {
-                    let (xd, xq) = (get("x_d_pp"), get("x_q_pp"));
-                    if xd != xq {
-                        warnings.push(format!(
-                            "{}: X''q = {xq} differs from X''d = {xd}; PSS/E has one X'': X''d written, X''q lost",
-                            m.name
-                        ));
-                    }
+            held.push("r_a");
+            let zp = mf.zsorce_x.param().expect("a parameter");
+            zx = Some(get(zp));
+            held.push(zp);
+            for t in mf.ties {
+                held.push(t.to.0);
+                let (a, b) = (get(t.from.0), get(t.to.0));
+                if a != b {
+                    warnings.push(format!(
+                        "{}: {} = {b} differs from {} = {a}; {}: {} written, {} lost",
+                        m.name, t.to.1, t.from.1, t.why, t.from.1, t.to.1
+                    ));
                 }
             }
         }
         // What the record has no CON for and the reader does not set from the bases reads
         // back at the model's default (the nuisance set-point offsets, for instance).
-        let held: Vec<&str> = m
-            .cons
-            .iter()
-            .copied()
-            .chain(
-                ["r_a", "x_d_prime", "x_q_pp"]
-                    .into_iter()
-                    .filter(|_| m.role == Role::Machine),
-            )
-            .collect();
         not_held(
             inst,
             &held,
             &format!("PSS/E's {} record", m.name),
             &mut warnings,
         );
-        for (o, v) in b.options() {
-            let is_icon = m
-                .icons
-                .iter()
-                .any(|i| icon_option(m.name, i).map(|x| x.0) == Some(o));
-            if !(is_icon || o == "swing" && v == "pm_over_speed") {
+        for (o, v) in &opts {
+            if !(icon_keys.contains(o) || *o == "swing" && v == "pm_over_speed") {
                 warnings.push(format!(
                     "{} option {o} = {v} has no PSS/E form: not written",
                     inst.name

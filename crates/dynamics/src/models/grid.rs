@@ -11,10 +11,18 @@
 //! other playback modes the block is inert. Per unit on the **machine** base.
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port};
+use crate::registry::{ModelInfo, Role};
 use crate::{block_common, param_set};
 
-/// The registry name of the block.
-pub const MODEL: &str = "grid_equivalent";
+/// The registry entry ([`crate::registry`]).
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "grid_equivalent",
+    role: Role::Other,
+    summary: "network seen from the terminal: Z_e = R_e + jX_e to an infinite bus (closed_loop playback only)",
+    reference: "a Thévenin equivalent (RaPId's Mostar model)",
+    make: || Box::new(GridEquivalent::default()),
+    dyr: None,
+};
 
 param_set! {
     /// Grid-equivalent parameters (machine base).
@@ -40,7 +48,7 @@ impl GridEquivalent {
 impl Block for GridEquivalent {
     block_common!();
     fn model(&self) -> &'static str {
-        MODEL
+        MODEL.name
     }
     fn ports(&self) -> &'static [Port] {
         &[]

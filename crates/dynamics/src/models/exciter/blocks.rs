@@ -1,4 +1,4 @@
-//! Small linear blocks shared by the exciter models, with PSS/E's and OpenIPSL's handling of
+//! Small linear blocks shared by the models (lag, lead-lag, washout, limited lead-lag), with PSS/E's and OpenIPSL's handling of
 //! zero time constants (`models.md` §8).
 //!
 //! A time constant counts as zero when it is below [`ZERO_T`] (OpenIPSL compares with the
@@ -70,6 +70,37 @@ impl<S: Scalar> LeadLag<S> {
     #[inline(always)]
     pub fn derivative(&self, x: S, u: S) -> S {
         (u - x) * self.inv_tb
+    }
+}
+
+/// `sT/(1 + sT)` with state `x`: `T dx/dt = u − x`, `y = u − x`; `T = 0`: bypassed, `y = u`
+/// (PSS/E's convention for a washout set to zero), state held. Steady state: `x = u`, `y = 0`
+/// (`y = u` bypassed).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Washout<S = f64> {
+    inv_t: S,
+    bypass: bool,
+}
+
+impl<S: Scalar> Washout<S> {
+    pub fn new(t: S) -> Self {
+        let bypass = t.val() < ZERO_T;
+        Self {
+            inv_t: if bypass { S::cst(0.0) } else { t.recip() },
+            bypass,
+        }
+    }
+    #[inline(always)]
+    pub fn output(&self, x: S, u: S) -> S {
+        if self.bypass {
+            u
+        } else {
+            u - x
+        }
+    }
+    #[inline(always)]
+    pub fn derivative(&self, x: S, u: S) -> S {
+        (u - x) * self.inv_t
     }
 }
 

@@ -42,6 +42,36 @@ use crate::models::exciter::roles::{ExciterRoles, LeadLagRole, ParamRole};
 use crate::models::limiter::{clamp, NonWindup};
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::dyr::{DyrRecord, Icon};
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "ESST1A",
+    role: Role::Exciter,
+    summary: "IEEE 421.5-2005 ST1A static exciter: bus-fed ceiling with K_C, field current limiter, UEL/VOS input codes",
+    reference: "IEEE 421.5-2005 ST1A as PSS/E's ESST1A and OpenIPSL; non-windup V_A, algebraic E_fd limits",
+    make: || Box::new(Esst1a::default()),
+    dyr: Some(DyrRecord {
+        icons: &[
+            Icon::Option {
+                name: "UEL",
+                key: "uel",
+                default: "1",
+            },
+            Icon::Option {
+                name: "VOS",
+                key: "vos",
+                default: "1",
+            },
+        ],
+        cons: &[
+            "t_r", "vi_max", "vi_min", "t_c", "t_b", "t_c1", "t_b1", "k_a", "t_a", "va_max",
+            "va_min", "vr_max", "vr_min", "k_c", "k_f", "t_f", "k_lr", "i_lr",
+        ],
+        machine: None,
+    }),
+};
 
 param_set! {
     /// ESST1A parameters (PSS/E CON order).

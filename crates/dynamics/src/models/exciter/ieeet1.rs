@@ -45,6 +45,21 @@ use crate::models::exciter::sexs::{port, PORTS};
 use crate::models::limiter::{clamp, NonWindup};
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::dyr::DyrRecord;
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "IEEET1",
+    role: Role::Exciter,
+    summary: "IEEE type 1 DC exciter with rate feedback and quadratic saturation",
+    reference: "IEEE 1968 type 1 as PSS/E IEEET1 and ANDES IEEET1; non-windup V_R limits",
+    make: || Box::new(Ieeet1::default()),
+    dyr: Some(DyrRecord::cons(&[
+        "t_r", "k_a", "t_a", "vr_max", "vr_min", "k_e", "t_e", "k_f", "t_f", "switch", "e1",
+        "se1", "e2", "se2",
+    ])),
+};
 
 param_set! {
     /// IEEET1 parameters (PSS/E CON order).

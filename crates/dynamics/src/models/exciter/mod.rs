@@ -1,8 +1,12 @@
-//! Excitation systems (AVRs): SEXS, ST5B, IEEET1, ESST1A, the blocks they share and the
-//! exciter roles every exciter declares ([`roles`]).
+//! Excitation systems (AVRs), one file each (docs/model-library.md), the blocks they share and
+//! the exciter roles every exciter declares ([`roles`]).
 pub mod blocks;
-pub mod esst1a;
-pub mod ieeet1;
 pub mod roles;
-pub mod sexs;
-pub mod st5b;
+
+crate::library! {
+    sexs,
+    st5b,
+    ieeet1,
+    esst1a,
+    esst4b,
+}

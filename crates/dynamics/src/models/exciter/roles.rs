@@ -9,7 +9,8 @@
 //!
 //! | role | meaning |
 //! |---|---|
-//! | `gain` | steady-state (regulator) gain from the voltage error to E_fd: SEXS `K`, ST5B `K_R`, IEEET1 `KA`, ESST1A `KA` |
+//! | `gain` | steady-state (regulator) gain from the voltage error to E_fd: SEXS `K`, ST5B `K_R`, IEEET1 `KA`, ESST1A `KA`; a PI regulator's proportional gain (ESST4B `KPR`) |
+//! | `integral_gain` | a PI regulator's integral gain (ESST4B `KIR`) |
 //! | `field_time_constant` | dominant exciter / bridge time constant: SEXS `T_E`, ST5B `T_1`, IEEET1 `TE`, ESST1A `TA` |
 //! | `ceiling`, `floor` | a constant limit on E_fd in pu of E_fd (moving it moves E_fd's limit one for one) |
 //! | `v_ref_offset` | the set-point offset nuisance parameter added after initialisation |
@@ -88,6 +89,7 @@ impl LeadLagRole {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ExciterRoles {
     pub gain: ParamRole,
+    pub integral_gain: ParamRole,
     pub field_time_constant: ParamRole,
     pub ceiling: ParamRole,
     pub floor: ParamRole,
@@ -104,6 +106,7 @@ pub struct ExciterRoles {
 /// diagram's `[exciter_roles]` table, with `transient_gain_reduction`).
 pub const PARAM_ROLE_NAMES: &[&str] = &[
     "gain",
+    "integral_gain",
     "field_time_constant",
     "ceiling",
     "floor",
@@ -124,6 +127,7 @@ impl ExciterRoles {
         let n = || ParamRole::none(reason);
         Self {
             gain: n(),
+            integral_gain: n(),
             field_time_constant: n(),
             ceiling: n(),
             floor: n(),
@@ -138,9 +142,10 @@ impl ExciterRoles {
     }
 
     /// The single-parameter roles as `(role name, role)`, in [`PARAM_ROLE_NAMES`] order.
-    pub fn params(&self) -> [(&'static str, &ParamRole); 10] {
+    pub fn params(&self) -> [(&'static str, &ParamRole); 11] {
         [
             ("gain", &self.gain),
+            ("integral_gain", &self.integral_gain),
             ("field_time_constant", &self.field_time_constant),
             ("ceiling", &self.ceiling),
             ("floor", &self.floor),
@@ -156,6 +161,7 @@ impl ExciterRoles {
     fn param_mut(&mut self, role: &str) -> Option<&mut ParamRole> {
         Some(match role {
             "gain" => &mut self.gain,
+            "integral_gain" => &mut self.integral_gain,
             "field_time_constant" => &mut self.field_time_constant,
             "ceiling" => &mut self.ceiling,
             "floor" => &mut self.floor,
@@ -172,22 +178,26 @@ impl ExciterRoles {
     /// Every parameter named by a role is a parameter of `ps` (the check a model's unit test and
     /// a diagram's loader make). The error names the role and the parameter.
     pub fn check(&self, ps: &dyn ParamSet) -> Result<(), String> {
-        let has = |n: &str| ps.specs().iter().any(|s| s.name == n);
-        for (role, r) in self.params() {
-            if let Some(n) = r.name() {
-                if !has(n) {
-                    return Err(format!("{role}: '{n}' is not a parameter"));
-                }
-            }
-        }
+        check_roles(
+            ps,
+            &self.params(),
+            &[(TGR_ROLE_NAME, &self.transient_gain_reduction)],
+        )
+    }
+
+    /// The parameters a playback of Q identifies, the ones a default calibration frees: the
+    /// gain (and a PI's integral gain), the field time constant and the transient gain
+    /// reduction's lead-lag. The limits act only when reached and the offset is a nuisance: not
+    /// freed by default.
+    pub fn identifiable(&self) -> Vec<String> {
+        let mut out: Vec<String> = [&self.gain, &self.integral_gain, &self.field_time_constant]
+            .iter()
+            .filter_map(|r| r.name().map(String::from))
+            .collect();
         if let Some((a, b)) = self.transient_gain_reduction.names() {
-            for n in [a, b] {
-                if !has(n) {
-                    return Err(format!("{TGR_ROLE_NAME}: '{n}' is not a parameter"));
-                }
-            }
+            out.extend([a.to_string(), b.to_string()]);
         }
-        Ok(())
+        out
     }
 
     /// Reads the `[exciter_roles]` table of a diagram definition: each key a role, its value the
@@ -298,6 +308,33 @@ impl ExciterRoles {
         }
         Ok(roles)
     }
+}
+
+/// Every parameter a role names is a parameter of `ps`; the error names the role (shared by
+/// the exciter, governor and stabiliser roles).
+pub fn check_roles(
+    ps: &dyn ParamSet,
+    params: &[(&str, &ParamRole)],
+    lead_lags: &[(&str, &LeadLagRole)],
+) -> Result<(), String> {
+    let has = |n: &str| ps.specs().iter().any(|s| s.name == n);
+    for (role, r) in params {
+        if let Some(n) = r.name() {
+            if !has(n) {
+                return Err(format!("{role}: '{n}' is not a parameter"));
+            }
+        }
+    }
+    for (role, r) in lead_lags {
+        if let Some((a, b)) = r.names() {
+            for n in [a, b] {
+                if !has(n) {
+                    return Err(format!("{role}: '{n}' is not a parameter"));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -25,6 +25,18 @@ use crate::models::limiter::{clamp, NonWindup};
 use crate::params::{LiftDual, ParamSet};
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::dyr::DyrRecord;
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "SEXS",
+    role: Role::Exciter,
+    summary: "simplified excitation system",
+    reference: "PSS/E SEXS, OpenIPSL and ANDES SEXS (models.md §9.1); non-windup E_fd limits",
+    make: || Box::new(Sexs::default()),
+    dyr: Some(DyrRecord::cons(&["ta_tb", "tb", "k", "te", "e_min", "e_max"])),
+};
 
 param_set! {
     /// SEXS parameters.

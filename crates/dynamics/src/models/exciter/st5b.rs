@@ -79,6 +79,21 @@ use crate::models::exciter::roles::{ExciterRoles, LeadLagRole, ParamRole};
 use crate::models::limiter::{clamp, NonWindup};
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::dyr::DyrRecord;
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "ST5B",
+    role: Role::Exciter,
+    summary: "IEEE 421.5-2005 ST5B static exciter: bus-fed bridge, K_C commutation drop, UEL/OEL gates",
+    reference: "IEEE 421.5-2005 ST5B as PSS/E's ST5B and OpenIPSL; limited lead-lags of OpenIPSL's LeadLagLim",
+    make: || Box::new(St5b::default()),
+    dyr: Some(DyrRecord::cons(&[
+        "t_r", "t_c1", "t_b1", "t_c2", "t_b2", "k_r", "vr_max", "vr_min", "t_1", "k_c", "t_uc1",
+        "t_ub1", "t_uc2", "t_ub2", "t_oc1", "t_ob1", "t_oc2", "t_ob2",
+    ])),
+};
 
 param_set! {
     /// ST5B parameters (PSS/E CON order).

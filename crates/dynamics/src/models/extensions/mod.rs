@@ -12,9 +12,11 @@
 //!
 //! Each one starts in exact steady state and, with its "off" parameters (stiff shaft, zero
 //! deadband, pickup or ceiling far away), reproduces the base unit.
-pub mod oel;
-pub mod pmu_measurement;
-pub mod sexs_bus_fed;
-pub mod speed_deadband;
-pub mod terminal_load;
-pub mod two_mass_shaft;
+crate::library! {
+    sexs_bus_fed,
+    two_mass_shaft,
+    pmu_measurement,
+    speed_deadband,
+    oel,
+    terminal_load,
+}

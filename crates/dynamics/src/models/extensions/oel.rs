@@ -44,6 +44,17 @@ use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::{LimitMode, NonWindup};
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "oel",
+    role: Role::Other,
+    summary: "inverse-time over-excitation limiter, summing-point type (extension, §12.4)",
+    reference: "models.md §12.4",
+    make: || Box::new(Oel::default()),
+    dyr: None,
+};
 
 param_set! {
     /// Over-excitation limiter parameters.

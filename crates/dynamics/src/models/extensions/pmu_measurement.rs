@@ -22,6 +22,17 @@
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port};
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "pmu_measurement",
+    role: Role::Other,
+    summary: "PMU effects on the recorded P and Q: channel skew, VT/CT phase error, ratio errors",
+    reference: "models.md §12.5",
+    make: || Box::new(PmuMeasurement::default()),
+    dyr: None,
+};
 
 param_set! {
     /// PMU measurement-effect parameters.

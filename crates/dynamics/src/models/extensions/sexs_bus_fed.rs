@@ -32,6 +32,17 @@ use crate::models::exciter::sexs::{
 };
 use crate::param_set;
 use crate::sens::Scalar;
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "SEXS_bus_fed",
+    role: Role::Exciter,
+    summary: "SEXS with a bus-fed ceiling V_t·VRMAX − KC·X_adI_fd (extension, models.md §12.3)",
+    reference: "models.md §12.3 (SEXS with an ST1A-style bus-fed ceiling)",
+    make: || Box::new(SexsBusFed::default()),
+    dyr: None,
+};
 
 param_set! {
     /// SEXS_bus_fed parameters.

@@ -16,6 +16,17 @@
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "speed_deadband",
+    role: Role::Other,
+    summary: "intentional governor speed deadband, no-jump type (extension, §12.2)",
+    reference: "models.md §12.2",
+    make: || Box::new(SpeedDeadband::default()),
+    dyr: None,
+};
 
 param_set! {
     /// Speed-deadband parameters.

@@ -16,6 +16,17 @@
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port};
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "terminal_load",
+    role: Role::Other,
+    summary: "static voltage-dependent load between the machine and the measurement point (extension)",
+    reference: "a static load model between the terminal and the measurement point",
+    make: || Box::new(TerminalLoad::default()),
+    dyr: None,
+};
 
 param_set! {
     /// Terminal-load parameters.

@@ -59,6 +59,17 @@ use std::f64::consts::PI;
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "two_mass_shaft",
+    role: Role::Other,
+    summary: "turbine mass and elastic shaft between governor and machine (extension, §12.1)",
+    reference: "models.md §12.1",
+    make: || Box::new(TwoMassShaft::default()),
+    dyr: None,
+};
 
 param_set! {
     /// Two-mass shaft parameters (machine base).

@@ -4,8 +4,21 @@
 //! `ΔP_m` (`pm_offset`, default 0) is a nuisance parameter a fit may free.
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
+use crate::models::exciter::roles::ParamRole;
+use crate::models::governor::roles::GovernorRoles;
 use crate::sens::{seeded, D};
 use crate::{block_common, param_set};
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "constant_pm",
+    role: Role::Governor,
+    summary: "constant mechanical power (no governor action)",
+    reference: "P_m held at its initial value (written as no governor record)",
+    make: || Box::new(ConstantPm::default()),
+    dyr: None,
+};
 
 param_set! {
     /// Constant-P_m parameters.
@@ -41,6 +54,12 @@ impl ConstantPm {
 
 impl Block for ConstantPm {
     block_common!();
+
+    fn governor_roles(&self) -> Option<GovernorRoles> {
+        let mut r = GovernorRoles::none("constant_pm has no governor action");
+        r.reference_offset = ParamRole::param("pm_offset");
+        Some(r)
+    }
     fn model(&self) -> &'static str {
         "constant_pm"
     }

@@ -18,9 +18,26 @@
 //! wild calibration candidate produces a large but finite head rather than a division by zero.
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
+use crate::models::exciter::roles::ParamRole;
+use crate::models::governor::roles::GovernorRoles;
 use crate::models::limiter::{clamp, NonWindup};
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::dyr::DyrRecord;
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "HYGOV",
+    role: Role::Governor,
+    summary: "hydro turbine-governor",
+    reference: "PSS/E HYGOV as OpenIPSL, OPAL-RT and ANDES (models.md §9.3.1); non-windup gate, rate limit VELM",
+    make: || Box::new(Hygov::default()),
+    dyr: Some(DyrRecord::cons(&[
+        "r_perm", "r_temp", "t_r", "t_f", "t_g", "velm", "g_max", "g_min", "t_w", "a_t", "d_turb",
+        "q_nl",
+    ])),
+};
 
 param_set! {
     /// HYGOV parameters (machine base).
@@ -258,5 +275,21 @@ impl Block for Hygov {
         let (_, dc) = self.rates(x, io.get(port::SPEED));
         let (lo, hi) = (self.p.g_min, self.p.g_max);
         self.gate_limit.update(&mut x[1], dc, lo, hi)
+    }
+
+    fn governor_roles(&self) -> Option<GovernorRoles> {
+        let mut r = GovernorRoles::none("not applicable to HYGOV");
+        r.droop = ParamRole::param("r_perm");
+        r.transient_droop = ParamRole::param("r_temp");
+        r.reset_time_constant = ParamRole::param("t_r");
+        r.servo_time_constant = ParamRole::param("t_g");
+        r.turbine_time_constant = ParamRole::param("t_w");
+        r.output_max = ParamRole::param("g_max");
+        r.output_min = ParamRole::param("g_min");
+        r.rate_max = ParamRole::param("velm");
+        r.rate_min = ParamRole::param("velm");
+        r.damping = ParamRole::param("d_turb");
+        r.reference_offset = ParamRole::param("n_ref_offset");
+        Some(r)
     }
 }

@@ -1,3 +1,10 @@
-//! Turbine-governors.
-pub mod constant_pm;
-pub mod hygov;
+//! Turbine-governors, one file each (docs/model-library.md), and the governor roles they declare
+//! ([`roles`]).
+pub mod roles;
+
+crate::library! {
+    hygov,
+    tgov1,
+    ieeeg1,
+    constant_pm,
+}

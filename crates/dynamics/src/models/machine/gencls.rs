@@ -12,6 +12,26 @@ use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
 use crate::sens::{Scalar, D};
+use crate::dyr::{DyrRecord, MachineFields, ZsorceX};
+use crate::registry::{ModelInfo, Role};
+use super::Machine;
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "GENCLS",
+    role: Role::Machine,
+    summary: "classical machine, constant E' behind X'd",
+    reference: "PSS/E GENCLS (models.md §7)",
+    make: || Box::new(Machine::new(Gencls::default())),
+    dyr: Some(DyrRecord {
+        icons: &[],
+        cons: &["h", "d"],
+        machine: Some(MachineFields {
+            zsorce_x: ZsorceX::Sets("x_d_prime"),
+            ties: &[],
+        }),
+    }),
+};
 
 param_set! {
     /// GENCLS parameters (machine base).

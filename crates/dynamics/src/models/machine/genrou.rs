@@ -26,6 +26,41 @@ use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
 use crate::sens::{Scalar, D};
+use crate::dyr::{DyrRecord, MachineFields, ZsorceX};
+use crate::registry::{ModelInfo, Role};
+use super::Machine;
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "GENROU",
+    role: Role::Machine,
+    summary: "round-rotor machine, quadratic saturation on |ψ''|",
+    reference: "PSS/E GENROU (models.md §6); ANDES GENROU",
+    make: || Box::new(Machine::new(Genrou::default())),
+    dyr: Some(DyrRecord {
+        icons: &[],
+        cons: &[
+            "t_d0_prime",
+            "t_d0_pp",
+            "t_q0_prime",
+            "t_q0_pp",
+            "h",
+            "d",
+            "x_d",
+            "x_q",
+            "x_d_prime",
+            "x_q_prime",
+            "x_d_pp",
+            "x_l",
+            "s10",
+            "s12",
+        ],
+        machine: Some(MachineFields {
+            zsorce_x: ZsorceX::Equals("x_d_pp"),
+            ties: &[],
+        }),
+    }),
+};
 
 param_set! {
     /// GENROU parameters (machine base).

@@ -26,6 +26,39 @@ use crate::block::{guard, ModelError};
 use crate::param_set;
 use crate::params::ParamSet;
 use crate::sens::{Scalar, D};
+use crate::dyr::{DyrRecord, MachineFields, ZsorceX, ONE_X_PP};
+use crate::registry::{ModelInfo, Role};
+use super::Machine;
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "GENSAE",
+    role: Role::Machine,
+    summary: "salient-pole machine, exponential saturation on |ψ''| (both axes)",
+    reference: "PSS/E GENSAE as OpenIPSL implements it (models.md §5)",
+    make: || Box::new(Machine::new(Gensae::default())),
+    dyr: Some(DyrRecord {
+        icons: &[],
+        cons: &[
+            "t_d0_prime",
+            "t_d0_pp",
+            "t_q0_pp",
+            "h",
+            "d",
+            "x_d",
+            "x_q",
+            "x_d_prime",
+            "x_d_pp",
+            "x_l",
+            "s10",
+            "s12",
+        ],
+        machine: Some(MachineFields {
+            zsorce_x: ZsorceX::Equals("x_d_pp"),
+            ties: &[ONE_X_PP],
+        }),
+    }),
+};
 
 param_set! {
     /// GENSAE parameters (machine base). Typical values: large hydro unit (`models.md` §4.1).

@@ -18,11 +18,14 @@
 //! dδ/dt = ω_b Δω
 //! ```
 
-pub mod gencls;
-pub mod genrou;
-pub mod gensae;
-pub mod gensal;
 pub mod saturation;
+
+crate::library! {
+    gensae,
+    gensal,
+    genrou,
+    gencls,
+}
 
 use gensae::GensaeParams;
 use gensal::GensalParams;

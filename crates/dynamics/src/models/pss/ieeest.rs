@@ -14,8 +14,39 @@
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::clamp;
+use crate::models::exciter::roles::{LeadLagRole, ParamRole};
+use crate::models::pss::roles::PssRoles;
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::dyr::{DyrRecord, Icon, STABILISER_INPUTS};
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "IEEEST",
+    role: Role::Pss,
+    summary: "IEEE 1981 stabiliser",
+    reference: "IEEE 421.5-1981 PSS as PSS/E IEEEST, OpenIPSL and ANDES (models.md §9.2.3)",
+    make: || Box::new(Ieeest::default()),
+    dyr: Some(DyrRecord {
+        icons: &[
+            Icon::Input {
+                name: "IC",
+                port: "u",
+                codes: STABILISER_INPUTS,
+            },
+            Icon::Zero {
+                name: "IB",
+                meaning: "remote bus",
+            },
+        ],
+        cons: &[
+            "a1", "a2", "a3", "a4", "a5", "a6", "t1", "t2", "t3", "t4", "t5", "t6", "ks", "ls_max",
+            "ls_min", "vcu", "vcl",
+        ],
+        machine: None,
+    }),
+};
 
 param_set! {
     /// IEEEST parameters.
@@ -210,6 +241,23 @@ impl Ieeest {
 
 impl Block for Ieeest {
     block_common!();
+
+    fn pss_roles(&self) -> Option<PssRoles> {
+        let mut r = PssRoles::none("not applicable to IEEEST");
+        r.gain = ParamRole::param("ks");
+        r.washout = ParamRole::param("t6");
+        r.lead_lag_1 = LeadLagRole::LeadLag {
+            lead: "t1".into(),
+            lag: "t2".into(),
+        };
+        r.lead_lag_2 = LeadLagRole::LeadLag {
+            lead: "t3".into(),
+            lag: "t4".into(),
+        };
+        r.output_max = ParamRole::param("ls_max");
+        r.output_min = ParamRole::param("ls_min");
+        Some(r)
+    }
 
     fn model(&self) -> &'static str {
         "IEEEST"

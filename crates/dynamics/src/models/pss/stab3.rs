@@ -12,8 +12,22 @@
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::models::limiter::clamp;
+use crate::models::exciter::roles::{LeadLagRole, ParamRole};
+use crate::models::pss::roles::PssRoles;
 use crate::sens::{Scalar, D};
 use crate::{block_common, param_set};
+use crate::dyr::DyrRecord;
+use crate::registry::{ModelInfo, Role};
+
+/// The registry entry ([`crate::registry`]): name, role, `.dyr` record.
+pub const MODEL: ModelInfo = ModelInfo {
+    name: "STAB3",
+    role: Role::Pss,
+    summary: "power-input stabiliser (PSS/E STAB3)",
+    reference: "PSS/E STAB3 as OpenIPSL (models.md §9.2.1); P_REF frozen at the initial power",
+    make: || Box::new(Stab3::default()),
+    dyr: Some(DyrRecord::cons(&["t_t", "t_x1", "t_x2", "k_x", "v_lim"])),
+};
 
 param_set! {
     /// STAB3 parameters.
@@ -84,6 +98,18 @@ fn derivatives<S: Scalar>(p: &Stab3Params<S>, p_ref: S, x: &[S], io: &Io<S>, dx:
 
 impl Block for Stab3 {
     block_common!();
+
+    fn pss_roles(&self) -> Option<PssRoles> {
+        let mut r = PssRoles::none("not applicable to STAB3");
+        r.gain = ParamRole::param("k_x");
+        r.washout = ParamRole::param("t_x2");
+        r.input_filter = ParamRole::param("t_x1");
+        r.output_max = ParamRole::param("v_lim");
+        r.output_min = ParamRole::param("v_lim");
+        r.lead_lag_1 = LeadLagRole::NotApplicable("STAB3 has no lead-lag".into());
+        r.lead_lag_2 = LeadLagRole::NotApplicable("STAB3 has no lead-lag".into());
+        Some(r)
+    }
 
     fn model(&self) -> &'static str {
         "STAB3"
