@@ -71,7 +71,8 @@ fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let no_diag = args.iter().any(|a| a == "--no-diagnose");
     let truth_check = args.iter().any(|a| a == "--truth");
-    args.retain(|a| a != "--no-diagnose" && a != "--truth");
+    let gate = args.iter().any(|a| a == "--check");
+    args.retain(|a| a != "--no-diagnose" && a != "--truth" && a != "--check");
     let default_root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/practice");
     let (root, filter): (PathBuf, Vec<String>) = match args.first() {
         Some(a) if PathBuf::from(a).join("cases").is_dir() => (a.into(), args[1..].to_vec()),
@@ -350,5 +351,37 @@ fn main() {
     std::fs::create_dir_all("out").ok();
     if let Ok(text) = serde_json::to_string_pretty(&rows) {
         std::fs::write("out/practice.json", text).ok();
+    }
+    if gate {
+        // The project's bars on data it did not make: every fit at the floor, no wrong name, no
+        // alarm on a clean record, at least 90 % of the hidden effects named, every cause graded
+        // strong right.
+        let mut failed = vec![];
+        if fit_ok < rows.len() {
+            failed.push(format!(
+                "{} fit(s) above 1.1 x the floor",
+                rows.len() - fit_ok
+            ));
+        }
+        if count("wrong name") > 0 {
+            failed.push(format!("{} wrong name(s)", count("wrong name")));
+        }
+        if !no_diag && clean_ok < clean {
+            failed.push(format!("{} clean record(s) not `none`", clean - clean_ok));
+        }
+        if !no_diag && 10 * hits < 9 * effect {
+            failed.push(format!("right cause on {hits} of {effect} (< 90 %)"));
+        }
+        if strong_ok < strong {
+            failed.push(format!(
+                "{} of {strong} strong grade(s) wrong",
+                strong - strong_ok
+            ));
+        }
+        if !failed.is_empty() {
+            eprintln!("practice check failed: {}", failed.join("; "));
+            std::process::exit(1);
+        }
+        println!("practice check passed");
     }
 }

@@ -3,7 +3,7 @@
 //! value, and a record without an angle is refused (naming the event and what it lacks) unless
 //! a mode is named that reads it.
 
-mod common;
+use crate::common;
 
 use common::{noisy_step_test, truth};
 use itaipu_calib::diagnose::{diagnose, DiagnoseError, DiagnoseOptions};

@@ -3,7 +3,7 @@
 //! checked field by field; events that lack what a stage plays back or compares are refused
 //! before anything runs, naming the event file, the channel and the spec's field.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

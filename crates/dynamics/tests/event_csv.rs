@@ -3,7 +3,7 @@
 
 #![allow(clippy::needless_range_loop)] // parallel per-sample arrays read best with an index
 
-mod event_support;
+use crate::event_support;
 
 use std::f64::consts::{PI, TAU};
 use std::fs;

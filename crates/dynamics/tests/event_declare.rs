@@ -2,7 +2,7 @@
 //! as declared, and every bad declaration or bad record is an error naming the file and the key
 //! (or the column and line).
 
-mod event_support;
+use crate::event_support;
 
 use std::path::{Path, PathBuf};
 

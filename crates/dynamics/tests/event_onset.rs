@@ -3,7 +3,7 @@
 //! import), the `onset_s` key, the default init window that ends before the onset, and the
 //! bundled records (the two practice cases, scored against their answer keys, and Itaipu).
 
-mod event_support;
+use crate::event_support;
 
 use std::path::{Path, PathBuf};
 

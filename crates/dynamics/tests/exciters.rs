@@ -9,7 +9,7 @@
 //! * `.dyr` read → write → read keeps every parameter for each new record;
 //! * every exciter declares its roles, each naming one of its parameters or saying why none.
 
-mod exciter_support;
+use crate::exciter_support;
 
 use std::path::Path;
 

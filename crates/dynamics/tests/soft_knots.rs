@@ -11,7 +11,7 @@ use itaipu_dynamics::integrate::{solve, Dopri5Options, Method, Stats, StepLog};
 use itaipu_dynamics::simulate::{run_playback, simulate_pq, PreparedEvent, SimOptions};
 use itaipu_dynamics::unit::{Playback, PlaybackInput};
 
-mod playback_support;
+use crate::playback_support;
 use playback_support::{synthetic_dip, synthetic_unit as unit};
 
 /// A 20 s fault dip into the synthetic unit at 60 samples/s with PMU noise (seed 5), played

@@ -9,7 +9,7 @@
 //! supply ceiling V_t·V_RMAX and floor V_t·V_RMIN, zero time constants (T_R, T_C1, T_B2,
 //! T_1 = 0) and the OEL gate with its alternate lead-lag path.
 
-mod exciter_support;
+use crate::exciter_support;
 
 use std::path::PathBuf;
 

@@ -8,7 +8,7 @@ use itaipu_dynamics::simulate::{
     run_playback, simulate_pq, simulate_pq_watched, PreparedEvent, SimError, SimOptions,
 };
 
-mod playback_support;
+use crate::playback_support;
 use playback_support::{synthetic_dip, synthetic_unit as unit};
 
 /// A 6 s dip into the synthetic unit at 60 samples/s (PMU noise, seed 2).

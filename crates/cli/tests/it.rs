@@ -1,0 +1,5 @@
+//! The integration tests of `itaipu-calib-cli`, one binary: each file beside this one is a
+//! module.
+
+mod interrupt;
+mod table1;
