@@ -14,8 +14,9 @@ use super::cause::{extend_every_variant, Cause, CauseError, Context, Extension, 
 use super::error::{DiagnoseError, RefitError};
 use super::extension_fit::with_calibrated_set;
 use super::playback::Playback;
+use super::profile::{Label, RefitKind};
 use super::reference::Reference;
-use super::refit::{refit, Label, Refit, RefitEnv, RefitKind, RefitRecord};
+use super::refit::{refit, Refit, RefitEnv, RefitRecord};
 use super::report::{CandidateReport, EventEvidence};
 use super::split::{split, Split, SEGMENT_S};
 

@@ -11,7 +11,8 @@ use super::cause::Extension;
 use super::error::RefitError;
 use super::gain::binds;
 use super::options::DiagnoseOptions;
-use super::refit::{refit, Label, Refit, RefitEnv, RefitKind};
+use super::profile::{Label, RefitKind};
+use super::refit::{refit, Refit, RefitEnv};
 
 /// The extension's re-fit. It starts from the calibrated values (the extension may need the
 /// interacting parameters back where the calibration found them), or for a limit or a skew

@@ -11,7 +11,8 @@ use super::cause::Extension;
 use super::extension_fit::{baseline_from, fit_extension};
 use super::gain::held_floor_met;
 use super::options::DiagnoseOptions;
-use super::refit::{refit, Label, Refit, RefitEnv, RefitKind};
+use super::profile::{Label, RefitKind};
+use super::refit::{refit, Refit, RefitEnv};
 use super::split::{SEGMENT_OVERFIT, SEGMENT_S};
 
 /// The second held-out test's outcome: the baseline's and the extension's χ² on the held-out

@@ -93,29 +93,33 @@
 //!
 //! # Layout
 //!
-//! Each file holds one step or one idea, and looks only down the list:
+//! Each file holds one step or one idea, and names only files above it in this list
+//! (`python3 tools/rust_structure.py floors crates/calib/src diagnose/` prints the floors):
 //!
-//! - `options`, `error`, `report`: the options and their defaults, the errors, what is reported
-//!   (the verdict's [`VerdictCause`] among it);
-//! - `context`, `not_applicable`, `cause`, `cause_kit`: what a cause is ([`catalog::Cause`],
-//!   its [`catalog::Extension`], the [`NotApplicable`] reasons it may not be scored), what it
-//!   reads of the unit and the events, and what it builds its extension with; `causes/` one
-//!   file per built-in cause, `catalog` their registry; `user_cause` the causes read from
-//!   files, `look_alike` the bundled ones outside the catalog;
-//! - `playback`, `split`, `windows`, `noise`: what is played back and compared, the fitted and
-//!   held-out samples, the per-event evidence, the noise floors and the surrogate records;
-//! - `refit`: the re-fit every reference, baseline and extension is; `baseline_cache` the
-//!   baselines kept by [`BaselineKey`](baseline_cache); `reference` the nuisance re-fit, its
-//!   evidence and the causes' context;
+//! - `error`, `report`, `context`: the errors, what is reported (the verdict's
+//!   [`VerdictCause`] among it), what the operating point and the playback tell the causes;
+//! - `not_applicable`, `cause`, `cause_kit`, `causes/`, `catalog`, `cause_file`, `user_cause`,
+//!   `look_alike`: what a cause is ([`catalog::Cause`], its [`catalog::Extension`], the
+//!   [`NotApplicable`] reasons it may not be scored) and what it builds its extension with;
+//!   one file per built-in cause and their registry; the causes read from files and the
+//!   bundled ones outside the catalog;
+//! - `playback`, `split`, `windows`, `noise`, `profile`, `calibrated`: what is played back and
+//!   compared, the fitted and held-out samples, the per-event evidence, the noise floors and
+//!   the surrogate records, where the time goes, the calibrated set every re-fit frees again;
+//! - `options`: the options and their defaults;
+//! - `refit`, `baseline_cache`, `reference`: the re-fit every reference, baseline and extension
+//!   is, the baselines kept by their `BaselineKey`, the nuisance re-fit with its evidence and
+//!   the causes' context;
 //! - `gain`, `extension_fit`, `held_out`: the statistics a gain is judged by, the extension's
 //!   re-fit from its starts, the tests on samples a re-fit did not fit;
 //! - `candidates`, `steps`: the batch of candidates and the typed steps that score one
 //!   (baseline, extension, held-out tests, comparison, judgement);
-//! - `ranking`, `verdict`, `statements`: how candidates compare, the grade, the verdict and
+//! - `ranking`, `statements`, `verdict`: how candidates compare, the grade, the verdict and
 //!   its statement;
 //! - `run`: [`diagnose`], the steps in order; `trial` the synthetic self-test.
 
 mod baseline_cache;
+mod calibrated;
 mod candidates;
 pub mod catalog;
 mod cause;
@@ -132,6 +136,7 @@ mod noise;
 mod not_applicable;
 mod options;
 pub mod playback;
+mod profile;
 mod ranking;
 mod reference;
 mod refit;
@@ -145,6 +150,7 @@ pub mod user_cause;
 mod verdict;
 mod windows;
 
+pub use calibrated::{calibrated_set, merge_calibrated_set, refit_bounds, RefitRequest};
 pub use error::DiagnoseError;
 pub use not_applicable::NotApplicable;
 pub use options::{
@@ -153,7 +159,6 @@ pub use options::{
 };
 pub use playback::Playback;
 pub use reference::context;
-pub use refit::{calibrated_set, merge_calibrated_set, refit_bounds, RefitRequest};
 pub use report::{
     profile_summary, CandidateParam, CandidateReport, DiagnoseResult, Diagnosis, Distortion,
     EventEvidence, Gains, Grade, NoiseModel, ProfileRow, Verdict, VerdictCause, NO_CAUSE_VERDICTS,

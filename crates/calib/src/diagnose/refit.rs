@@ -3,7 +3,7 @@
 //! its χ² on the fitted and held-out samples; the standard errors of the named cause; the
 //! `refit` bounds of calibrated parameters freed again.
 
-use crate::bounds::{clamp_into, datasheet_prior, BoundError, FreeBound, PriorSource};
+use crate::bounds::{FreeBound, PriorSource};
 use crate::evidence;
 use crate::fit::{search, FitOptions, Progress};
 use crate::problem::{
@@ -15,9 +15,9 @@ use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::unit::{ParamRef, Unit};
 
-use super::error::{DiagnoseError, RefitError};
+use super::error::RefitError;
 use super::options::DiagnoseOptions;
-use super::report::ProfileRow;
+use super::profile::{Label, Profile};
 use super::split::Split;
 
 /// A candidate's re-fit with the bounds and ties it was re-fitted over (for its standard errors).
@@ -183,94 +183,6 @@ pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)], sim: &SimOpt
     }
 }
 
-/// Where a diagnosis' time goes ([`Diagnosis::profile`]): wall time, simulations and re-fits per
-/// kind of re-fit ([`refit_kind`]) and phase, summed over the run (re-fits of one cause run one
-/// after another; the swarm's and the local method's simulations run on every thread).
-#[derive(Default)]
-pub(super) struct Profile(std::sync::Mutex<Vec<ProfileRow>>);
-
-impl Profile {
-    /// Adds `wall_s` seconds, `simulations` and `refits` to the row (`kind`, `phase`).
-    pub(super) fn add(
-        &self,
-        kind: &str,
-        phase: &str,
-        wall_s: f64,
-        simulations: usize,
-        refits: usize,
-    ) {
-        let mut rows = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        match rows.iter_mut().find(|r| r.kind == kind && r.phase == phase) {
-            Some(r) => {
-                r.wall_s += wall_s;
-                r.simulations += simulations;
-                r.refits += refits;
-            }
-            None => rows.push(ProfileRow {
-                kind: kind.to_string(),
-                phase: phase.to_string(),
-                wall_s,
-                simulations,
-                refits,
-            }),
-        }
-    }
-
-    /// The rows, in the order they first appeared.
-    pub(super) fn rows(&self) -> Vec<ProfileRow> {
-        self.0.lock().unwrap_or_else(|e| e.into_inner()).clone()
-    }
-}
-
-/// The kind of a re-fit, what the profile counts it as: the reference's nuisance re-fit, a
-/// cause's baseline, its extension (every start and structure), the baseline again from the
-/// extension's values, the second held-out test's segments, or the surrogate (noise-only)
-/// re-fits.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum RefitKind {
-    Reference,
-    Baseline,
-    Extension,
-    BaselineAgain,
-    Segments,
-    Surrogate,
-}
-
-impl RefitKind {
-    /// The profile's name of the kind.
-    pub(super) fn name(self) -> &'static str {
-        match self {
-            Self::Reference => "reference",
-            Self::Baseline => "baselines",
-            Self::Extension => "extensions",
-            Self::BaselineAgain => "baseline again",
-            Self::Segments => "segments test",
-            Self::Surrogate => "surrogate (noise-only) re-fits",
-        }
-    }
-}
-
-/// A re-fit's kind and its name in progress messages (`"saturation baseline"`).
-#[derive(Debug, Clone)]
-pub(super) struct Label {
-    pub(super) kind: RefitKind,
-    pub(super) text: String,
-}
-
-impl Label {
-    pub(super) fn new(kind: RefitKind, text: impl Into<String>) -> Self {
-        Self {
-            kind,
-            text: text.into(),
-        }
-    }
-
-    /// The same kind of re-fit, its name followed by `more` (another start of the same re-fit).
-    pub(super) fn then(&self, more: &str) -> Self {
-        Self::new(self.kind, format!("{} {more}", self.text))
-    }
-}
-
 /// What every re-fit of a diagnosis shares: the samples it fits and judges (the record's split,
 /// or its surrogate's), the noise weights, the options and where progress goes.
 #[derive(Clone, Copy)]
@@ -417,7 +329,7 @@ fn search_options(opts: &DiagnoseOptions, search_sim: &SimOptions) -> FitOptions
 /// One re-fit's phases, with where their time goes ([`Profile`]).
 struct RefitRun<'r> {
     env: &'r RefitEnv<'r>,
-    /// The profile's name of the re-fit's kind ([`RefitKind::name`]).
+    /// The profile's name of the re-fit's kind ([`super::profile::RefitKind::name`]).
     kind: &'static str,
     /// The re-fit's name in progress messages.
     label: &'r str,
@@ -717,128 +629,12 @@ pub(super) fn tie_refs(
 /// sample and the fitted χ² is the negative log-posterior (times 2).
 pub(super) const PRIOR_WEIGHT: f64 = 1.0;
 
-/// The whole calibrated set of a fit as [`DiagnoseOptions::refit`] bounds: every parameter the
-/// spec's `stages` free, within the spec's bounds, starting at its calibrated value in
-/// `calibrated`, with the calibration's prior around its value in `datasheet` (the unit before
-/// the fit). Re-fitting every extension and its baseline over this set with the same prior is
-/// what lets the diagnosis see an effect the calibration absorbed by bending right values.
-pub fn calibrated_set(
-    spec: &crate::spec::CalibSpec,
-    stages: &[String],
-    datasheet: &Unit,
-    calibrated: &Unit,
-) -> Vec<FreeBound> {
-    let mut out: Vec<FreeBound> = vec![];
-    for st in spec.stages.iter().filter(|s| stages.contains(&s.name)) {
-        for f in &st.free {
-            let Ok(r) = calibrated.param(&f.param) else {
-                continue;
-            };
-            let param = calibrated.param_path(r);
-            if out.iter().any(|b| b.param == param) {
-                continue;
-            }
-            let spread = f.spread.unwrap_or(spec.prior);
-            out.push(FreeBound {
-                prior: datasheet_prior(datasheet, &param, spread),
-                param,
-                min: f.min,
-                max: f.max,
-                // A spec built in code may hold an upside-down bound (a parsed one cannot):
-                // kept as it is, `diagnose` refuses it by name (`check_refit`).
-                start: Some(clamp_into(calibrated.get(r), f.min, f.max)),
-                spread: None,
-                scan: 0,
-                polish_only: true,
-            });
-        }
-    }
-    out
-}
-
-/// Adds a fit's calibrated set to the re-fit bounds: each parameter the request did not name
-/// already, and that the unit has.
-pub fn merge_calibrated_set(refit: &mut Vec<FreeBound>, set: &[FreeBound], unit: &Unit) {
-    for b in set {
-        if !refit.iter().any(|r| r.param == b.param) && unit.param(&b.param).is_ok() {
-            refit.push(b.clone());
-        }
-    }
-}
-
-/// A calibrated parameter to free again in every re-fit: its path (`machine.h`) and optional
-/// `(min, max)` bounds (default: the model's declared range).
-pub type RefitRequest = (String, Option<(f64, f64)>);
-
-/// The [`DiagnoseOptions::refit`] bounds for calibrated parameters of `unit` named by path
-/// (`machine.h`), each within the given `(min, max)` or, without, the model's declared range
-/// widened to hold the current value. Errors name the parameter: unknown, bounds upside down
-/// or empty, NaN.
-pub fn refit_bounds(
-    unit: &Unit,
-    requested: &[RefitRequest],
-) -> Result<Vec<FreeBound>, DiagnoseError> {
-    let mut out: Vec<FreeBound> = vec![];
-    for (path, range) in requested {
-        let b = FreeBound::requested(unit, path, *range).map_err(bound_error)?;
-        if !out.iter().any(|o| o.param == b.param) {
-            out.push(FreeBound {
-                polish_only: true,
-                ..b
-            });
-        }
-    }
-    Ok(out)
-}
-
-pub(super) fn refit_error(path: &str, why: impl std::fmt::Display) -> DiagnoseError {
-    DiagnoseError::Setup(format!("refit parameter {path}: {why}"))
-}
-
-/// A refit bound that does not resolve, as a setup error naming the parameter.
-fn bound_error(e: BoundError) -> DiagnoseError {
-    refit_error(&e.param, &e.problem)
-}
-
-/// Checks [`DiagnoseOptions::refit`]: every parameter exists in `unit` and its bounds are
-/// finite and not upside down, empty or NaN ([`FreeBound::check`]).
-pub(super) fn check_refit(unit: &Unit, refit: &[FreeBound]) -> Result<(), DiagnoseError> {
-    for b in refit {
-        unit.param(&b.param).map_err(|e| refit_error(&b.param, e))?;
-        b.check().map_err(bound_error)?;
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::profile::RefitKind;
     use crate::diagnose::trial::{scenario, truth_and_event};
     use crate::fit::{fitness, Silent};
-
-    /// Another start of a re-fit is counted as the same kind, whatever its name says: an
-    /// extension polished "from the baseline" is an extension, not a baseline.
-    #[test]
-    fn a_further_start_keeps_its_refits_kind() {
-        let ext = Label::new(RefitKind::Extension, "saturation");
-        let polish = ext.then("from the baseline");
-        assert_eq!(polish.kind, RefitKind::Extension);
-        assert_eq!(polish.text, "saturation from the baseline");
-        let seg = Label::new(RefitKind::Segments, "oel on segments").then("from the baseline");
-        assert_eq!(seg.kind.name(), "segments test");
-        let kinds = [
-            RefitKind::Reference,
-            RefitKind::Baseline,
-            RefitKind::Extension,
-            RefitKind::BaselineAgain,
-            RefitKind::Segments,
-            RefitKind::Surrogate,
-        ];
-        let mut names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
-        names.sort();
-        names.dedup();
-        assert_eq!(names.len(), kinds.len(), "two kinds share a profile name");
-    }
 
     /// A re-fit's RMS comes from its own simulation over the fitted and held-out blocks: it
     /// equals the RMS of [`fitness`] over every sample of the event (a separate simulation), and

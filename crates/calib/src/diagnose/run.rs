@@ -11,6 +11,7 @@ use itaipu_dynamics::unit::Unit;
 use crate::fit::Progress;
 use crate::spec::Compare;
 
+use super::calibrated::check_refit;
 use super::candidates::{Candidates, RecordedInput};
 use super::catalog::CAUSES;
 use super::cause::Cause;
@@ -18,8 +19,9 @@ use super::error::DiagnoseError;
 use super::look_alike;
 use super::options::DiagnoseOptions;
 use super::playback::{signal_name, Playback};
+use super::profile::Profile;
 use super::reference::{self, Reference};
-use super::refit::{check_refit, Profile, RefitEnv, RefitRecord};
+use super::refit::{RefitEnv, RefitRecord};
 use super::report::{CandidateReport, DiagnoseResult, Diagnosis, NoiseModel};
 use super::split::{split, Split, SEGMENT_S};
 use super::user_cause::{self, UserCause};

@@ -29,7 +29,8 @@ use super::gain::{distortion, explains_too_little, relative, GainTest, BINDING_C
 use super::held_out::{noise_fitting_gain, segments_test, NoiseFitting, SegmentsTest};
 use super::options::DiagnoseOptions;
 use super::playback::signal_name;
-use super::refit::{resolve, Label, Refit, RefitEnv, RefitKind, Scores};
+use super::profile::{Label, RefitKind};
+use super::refit::{resolve, Refit, RefitEnv, Scores};
 use super::report::{fmt_num, CandidateParam, CandidateReport, Gains};
 
 /// Step 3's result: the structure kept, its re-fit, the bounds it re-fitted over and those

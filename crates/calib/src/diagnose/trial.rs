@@ -13,13 +13,13 @@ use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
 use itaipu_dynamics::unit::Unit;
 
+use super::calibrated::{calibrated_set, merge_calibrated_set};
 use super::catalog;
 use super::cause::HideError;
 pub use super::cause::Tolerance;
 use super::error::DiagnoseError;
 use super::options::DiagnoseOptions;
 use super::reference::context;
-use super::refit::{calibrated_set, merge_calibrated_set};
 use super::report::Diagnosis;
 use super::run::diagnose;
 use crate::fit::{fit, quick_options, FitError, Silent};
