@@ -164,7 +164,7 @@ fn largest_change(a: &Traces, b: &Traces, signal: &str) -> f64 {
 fn label(v: &itaipu_calib::diagnose::Verdict) -> String {
     match v.competing.first() {
         Some((c, _)) if v.cause == "unexplained" => format!("unexplained~{c}"),
-        _ => v.cause.clone(),
+        _ => v.cause.to_string(),
     }
 }
 
@@ -242,7 +242,7 @@ fn main() {
             }
         };
         keep("", &d.report);
-        let catalog_named = catalog::find(&d.report.verdict.cause).is_some();
+        let catalog_named = catalog::find(d.report.verdict.cause.as_str()).is_some();
         let verdict = label(&d.report.verdict);
         wrong += usize::from(catalog_named);
         // The same calibrated unit, diagnosed with the cause file as well.

@@ -246,7 +246,11 @@ fn main() {
                 &calibrated,
                 j_fit,
                 fit_s,
-                Some((&d.report.verdict.cause, d.extended_unit.as_ref(), *secs)),
+                Some((
+                    d.report.verdict.cause.as_str(),
+                    d.extended_unit.as_ref(),
+                    *secs,
+                )),
             ),
             Some((Err(e), secs)) => {
                 let msg = format!("error: {e}");

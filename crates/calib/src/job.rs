@@ -724,15 +724,9 @@ pub fn prepare_diagnose(
     Ok((opts, warnings))
 }
 
-/// Adds a fit's calibrated set to the re-fit bounds: each parameter the request did not name
-/// already, and that the unit has.
-pub fn merge_calibrated_set(refit: &mut Vec<FreeBound>, set: &[FreeBound], unit: &Unit) {
-    for b in set {
-        if !refit.iter().any(|r| r.param == b.param) && unit.param(&b.param).is_ok() {
-            refit.push(b.clone());
-        }
-    }
-}
+/// Adds a fit's calibrated set to the re-fit bounds (defined by the diagnosis, which re-frees
+/// them).
+pub use crate::diagnose::merge_calibrated_set;
 
 /// Runs a diagnosis ([`diagnose::diagnose`]) with options and warnings from
 /// [`prepare_diagnose`].

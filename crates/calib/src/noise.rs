@@ -119,7 +119,7 @@ pub fn noise_floor(event: &Event, simulated: &[f64], measured: &[f64]) -> NoiseF
 }
 
 /// The weights of `channels = "recorded"` ([`crate::spec::Channels::Recorded`]) for the fitted
-/// `events`: each field channel ([`crate::diagnose::playback::FIELD_CHANNELS`]) that every event
+/// `events`: each field channel ([`itaipu_dynamics::event::FIELD_CHANNELS`]) that every event
 /// records (the `held_out` ones too: a held-out event is compared on the same channels), with `w_c = σ_PQ²/σ_c²` against P and Q at weight 1. Each σ² is the mean over the events of
 /// the squared difference-based floor ([`crate::evidence::noise_floor`]) of the measured
 /// channel over the event's init window (the measurement alone: the weights are set before any
@@ -162,7 +162,7 @@ pub fn field_weights(
         .map(|e| 0.5 * (floor(e, Channel::P).powi(2) + floor(e, Channel::Q).powi(2)))
         .sum::<f64>()
         / n;
-    crate::diagnose::playback::field_recorded_by_all(events.iter().chain(held_out).copied())
+    itaipu_dynamics::event::field_recorded_by_all(events.iter().chain(held_out).copied())
         .into_iter()
         .filter_map(|c| {
             let s2 = mean_var(c);

@@ -294,10 +294,10 @@ pub struct SearchDefaults {
 
 /// A diagnosis' re-fits: each candidate's swarm and local method, per re-fit.
 pub const DIAGNOSE_SEARCH: SearchDefaults = SearchDefaults {
-    seed: 1,
-    particles: 16,
-    pso_iterations: 20,
-    local_iterations: 15,
+    seed: crate::diagnose::DEFAULT_SEED,
+    particles: crate::diagnose::DEFAULT_PARTICLES,
+    pso_iterations: crate::diagnose::DEFAULT_PSO_ITERATIONS,
+    local_iterations: crate::diagnose::DEFAULT_LOCAL_ITERATIONS,
 };
 
 /// A fit's, per stage, where the calibration spec does not set them (`[calibration] seed`,

@@ -461,7 +461,10 @@ fn the_whole_catalog_runs_on_units_with_any_exciter() {
                     applied.push(id);
                 }
                 Err(catalog::CauseError::NotApplicable(why)) => {
-                    assert!(!why.trim().is_empty(), "{model} {id}: no reason given");
+                    assert!(
+                        !why.to_string().trim().is_empty(),
+                        "{model} {id}: no reason given"
+                    );
                     println!("{model} {id}: not applicable: {why}");
                 }
                 Err(e) => panic!("{model} {id}: {e}"),

@@ -139,3 +139,53 @@ fn rapid_and_calibrated_fitness_in_every_mode() {
     assert!(rapid_fitness(&ours) < rapid_fitness(&rapid));
     assert!(close(ours.samples as f64, 3752.0));
 }
+
+/// The bundled effects outside the catalog that act through a part the Mostar unit does not
+/// have (its governor block holds the mechanical power constant and reads no speed; it has no
+/// stabiliser) are not applicable, and the candidates' notes of a closed-loop diagnosis say
+/// which part is missing, not the wiring error their extensions would raise.
+#[test]
+fn a_cause_acting_through_a_part_the_unit_lacks_is_not_applicable() {
+    use itaipu_calib::diagnose::user_cause::read_all;
+    use itaipu_calib::diagnose::{diagnose, DiagnoseOptions};
+    use itaipu_calib::fit::Silent;
+    let unit = read_unit(&mostar("calibrated.toml")).unwrap();
+    let ev = Event::from_toml_file(&mostar("event.toml")).unwrap();
+    let causes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/causes");
+    let ids = ["governor_speed_filter", "pss_lead_lag"];
+    let files: Vec<PathBuf> = ids
+        .iter()
+        .map(|id| causes.join(format!("{id}.toml")))
+        .collect();
+    let opts = DiagnoseOptions {
+        causes: ids.iter().map(|s| s.to_string()).collect(),
+        user_causes: read_all(&files).unwrap(),
+        mode: Some(PlaybackMode::ClosedLoop),
+        particles: 4,
+        pso_iterations: 2,
+        lbfgs_iterations: 2,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&unit, &[ev], &[], &opts, &Silent).unwrap();
+    let note = |id: &str| {
+        let c = d.report.candidates.iter().find(|c| c.cause == id).unwrap();
+        assert!(!c.applicable, "{id}: {}", c.note);
+        c.note.clone()
+    };
+    let gov = note("governor_speed_filter");
+    assert!(
+        gov.starts_with("not applicable: the unit has no governor that reads 'speed'")
+            && gov.contains("constant_pm"),
+        "{gov}"
+    );
+    let pss = note("pss_lead_lag");
+    assert!(
+        pss.starts_with("not applicable: the unit has no stabiliser (PSS)"),
+        "{pss}"
+    );
+    assert!(
+        !d.report.verdict.names_a_cause(),
+        "{}",
+        d.report.verdict.statement
+    );
+}

@@ -571,7 +571,7 @@ fn run_case(k: usize) -> (Outcome, Case) {
             }
         }
         let r = diagnose(given, &events, &held_out, &opts, &Silent).map_err(|e| e.to_string())?;
-        verdict = r.report.verdict.cause.clone();
+        verdict = r.report.verdict.cause.to_string();
         for c in &r.report.candidates {
             verdict += &format!(
                 "\n  {}: applicable {}, {} simulations, {} failed; {}; {}",

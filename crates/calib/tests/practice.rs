@@ -388,7 +388,7 @@ fn assert_named_with_its_key(
         d.extended_unit.as_ref().unwrap(),
         0.0,
         0.0,
-        Some((&report.verdict.cause, d.extended_unit.as_ref(), 0.0)),
+        Some((report.verdict.cause.as_str(), d.extended_unit.as_ref(), 0.0)),
     );
     let (what, truth, found, within) = scored.key.unwrap();
     assert!(within, "{case}: {what}: {found:?} for {truth}");

@@ -8,7 +8,14 @@ use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
 
-use super::*;
+use super::error::DiagnoseError;
+use super::playback::Playback;
+use super::windows::onset_s;
+
+/// A surrogate record that cannot be made, as a setup error.
+fn setup(why: impl std::fmt::Display) -> DiagnoseError {
+    DiagnoseError::Setup(why.to_string())
+}
 
 /// The samples of `y` (a series at the event's sample times) before the event's onset
 /// ([`onset_s`]: the event's own, or the end of the init window for ambient data).
@@ -27,7 +34,7 @@ fn pre_event(event: &Event, y: &[f64]) -> Vec<f64> {
 /// A surrogate of `event`: P and Q simulated by the reference (`traces`) on the measured input,
 /// plus fresh white noise at the record's own noise levels (difference-based floors of the
 /// pre-event P, Q, |V| and angle), the input channels getting theirs too.
-pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Event, String> {
+pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Event, DiagnoseError> {
     let r = &event.record;
     let pre = |y: &[f64]| {
         let v = pre_event(event, y);
@@ -44,8 +51,8 @@ pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Eve
         pre(&r.v_ang_rad),
     );
     let (p, q) = (
-        traces.get("p_pu").ok_or("no simulated P")?,
-        traces.get("q_pu").ok_or("no simulated Q")?,
+        traces.get("p_pu").ok_or_else(|| setup("no simulated P"))?,
+        traces.get("q_pu").ok_or_else(|| setup("no simulated Q"))?,
     );
     let mut rng = itaipu_dynamics::synthetic::Normal::new(seed ^ 0x005E_ED0F_5A11);
     let mut rec = r.clone();
@@ -63,12 +70,11 @@ pub(super) fn surrogate(event: &Event, traces: &Traces, seed: u64) -> Result<Eve
         Some(event.init),
         Some(event.fit),
     )
-    .map_err(|e| e.to_string())?;
+    .map_err(setup)?;
     // The event's onset, not one detected again on the redrawn noise: the same windows.
     s.onset = event.onset.clone();
     // Played back as the record is (its input smoothed alike).
-    s.set_input_lowpass(event.input_lowpass_hz)
-        .map_err(|e| e.to_string())?;
+    s.set_input_lowpass(event.input_lowpass_hz).map_err(setup)?;
     Ok(s)
 }
 
@@ -81,7 +87,7 @@ pub(super) fn surrogate_in_mode(
     pb: &Playback,
     outputs: &itaipu_dynamics::mode::ModeOutputs,
     seed: u64,
-) -> Result<Event, String> {
+) -> Result<Event, DiagnoseError> {
     let mut rng = itaipu_dynamics::synthetic::Normal::new(seed ^ 0x005E_ED0F_5A11);
     let mut s = event.clone();
     s.name = format!("{} (surrogate)", event.name);
@@ -97,7 +103,7 @@ pub(super) fn surrogate_in_mode(
             Some(
                 outputs
                     .channel(c)
-                    .ok_or_else(|| format!("no simulated {}", c.name()))?,
+                    .ok_or_else(|| setup(format!("no simulated {}", c.name())))?,
             )
         } else {
             None

@@ -14,37 +14,18 @@
 //! grid equivalent of `closed_loop`, the measured E_fd of `machine_from_efd`).
 
 use itaipu_dynamics::event::{Channel, Event};
-use itaipu_dynamics::mode::{
-    simulate_mode, simulate_mode_both, simulate_mode_traces, ModeOutputs, PlaybackMode,
-};
+use itaipu_dynamics::mode::{simulate_mode, simulate_mode_traces, ModeOutputs, PlaybackMode};
 use itaipu_dynamics::simulate::{PreparedEvent, Traces};
 
 use crate::fit::fitness;
 use crate::problem::accurate_integrator;
 use crate::spec::Compare;
 
-use super::DiagnoseError;
+use super::error::DiagnoseError;
 
-/// The field channels the phasor playback compares besides P and Q when every event records
-/// them (E_fd and X_ad I_fd from the excitation system's recorder). A calibration on P and Q
-/// alone may bend X_d and the exciter's gain so that the simulated field runs off the recorded
-/// one by many noise widths (measured on the practice records' default fits: E_fd 2-5 σ and
-/// X_ad I_fd 7-19 σ off on clean ones, 7 and 31 σ on q11, whose ceiling the bending absorbed);
-/// the recorded field is what shows a ceiling or a saturation that bending absorbed.
-pub const FIELD_CHANNELS: [Channel; 2] = [Channel::Efd, Channel::Ifd];
-
-/// The field channels ([`FIELD_CHANNELS`]) that every one of `events` records (none for no
-/// event): what the phasor playback, `channels = "recorded"` and the fit's warning compare.
-pub fn field_recorded_by_all<'a>(events: impl Iterator<Item = &'a Event> + Clone) -> Vec<Channel> {
-    let mut any = events.clone().peekable();
-    if any.peek().is_none() {
-        return vec![];
-    }
-    FIELD_CHANNELS
-        .into_iter()
-        .filter(|c| events.clone().all(|e| e.has(*c)))
-        .collect()
-}
+/// The field channels a phasor playback compares besides P and Q, and which of them every event
+/// records (declared with the events).
+pub use itaipu_dynamics::event::{field_recorded_by_all, FIELD_CHANNELS};
 
 /// The playback of a diagnosis and its compared channels (see the module documentation).
 #[derive(Debug, Clone, PartialEq)]
@@ -168,28 +149,6 @@ impl Playback {
 /// What every χ² of a diagnosis is computed with: the playback, the phasor playback's
 /// `(w_P, w_Q)` and a mode's [`Compare`] (`None` in the phasor playback).
 pub(super) type Scoring<'a> = (&'a Playback, (f64, f64), Option<&'a Compare>);
-
-impl Playback {
-    /// The evidence of `unit` on `event`, with the traces it comes from: the phasor playback's
-    /// [`super::event_evidence`] on [`fitness`]'s traces; in a mode, the compared channels'
-    /// residuals ([`super::windows::event_evidence_in_mode`]), with those channels, all from one
-    /// simulation ([`simulate_mode_both`]: what [`Self::traces`] and [`Self::outputs`] give).
-    pub(super) fn evidence(
-        &self,
-        unit: &itaipu_dynamics::unit::Unit,
-        event: &Event,
-    ) -> Result<(Traces, super::EventEvidence, Option<ModeOutputs>), DiagnoseError> {
-        if self.is_pq_phasor() {
-            let tr = self.traces(unit, event)?;
-            let ev = super::event_evidence(event, &tr);
-            return Ok((tr, ev, None));
-        }
-        let (tr, outs) = simulate_mode_both(unit, event, self.mode, &accurate_integrator())
-            .map_err(|error| DiagnoseError::engine(&event.name, error))?;
-        let ev = super::windows::event_evidence_in_mode(event, &outs, self);
-        Ok((tr, ev, Some(outs)))
-    }
-}
 
 /// The name of a channel's residual in the evidence (`P`, `Q`, `|V|`, `Efd`, `Ifd`): the names
 /// the catalog's signatures read.

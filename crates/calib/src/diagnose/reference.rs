@@ -7,7 +7,18 @@ use itaipu_dynamics::mode::ModeOutputs;
 use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
 
-use super::*;
+use super::cause::{nuisance, Context};
+use super::context::resonance_stands_out;
+use super::error::DiagnoseError;
+use super::noise::{surrogate, surrogate_in_mode};
+use super::options::DiagnoseOptions;
+use super::playback::{self, Playback};
+use super::profile::{Label, Profile, RefitKind};
+use super::refit::{refit, Refit, RefitEnv};
+use super::report::EventEvidence;
+use super::split::{split, Split};
+use super::windows::regime;
+use crate::bounds::FreeBound;
 
 /// The dominant oscillatory mode above 1 Hz in the P residuals (matrix pencil), if any.
 pub(super) fn mode_hint(ev: &[EventEvidence], rate_hz: f64) -> Option<f64> {
@@ -52,7 +63,7 @@ pub(super) fn context_from(traces: &Traces, event: &Event) -> Context {
 
 /// The reference of a diagnosis and what is read from it.
 pub(super) struct Reference {
-    /// The nuisance parameters re-fitted ([`catalog::nuisance`]).
+    /// The nuisance parameters re-fitted ([`nuisance`]).
     pub nuisance: Vec<FreeBound>,
     /// The re-fit: the reference unit.
     pub refit: Refit,
@@ -68,7 +79,8 @@ pub(super) struct Reference {
 }
 
 /// The unit with its set-point offsets (nuisance) re-fitted on the split `sp`, its traces and
-/// evidence on `events`, and the split of the surrogate events.
+/// evidence on `events`, and the surrogate records.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn reference(
     unit: &Unit,
     events: &[Event],
@@ -79,7 +91,7 @@ pub(super) fn reference(
     progress: &dyn Progress,
     profile: &Profile,
 ) -> Result<Reference, DiagnoseError> {
-    let nuisance = catalog::nuisance(unit);
+    let nuisance = nuisance(unit);
     let env = RefitEnv {
         sp,
         weights,
@@ -97,75 +109,15 @@ pub(super) fn reference(
     )
     .map_err(|msg| DiagnoseError::Simulation {
         event: events[0].name.clone(),
-        msg,
+        msg: msg.to_string(),
         error: None,
     })?;
     let t_evidence = std::time::Instant::now();
-    let mut before = vec![];
-    let mut evidence_before = vec![];
-    // In a playback mode, the compared channels of the same playbacks (for the surrogates).
-    let mut outputs_before = vec![];
-    for e in events {
-        let (tr, ev, outs) = pb.evidence(&reference.unit, e)?;
-        evidence_before.push(ev);
-        before.push((e.name.clone(), tr));
-        outputs_before.push(outs);
-    }
-    // Surrogate events: what the reference unit would give on these inputs, with measurement
-    // noise on P, Q and input noise on |V| and the angle drawn again at the levels the record
-    // shows. The reference is exact there, so a re-fit's gain on them is pure noise fitting.
-    // In a playback mode, the compared channels are the simulated ones and every imposed
-    // channel gets its noise drawn again.
-    let in_mode = |e: &Event, outs: Option<&ModeOutputs>, seed: u64| {
-        let played;
-        let outs = match outs {
-            Some(o) => o,
-            None => {
-                played = pb.outputs(&reference.unit, e)?;
-                &played
-            }
-        };
-        surrogate_in_mode(e, pb, outs, seed).map_err(DiagnoseError::Setup)
-    };
-    // The reference's playback of each held-out event (its traces, or in a playback mode its
-    // compared channels), once for every draw.
-    let mut held_played = vec![];
-    for e in held_out {
-        held_played.push(if pb.is_pq_phasor() {
-            let (_, tr) = fitness(&reference.unit, e, true)
-                .map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
-            (Some(tr), None)
-        } else {
-            (None, Some(pb.outputs(&reference.unit, e)?))
-        });
-    }
+    let played = Played::new(&reference.unit, events, held_out, pb)?;
     let mut sp_null = vec![];
     let mut surrogates = vec![];
     for draw in 0..opts.null_draws.max(1) {
-        // The first draw's seeds are the diagnosis's own (one draw: as before); each further
-        // draw shifts them by a large odd stride.
-        let shift = (draw as u64).wrapping_mul(1_000_003);
-        let mut surrogate_held = vec![];
-        for (k, (e, (tr, outs))) in held_out.iter().zip(&held_played).enumerate() {
-            let seed = opts.seed.wrapping_add(1000 + k as u64).wrapping_add(shift);
-            surrogate_held.push(match tr {
-                Some(tr) => surrogate(e, tr, seed).map_err(DiagnoseError::Setup)?,
-                None => in_mode(e, outs.as_ref(), seed)?,
-            });
-        }
-        let surrogate_events: Vec<Event> = events
-            .iter()
-            .zip(before.iter().zip(&outputs_before))
-            .enumerate()
-            .map(|(k, (e, ((_, tr), outs)))| {
-                let seed = opts.seed.wrapping_add(k as u64).wrapping_add(shift);
-                if pb.is_pq_phasor() {
-                    surrogate(e, tr, seed).map_err(DiagnoseError::Setup)
-                } else {
-                    in_mode(e, outs.as_ref(), seed)
-                }
-            })
-            .collect::<Result<_, _>>()?;
+        let (surrogate_events, surrogate_held) = played.surrogates(draw, opts.seed)?;
         sp_null.push(split(&surrogate_events, &surrogate_held, opts.block_s)?);
         surrogates.push((surrogate_events, surrogate_held));
     }
@@ -176,14 +128,128 @@ pub(super) fn reference(
         0,
         0,
     );
+    let Played {
+        before, evidence, ..
+    } = played;
     Ok(Reference {
         nuisance,
         refit: reference,
         before,
-        evidence: evidence_before,
+        evidence,
         sp_null,
         surrogates,
     })
+}
+
+/// The reference unit played back on the events and the held-out events: what its evidence
+/// and its surrogate records are read from.
+struct Played<'r> {
+    unit: &'r Unit,
+    pb: &'r Playback,
+    events: &'r [Event],
+    held_out: &'r [Event],
+    /// Per event: the reference's traces.
+    before: Vec<(String, Traces)>,
+    /// Per event: the reference's evidence.
+    evidence: Vec<EventEvidence>,
+    /// Per event, in a playback mode: the compared channels of the same playbacks.
+    outputs: Vec<Option<ModeOutputs>>,
+    /// Per held-out event: the reference's traces, or in a playback mode its compared channels.
+    held: Vec<(Option<Traces>, Option<ModeOutputs>)>,
+}
+
+impl<'r> Played<'r> {
+    fn new(
+        unit: &'r Unit,
+        events: &'r [Event],
+        held_out: &'r [Event],
+        pb: &'r Playback,
+    ) -> Result<Self, DiagnoseError> {
+        let (mut before, mut evidence, mut outputs) = (vec![], vec![], vec![]);
+        for e in events {
+            let (tr, ev, outs) = pb.evidence(unit, e)?;
+            evidence.push(ev);
+            before.push((e.name.clone(), tr));
+            outputs.push(outs);
+        }
+        let mut held = vec![];
+        for e in held_out {
+            held.push(if pb.is_pq_phasor() {
+                let (_, tr) = fitness(unit, e, true)
+                    .map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
+                (Some(tr), None)
+            } else {
+                (None, Some(pb.outputs(unit, e)?))
+            });
+        }
+        Ok(Self {
+            unit,
+            pb,
+            events,
+            held_out,
+            before,
+            evidence,
+            outputs,
+            held,
+        })
+    }
+
+    /// Surrogate events of draw `draw` (the events and the held-out events): what the reference
+    /// unit gives on these inputs, with measurement noise on P, Q and input noise on |V| and the
+    /// angle drawn again at the levels the record shows. The reference is exact there, so a
+    /// re-fit's gain on them is pure noise fitting. In a playback mode, the compared channels
+    /// are the simulated ones and every imposed channel gets its noise drawn again. The first
+    /// draw's seeds are the diagnosis's own (`seed`); each further draw shifts them by a large
+    /// odd stride.
+    fn surrogates(
+        &self,
+        draw: usize,
+        seed: u64,
+    ) -> Result<(Vec<Event>, Vec<Event>), DiagnoseError> {
+        let shift = (draw as u64).wrapping_mul(1_000_003);
+        let mut held = vec![];
+        for (k, (e, (tr, outs))) in self.held_out.iter().zip(&self.held).enumerate() {
+            let seed = seed.wrapping_add(1000 + k as u64).wrapping_add(shift);
+            held.push(match tr {
+                Some(tr) => surrogate(e, tr, seed)?,
+                None => self.in_mode(e, outs.as_ref(), seed)?,
+            });
+        }
+        let events: Vec<Event> = self
+            .events
+            .iter()
+            .zip(self.before.iter().zip(&self.outputs))
+            .enumerate()
+            .map(|(k, (e, ((_, tr), outs)))| {
+                let seed = seed.wrapping_add(k as u64).wrapping_add(shift);
+                if self.pb.is_pq_phasor() {
+                    surrogate(e, tr, seed)
+                } else {
+                    self.in_mode(e, outs.as_ref(), seed)
+                }
+            })
+            .collect::<Result<_, _>>()?;
+        Ok((events, held))
+    }
+
+    /// A playback mode's surrogate of `e` from the reference's compared channels `outs`
+    /// (played again when not kept).
+    fn in_mode(
+        &self,
+        e: &Event,
+        outs: Option<&ModeOutputs>,
+        seed: u64,
+    ) -> Result<Event, DiagnoseError> {
+        let played;
+        let outs = match outs {
+            Some(o) => o,
+            None => {
+                played = self.pb.outputs(self.unit, e)?;
+                &played
+            }
+        };
+        surrogate_in_mode(e, self.pb, outs, seed)
+    }
 }
 
 /// The catalog context of the reference on `events` (its traces `before` and evidence
@@ -209,7 +275,7 @@ pub(super) fn catalog_context(
     ctx.shaft_resonance = evidence_before
         .iter()
         .filter_map(|e| e.p_peak.clone())
-        .filter(catalog::resonance_stands_out)
+        .filter(resonance_stands_out)
         .min_by(|a, b| a.p_value.total_cmp(&b.p_value));
     let (dip, df) = regime(events);
     (ctx.deepest_dip, ctx.sustained_df_hz) = (Some(dip), Some(df));

@@ -3,7 +3,7 @@
 //! its χ² on the fitted and held-out samples; the standard errors of the named cause; the
 //! `refit` bounds of calibrated parameters freed again.
 
-use crate::bounds::{clamp_into, datasheet_prior, BoundError, PriorSource};
+use crate::bounds::{FreeBound, PriorSource};
 use crate::evidence;
 use crate::fit::{search, FitOptions, Progress};
 use crate::problem::{
@@ -15,15 +15,17 @@ use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::unit::{ParamRef, Unit};
 
-use super::*;
+use super::error::RefitError;
+use super::options::DiagnoseOptions;
+use super::profile::{Label, Profile};
+use super::split::Split;
 
 /// A candidate's re-fit with the bounds and ties it was re-fitted over (for its standard errors).
 pub(super) type RefitRecord = (Refit, Vec<FreeBound>, Vec<(String, String)>);
 
 /// Largest RK4 step of the re-fits' L-BFGS phase [s] (a calibration uses 2 ms). Every re-fit's
-/// χ² is taken with the accurate integrator, so the local phase only has to lead downhill; at
-/// 5 ms (still at most half the smallest time constant) the re-fits of the whole catalog on a
-/// clean 20 s dip end within 0.3 of the χ² they reach at 2 ms, in 40 % less time.
+/// χ² is taken with the accurate integrator, so the local phase only has to lead downhill, which
+/// a step of at most half the smallest time constant does (RK4's stability and accuracy there).
 pub(super) const REFIT_RK4_STEP_MAX_S: f64 = 5e-3;
 
 /// Largest grid product scanned jointly (simulations) before falling back to one-at-a-time
@@ -31,19 +33,8 @@ pub(super) const REFIT_RK4_STEP_MAX_S: f64 = 5e-3;
 /// datasheet value, 216).
 pub(super) const MAX_JOINT_SCAN: usize = 240;
 
-/// Identifies a set of free parameters (for re-using a baseline re-fit).
-pub(super) fn bounds_key(bounds: &[FreeBound]) -> String {
-    // Everything of a bound that changes its re-fit (its range, start, scan, prior and polish
-    // role): two causes share a cached baseline only when they would have searched it alike,
-    // so that a cause's numbers do not depend on which cause was tried first.
-    bounds
-        .iter()
-        .map(|b| format!("{b:?}"))
-        .collect::<Vec<_>>()
-        .join(";")
-}
-
 /// Outcome of one re-fit.
+#[derive(Clone)]
 pub(super) struct Refit {
     pub(super) values: Vec<f64>,
     pub(super) unit: Unit,
@@ -93,7 +84,7 @@ impl Refit {
 
     /// The better (lower fitted χ²) of this re-fit and `other` when `other` ran, with both
     /// re-fits' simulations counted; this one when `other` failed.
-    pub(super) fn best_of(mut self, other: Result<Refit, String>) -> Refit {
+    pub(super) fn best_of(mut self, other: Result<Refit, RefitError>) -> Refit {
         match other {
             Ok(o) if o.chi2_fit < self.chi2_fit => self.replaced_by(o),
             Ok(o) => {
@@ -131,10 +122,11 @@ pub(super) fn variance_inflation(r: &[f64], channels: usize) -> f64 {
     (1.0 + rho) / (1.0 - rho)
 }
 
-/// `bounds` resolved in `unit` with their own priors ([`crate::bounds::resolve`]); the error is
-/// the problem's text (a re-fit's note).
-pub(super) fn resolve(unit: &Unit, bounds: &[FreeBound]) -> Result<Vec<FreeParam>, String> {
-    crate::bounds::resolve(unit, bounds, PriorSource::Given).map_err(|e| e.problem.to_string())
+/// `bounds` resolved in `unit` with their own priors ([`crate::bounds::resolve`]); the error
+/// holds the problem's text (a re-fit's note).
+pub(super) fn resolve(unit: &Unit, bounds: &[FreeBound]) -> Result<Vec<FreeParam>, RefitError> {
+    crate::bounds::resolve(unit, bounds, PriorSource::Given)
+        .map_err(|e| RefitError::Setup(e.problem.to_string()))
 }
 
 /// Grid scan of the parameters `scans` (`(index in problem.free, points)`) from the problem's
@@ -188,94 +180,6 @@ pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)], sim: &SimOpt
                 problem.free[*jj].start = points[i][*jj];
             }
         }
-    }
-}
-
-/// Where a diagnosis' time goes ([`Diagnosis::profile`]): wall time, simulations and re-fits per
-/// kind of re-fit ([`refit_kind`]) and phase, summed over the run (re-fits of one cause run one
-/// after another; the swarm's and the local method's simulations run on every thread).
-#[derive(Default)]
-pub(super) struct Profile(std::sync::Mutex<Vec<ProfileRow>>);
-
-impl Profile {
-    /// Adds `wall_s` seconds, `simulations` and `refits` to the row (`kind`, `phase`).
-    pub(super) fn add(
-        &self,
-        kind: &str,
-        phase: &str,
-        wall_s: f64,
-        simulations: usize,
-        refits: usize,
-    ) {
-        let mut rows = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        match rows.iter_mut().find(|r| r.kind == kind && r.phase == phase) {
-            Some(r) => {
-                r.wall_s += wall_s;
-                r.simulations += simulations;
-                r.refits += refits;
-            }
-            None => rows.push(ProfileRow {
-                kind: kind.to_string(),
-                phase: phase.to_string(),
-                wall_s,
-                simulations,
-                refits,
-            }),
-        }
-    }
-
-    /// The rows, in the order they first appeared.
-    pub(super) fn rows(&self) -> Vec<ProfileRow> {
-        self.0.lock().unwrap_or_else(|e| e.into_inner()).clone()
-    }
-}
-
-/// The kind of a re-fit, what the profile counts it as: the reference's nuisance re-fit, a
-/// cause's baseline, its extension (every start and structure), the baseline again from the
-/// extension's values, the second held-out test's segments, or the surrogate (noise-only)
-/// re-fits.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum RefitKind {
-    Reference,
-    Baseline,
-    Extension,
-    BaselineAgain,
-    Segments,
-    Surrogate,
-}
-
-impl RefitKind {
-    /// The profile's name of the kind.
-    pub(super) fn name(self) -> &'static str {
-        match self {
-            Self::Reference => "reference",
-            Self::Baseline => "baselines",
-            Self::Extension => "extensions",
-            Self::BaselineAgain => "baseline again",
-            Self::Segments => "segments test",
-            Self::Surrogate => "surrogate (noise-only) re-fits",
-        }
-    }
-}
-
-/// A re-fit's kind and its name in progress messages (`"saturation baseline"`).
-#[derive(Debug, Clone)]
-pub(super) struct Label {
-    pub(super) kind: RefitKind,
-    pub(super) text: String,
-}
-
-impl Label {
-    pub(super) fn new(kind: RefitKind, text: impl Into<String>) -> Self {
-        Self {
-            kind,
-            text: text.into(),
-        }
-    }
-
-    /// The same kind of re-fit, its name followed by `more` (another start of the same re-fit).
-    pub(super) fn then(&self, more: &str) -> Self {
-        Self::new(self.kind, format!("{} {more}", self.text))
     }
 }
 
@@ -334,60 +238,74 @@ fn problem_for(
     p
 }
 
+/// One re-fit of `unit` over `bounds` (with `ties`) on `env`'s samples: the global search
+/// ([`RefitRun::search`]: scan, swarm, scan again, the local method) over the parameters that
+/// are not polish-only, then the local method over every parameter when some are
+/// ([`RefitRun::polish`]), then the χ² of the fitted and held-out samples with the accurate
+/// integrator ([`RefitRun::score`]).
 pub(super) fn refit(
     env: &RefitEnv,
     unit: &Unit,
     bounds: &[FreeBound],
     ties: &[(String, String)],
     label: &Label,
-) -> Result<Refit, String> {
-    let RefitEnv {
-        sp,
-        weights,
-        compare,
-        opts,
-        progress,
-        profile,
-    } = *env;
-    let kind = label.kind.name();
-    let label = label.text.as_str();
-    let t_refit = std::time::Instant::now();
-    let record = |phase: &str, wall_s: f64, simulations: usize| {
-        if let Some(p) = profile {
-            p.add(kind, phase, wall_s, simulations, 0);
-        }
-    };
-    // The search phases' own times, and the grid scans'.
-    let record_phases = |phases: &[crate::fit::PhaseReport]| {
-        for ph in phases {
-            let name = if ph.phase == "pso" { "swarm" } else { "local" };
-            record(name, ph.wall_s, ph.simulations);
-        }
-    };
+) -> Result<Refit, RefitError> {
+    let opts = env.opts;
     // The searches' playbacks ([`DiagnoseOptions::refit_over_samples`]).
     let search_sim = if opts.refit_over_samples {
         refit_search_integrator()
     } else {
         search_integrator()
     };
-    let timed_scan = |problem: &mut Problem, scans: &[(usize, usize)]| {
-        if scans.is_empty() {
-            return;
-        }
-        let (t0, s0) = (std::time::Instant::now(), problem.simulations());
-        scan(problem, scans, &search_sim);
-        record(
-            "grid scan",
-            t0.elapsed().as_secs_f64(),
-            problem.simulations() - s0,
-        );
+    let run = RefitRun {
+        env,
+        kind: label.kind.name(),
+        label: label.text.as_str(),
+        fit_opts: search_options(opts, &search_sim),
+        search_sim,
     };
+    let t_refit = std::time::Instant::now();
     if opts.cancelled() {
-        return Err("interrupted".into());
+        return Err(RefitError::Interrupted);
     }
     let free = resolve(unit, bounds)?;
     let tie_refs = tie_refs(unit, ties)?;
-    let fit_opts = FitOptions {
+    let mut x: Vec<f64> = free.iter().map(|f| f.start).collect();
+    let (mut simulations, mut failures) = (0, 0);
+    let global: Vec<usize> = (0..bounds.len())
+        .filter(|&j| !bounds[j].polish_only)
+        .collect();
+    if !global.is_empty() {
+        let (best, sims, fails) = run.search(unit, &free, bounds, &global, &tie_refs);
+        for (jj, &j) in global.iter().enumerate() {
+            x[j] = best[jj];
+        }
+        (simulations, failures) = (simulations + sims, failures + fails);
+    }
+    if global.len() < bounds.len() {
+        let (best, sims, fails) = run.polish(unit, &free, &x, &tie_refs);
+        x = best;
+        (simulations, failures) = (simulations + sims, failures + fails);
+    }
+    if opts.cancelled() {
+        return Err(RefitError::Interrupted);
+    }
+    let refit = run.score(unit, free, x, &tie_refs, simulations, failures)?;
+    if let Some(p) = env.profile {
+        p.add(
+            run.kind,
+            "whole re-fit",
+            t_refit.elapsed().as_secs_f64(),
+            0,
+            1,
+        );
+    }
+    Ok(refit)
+}
+
+/// The search settings of every re-fit: the diagnosis's swarm and local method, one pass.
+fn search_options(opts: &DiagnoseOptions, search_sim: &SimOptions) -> FitOptions {
+    FitOptions {
         stages: vec![],
         strategy: Strategy::Sequential,
         seed: opts.seed,
@@ -405,153 +323,212 @@ pub(super) fn refit(
         // No joint pass: a re-fit is one pass (`polish` off).
         joint_pso_iterations: None,
         swarm_integrator: search_sim.clone(),
-    };
-    let mut x: Vec<f64> = free.iter().map(|f| f.start).collect();
-    let mut simulations = 0;
-    let mut failures = 0;
+    }
+}
 
-    // Phase 1: the global search (scan, swarm, L-BFGS) over the parameters that are not
-    // polish-only, the others held at their start.
-    let global: Vec<usize> = (0..bounds.len())
-        .filter(|&j| !bounds[j].polish_only)
-        .collect();
-    if !global.is_empty() {
+/// One re-fit's phases, with where their time goes ([`Profile`]).
+struct RefitRun<'r> {
+    env: &'r RefitEnv<'r>,
+    /// The profile's name of the re-fit's kind ([`super::profile::RefitKind::name`]).
+    kind: &'static str,
+    /// The re-fit's name in progress messages.
+    label: &'r str,
+    fit_opts: FitOptions,
+    search_sim: SimOptions,
+}
+
+impl RefitRun<'_> {
+    /// Adds a phase's time and simulations to the profile.
+    fn record(&self, phase: &str, wall_s: f64, simulations: usize) {
+        if let Some(p) = self.env.profile {
+            p.add(self.kind, phase, wall_s, simulations, 0);
+        }
+    }
+
+    /// The search phases' own times.
+    fn record_phases(&self, phases: &[crate::fit::PhaseReport]) {
+        for ph in phases {
+            let name = if ph.phase == "pso" { "swarm" } else { "local" };
+            self.record(name, ph.wall_s, ph.simulations);
+        }
+    }
+
+    /// The grid scan of `scans` ([`scan`]), timed.
+    fn timed_scan(&self, problem: &mut Problem, scans: &[(usize, usize)]) {
+        if scans.is_empty() {
+            return;
+        }
+        let (t0, s0) = (std::time::Instant::now(), problem.simulations());
+        scan(problem, scans, &self.search_sim);
+        self.record(
+            "grid scan",
+            t0.elapsed().as_secs_f64(),
+            problem.simulations() - s0,
+        );
+    }
+
+    /// The global search over the parameters `global` (indices in `free` and `bounds`), the
+    /// others held at
+    /// their start: scan (the parameters that ask for it), swarm, scan again from the swarm's
+    /// best (the interacting parameters it corrected move the valleys the scanned ones lie
+    /// in), the local method. Its best values, simulations and failures.
+    fn search(
+        &self,
+        unit: &Unit,
+        free: &[FreeParam],
+        bounds: &[FreeBound],
+        global: &[usize],
+        tie_refs: &[(ParamRef, ParamRef)],
+    ) -> (Vec<f64>, usize, usize) {
         let mut held_unit = unit.clone();
-        for f in &free {
+        for f in free {
             held_unit.set(f.r, f.start);
         }
-        let mut problem = env.problem(
+        let mut problem = self.env.problem(
             held_unit,
             global.iter().map(|&j| free[j].clone()).collect(),
-            sp.fit.clone(),
-            &tie_refs,
+            self.env.sp.fit.clone(),
+            tie_refs,
         );
-        problem.cancel = opts.cancel.clone();
-        // Scan (the parameters that ask for it), swarm, scan again from the swarm's best (the
-        // interacting parameters it corrected move the valleys the scanned ones lie in), L-BFGS.
+        problem.cancel = self.env.opts.cancel.clone();
         let scans: Vec<(usize, usize)> = global
             .iter()
             .enumerate()
             .filter(|(_, &j)| bounds[j].scan >= 2)
             .map(|(jj, &j)| (jj, bounds[j].scan))
             .collect();
-        timed_scan(&mut problem, &scans);
+        self.timed_scan(&mut problem, &scans);
         let swarm_only = FitOptions {
             lbfgs_iterations: 0,
-            ..fit_opts.clone()
+            ..self.fit_opts.clone()
         };
-        let (best, phases) = search(&problem, &swarm_only, label, progress, true, &[]);
-        record_phases(&phases);
+        let progress = self.env.progress;
+        let (best, phases) = search(&problem, &swarm_only, self.label, progress, true, &[]);
+        self.record_phases(&phases);
         for (f, v) in problem.free.iter_mut().zip(&best) {
             f.start = *v;
         }
-        timed_scan(&mut problem, &scans);
-        let (best, phases) = search(&problem, &fit_opts, label, progress, false, &[]);
-        record_phases(&phases);
-        for (jj, &j) in global.iter().enumerate() {
-            x[j] = best[jj];
-        }
-        simulations += problem.simulations();
-        failures += problem.failures();
+        self.timed_scan(&mut problem, &scans);
+        let (best, phases) = search(&problem, &self.fit_opts, self.label, progress, false, &[]);
+        self.record_phases(&phases);
+        (best, problem.simulations(), problem.failures())
     }
 
-    // Phase 2: L-BFGS over everything from there, when some parameters are polish-only.
-    if global.len() < bounds.len() {
+    /// The local method over every parameter from `x` (when some are polish-only). Its best
+    /// values, simulations and failures.
+    fn polish(
+        &self,
+        unit: &Unit,
+        free: &[FreeParam],
+        x: &[f64],
+        tie_refs: &[(ParamRef, ParamRef)],
+    ) -> (Vec<f64>, usize, usize) {
         let polish_free: Vec<FreeParam> = free
             .iter()
-            .zip(&x)
+            .zip(x)
             .map(|(f, v)| FreeParam {
                 start: *v,
                 ..f.clone()
             })
             .collect();
-        let mut problem = env.problem(unit.clone(), polish_free, sp.fit.clone(), &tie_refs);
-        problem.cancel = opts.cancel.clone();
+        let env = self.env;
+        let mut problem = env.problem(unit.clone(), polish_free, env.sp.fit.clone(), tie_refs);
+        problem.cancel = env.opts.cancel.clone();
         let (best, phases) = search(
             &problem,
-            &fit_opts,
-            &format!("{label} (polish)"),
-            progress,
+            &self.fit_opts,
+            &format!("{} (polish)", self.label),
+            env.progress,
             false,
             &[],
         );
-        record_phases(&phases);
-        x = best;
-        simulations += problem.simulations();
-        failures += problem.failures();
+        self.record_phases(&phases);
+        (best, problem.simulations(), problem.failures())
     }
 
-    if opts.cancelled() {
-        return Err("interrupted".into());
+    /// The re-fit at `x`: the χ² of the fitted and held-out samples and the RMS of each compared
+    /// channel from one accurate simulation per event (the fitted and held-out samples of a
+    /// block split are windows on the same events; held-out events are simulated on their own),
+    /// the priors' part, the residual's variance inflation.
+    fn score(
+        &self,
+        unit: &Unit,
+        free: Vec<FreeParam>,
+        x: Vec<f64>,
+        tie_refs: &[(ParamRef, ParamRef)],
+        simulations: usize,
+        failures: usize,
+    ) -> Result<Refit, RefitError> {
+        let env = self.env;
+        let sp = env.sp;
+        let t_acc = std::time::Instant::now();
+        let fit_problem = env.problem(unit.clone(), free.clone(), sp.fit.clone(), tie_refs);
+        let held = env.problem(unit.clone(), free, sp.held.clone(), tie_refs);
+        let (r_fit, r_held, rms) = residuals(&fit_problem, &held, sp.blocks, env.compare, &x)
+            .map_err(|e| RefitError::Simulation(e.to_string()))?;
+        let chi2_prior = sum_of_squares(&fit_problem.prior_residuals(&x));
+        // One accurate simulation per fitted event, and per held-out event.
+        self.record(
+            "χ² (accurate)",
+            t_acc.elapsed().as_secs_f64(),
+            sp.fit.len() + if sp.blocks { 0 } else { sp.held.len() },
+        );
+        let channels = match env.compare {
+            Some(c) => c.weights.len().max(1),
+            None if env.weights.0 > 0.0 && env.weights.1 > 0.0 => 2,
+            None => 1,
+        };
+        Ok(Refit {
+            unit: fit_problem.unit_at(&x),
+            values: x,
+            chi2_fit: sum_of_squares(&r_fit),
+            chi2_held: sum_of_squares(&r_held),
+            chi2_prior,
+            n_fit: r_fit.len(),
+            n_held: r_held.len(),
+            simulations,
+            failures,
+            vif: variance_inflation(&r_fit, channels),
+            rms,
+        })
     }
+}
+
+/// The fitted and held-out residuals at `x` and the RMS of each compared channel, from one
+/// accurate simulation per fitted event (`blocks`: the held-out samples are windows on the same
+/// events) and one per held-out event otherwise.
+fn residuals(
+    fit: &Problem,
+    held: &Problem,
+    blocks: bool,
+    compare: Option<&Compare>,
+    x: &[f64],
+) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), crate::problem::ProblemError> {
     let acc = accurate_integrator();
-    let t_acc = std::time::Instant::now();
-    let fit_problem = env.problem(unit.clone(), free.clone(), sp.fit.clone(), &tie_refs);
-    let held = env.problem(unit.clone(), free, sp.held.clone(), &tie_refs);
-    // One accurate simulation per event: the fitted and held-out samples of a block split are
-    // windows on the same events (held-out events are simulated on their own).
-    let (r_fit, r_held, rms) = match compare {
+    match compare {
         None => {
-            let pq = fit_problem.simulate(&x, &acc).map_err(|e| e.to_string())?;
-            let r_fit = fit_problem
-                .residuals_from(&x, &pq)
-                .map_err(|e| e.to_string())?;
-            let r_held = if sp.blocks {
-                held.residuals_from(&x, &pq)
+            let pq = fit.simulate(x, &acc)?;
+            let r_fit = fit.residuals_from(x, &pq)?;
+            let r_held = if blocks {
+                held.residuals_from(x, &pq)
             } else {
-                held.residuals(&x, &acc)
-            }
-            .map_err(|e| e.to_string())?;
-            let (p, q) = rms_over_events(&fit_problem, sp.blocks.then_some(&held), &pq);
-            (r_fit, r_held, vec![p, q])
+                held.residuals(x, &acc)
+            }?;
+            let (p, q) = rms_over_events(fit, blocks.then_some(held), &pq);
+            Ok((r_fit, r_held, vec![p, q]))
         }
         Some(cmp) => {
-            let outs = fit_problem
-                .simulate_outputs(&x, &acc)
-                .map_err(|e| e.to_string())?;
-            let r_fit = fit_problem
-                .residuals_from_outputs(&x, &outs)
-                .map_err(|e| e.to_string())?;
-            let r_held = if sp.blocks {
-                held.residuals_from_outputs(&x, &outs)
+            let outs = fit.simulate_outputs(x, &acc)?;
+            let r_fit = fit.residuals_from_outputs(x, &outs)?;
+            let r_held = if blocks {
+                held.residuals_from_outputs(x, &outs)
             } else {
-                held.residuals(&x, &acc)
-            }
-            .map_err(|e| e.to_string())?;
-            let rms = rms_of_channels(&fit_problem, sp.blocks.then_some(&held), &outs, cmp);
-            (r_fit, r_held, rms)
+                held.residuals(x, &acc)
+            }?;
+            let rms = rms_of_channels(fit, blocks.then_some(held), &outs, cmp);
+            Ok((r_fit, r_held, rms))
         }
-    };
-    let chi2_prior = sum_of_squares(&fit_problem.prior_residuals(&x));
-    // One accurate simulation per fitted event, and per held-out event.
-    record(
-        "χ² (accurate)",
-        t_acc.elapsed().as_secs_f64(),
-        sp.fit.len() + if sp.blocks { 0 } else { sp.held.len() },
-    );
-    if let Some(p) = profile {
-        p.add(kind, "whole re-fit", t_refit.elapsed().as_secs_f64(), 0, 1);
     }
-    Ok(Refit {
-        unit: fit_problem.unit_at(&x),
-        values: x,
-        chi2_fit: sum_of_squares(&r_fit),
-        chi2_held: sum_of_squares(&r_held),
-        chi2_prior,
-        n_fit: r_fit.len(),
-        n_held: r_held.len(),
-        simulations,
-        failures,
-        vif: variance_inflation(
-            &r_fit,
-            match compare {
-                Some(c) => c.weights.len().max(1),
-                None if weights.0 > 0.0 && weights.1 > 0.0 => 2,
-                None => 1,
-            },
-        ),
-        rms,
-    })
 }
 
 /// RMS of each channel of `cmp` (unweighted) over the windows of `fit`'s events, plus those of
@@ -640,14 +617,10 @@ pub(super) fn std_errors(
 pub(super) fn tie_refs(
     unit: &Unit,
     ties: &[(String, String)],
-) -> Result<Vec<(ParamRef, ParamRef)>, String> {
+) -> Result<Vec<(ParamRef, ParamRef)>, RefitError> {
+    let param = |p: &str| unit.param(p).map_err(|e| RefitError::Setup(e.to_string()));
     ties.iter()
-        .map(|(a, b)| {
-            Ok((
-                unit.param(a).map_err(|e| e.to_string())?,
-                unit.param(b).map_err(|e| e.to_string())?,
-            ))
-        })
+        .map(|(a, b)| Ok((param(a)?, param(b)?)))
         .collect()
 }
 
@@ -656,119 +629,12 @@ pub(super) fn tie_refs(
 /// sample and the fitted χ² is the negative log-posterior (times 2).
 pub(super) const PRIOR_WEIGHT: f64 = 1.0;
 
-/// The whole calibrated set of a fit as [`DiagnoseOptions::refit`] bounds: every parameter the
-/// spec's `stages` free, within the spec's bounds, starting at its calibrated value in
-/// `calibrated`, with the calibration's prior around its value in `datasheet` (the unit before
-/// the fit). Re-fitting every extension and its baseline over this set with the same prior is
-/// what lets the diagnosis see an effect the calibration absorbed by bending right values.
-pub fn calibrated_set(
-    spec: &crate::spec::CalibSpec,
-    stages: &[String],
-    datasheet: &Unit,
-    calibrated: &Unit,
-) -> Vec<FreeBound> {
-    let mut out: Vec<FreeBound> = vec![];
-    for st in spec.stages.iter().filter(|s| stages.contains(&s.name)) {
-        for f in &st.free {
-            let Ok(r) = calibrated.param(&f.param) else {
-                continue;
-            };
-            let param = calibrated.param_path(r);
-            if out.iter().any(|b| b.param == param) {
-                continue;
-            }
-            let spread = f.spread.unwrap_or(spec.prior);
-            out.push(FreeBound {
-                prior: datasheet_prior(datasheet, &param, spread),
-                param,
-                min: f.min,
-                max: f.max,
-                // A spec built in code may hold an upside-down bound (a parsed one cannot):
-                // kept as it is, `diagnose` refuses it by name (`check_refit`).
-                start: Some(clamp_into(calibrated.get(r), f.min, f.max)),
-                spread: None,
-                scan: 0,
-                polish_only: true,
-            });
-        }
-    }
-    out
-}
-
-/// A calibrated parameter to free again in every re-fit: its path (`machine.h`) and optional
-/// `(min, max)` bounds (default: the model's declared range).
-pub type RefitRequest = (String, Option<(f64, f64)>);
-
-/// The [`DiagnoseOptions::refit`] bounds for calibrated parameters of `unit` named by path
-/// (`machine.h`), each within the given `(min, max)` or, without, the model's declared range
-/// widened to hold the current value. Errors name the parameter: unknown, bounds upside down
-/// or empty, NaN.
-pub fn refit_bounds(
-    unit: &Unit,
-    requested: &[RefitRequest],
-) -> Result<Vec<FreeBound>, DiagnoseError> {
-    let mut out: Vec<FreeBound> = vec![];
-    for (path, range) in requested {
-        let b = FreeBound::requested(unit, path, *range).map_err(bound_error)?;
-        if !out.iter().any(|o| o.param == b.param) {
-            out.push(FreeBound {
-                polish_only: true,
-                ..b
-            });
-        }
-    }
-    Ok(out)
-}
-
-pub(super) fn refit_error(path: &str, why: impl std::fmt::Display) -> DiagnoseError {
-    DiagnoseError::Setup(format!("refit parameter {path}: {why}"))
-}
-
-/// A refit bound that does not resolve, as a setup error naming the parameter.
-fn bound_error(e: BoundError) -> DiagnoseError {
-    refit_error(&e.param, &e.problem)
-}
-
-/// Checks [`DiagnoseOptions::refit`]: every parameter exists in `unit` and its bounds are
-/// finite and not upside down, empty or NaN ([`FreeBound::check`]).
-pub(super) fn check_refit(unit: &Unit, refit: &[FreeBound]) -> Result<(), DiagnoseError> {
-    for b in refit {
-        unit.param(&b.param).map_err(|e| refit_error(&b.param, e))?;
-        b.check().map_err(bound_error)?;
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::profile::RefitKind;
     use crate::diagnose::trial::{scenario, truth_and_event};
     use crate::fit::{fitness, Silent};
-
-    /// Another start of a re-fit is counted as the same kind, whatever its name says: an
-    /// extension polished "from the baseline" is an extension (the profile once read the kind
-    /// off the name, and counted it as a baseline).
-    #[test]
-    fn a_further_start_keeps_its_refits_kind() {
-        let ext = Label::new(RefitKind::Extension, "saturation");
-        let polish = ext.then("from the baseline");
-        assert_eq!(polish.kind, RefitKind::Extension);
-        assert_eq!(polish.text, "saturation from the baseline");
-        let seg = Label::new(RefitKind::Segments, "oel on segments").then("from the baseline");
-        assert_eq!(seg.kind.name(), "segments test");
-        let kinds = [
-            RefitKind::Reference,
-            RefitKind::Baseline,
-            RefitKind::Extension,
-            RefitKind::BaselineAgain,
-            RefitKind::Segments,
-            RefitKind::Surrogate,
-        ];
-        let mut names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
-        names.sort();
-        names.dedup();
-        assert_eq!(names.len(), kinds.len(), "two kinds share a profile name");
-    }
 
     /// A re-fit's RMS comes from its own simulation over the fitted and held-out blocks: it
     /// equals the RMS of [`fitness`] over every sample of the event (a separate simulation), and

@@ -4,7 +4,7 @@
 use crate::problem::EventData;
 use itaipu_dynamics::event::Event;
 
-use super::*;
+use super::error::DiagnoseError;
 
 /// Fit and held-out problem data.
 pub(super) struct Split {
@@ -79,11 +79,11 @@ pub(super) fn split(
 pub(super) const SEGMENT_S: f64 = 3.0;
 
 /// Largest ratio, per held-out sample, of the baseline's χ² on the held-out segments to its χ²
-/// on the held-out blocks for the second held-out test to count. Beyond it the baseline re-fitted
-/// on the segments has over-fitted them (on the bundled Itaipu record, 4.7 s with the fault at
-/// 0.95 s, 15 × with the whole calibrated set free: it saw the 3 s from the fault and predicts
-/// the 1.7 s before and after): both models then fail to predict the other segments, and which
-/// fails less says nothing of structure.
+/// on the held-out blocks for the second held-out test to count. A baseline that predicts
+/// unseen samples as it predicts the interleaved ones has a ratio near 1 (both at the noise, or
+/// the same misfit per sample); at twice the per-sample χ² the baseline re-fitted on the
+/// segments has followed the phases of the response it saw and predicts the others much worse,
+/// and then which of two such predictions fails less says nothing of structure.
 pub(super) const SEGMENT_OVERFIT: f64 = 2.0;
 
 /// How far before the disturbance (the event's onset, [`Event::onset`]) the fitted block that

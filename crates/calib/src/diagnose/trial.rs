@@ -13,8 +13,15 @@ use itaipu_dynamics::simulate::SimOptions;
 use itaipu_dynamics::synthetic::{synthesize, EventKind, PmuNoise, VoltageProfile};
 use itaipu_dynamics::unit::Unit;
 
-use super::catalog::HideError;
-use super::{catalog, context, diagnose, DiagnoseError, DiagnoseOptions, Diagnosis};
+use super::calibrated::{calibrated_set, merge_calibrated_set};
+use super::catalog;
+use super::cause::HideError;
+pub use super::cause::Tolerance;
+use super::error::DiagnoseError;
+use super::options::DiagnoseOptions;
+use super::reference::context;
+use super::report::Diagnosis;
+use super::run::diagnose;
 use crate::fit::{fit, quick_options, FitError, Silent};
 use crate::spec::{CalibSpec, SpecError};
 
@@ -63,15 +70,6 @@ pub struct Trial {
     pub noise: PmuNoise,
 }
 
-/// Tolerance on a recovered parameter.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Tolerance {
-    /// `|x − truth| ≤ r·|truth|`.
-    Rel(f64),
-    /// `|x − truth| ≤ a`.
-    Abs(f64),
-}
-
 /// Outcome of a trial.
 #[derive(Clone)]
 pub struct TrialOutcome {
@@ -96,13 +94,10 @@ pub fn base_unit() -> Unit {
 }
 
 /// PMU noise of the trials: the typical M-class PMU of [`PmuNoise::typical`] (0.002 pu white
-/// noise on P and Q with 0.0014 pu quantisation, as in the Itaipu record; 5e-4 pu on |V| and
-/// 5e-4 rad on the angle, the practice family's level). The voltage is the playback's input:
-/// its noise reaches the simulated P and Q through the model (errors in variables), which the
-/// default playback's 4 Hz smoothing of the record's voltage removes (README, "The played-back
-/// voltage's noise"). Before that smoothing the trials used a fifth of this voltage noise,
-/// since at this level the bias the noise left came close to what a flexible extension (a
-/// terminal load) needs to be named.
+/// noise on P and Q with 0.0014 pu quantisation; 5e-4 pu on |V| and 5e-4 rad on the angle). The
+/// voltage is the playback's input: its noise reaches the simulated P and Q through the model
+/// (errors in variables), which the default playback's 4 Hz smoothing of the record's voltage
+/// removes.
 pub fn trial_noise(seed: u64) -> PmuNoise {
     PmuNoise::typical(seed)
 }
@@ -207,7 +202,7 @@ pub fn truth_and_event(t: &Trial) -> Result<(Unit, Event), TrialError> {
 /// Runs a trial: truth and event, calibration of the nominal unit, diagnosis, score.
 ///
 /// The diagnosis re-frees the calibration's free parameters in every re-fit (added to
-/// `opts.refit`: [`super::calibrated_set`] merged by [`crate::job::merge_calibrated_set`]), as
+/// `opts.refit`: [`calibrated_set`] merged by [`merge_calibrated_set`]), as
 /// the command line, Python and the practice runner do: a re-fit whose baseline cannot move
 /// what the calibration bent lets any extension that mimics the bend gain, and the trials
 /// measure the protocol a user gets.
@@ -233,9 +228,9 @@ pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, TrialError
     )?;
     let calibrated = fitted.unit;
     let mut opts = opts.clone();
-    crate::job::merge_calibrated_set(
+    merge_calibrated_set(
         &mut opts.refit,
-        &super::calibrated_set(&spec, &fit_opts.stages, &nominal, &calibrated),
+        &calibrated_set(&spec, &fit_opts.stages, &nominal, &calibrated),
         &calibrated,
     );
     let res = diagnose(
@@ -245,7 +240,7 @@ pub fn run(t: &Trial, opts: &DiagnoseOptions) -> Result<TrialOutcome, TrialError
         &opts,
         &Silent,
     )?;
-    let named = res.report.verdict.cause.clone();
+    let named = res.report.verdict.cause.to_string();
     let key = t.key.as_ref().map(|(p, _)| {
         let tv = truth.param(p).map(|r| truth.get(r)).unwrap_or(f64::NAN);
         let got = res
@@ -285,11 +280,8 @@ pub fn scenario(cause: &str, seed: u64, kind: Option<EventKind>) -> Trial {
             itaipu_dynamics::synthetic::Normal::new(seed.wrapping_mul(7919).wrapping_add(salt));
         2.0 * r.uniform() - 1.0
     };
-    let mut t = match catalog::cause(cause) {
-        Some(c) => {
-            let s = c.scenario(&u);
-            trial(cause, &s.values, s.key, s.kind, seed)
-        }
+    let mut t = match catalog::cause(cause).and_then(|c| c.scenario(&u)) {
+        Some(s) => trial(cause, &s.values, s.key, s.kind, seed),
         None => trial("none", &[], None, EventKind::FaultDip, seed),
     };
     if let Some(k) = kind {
@@ -352,8 +344,8 @@ pub fn dip_event_with_field(unit: &Unit, duration_s: f64, seed: u64, field_seed:
 /// The record is played back as recorded, not smoothed at the default cut-off: its voltage
 /// noise above 4 Hz is what keeps the columns of the fast parameters (a 5-50 ms voltage
 /// transducer's lag) well above the adaptive integrator's step noise, which the Jacobian
-/// checks need to compare columns at a few per cent (smoothed, the transducer's column of the
-/// Itaipu diagram unit shrinks until that noise is 6 % of it).
+/// checks need to compare columns at a few per cent (smoothed, the transducer's column shrinks
+/// toward that noise).
 pub fn dip_problem(
     unit: Unit,
     free: &[(&str, f64, f64)],

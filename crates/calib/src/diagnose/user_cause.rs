@@ -41,32 +41,18 @@
 
 use std::path::{Path, PathBuf};
 
-use itaipu_dynamics::registry;
 use itaipu_dynamics::unit::Unit;
-use itaipu_dynamics::unit_file::{build_block, build_diagram_block, BuiltBlock};
 
-use super::catalog::{self, CauseError, Context, Extension, HideError};
+use super::catalog;
+use super::cause::{
+    extend_cause, hidden_unit, hideable_params, Acts, Cause, CauseError, CauseInfo, Context,
+    Extension, HideError, NotApplicable, Roles,
+};
+pub use super::cause_file::UserCauseError;
+use super::cause_file::{build, default_extension, CauseFile, UserFree};
+use super::cause_kit::around;
+use super::not_applicable::writer_of;
 use crate::bounds::FreeBound;
-
-/// A bad cause file: the file, the field and what is wrong.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{}: {field}: {msg}", path.display())]
-pub struct UserCauseError {
-    pub path: PathBuf,
-    pub field: String,
-    pub msg: String,
-}
-
-/// A `[[free]]` entry of a cause file: its bound (`min`, `max`, `start`, `scan`) or, with a
-/// `factor`, a band around the unit's value within the declared range, which gives the bound's
-/// `min` and `max` per unit (they are unset, NaN, until then).
-#[derive(Debug, Clone)]
-struct UserFree {
-    bound: FreeBound,
-    factor: Option<f64>,
-    /// The entry's field in the file (messages).
-    field: String,
-}
 
 /// A cause read from a file.
 #[derive(Debug, Clone)]
@@ -92,20 +78,6 @@ pub struct UserCause {
     ties: Vec<(String, String)>,
 }
 
-fn valid_id(s: &str) -> bool {
-    !s.is_empty()
-        && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
-        && !s.starts_with(|c: char| c.is_ascii_digit())
-}
-
-fn num(v: &toml::Value) -> Option<f64> {
-    match v {
-        toml::Value::Float(f) => Some(*f),
-        toml::Value::Integer(i) => Some(*i as f64),
-        _ => None,
-    }
-}
-
 impl UserCause {
     /// Reads and checks a cause file.
     pub fn read(path: &Path) -> Result<Self, UserCauseError> {
@@ -118,207 +90,31 @@ impl UserCause {
     }
 
     /// Parses and checks cause-file text; `path` names it in messages and resolves diagram
-    /// files.
+    /// files. Every block is built once here, so that a bad one is refused when the file is
+    /// read.
     pub fn parse(text: &str, path: &Path) -> Result<Self, UserCauseError> {
-        let err = |field: &str, msg: String| UserCauseError {
+        let t: toml::Table = text.parse().map_err(|e: toml::de::Error| UserCauseError {
             path: path.into(),
-            field: field.to_string(),
-            msg,
-        };
-        let t: toml::Table = text.parse().map_err(|e: toml::de::Error| {
-            err("(syntax)", e.to_string().trim().replace('\n', " "))
+            field: "(syntax)".into(),
+            msg: e.to_string().trim().replace('\n', " "),
         })?;
-        let known = [
-            "id",
-            "title",
-            "signature",
-            "extension",
-            "search_factor",
-            "from_datasheet",
-            "band_top_hz",
-            "block",
-            "rewire",
-            "free",
-            "interacting",
-            "tie",
-        ];
-        if let Some(k) = t.keys().find(|k| !known.contains(&k.as_str())) {
-            return Err(err(
-                k,
-                format!("unknown key (expected one of: {})", known.join(", ")),
-            ));
-        }
-        let text_of = |key: &str, required: bool| -> Result<String, UserCauseError> {
-            match t.get(key) {
-                Some(toml::Value::String(s)) => Ok(s.trim().to_string()),
-                Some(_) => Err(err(key, "must be a string".into())),
-                None if required => Err(err(key, "missing".into())),
-                None => Ok(String::new()),
-            }
-        };
-        let id = text_of("id", true)?;
-        if !valid_id(&id) {
-            return Err(err(
-                "id",
-                format!("'{id}' is not an identifier (letters, digits and _)"),
-            ));
-        }
-        if catalog::find(&id).is_some() || super::NO_CAUSE_VERDICTS.contains(&id.as_str()) {
-            return Err(err(
-                "id",
-                format!(
-                    "'{id}' is taken (the built-in causes: {}; and {})",
-                    catalog::ids(),
-                    super::NO_CAUSE_VERDICTS.join(", ")
-                ),
-            ));
-        }
-        let title = text_of("title", true)?;
-        let signature = text_of("signature", false)?;
-        let search_factor = match t.get("search_factor") {
-            None => 1,
-            Some(toml::Value::Integer(n)) if (1..=20).contains(n) => *n as usize,
-            Some(_) => {
-                return Err(err(
-                    "search_factor",
-                    "must be an integer from 1 to 20".into(),
-                ))
-            }
-        };
-        let from_datasheet = match t.get("from_datasheet") {
-            None => false,
-            Some(toml::Value::Boolean(b)) => *b,
-            Some(_) => return Err(err("from_datasheet", "must be true or false".into())),
-        };
-        // A mode the re-fits must reproduce: positive and finite (whether it lies above an
-        // event's cut-off is decided per event).
-        let band_top_hz = match t.get("band_top_hz") {
-            None => None,
-            Some(v) => match v.as_float().or_else(|| v.as_integer().map(|n| n as f64)) {
-                Some(f) if f.is_finite() && f > 0.0 => Some(f),
-                _ => {
-                    return Err(err(
-                        "band_top_hz",
-                        "must be a positive number of hertz".into(),
-                    ))
-                }
-            },
-        };
-
-        // Blocks: each built once here, so that a bad one is refused when the file is read.
-        let base = path.parent().unwrap_or(Path::new("."));
-        let list = match t.get("block") {
-            Some(toml::Value::Array(a)) if !a.is_empty() => a,
-            Some(_) => return Err(err("block", "must be one or more [[block]] tables".into())),
-            None => {
-                return Err(err(
-                    "block",
-                    "missing: a cause adds one or more [[block]] (its model extension)".into(),
-                ))
-            }
-        };
-        let mut blocks = vec![];
-        let mut built: Vec<(String, BuiltBlock)> = vec![];
-        for (k, b) in list.iter().enumerate() {
-            let f = format!("block[{k}]");
-            let bt = b
-                .as_table()
-                .ok_or_else(|| err(&f, "must be a table".into()))?;
-            let name = match bt.get("name") {
-                Some(toml::Value::String(s)) if valid_id(s) => s.clone(),
-                Some(_) => {
-                    return Err(err(
-                        &format!("{f}.name"),
-                        "must be an identifier (letters, digits and _)".into(),
-                    ))
-                }
-                None => return Err(err(&format!("{f}.name"), "missing".into())),
-            };
-            let ctx = format!("block '{name}'");
-            if blocks.iter().any(|(n, _, _)| *n == name) {
-                return Err(err(
-                    &format!("{ctx}.name"),
-                    "two blocks have this name".into(),
-                ));
-            }
-            let bb = build(&ctx, bt, base, path)?;
-            built.push((name.clone(), bb));
-            blocks.push((name, bt.clone(), ctx));
-        }
-
-        let mut rewire = vec![];
-        match t.get("rewire") {
-            None => {}
-            Some(toml::Value::Table(rw)) => {
-                for (inst, ports) in rw {
-                    let f = format!("rewire.{inst}");
-                    let pt = ports
-                        .as_table()
-                        .ok_or_else(|| err(&f, "must be a table { port = \"signal\" }".into()))?;
-                    let mut v = vec![];
-                    for (port, sig) in pt {
-                        let s = sig.as_str().ok_or_else(|| {
-                            err(&format!("{f}.{port}"), "must be a signal name".into())
-                        })?;
-                        v.push((port.clone(), s.to_string()));
-                    }
-                    rewire.push((inst.clone(), v));
-                }
-            }
-            Some(_) => {
-                return Err(err(
-                    "rewire",
-                    "must be a table: instance = { port = \"signal\" }".into(),
-                ))
-            }
-        }
-
-        let free = free_list(&t, "free", path, true)?;
-        let interacting = free_list(&t, "interacting", path, false)?;
-        // A parameter of an added block must exist in that block (checked now); one of the
-        // unit's is checked against each unit.
-        for s in free.iter().chain(&interacting) {
-            let param = &s.bound.param;
-            let (inst, p) = param.split_once('.').unwrap_or((param, ""));
-            if let Some((_, (b, _))) = built.iter().find(|(n, _)| n == inst) {
-                if b.params().index_of(p).is_none() {
-                    let names: Vec<&str> = b.params().specs().iter().map(|x| x.name).collect();
-                    return Err(err(
-                        &s.field,
-                        format!(
-                            "block '{inst}' has no parameter '{p}' (parameters: {})",
-                            names.join(", ")
-                        ),
-                    ));
-                }
-            }
-        }
-        let mut ties = vec![];
-        match t.get("tie") {
-            None => {}
-            Some(toml::Value::Table(tt)) => {
-                for (follower, leader) in tt {
-                    let l = leader.as_str().ok_or_else(|| {
-                        err(
-                            &format!("tie.{follower}"),
-                            "must be the parameter it follows".into(),
-                        )
-                    })?;
-                    ties.push((l.to_string(), follower.clone()));
-                }
-            }
-            Some(_) => return Err(err("tie", "must be a table: follower = \"leader\"".into())),
-        }
-        let mut extension = text_of("extension", false)?;
+        let file = CauseFile { t: &t, path };
+        file.check_keys()?;
+        let id = file.id()?;
+        let title = file.text("title", true)?;
+        let signature = file.text("signature", false)?;
+        let search_factor = file.search_factor()?;
+        let from_datasheet = file.from_datasheet()?;
+        let band_top_hz = file.band_top_hz()?;
+        let (blocks, built) = file.blocks()?;
+        let rewire = file.rewire()?;
+        let free = file.free_list("free", true)?;
+        let interacting = file.free_list("interacting", false)?;
+        file.check_params(free.iter().chain(&interacting), &built)?;
+        let ties = file.ties()?;
+        let mut extension = file.text("extension", false)?;
         if extension.is_empty() {
-            let names: Vec<String> = blocks
-                .iter()
-                .map(|(n, bt, _)| {
-                    let m = bt.get("model").and_then(|v| v.as_str()).unwrap_or("?");
-                    format!("{n} ({m})")
-                })
-                .collect();
-            extension = format!("user-defined: {} added", names.join(", "));
+            extension = default_extension(&blocks);
         }
         Ok(Self {
             id,
@@ -337,94 +133,112 @@ impl UserCause {
         })
     }
 
-    /// The extended unit, as [`catalog::extend`] builds one for a catalog cause:
-    /// [`CauseError::NotApplicable`] when the cause does not apply to `unit` (a block name
-    /// taken, an instance to rewire or a parameter to free missing), [`CauseError::Build`] when
-    /// the extension cannot be built.
-    pub fn extend(&self, unit: &Unit, _ctx: &Context) -> Result<Extension, CauseError> {
-        let mut u = unit.clone();
-        u.ensure_finished().map_err(CauseError::build)?;
+    /// The extended unit, as [`catalog::extend`] builds one for a catalog cause
+    /// ([`extend_cause`]): [`CauseError::NotApplicable`] when the cause does not apply to `unit`
+    /// (a block name taken, an instance to rewire, a port or a parameter missing, a signal its
+    /// blocks read that nothing writes), [`CauseError::Build`] when the extension cannot be
+    /// built.
+    pub fn extend(&self, unit: &Unit, ctx: &Context) -> Result<Extension, CauseError> {
+        extend_cause(self, unit, ctx, 0)
+    }
+
+    /// Adds the file's blocks to `u` (each built again from its table).
+    fn add_blocks(&self, u: &mut Unit) -> Result<(), CauseError> {
         let base = self.path.parent().unwrap_or(Path::new("."));
         for (name, bt, ctx) in &self.blocks {
             if u.block(name).is_some() {
-                return Err(CauseError::not_applicable(format!(
-                    "the unit already has a block named '{name}'"
-                )));
+                return Err(NotApplicable::NameTaken { name: name.clone() }.into());
             }
             let (block, rw) = build(ctx, bt, base, &self.path).map_err(CauseError::build)?;
             u.add(name, block, &rw).map_err(CauseError::build)?;
         }
+        Ok(())
+    }
+
+    /// Moves the ports of `[rewire]` onto their new signals: an instance the unit lacks, or one
+    /// without the port (a constant mechanical power reads no speed), is not applicable.
+    fn rewire(&self, u: &mut Unit) -> Result<(), CauseError> {
         for (inst, ports) in &self.rewire {
-            if u.block(inst).is_none() {
-                return Err(CauseError::not_applicable(format!(
-                    "the unit has no block named '{inst}' to rewire"
-                )));
+            let Some(block) = u.block(inst) else {
+                return Err(NotApplicable::NoInstance { name: inst.clone() }.into());
+            };
+            let has = |p: &str| block.ports().iter().any(|q| q.name == p);
+            if let Some((port, _)) = ports.iter().find(|(p, _)| !has(p)) {
+                return Err(NotApplicable::NoPort {
+                    instance: inst.clone(),
+                    model: block.model().to_string(),
+                    port: port.clone(),
+                }
+                .into());
             }
             u.rewire(inst, ports)
                 .map_err(|e| CauseError::build(format!("rewire.{inst}: {e}")))?;
         }
-        u.ensure_finished().map_err(|e| {
-            CauseError::build(format!("{}: the extended unit: {e}", self.path.display()))
-        })?;
-        let bound = |s: &UserFree| -> Result<FreeBound, String> {
-            let param = &s.bound.param;
-            let v = u
-                .params()
-                .into_iter()
-                .find(|(p, _, _)| p == param)
-                .map(|(_, _, v)| v)
-                .ok_or_else(|| format!("the unit has no parameter '{param}'"))?;
-            let (min, max) = match s.factor {
-                None => (s.bound.min, s.bound.max),
-                // The band around the value within the declared range, as for a catalog cause.
-                Some(f) => catalog::around(&u, param, f)
-                    .map(|b| (b.min, b.max))
-                    .ok_or_else(|| {
-                        format!("{param} = {v} is not > 0, so it cannot be freed by a factor")
-                    })?,
-            };
-            Ok(FreeBound {
-                min,
-                max,
-                ..s.bound.clone()
-            }
-            .starting_at(s.bound.start.unwrap_or(v)))
+        Ok(())
+    }
+
+    /// A required input of one of the file's blocks that reads a signal no block of `u`
+    /// writes, where the blocks of some role write it (a PSS's `vs`): the unit lacks that part.
+    fn unwritten(&self, u: &Unit) -> Option<NotApplicable> {
+        use itaipu_dynamics::block::{Dir, PortInit};
+        let written = |s: &str| {
+            u.instances().iter().any(|i| {
+                i.block
+                    .ports()
+                    .iter()
+                    .zip(&i.wiring)
+                    .any(|(p, w)| w == s && (p.dir == Dir::Out || p.init == PortInit::Gives))
+            })
         };
-        let extension_free = self
-            .free
+        let added = u
+            .instances()
             .iter()
-            .map(bound)
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(CauseError::NotApplicable)?;
-        // An interacting parameter the unit lacks (another exciter model, say) is left out.
-        let interacting_free: Vec<FreeBound> = self
-            .interacting
-            .iter()
-            .filter_map(|s| bound(s).ok())
-            .collect();
-        for (leader, follower) in &self.ties {
-            for p in [leader, follower] {
-                if u.param(p).is_err() {
-                    return Err(CauseError::not_applicable(format!(
-                        "tie: the unit has no parameter '{p}'"
-                    )));
+            .filter(|i| self.blocks.iter().any(|(n, _, _)| *n == i.name));
+        for inst in added {
+            let reads = inst.block.ports().iter().zip(&inst.wiring);
+            for (_, signal) in reads.filter(|(p, _)| p.dir == Dir::In && !p.optional) {
+                if !written(signal) {
+                    if let Some(role) = writer_of(signal) {
+                        return Some(NotApplicable::Unwritten {
+                            block: inst.name.clone(),
+                            signal: signal.clone(),
+                            writer: Some(role),
+                        });
+                    }
                 }
             }
         }
-        let mut ext = Extension {
-            cause: itaipu_dynamics::diagram::intern::str(&self.id),
-            unit: u,
-            extension_free,
-            interacting_free,
-            discrete_params: 0,
-            ties: self.ties.clone(),
-            description: self.extension.clone(),
-            fixed: vec![],
-            search_factor: self.search_factor,
-            from_datasheet: self.from_datasheet,
+        None
+    }
+
+    /// The re-fit's bound of entry `s` in the extended unit `u`.
+    fn bound(s: &UserFree, u: &Unit) -> Result<FreeBound, NotApplicable> {
+        let param = &s.bound.param;
+        let v = u
+            .params()
+            .into_iter()
+            .find(|(p, _, _)| p == param)
+            .map(|(_, _, v)| v)
+            .ok_or_else(|| NotApplicable::NoParam {
+                param: param.clone(),
+                in_tie: false,
+            })?;
+        let (min, max) = match s.factor {
+            None => (s.bound.min, s.bound.max),
+            // The band around the value within the declared range, as for a catalog cause.
+            Some(f) => around(u, param, f).map(|b| (b.min, b.max)).ok_or_else(|| {
+                NotApplicable::NotPositive {
+                    param: param.clone(),
+                    value: v,
+                }
+            })?,
         };
-        catalog::free_nuisance(&mut ext);
-        Ok(ext)
+        Ok(FreeBound {
+            min,
+            max,
+            ..s.bound.clone()
+        }
+        .starting_at(s.bound.start.unwrap_or(v)))
     }
 
     /// The unit with this cause in it at chosen values (`block.param` among the freed and the
@@ -439,7 +253,7 @@ impl UserCause {
         let ext = self
             .extend(unit, ctx)
             .map_err(|e| HideError::from_cause(&self.id, unit, e))?;
-        let known = catalog::hideable_params(unit, &ext);
+        let known = hideable_params(unit, &ext);
         if let Some((p, _)) = values.iter().find(|(p, _)| !known.iter().any(|k| k == p)) {
             return Err(HideError::Request(format!(
                 "{}: unknown parameter '{p}' (its parameters: {})",
@@ -447,145 +261,71 @@ impl UserCause {
                 known.join(", ")
             )));
         }
-        catalog::hidden_unit(&ext, values.iter().copied())
+        hidden_unit(&ext, values.iter().copied())
     }
 }
 
-/// Builds one block of a cause file (a diagram or a library model).
-fn build(
-    ctx: &str,
-    bt: &toml::Table,
-    base: &Path,
-    path: &Path,
-) -> Result<BuiltBlock, UserCauseError> {
-    let model = bt
-        .get("model")
-        .and_then(|v| v.as_str())
-        .ok_or_else(|| UserCauseError {
-            path: path.into(),
-            field: format!("{ctx}.model"),
-            msg: format!("missing (one of: {}, diagram)", registry::names()),
-        })?;
-    if model.eq_ignore_ascii_case(itaipu_dynamics::diagram::MODEL) {
-        return build_diagram_block(ctx, bt, base, path).map_err(|e| UserCauseError {
-            path: path.into(),
-            field: ctx.to_string(),
-            msg: e.to_string(),
-        });
+impl Cause for UserCause {
+    fn info(&self) -> CauseInfo<'_> {
+        CauseInfo {
+            id: &self.id,
+            title: &self.title,
+            signature: &self.signature,
+            extension: &self.extension,
+            key_params: &[],
+        }
     }
-    let info = registry::find(model).ok_or_else(|| UserCauseError {
-        path: path.into(),
-        field: format!("{ctx}.model"),
-        msg: format!(
-            "unknown model '{model}' (known: {}, diagram)",
-            registry::names()
-        ),
-    })?;
-    build_block(info, ctx, bt).map_err(|(field, msg)| UserCauseError {
-        path: path.into(),
-        field,
-        msg,
-    })
-}
 
-fn free_list(
-    t: &toml::Table,
-    key: &str,
-    path: &Path,
-    required: bool,
-) -> Result<Vec<UserFree>, UserCauseError> {
-    let err = |field: String, msg: &str| UserCauseError {
-        path: path.into(),
-        field,
-        msg: msg.to_string(),
-    };
-    let list = match t.get(key) {
-        Some(toml::Value::Array(a)) if !a.is_empty() || !required => a.clone(),
-        None if !required => vec![],
-        None => return Err(err(
-            key.into(),
-            "missing: a cause frees one or more [[free]] { param, min, max } (its own parameters)",
-        )),
-        Some(_) => return Err(err(key.into(), "must be one or more tables")),
-    };
-    let mut out: Vec<UserFree> = vec![];
-    for (k, v) in list.iter().enumerate() {
-        let f = format!("{key}[{k}]");
-        let e = v
-            .as_table()
-            .ok_or_else(|| err(f.clone(), "must be a table"))?;
-        if let Some(bad) = e
-            .keys()
-            .find(|x| !["param", "min", "max", "factor", "start", "scan"].contains(&x.as_str()))
-        {
-            return Err(err(
-                format!("{f}.{bad}"),
-                "unknown key (expected param, min, max, factor, start, scan)",
-            ));
-        }
-        let param = match e.get("param").and_then(|p| p.as_str()) {
-            Some(p)
-                if p.split_once('.')
-                    .is_some_and(|(a, b)| valid_id(a) && valid_id(b)) =>
-            {
-                p.to_string()
-            }
-            Some(_) => return Err(err(format!("{f}.param"), "must be block.parameter")),
-            None => return Err(err(format!("{f}.param"), "missing")),
-        };
-        if out.iter().any(|o| o.bound.param == param) {
-            return Err(err(format!("{f}.param"), "given twice"));
-        }
-        let get = |n: &str| -> Result<Option<f64>, UserCauseError> {
-            match e.get(n) {
-                None => Ok(None),
-                Some(v) => num(v)
-                    .filter(|x| x.is_finite())
-                    .map(Some)
-                    .ok_or_else(|| err(format!("{f}.{n}"), "must be a finite number")),
-            }
-        };
-        let (min, max, factor) = match (get("min")?, get("max")?, get("factor")?) {
-            (Some(min), Some(max), None) => {
-                if !(max > min) {
-                    return Err(err(format!("{f}.max"), "must exceed min"));
-                }
-                (min, max, None)
-            }
-            (None, None, Some(fa)) => {
-                if !(fa > 1.0) {
-                    return Err(err(format!("{f}.factor"), "must be > 1"));
-                }
-                (f64::NAN, f64::NAN, Some(fa))
-            }
-            _ => {
-                return Err(err(
-                    f.clone(),
-                    "give min and max, or a factor around the unit's value (not both)",
-                ))
-            }
-        };
-        let start = get("start")?;
-        if let (Some(s), None) = (start, factor) {
-            if !(s >= min && s <= max) {
-                return Err(err(format!("{f}.start"), "must lie within [min, max]"));
-            }
-        }
-        let scan = match e.get("scan") {
-            None => 0,
-            Some(toml::Value::Integer(n)) if (0..=200).contains(n) => *n as usize,
-            Some(_) => return Err(err(format!("{f}.scan"), "must be an integer from 0 to 200")),
-        };
-        out.push(UserFree {
-            bound: FreeBound {
-                start,
-                ..FreeBound::new(param, min, max).scanned(scan)
-            },
-            factor,
-            field: format!("{f}.param"),
-        });
+    fn acts(&self) -> Acts {
+        Acts::Unstated
     }
-    Ok(out)
+
+    fn band_top_hz(&self, _ctx: &Context) -> Option<f64> {
+        self.band_top_hz
+    }
+
+    /// Adds the file's blocks, rewires the unit's ports onto their signals, and frees the
+    /// `[[free]]` parameters (the extension's), the `[[interacting]]` ones the unit has (an
+    /// interacting parameter the unit lacks, another exciter model's say, is left out) and the
+    /// ties.
+    fn extend(&self, x: &mut Extension, _roles: &Roles, _ctx: &Context) -> Result<(), CauseError> {
+        self.add_blocks(&mut x.unit)?;
+        self.rewire(&mut x.unit)?;
+        if let Err(e) = x.unit.ensure_finished() {
+            return Err(match self.unwritten(&x.unit) {
+                Some(why) => why.into(),
+                None => {
+                    CauseError::build(format!("{}: the extended unit: {e}", self.path.display()))
+                }
+            });
+        }
+        let u = &x.unit;
+        let extension_free = self
+            .free
+            .iter()
+            .map(|s| Self::bound(s, u))
+            .collect::<Result<Vec<_>, _>>()?;
+        let interacting_free: Vec<FreeBound> = self
+            .interacting
+            .iter()
+            .filter_map(|s| Self::bound(s, u).ok())
+            .collect();
+        for (leader, follower) in &self.ties {
+            if let Some(p) = [leader, follower].into_iter().find(|p| u.param(p).is_err()) {
+                return Err(NotApplicable::NoParam {
+                    param: p.clone(),
+                    in_tie: true,
+                }
+                .into());
+            }
+        }
+        x.extension_free = extension_free;
+        x.interacting_free = interacting_free;
+        x.ties = self.ties.clone();
+        x.search_factor = self.search_factor;
+        x.from_datasheet = self.from_datasheet;
+        Ok(())
+    }
 }
 
 /// Reads cause files, refusing two with the same id.
@@ -605,11 +345,20 @@ pub fn read_all(paths: &[PathBuf]) -> Result<Vec<UserCause>, UserCauseError> {
     Ok(out)
 }
 
-// --- The hook used by `diagnose`: catalog and user causes behind one lookup. ---
+/// The cause `id` among the catalog's and `users` (a user's file of a catalog id cannot be
+/// read, [`UserCause::parse`]).
+pub fn lookup<'a>(id: &str, users: &'a [UserCause]) -> Option<&'a dyn Cause> {
+    catalog::cause(id).or_else(|| {
+        users
+            .iter()
+            .find(|u| u.id == id)
+            .map(|u| u as &'a dyn Cause)
+    })
+}
 
 /// Is `id` a catalog cause or one of `users`?
 pub fn known(id: &str, users: &[UserCause]) -> bool {
-    catalog::find(id).is_some() || users.iter().any(|u| u.id == id)
+    lookup(id, users).is_some()
 }
 
 /// Every id: the catalog's, then the user causes', for messages.
@@ -620,51 +369,4 @@ pub fn ids(users: &[UserCause]) -> String {
         s.push_str(&u.id);
     }
     s
-}
-
-/// Title and extension text of a cause.
-pub fn describe(id: &str, users: &[UserCause]) -> Option<(String, String)> {
-    if let Some(c) = catalog::find(id) {
-        return Some((c.title.to_string(), c.extension.to_string()));
-    }
-    users
-        .iter()
-        .find(|u| u.id == id)
-        .map(|u| (u.title.clone(), u.extension.clone()))
-}
-
-/// The highest frequency cause `id`'s extension must reproduce [Hz]: a catalog cause's
-/// [`catalog::Cause::band_top_hz`], a user cause's declared `band_top_hz`.
-pub fn band_top_hz(id: &str, ctx: &Context, users: &[UserCause]) -> Option<f64> {
-    match users.iter().find(|u| u.id == id) {
-        Some(u) => u.band_top_hz,
-        None => catalog::cause(id).and_then(|c| c.band_top_hz(ctx)),
-    }
-}
-
-/// [`catalog::extend_all`] for a catalog cause (every variant), [`UserCause::extend`] for a
-/// user one (one structure).
-pub fn extend_all(
-    id: &str,
-    unit: &Unit,
-    ctx: &Context,
-    users: &[UserCause],
-) -> Result<Vec<Extension>, catalog::CauseError> {
-    match users.iter().find(|u| u.id == id) {
-        Some(u) => Ok(vec![u.extend(unit, ctx)?]),
-        None => catalog::extend_all(id, unit, ctx),
-    }
-}
-
-/// [`catalog::extend`] for a catalog cause, [`UserCause::extend`] for a user one.
-pub fn extend(
-    id: &str,
-    unit: &Unit,
-    ctx: &Context,
-    users: &[UserCause],
-) -> Result<Extension, catalog::CauseError> {
-    match users.iter().find(|u| u.id == id) {
-        Some(u) => u.extend(unit, ctx),
-        None => catalog::extend(id, unit, ctx),
-    }
 }

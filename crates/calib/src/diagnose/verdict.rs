@@ -1,272 +1,24 @@
-//! Step 6, the verdict: the candidates ranked, the named cause with its statement, or `none` /
-//! `unexplained` with where the residual lives.
+//! The verdict: the candidates ranked ([`rank`]), the rivals that leave no name (several
+//! explaining the residual about equally, the held-out samples contradicting the fitted
+//! ranking, a look-alike outside the catalog explaining it best), the named cause with its
+//! standard errors, its evidence after, its posterior probability and grade, or `none` /
+//! `unexplained` with where the residual lives ([`undecided`]).
 
 use std::collections::BTreeMap;
 
-use crate::evidence::SignalEvidence;
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
 
-use super::candidates::{bic_met, fit_floor_met, held_floor_met};
-use super::*;
-
-pub(super) fn fmt_num(v: f64) -> String {
-    if v != 0.0 && (v.abs() < 1e-2 || v.abs() >= 1e4) {
-        format!("{v:.4e}")
-    } else {
-        format!("{v:.4}")
-    }
-}
-
-/// The event and P or Q signal with the largest residual RMS relative to its noise floor (the
-/// evidence's `rms_over_noise`: the event's own floor, [`crate::noise::noise_floor`], as the
-/// report shows it).
-fn worst_residual<'a>(
-    ev: &'a [EventEvidence],
-    compared: &[&str],
-) -> Option<(&'a str, &'a SignalEvidence)> {
-    let mut worst: Option<(&str, &SignalEvidence)> = None;
-    for e in ev {
-        for s in e
-            .signals
-            .iter()
-            .filter(|s| compared.contains(&s.signal.as_str()))
-        {
-            if worst.is_none_or(|(_, w)| s.rms_over_noise > w.rms_over_noise) {
-                worst = Some((&e.event, s));
-            }
-        }
-    }
-    worst
-}
-
-/// The window holding the largest share of a signal's squared residual.
-fn top_window(s: &SignalEvidence) -> Option<&crate::evidence::WindowStats> {
-    s.windows
-        .iter()
-        .max_by(|a, b| a.share_of_sse.total_cmp(&b.share_of_sse))
-}
-
-/// A verdict that names no cause and carries no gains, grade or competitors: its id, title,
-/// statement and where the residual lives.
-fn unnamed(
-    cause: &str,
-    title: String,
-    statement: String,
-    where_: Option<(String, String, f64, f64)>,
-) -> Verdict {
-    Verdict {
-        cause: cause.into(),
-        title,
-        statement,
-        key_parameters: vec![],
-        gains: None,
-        where_,
-        grade: None,
-        probability: None,
-        competing: vec![],
-    }
-}
-
-/// The tests of a candidate's significance ([`DiagnoseOptions`]: `min_fit_drop`,
-/// `min_held_drop`, `bic_threshold`) that its net gains `g` fall short of, as the verdict's
-/// statement gives them, so that an engineer reading `none` sees which test an effect missed
-/// and by how much. (A held-out blocks' shortfall is forgiven by the segments' second test,
-/// reported apart in the candidate's note.)
-pub(super) fn short_of(g: &Gains, opts: &DiagnoseOptions) -> Vec<String> {
-    let mut out = vec![];
-    if !fit_floor_met(g.fit_drop, opts) {
-        out.push(shortfall("fitted", g.fit_drop, opts.min_fit_drop));
-    }
-    if !held_floor_met(g.held_drop, opts) {
-        out.push(shortfall("held-out", g.held_drop, opts.min_held_drop));
-    }
-    if !bic_met(g.record_evidence, opts) {
-        out.push(format!(
-            "2 ln B {:.1}, not above {:.0}",
-            g.record_evidence, opts.bic_threshold
-        ));
-    }
-    if out.is_empty() {
-        out.push("its held-out blocks and segments do not confirm it".into());
-    }
-    out
-}
-
-/// A relative χ² change short of its floor, as a statement gives it: "the fitted χ² down 1.6 %,
-/// under 2.0 %", "the held-out χ² up 0.4 %" (a rise is short of any floor), "the fitted χ²
-/// unchanged" (below the 0.05 % the statement prints).
-fn shortfall(half: &str, drop: f64, floor: f64) -> String {
-    let pct = 100.0 * drop;
-    if pct.abs() < 0.05 {
-        format!("the {half} χ² unchanged")
-    } else if pct < 0.0 {
-        format!("the {half} χ² up {:.1} %", -pct)
-    } else {
-        format!(
-            "the {half} χ² down {pct:.1} %, under {:.1} %",
-            100.0 * floor
-        )
-    }
-}
-
-/// The verdict when no cause is significant: `none` at the noise floor, else `unexplained`
-/// with where the residual lives. A candidate whose gain passed the statistical test and was
-/// refused by its physical checks ([`CandidateReport::passed_test`]) makes it `unexplained` at
-/// the noise floor too: the test that would have named a cause says an effect is there (its
-/// false-alarm rate is the naming's own, whatever refused the name), and the check says it is
-/// not that cause, so "the model needs no extension" would be false.
-pub(super) fn undecided(
-    ev: &[EventEvidence],
-    compared: &[&str],
-    reports: &[CandidateReport],
-    opts: &DiagnoseOptions,
-) -> Verdict {
-    let ratio = |s: &SignalEvidence| s.rms_over_noise;
-    let worst = worst_residual(ev, compared);
-    let best_try = reports
-        .iter()
-        .filter_map(|r| r.gains.as_ref().map(|g| (r, g)))
-        .next()
-        .map(|(r, g)| {
-            format!(
-                " The best candidate, {}, gained ΔBIC {:.1} ({:.1} % of χ²; the record's evidence \
-                 with its held-out prediction 2 ln B = {:.1}){}.",
-                r.cause,
-                g.delta_bic,
-                100.0 * g.fit_drop,
-                g.record_evidence,
-                if r.note.starts_with("not named") {
-                    format!(", {}", r.note)
-                } else {
-                    format!(", not significant ({})", short_of(g, opts).join("; "))
-                }
-            )
-        })
-        .unwrap_or_default();
-    let Some((event, s)) = worst else {
-        return unnamed(
-            "none",
-            "no residual to explain".into(),
-            format!(
-                "No residual of the compared signals ({}).",
-                compared.join(", ")
-            ),
-            None,
-        );
-    };
-    let top = top_window(s);
-    let where_ = top.map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s));
-    let over = ratio(s);
-    // The largest residual in the recorded field of a phasor playback (P and Q compared too):
-    // what a calibration on P and Q alone can leave, X_d and the exciter's gain bent until the
-    // simulated field runs off the recorded one. The condition is structural (which compared
-    // signal holds the largest residual), no threshold: the verdict is already `unexplained`,
-    // the residual above the noise floor by `noise_factor`.
-    let field_hint = if compared.contains(&"P")
-        && compared.contains(&"Q")
-        && super::playback::signal_channel(&s.signal)
-            .is_some_and(|c| super::playback::FIELD_CHANNELS.contains(&c))
-    {
-        " If the calibration compared P and Q alone, it may have bent X_d and the exciter's gain \
-         until the simulated field ran off the recorded one: calibrate with channels = \"recorded\" \
-         (P, Q and the recorded field, each weighted by its noise) and diagnose again."
-    } else {
-        ""
-    };
-    // The refused candidate with the largest evidence for the record.
-    let refused = reports
-        .iter()
-        .filter(|r| r.passed_test && !r.significant)
-        .filter_map(|r| r.gains.as_ref().map(|g| (r, g)))
-        .max_by(|(_, a), (_, b)| a.record_evidence.total_cmp(&b.record_evidence));
-    if let Some((r, g)) = refused.filter(|_| over <= opts.noise_factor) {
-        let why = r.note.strip_prefix("not named: ").unwrap_or(&r.note);
-        let place = top.map_or(String::new(), |w| {
-            format!(
-                "; the largest residual is {} in the {} window ({:.2}-{:.2} s) on {event}",
-                s.signal, w.label, w.start_s, w.end_s
-            )
-        });
-        unnamed(
-            "unexplained",
-            format!(
-                "unexplained: a significant gain that {} cannot be",
-                r.cause
-            ),
-            format!(
-                "Unexplained by the catalog. The residuals are near the noise level (largest: {} on {event}, RMS {:.2} × \
-                 the pre-event residual σ), yet the extension of {} ({}) lowers χ² on the fitted samples by {:.1} % and on the \
-                 held-out samples by {:.1} % (the record's evidence 2 ln B = {:.1}), a gain the test names a cause on; it is \
-                 not named: {why}. An effect the catalog does not hold is at work where {} acts{place}. If you know the \
-                 unit's setting that makes it, write a cause file for it and diagnose again with --user-cause.",
-                s.signal,
-                over,
-                r.cause,
-                r.extension,
-                100.0 * g.fit_drop,
-                100.0 * g.held_drop,
-                g.record_evidence,
-                r.cause
-            ),
-            where_,
-        )
-    } else if over <= opts.noise_factor {
-        unnamed(
-            "none",
-            "residual at the noise floor".into(),
-            format!(
-                "No cause named: the residuals are at the noise level (largest: {} on {event}, RMS {:.2} × the pre-event \
-                 residual σ; Ljung-Box p = {:.2}) and no extension gains significantly.{best_try} The model needs no extension \
-                 for these data.",
-                s.signal, over, s.whiteness.p_value
-            ),
-            where_,
-        )
-    } else if let Some(w) = top {
-        let mode = s
-            .modes
-            .iter()
-            .filter(|m| m.is_finding())
-            .max_by(|a, b| a.energy_share.total_cmp(&b.energy_share))
-            .map(|m| {
-                format!(
-                    ", dominant residual mode {:.2} Hz (ζ = {:.2})",
-                    m.freq_hz, m.damping_ratio
-                )
-            })
-            .unwrap_or_default();
-        unnamed(
-            "unexplained",
-            format!("unexplained residual at {} ({}, {:.2}-{:.2} s)", s.signal, w.label, w.start_s, w.end_s),
-            format!(
-                "Unexplained residual at {} in the {} window ({:.2}-{:.2} s, {:.0} % of its squared error) on {event}: RMS {:.2} × \
-                 the pre-event residual σ, Ljung-Box p = {:.2}{mode}. No catalog extension explains it significantly.{best_try}{field_hint}",
-                s.signal,
-                w.label,
-                w.start_s,
-                w.end_s,
-                100.0 * w.share_of_sse,
-                over,
-                s.whiteness.p_value
-            ),
-            where_,
-        )
-    } else {
-        // No window (a record too short to cut into any): the residual as a whole.
-        unnamed(
-            "unexplained",
-            format!("unexplained residual at {}", s.signal),
-            format!(
-                "Unexplained residual at {} on {event}: RMS {:.2} × the pre-event residual σ, \
-                 Ljung-Box p = {:.2}. No catalog extension explains it significantly.{best_try}{field_hint}",
-                s.signal, over, s.whiteness.p_value
-            ),
-            None,
-        )
-    }
-}
+use super::catalog;
+use super::options::DiagnoseOptions;
+use super::playback::{signal_name, Scoring};
+use super::ranking::{bic_gap, grade, held_out_gap, posterior, rank};
+use super::refit::{std_errors, RefitRecord};
+use super::report::{CandidateReport, EventEvidence, Gains, Grade, Verdict, VerdictCause};
+use super::statements::{
+    contradicted, inconclusive, key_parameters, named, outside_catalog, undecided,
+};
 
 /// The verdict of a diagnosis, with the named cause's extended unit and its traces and
 /// evidence (empty when none is named).
@@ -277,99 +29,41 @@ pub(super) struct Decision {
     pub evidence_after: Vec<EventEvidence>,
 }
 
-/// Ranks `reports` (see [`Diagnosis::candidates`]) and decides: the first significant
-/// candidate is named (with the standard errors of its re-fit in `refits`), else
-/// [`undecided`]. A named cause whose re-fits played the record as recorded
-/// ([`CandidateReport::input_as_recorded`]) gets its standard errors and its evidence after on
-/// `recorded` (the events played back so).
+impl Decision {
+    /// A verdict that names no cause: no extended unit, no evidence after.
+    fn unnamed(verdict: Verdict) -> Self {
+        Decision {
+            verdict,
+            extended_unit: None,
+            after: vec![],
+            evidence_after: vec![],
+        }
+    }
+}
+
+/// Ranks `reports` (see [`super::Diagnosis::candidates`]) and decides: the first significant
+/// candidate is named (with the standard errors of its re-fit in `refits`) unless a rival
+/// leaves no name ([`rivals`]), else [`undecided`]. A named cause whose re-fits played the
+/// record as recorded ([`CandidateReport::input_as_recorded`]) gets its standard errors and its
+/// evidence after on `recorded` (the events played back so).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn decide(
     reports: &mut [CandidateReport],
     mut refits: BTreeMap<String, RefitRecord>,
     events: &[Event],
     recorded: Option<&[Event]>,
-    (pb, weights, compare): super::playback::Scoring,
+    scoring: Scoring,
     evidence_before: &[EventEvidence],
     opts: &DiagnoseOptions,
 ) -> Decision {
-    // 5. Rank and decide.
-    let compared: Vec<&str> = pb
-        .channels
-        .iter()
-        .map(|c| super::playback::signal_name(*c))
-        .collect();
-    // Significant candidates first. Each passed the test against its own baseline (the same
-    // interacting parameters re-fitted without it); among them, the extended model that
-    // explains the data best wins: lowest BIC on the common fitted samples,
-    // χ²_ext + k ln N with k every parameter the candidate re-fitted (a cause whose extension
-    // is only significant because its baseline stayed bent does not beat one that fits). The
-    // others follow by ΔBIC.
-    let bic_ext = |r: &CandidateReport| {
-        r.gains.as_ref().map_or(f64::INFINITY, |g| {
-            comparable_chi2(g) + r.parameters.len() as f64 * (g.n_fit.max(1) as f64).ln()
-        })
-    };
-    reports.sort_by(|a, b| {
-        let s = |r: &CandidateReport| r.gains.as_ref().map_or(f64::NEG_INFINITY, |g| g.delta_bic);
-        b.significant.cmp(&a.significant).then(if a.significant {
-            bic_ext(a).total_cmp(&bic_ext(b))
-        } else {
-            s(b).total_cmp(&s(a))
-        })
-    });
-    // Two significant candidates whose extended models explain the fitted samples about
-    // equally: no name (a wrong name is worse than none), the verdict says which compete.
-    let significant: Vec<&CandidateReport> = reports
-        .iter()
-        .filter(|r| r.significant && r.gains.is_some())
-        .collect();
-    if let [best, rivals @ ..] = significant.as_slice() {
-        let competing: Vec<(String, f64)> = rivals
-            .iter()
-            .map(|r| (r.cause.clone(), bic_gap(best, r)))
-            .filter(|(_, gap)| *gap < opts.bic_threshold)
-            .collect();
-        if !competing.is_empty() {
-            let verdict = inconclusive(best, &competing, reports, evidence_before, &compared, opts);
-            return Decision {
-                verdict,
-                extended_unit: None,
-                after: vec![],
-                evidence_after: vec![],
-            };
-        }
+    let compared: Vec<&str> = scoring.0.channels.iter().map(|c| signal_name(*c)).collect();
+    rank(reports);
+    if let Some(verdict) = rivals(reports, evidence_before, &compared, opts) {
+        return Decision::unnamed(verdict);
     }
-    // The held-out samples contradict the fitted ranking: a rival's extended model predicts
-    // them decisively better than the best's. No name either.
-    if let [best, rivals @ ..] = significant.as_slice() {
-        let contradicting: Vec<(&CandidateReport, f64)> = rivals
-            .iter()
-            .map(|r| (*r, held_out_gap(best, r)))
-            .filter(|(_, gap)| *gap > opts.bic_threshold)
-            .collect();
-        if !contradicting.is_empty() {
-            let verdict = contradicted(best, &contradicting, evidence_before, &compared, opts);
-            return Decision {
-                verdict,
-                extended_unit: None,
-                after: vec![],
-                evidence_after: vec![],
-            };
-        }
-    }
-    // A significant candidate has its re-fit and its gains (`Candidates::score` returns them
-    // with every report it scores); one without them could not be named, and is not.
-    // A look-alike outside the catalog explains the residual best: no catalog name.
-    if let Some(best) = significant.first().filter(|r| r.look_alike) {
-        let verdict = outside_catalog(best, reports, evidence_before, &compared);
-        return Decision {
-            verdict,
-            extended_unit: None,
-            after: vec![],
-            evidence_after: vec![],
-        };
-    }
-    let named = reports
+    // A significant candidate has its re-fit and its gains (the scoring returns them with
+    // every report it scores); one without them could not be named, and is not.
+    let best = reports
         .iter()
         .find(|r| r.significant)
         .cloned()
@@ -378,450 +72,137 @@ pub(super) fn decide(
             let refit = refits.remove(&rep.cause)?;
             Some((rep, g, refit))
         });
-    let mut extended_unit = None;
-    let mut after = vec![];
-    let mut evidence_after = vec![];
-    let verdict = match named {
-        Some((mut rep, g, (r, bounds, ties))) => {
+    match best {
+        Some((rep, g, refit)) => {
             let events = match recorded {
                 Some(raw) if rep.input_as_recorded => raw,
                 _ => events,
             };
-            // Uncertainty of the re-fitted parameters (all samples, with the priors).
-            if let Some(se) =
-                std_errors(&r.unit, &bounds, &ties, &r.values, events, weights, compare)
-            {
-                for (p, e) in rep.parameters.iter_mut().zip(se) {
-                    p.std_error = Some(e);
-                }
-                if let Some(c) = reports.iter_mut().find(|c| c.cause == rep.cause) {
-                    c.parameters = rep.parameters.clone();
-                }
-            }
-            for e in events {
-                if let Ok((tr, ev, _)) = pb.evidence(&r.unit, e) {
-                    evidence_after.push(ev);
-                    after.push((e.name.clone(), tr));
-                }
-            }
-            let mut key: Vec<(String, f64, String)> = rep
-                .parameters
-                .iter()
-                .filter(|p| p.extension)
-                .map(|p| (p.param.clone(), p.result, p.unit.clone()))
-                .collect();
-            key.extend(
-                rep.fixed
-                    .iter()
-                    .map(|(p, v)| (p.clone(), *v, "-".to_string())),
-            );
-            let params: Vec<String> = key
-                .iter()
-                .map(|(p, v, u)| {
-                    let se = rep
-                        .parameters
-                        .iter()
-                        .find(|c| &c.param == p)
-                        .and_then(|c| c.std_error)
-                        .filter(|e| e.is_finite())
-                        .map_or(String::new(), |e| format!(" ± {}", fmt_num(e)));
-                    format!("{p} = {}{se} {u}", fmt_num(*v))
-                })
-                .collect();
-            let statement = format!(
-                "{}: {}. The extension ({}) lowers χ² on the fitted samples by {:.0} % ({:.1} -> {:.1}) and on the held-out \
-                 samples by {:.0} %{}; ΔBIC = {:.1} with {} added parameter(s), and with the held-out samples' \
-                 predictive gain the record's evidence 2 ln B = {:.1}. Fitted values: {}.",
-                rep.cause,
-                rep.title,
-                rep.extension,
-                100.0 * g.fit_drop,
-                g.chi2_fit_base,
-                g.chi2_fit_ext,
-                100.0 * g.held_drop,
-                g.held_drop_segments.map_or(String::new(), |d| format!(
-                    " (on the held-out {SEGMENT_S} s segments of the second test by {:.0} %)",
-                    100.0 * d
-                )),
-                g.delta_bic,
-                g.k,
-                g.record_evidence,
-                params.join(", ")
-            );
-            // Which calibrated values become plausible again with it.
-            let back: Vec<String> = rep
-                .distortion
-                .iter()
-                .filter(|d| d.z_base.abs() > 1.0 && d.z_extended.abs() < d.z_base.abs())
-                .map(|d| {
-                    format!(
-                        "{} {} -> {} (datasheet {})",
-                        d.param,
-                        fmt_num(d.base),
-                        fmt_num(d.extended),
-                        fmt_num(d.datasheet)
-                    )
-                })
-                .collect();
-            let statement = if back.is_empty() {
-                statement
-            } else {
-                format!(
-                    "{statement} Without it the re-fitted unit bends calibrated values away from their datasheet; with it they come back: {}.",
-                    back.join(", ")
-                )
-            };
-            let probability = posterior(&rep, reports);
-            // Strong: odds of 99:1 or better, and the held-out blocks confirm the gain by the
-            // same test that made it significant (not only the segments' second test, not only
-            // the cause's signature in the evidence).
-            let grade = if rep.by_evidence {
-                Grade::Moderate
-            } else {
-                grade(probability, &g, opts)
-            };
-            let statement = format!(
-                "{statement} Confidence: {} (posterior probability {:.3} against its re-fitted baseline and the {} other significant candidate(s)).",
-                grade.as_str(),
-                probability,
-                reports.iter().filter(|c| c.significant && c.cause != rep.cause).count()
-            );
-            extended_unit = Some(r.unit);
-            Verdict {
-                cause: rep.cause.clone(),
-                title: rep.title.clone(),
-                statement,
-                key_parameters: key,
-                gains: Some(g),
-                where_: None,
-                grade: Some(grade),
-                probability: Some(probability),
-                competing: vec![],
-            }
+            name(rep, g, refit, reports, events, scoring, opts)
         }
-        None => undecided(evidence_before, &compared, reports, opts),
-    };
+        None => Decision::unnamed(undecided(evidence_before, &compared, reports, opts)),
+    }
+}
 
+/// The verdict when the best significant candidate (the first of the ranked `reports`) is not
+/// named for its rivals: two or more whose extended models explain the fitted samples about
+/// equally (a wrong name is worse than none: `inconclusive`, with the competitors); a rival
+/// whose extended model predicts the held-out samples decisively better (`inconclusive`); or a
+/// look-alike outside the catalog explaining the residual best (`unexplained`). `None` when
+/// the best stands.
+fn rivals(
+    reports: &[CandidateReport],
+    ev: &[EventEvidence],
+    compared: &[&str],
+    opts: &DiagnoseOptions,
+) -> Option<Verdict> {
+    let significant: Vec<&CandidateReport> = reports
+        .iter()
+        .filter(|r| r.significant && r.gains.is_some())
+        .collect();
+    let [best, rivals @ ..] = significant.as_slice() else {
+        return None;
+    };
+    let competing: Vec<(String, f64)> = rivals
+        .iter()
+        .map(|r| (r.cause.clone(), bic_gap(best, r)))
+        .filter(|(_, gap)| *gap < opts.bic_threshold)
+        .collect();
+    if !competing.is_empty() {
+        return Some(inconclusive(best, &competing, reports, ev, compared, opts));
+    }
+    let contradicting: Vec<(&CandidateReport, f64)> = rivals
+        .iter()
+        .map(|r| (*r, held_out_gap(best, r)))
+        .filter(|(_, gap)| *gap > opts.bic_threshold)
+        .collect();
+    if !contradicting.is_empty() {
+        return Some(contradicted(best, &contradicting, ev, compared, opts));
+    }
+    best.look_alike
+        .then(|| outside_catalog(best, reports, ev, compared))
+}
+
+/// The named cause `rep` (its gains `g`, its re-fit): the standard errors of its re-fitted
+/// parameters (every sample of `events`, with the priors), its traces and evidence after, its
+/// posterior probability and grade, its statement.
+fn name(
+    mut rep: CandidateReport,
+    g: Gains,
+    (r, bounds, ties): RefitRecord,
+    reports: &mut [CandidateReport],
+    events: &[Event],
+    (pb, weights, compare): Scoring,
+    opts: &DiagnoseOptions,
+) -> Decision {
+    if let Some(se) = std_errors(&r.unit, &bounds, &ties, &r.values, events, weights, compare) {
+        for (p, e) in rep.parameters.iter_mut().zip(se) {
+            p.std_error = Some(e);
+        }
+        if let Some(c) = reports.iter_mut().find(|c| c.cause == rep.cause) {
+            c.parameters = rep.parameters.clone();
+        }
+    }
+    let (mut after, mut evidence_after) = (vec![], vec![]);
+    for e in events {
+        if let Ok((tr, ev, _)) = pb.evidence(&r.unit, e) {
+            evidence_after.push(ev);
+            after.push((e.name.clone(), tr));
+        }
+    }
+    let probability = posterior(&rep, reports);
+    // Strong: odds of 99:1 or better, and the held-out blocks confirm the gain by the same test
+    // that made it significant (not only the segments' second test, not only the cause's
+    // signature in the evidence).
+    let grade = if rep.by_evidence {
+        Grade::Moderate
+    } else {
+        grade(probability, &g, opts)
+    };
+    let rivals = reports
+        .iter()
+        .filter(|c| c.significant && c.cause != rep.cause)
+        .count();
+    let key = key_parameters(&rep);
+    let statement = named(&rep, &g, &key, (probability, grade, rivals));
+    let verdict = Verdict {
+        cause: named_cause(&rep.cause),
+        title: rep.title.clone(),
+        statement,
+        key_parameters: key,
+        gains: Some(g),
+        where_: None,
+        grade: Some(grade),
+        probability: Some(probability),
+        competing: vec![],
+    };
     Decision {
         verdict,
-        extended_unit,
+        extended_unit: Some(r.unit),
         after,
         evidence_after,
     }
 }
 
-/// A candidate's fitted χ² as candidates are compared with each other: without the echo of
-/// the voltage's noise that a re-fit on the record as recorded carries ([`Gains::input_echo`]).
-fn comparable_chi2(g: &Gains) -> f64 {
-    g.chi2_fit_ext - g.input_echo
-}
-
-/// The VIF-deflated BIC of `other`'s extended model above `best`'s, on the common fitted
-/// samples: `(χ²_other − χ²_best)/v + (k_other − k_best) ln(N/v)`, k every parameter each
-/// re-fitted and `v` the larger of the two baselines' variance inflation (the conservative
-/// choice: a coloured residual counts as fewer independent samples, which narrows the gap).
-/// Positive favours `best`. Infinite when either has no gains.
-pub(super) fn bic_gap(best: &CandidateReport, other: &CandidateReport) -> f64 {
-    let (Some(a), Some(b)) = (&best.gains, &other.gains) else {
-        return f64::INFINITY;
-    };
-    let v = a.vif.max(b.vif).max(1.0);
-    let n = (a.n_fit.max(1) as f64 / v).max(1.0);
-    (comparable_chi2(b) - comparable_chi2(a)) / v
-        + (other.parameters.len() as f64 - best.parameters.len() as f64) * n.ln()
-}
-
-/// How much better `other`'s extended model predicts the held-out samples than `best`'s: the
-/// difference of their held-out χ² deflated by the larger variance inflation, as [`bic_gap`]
-/// (no parameter term: neither re-fit saw those samples, so the difference is twice the log
-/// likelihood ratio of two predictions). Positive favours `other`. Zero when either has no
-/// gains or when one of them was played back as recorded and the other smoothed (their held-out
-/// χ² then hold different echoes of the voltage's noise, measured on the fitted samples only).
-pub(super) fn held_out_gap(best: &CandidateReport, other: &CandidateReport) -> f64 {
-    let (Some(a), Some(b)) = (&best.gains, &other.gains) else {
-        return 0.0;
-    };
-    if best.input_as_recorded != other.input_as_recorded {
-        return 0.0;
+/// The verdict's cause for the named candidate `id`: the catalog's when it has one of that id,
+/// else a cause file's.
+fn named_cause(id: &str) -> VerdictCause {
+    match catalog::find(id) {
+        Some(info) => VerdictCause::Catalog(info.id),
+        None => VerdictCause::User(id.to_string()),
     }
-    (a.chi2_held_ext - b.chi2_held_ext) / a.vif.max(b.vif).max(1.0)
-}
-
-/// The named candidate's approximate posterior probability (equal prior odds) among its
-/// re-fitted baseline (`ΔBIC` below it) and the other significant candidates' extensions
-/// ([`bic_gap`] above it): `1 / (1 + e^{−ΔBIC/2} + Σ e^{−gap/2})`, Schwarz's approximation of
-/// the marginal likelihood. A candidate that failed its own test is no rival explanation: its
-/// extension gained nothing over its baseline, and its extended model's χ² differs from the
-/// named one's by what the two baselines' searches found (each re-fits other interacting
-/// parameters), not by the cause. The figure is an approximation a reviewer weighs, not an
-/// exact Bayes factor.
-pub(super) fn posterior(named: &CandidateReport, reports: &[CandidateReport]) -> f64 {
-    let Some(g) = &named.gains else {
-        return 0.0;
-    };
-    let mut odds_against = (-g.delta_bic / 2.0).exp();
-    for r in reports
-        .iter()
-        .filter(|r| r.cause != named.cause && r.significant)
-    {
-        let gap = bic_gap(named, r);
-        if gap.is_finite() {
-            odds_against += (-gap / 2.0).exp();
-        }
-    }
-    1.0 / (1.0 + odds_against)
-}
-
-/// A named cause's grade: `strong` with a posterior probability of at least
-/// [`STRONG_PROBABILITY`], a ΔBIC against its baseline above the threshold and a held-out drop
-/// of at least `min_held_drop` on the interleaved blocks (the gain predicted, not only fitted);
-/// `moderate` otherwise (named by the segments' second test or by its signature, or a rival
-/// close behind).
-pub(super) fn grade(probability: f64, g: &Gains, opts: &DiagnoseOptions) -> Grade {
-    if probability >= STRONG_PROBABILITY
-        && held_floor_met(g.held_drop, opts)
-        && bic_met(g.delta_bic, opts)
-    {
-        Grade::Strong
-    } else {
-        Grade::Moderate
-    }
-}
-
-/// Why a candidate that passed its test against its baseline still does not explain the misfit
-/// it was tried on: with its extension the fitted residual is still above the noise floor
-/// (`χ²_ext > noise_factor² · N`, N fitted residuals, each of noise variance 1 by the weights:
-/// the RMS `undecided` calls the floor), and the extension took away less of the misfit above
-/// the noise than it left (`χ²_base − χ²_ext < χ²_ext − N`). A cause is named as *the* cause of
-/// a misfit; one that removes a minority of it while most stays has fitted a part of another
-/// effect's (an effect outside the catalog, or a catalog cause whose own re-fit failed to find
-/// it), and naming it would send an engineer after the smaller part. "Most" is the majority
-/// of the excess over the noise's χ². The floor gate keeps the rule off residuals at the noise
-/// level, where `N` as the noise's χ² is only as exact as the pre-event σ; above the floor the
-/// excess is far larger than that uncertainty.
-pub(super) fn explains_too_little(g: &Gains, noise_factor: f64) -> Option<String> {
-    let n = g.n_fit.max(1) as f64;
-    let (base, ext) = (g.chi2_fit_base, g.chi2_fit_ext);
-    let floor = noise_factor * noise_factor * n;
-    (ext > floor && base - ext < ext - n).then(|| {
-        format!(
-            "it explains {:.0} % of the misfit above the noise (fitted χ² {:.0} -> {:.0}, {:.0} at the noise level) and \
-             leaves {:.1} times the noise variance: most of the misfit is another effect's",
-            100.0 * (base - ext) / (base - n),
-            base,
-            ext,
-            n,
-            ext / n
-        )
-    })
-}
-
-/// A verdict that names no cause but lists the candidates behind it (`inconclusive`, or
-/// `unexplained` by a look-alike): `best` first, then `others` with their BIC gaps above it,
-/// and where the residual lives as `undecided` finds it.
-fn listing(
-    cause: &str,
-    title: String,
-    statement: String,
-    (ev, compared): (&[EventEvidence], &[&str]),
-    best: &CandidateReport,
-    others: Vec<(String, f64)>,
-) -> Verdict {
-    let where_ = worst_residual(ev, compared).and_then(|(_, s)| {
-        top_window(s).map(|w| (s.signal.clone(), w.label.clone(), w.start_s, w.end_s))
-    });
-    Verdict {
-        competing: std::iter::once((best.cause.clone(), 0.0))
-            .chain(others)
-            .collect(),
-        ..unnamed(cause, title, statement, where_)
-    }
-}
-
-/// The verdict when a look-alike outside the catalog ([`super::look_alike`]) is the best
-/// significant candidate: `unexplained`, saying what the residual looks like, which catalog
-/// causes it beats and how to name it; `competing` holds the look-alike, then those causes
-/// with their extended models' BIC above it.
-fn outside_catalog(
-    best: &CandidateReport,
-    reports: &[CandidateReport],
-    ev: &[EventEvidence],
-    compared: &[&str],
-) -> Verdict {
-    let beaten: Vec<(String, f64)> = reports
-        .iter()
-        .filter(|r| r.significant && !r.look_alike && r.gains.is_some())
-        .map(|r| (r.cause.clone(), bic_gap(best, r)))
-        .collect();
-    let gains = best.gains.as_ref().map_or(String::new(), |g| {
-        format!(
-            ": its extension ({}) lowers χ² on the fitted samples by {:.0} % and on the held-out samples by {:.0} %, \
-             the record's evidence 2 ln B = {:.1}",
-            best.extension,
-            100.0 * g.fit_drop,
-            100.0 * g.held_drop,
-            g.record_evidence
-        )
-    });
-    let catalog = if beaten.is_empty() {
-        String::new()
-    } else {
-        let list: Vec<String> = beaten
-            .iter()
-            .map(|(c, gap)| format!("{c} (its extended model's BIC {gap:.1} above)"))
-            .collect();
-        let verbs = if list.len() == 1 {
-            "also passes its own test but explains the data less well; it is"
-        } else {
-            "also pass their own tests but explain the data less well; they are"
-        };
-        format!(
-            " {} {verbs} not named, as the nearest catalog cause to an effect outside the catalog \
-             would be a wrong name.",
-            list.join(" and ")
-        )
-    };
-    let file = super::look_alike::file_of(&best.cause);
-    listing(
-        "unexplained",
-        format!(
-            "unexplained by the catalog: looks like {} ({})",
-            best.title, best.cause
-        ),
-        format!(
-            "Unexplained by the catalog. The residual is explained best by an effect outside the catalog that the \
-             diagnosis tries as a look-alike, {} ({}){gains}.{catalog} If the unit has this setting, diagnose again \
-             with --user-cause {file} to name it and re-fit with it; if not, write a cause file for the effect it has.",
-            best.title, best.cause
-        ),
-        (ev, compared),
-        best,
-        beaten,
-    )
-}
-
-/// A candidate as the verdicts that list it name it: its id, and for a look-alike the bundled
-/// file that models it.
-fn display_name(c: &CandidateReport) -> String {
-    if c.look_alike {
-        format!(
-            "{} (outside the catalog: {})",
-            c.cause,
-            super::look_alike::file_of(&c.cause)
-        )
-    } else {
-        c.cause.clone()
-    }
-}
-
-/// The verdict when two or more significant candidates explain the residual within the BIC
-/// threshold of each other: `inconclusive`, with the competitors and where the residual lives.
-fn inconclusive(
-    best: &CandidateReport,
-    competing: &[(String, f64)],
-    reports: &[CandidateReport],
-    ev: &[EventEvidence],
-    compared: &[&str],
-    opts: &DiagnoseOptions,
-) -> Verdict {
-    let describe = |c: &CandidateReport| {
-        let name = display_name(c);
-        c.gains.as_ref().map_or(name.clone(), |g| {
-            format!(
-                "{name} (ΔBIC {:.1} against its baseline, fitted χ² −{:.0} %, held out −{:.0} %)",
-                g.delta_bic,
-                100.0 * g.fit_drop,
-                100.0 * g.held_drop
-            )
-        })
-    };
-    let rivals: Vec<String> = competing
-        .iter()
-        .filter_map(|(c, gap)| {
-            reports.iter().find(|r| &r.cause == c).map(|r| {
-                format!(
-                    "{}, whose extended model's BIC is {gap:.1} above",
-                    describe(r)
-                )
-            })
-        })
-        .collect();
-    let names: Vec<&str> = std::iter::once(best.cause.as_str())
-        .chain(competing.iter().map(|(c, _)| c.as_str()))
-        .collect();
-    listing(
-        "inconclusive",
-        format!("inconclusive: {}", names.join(" or ")),
-        format!(
-            "Inconclusive: more than one cause explains the residual about equally. {} passes its test, and so does {}: a              BIC difference below {:.0} (Kass and Raftery's \"very strong\" level, the one each cause had to pass against its              baseline) does not decide between them, so none is named. Test them apart with another event (a step of the              other sign or size, a different operating point) or hold one of them out by knowledge of the unit.",
-            describe(best),
-            rivals.join("; and "),
-            opts.bic_threshold
-        ),
-        (ev, compared),
-        best,
-        competing.to_vec(),
-    )
-}
-
-/// The verdict when the fitted and the held-out samples disagree: `best` explains the fitted
-/// samples best (lowest BIC of the significant candidates' extended models), but each of
-/// `contradicting` (candidate, [`held_out_gap`]) predicts the held-out samples better by more than
-/// the BIC threshold, the "very strong" level each cause had to pass against its baseline. A
-/// cause is named for what it predicts, not only for what it fits: a model that fits the
-/// samples it saw better and predicts the others worse has absorbed some of another effect's
-/// misfit. `inconclusive`, listing both.
-fn contradicted(
-    best: &CandidateReport,
-    contradicting: &[(&CandidateReport, f64)],
-    ev: &[EventEvidence],
-    compared: &[&str],
-    opts: &DiagnoseOptions,
-) -> Verdict {
-    let rivals: Vec<String> = contradicting
-        .iter()
-        .map(|(r, gap)| {
-            format!(
-                "{}, whose extended model predicts the held-out samples better by Δχ² = {gap:.1} (deflated by the \
-                 residual's variance inflation) although its BIC on the fitted samples is {:.1} above",
-                display_name(r),
-                bic_gap(best, r)
-            )
-        })
-        .collect();
-    let names: Vec<&str> = std::iter::once(best.cause.as_str())
-        .chain(contradicting.iter().map(|(r, _)| r.cause.as_str()))
-        .collect();
-    listing(
-        "inconclusive",
-        format!("inconclusive: {}", names.join(" or ")),
-        format!(
-            "Inconclusive: the fitted and the held-out samples disagree. {} passes its test and explains the fitted \
-             samples best, but so does {}: more than {:.0} (Kass and Raftery's \"very strong\" level) on samples neither \
-             re-fit saw. A cause that fits better what it saw and predicts worse what it did not has absorbed part of \
-             another effect's misfit, so none is named. Test them apart with another event, or hold one of them out by \
-             knowledge of the unit.",
-            display_name(best),
-            rivals.join("; and "),
-            opts.bic_threshold
-        ),
-        (ev, compared),
-        best,
-        contradicting
-            .iter()
-            .map(|(r, _)| (r.cause.clone(), bic_gap(best, r)))
-            .collect(),
-    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::gain::explains_too_little;
+    use crate::diagnose::playback::Playback;
+    use crate::diagnose::report::CandidateParam;
     use crate::evidence::{analyse, EvidenceOptions};
 
     /// A residual far above the noise whose evidence has no window (the windows are the
-    /// caller's; none may fit a short record) is `unexplained` as a whole: it used to be an
-    /// `expect("windows exist")`.
+    /// caller's; none may fit a short record) is `unexplained` as a whole, never a panic.
     #[test]
     fn an_unexplained_residual_without_windows_gives_a_verdict() {
         let t: Vec<f64> = (0..200).map(|k| k as f64 / 60.0).collect();

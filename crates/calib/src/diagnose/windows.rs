@@ -3,11 +3,15 @@
 //! change).
 
 use crate::evidence::{self, EvidenceOptions};
+use crate::problem::accurate_integrator;
 use itaipu_dynamics::event::Channel;
 use itaipu_dynamics::event::Event;
+use itaipu_dynamics::mode::{simulate_mode_both, ModeOutputs};
 use itaipu_dynamics::simulate::{trace_columns, Traces};
 
-use super::*;
+use super::error::DiagnoseError;
+use super::playback::{self, Playback};
+use super::report::{EventEvidence, SHAFT_BAND_HZ};
 
 /// Width of the "dip" window after the onset [s].
 pub(super) const DIP_S: f64 = 1.0;
@@ -227,5 +231,27 @@ pub(super) fn event_evidence_in_mode(
         onset_s: onset,
         signals,
         p_peak,
+    }
+}
+
+impl Playback {
+    /// The evidence of `unit` on `event`, with the traces it comes from: the phasor playback's
+    /// [`event_evidence`] on [`fitness`]'s traces; in a mode, the compared channels'
+    /// residuals ([`event_evidence_in_mode`]), with those channels, all from one
+    /// simulation ([`simulate_mode_both`]: what [`Self::traces`] and [`Self::outputs`] give).
+    pub(super) fn evidence(
+        &self,
+        unit: &itaipu_dynamics::unit::Unit,
+        event: &Event,
+    ) -> Result<(Traces, EventEvidence, Option<ModeOutputs>), DiagnoseError> {
+        if self.is_pq_phasor() {
+            let tr = self.traces(unit, event)?;
+            let ev = event_evidence(event, &tr);
+            return Ok((tr, ev, None));
+        }
+        let (tr, outs) = simulate_mode_both(unit, event, self.mode, &accurate_integrator())
+            .map_err(|error| DiagnoseError::engine(&event.name, error))?;
+        let ev = event_evidence_in_mode(event, &outs, self);
+        Ok((tr, ev, Some(outs)))
     }
 }

@@ -148,6 +148,7 @@ use std::path::PathBuf;
 mod csv;
 mod declare;
 mod error;
+mod field;
 mod onset;
 pub mod smoothing;
 mod spec;
@@ -160,6 +161,7 @@ pub use declare::{
     NON_UNIFORM_SPREAD,
 };
 pub use error::{EventError, Location};
+pub use field::{field_recorded_by_all, FIELD_CHANNELS};
 pub use onset::{
     detect_onset, Crossing, OnsetChannel, OnsetDetection, ONSET_FALSE_ALARM, ONSET_LOCATE_SD,
     ONSET_MAX_WINDOW_S, ONSET_MIN_WINDOW, ONSET_REFERENCE_S,

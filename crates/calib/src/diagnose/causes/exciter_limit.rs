@@ -11,18 +11,22 @@
 use itaipu_dynamics::synthetic::EventKind;
 
 use itaipu_dynamics::models::exciter::roles::ParamRole;
+use itaipu_dynamics::registry::Role;
 use itaipu_dynamics::unit::Unit;
 
-use super::super::catalog::{
-    exciter_roles, fb, field_side, model_of, new_block, role_path, scanned, value, Cause,
-    CauseError, CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP,
+use super::super::cause::{
+    Cause, CauseError, CauseInfo, Extension, NotApplicable, Roles, Scenario, Tolerance,
 };
-use super::super::trial::Tolerance;
-use super::super::EventEvidence;
+use super::super::cause_kit::{
+    exciter_roles, fb, field_side, model_of, new_block, role_path, scanned, value, DEEP_SEARCH,
+};
+use super::super::context::{Acts, Context, LIMIT_DIP};
+use super::super::report::EventEvidence;
+use super::signature;
 
 pub struct ExciterLimit;
 
-static INFO: CauseInfo = CauseInfo {
+static INFO: CauseInfo<'static> = CauseInfo {
     id: "exciter_limit",
     title: "exciter output limits reached",
     signature: "Q residual confined to the dip and the first recovery seconds (the field voltage \
@@ -71,13 +75,141 @@ fn structures(u: &Unit, exc: &str) -> (Vec<Structure>, Vec<String>) {
     (s, why)
 }
 
+/// The field current X_adI_fd at the operating point [pu], which a ceiling fed from the
+/// terminals is read against.
+fn field_current(ctx: &Context) -> Result<f64, CauseError> {
+    ctx.xadifd0
+        .filter(|i| *i > 0.0)
+        .ok_or_else(|| CauseError::build("the field current at the operating point is unknown"))
+}
+
+/// The path of the exciter `exc`'s parameter of `role` (`what` names it in the reason when the
+/// exciter has none).
+fn path(x: &Extension, exc: &str, role: &ParamRole, what: &str) -> Result<String, CauseError> {
+    role_path(&x.unit, exc, role, what)
+}
+
+/// A constant E_fd ceiling and floor freed: the ceiling's range comes from the field voltage at
+/// the operating point `efd0`.
+fn constant(x: &mut Extension, exc: &str, efd0: f64) -> Result<(), CauseError> {
+    let r = exciter_roles(&x.unit, exc);
+    let (pmax, pmin) = (
+        path(x, exc, &r.ceiling, "ceiling")?,
+        path(x, exc, &r.floor, "floor")?,
+    );
+    let (emax, emin) = (value(&x.unit, &pmax)?, value(&x.unit, &pmin)?);
+    let hi = emax.max(efd0 + 3.0).max(2.0 * efd0);
+    x.extension_free = vec![
+        scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi))?, 24),
+        fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05))?,
+    ];
+    x.description = format!("exciter ceiling {pmax} and floor {pmin} freed (with the AVR gain)");
+    Ok(())
+}
+
+/// The regulator's ceiling and floor freed. The regulator's output at the operating point is
+/// the model's (E_fd0 through its exciter stage): the ceiling is searched from a tenth of its
+/// value up, a candidate below the operating point does not initialise.
+fn regulator(x: &mut Extension, exc: &str) -> Result<(), CauseError> {
+    let r = exciter_roles(&x.unit, exc);
+    let (pmax, pmin) = (
+        path(x, exc, &r.regulator_ceiling, "regulator ceiling")?,
+        path(x, exc, &r.regulator_floor, "regulator floor")?,
+    );
+    let (vmax, vmin) = (value(&x.unit, &pmax)?, value(&x.unit, &pmin)?);
+    if !(vmax > 0.0) {
+        return Err(NotApplicable::RegulatorCeiling {
+            param: pmax,
+            value: vmax,
+        }
+        .into());
+    }
+    x.extension_free = vec![
+        scanned(fb(&pmax, 0.1 * vmax, 1.2 * vmax, vmax)?, 24),
+        fb(&pmin, vmin.min(-vmax), vmin.max(-0.1 * vmax).min(0.0), vmin)?,
+    ];
+    x.description = format!("regulator ceiling {pmax} and floor {pmin} freed (with the AVR gain)");
+    Ok(())
+}
+
+/// A bridge fed from the terminals freed in place: its supply ceiling (up to the constant
+/// variant's ceilings plus the largest commutation drop at the field current `i0`), its
+/// commutation factor and its floor.
+fn supply_in_place(x: &mut Extension, exc: &str, efd0: f64, i0: f64) -> Result<(), CauseError> {
+    let r = exciter_roles(&x.unit, exc);
+    let (pmax, pkc, pmin) = (
+        path(x, exc, &r.supply_ceiling, "supply ceiling")?,
+        path(x, exc, &r.commutation, "commutation factor")?,
+        path(x, exc, &r.supply_floor, "supply floor")?,
+    );
+    let (vmax, kc, vmin) = (
+        value(&x.unit, &pmax)?,
+        value(&x.unit, &pkc)?,
+        value(&x.unit, &pmin)?,
+    );
+    let (lo, hi) = (efd0 + 0.05, vmax.max(efd0 + 3.0).max(2.0 * efd0) + 0.2 * i0);
+    let floor_lo = vmin.min(-2.0);
+    x.extension_free = vec![
+        scanned(fb(&pmax, lo, hi, vmax.clamp(lo, hi))?, 24),
+        fb(&pkc, 0.0, kc.max(0.2), kc.max(0.0))?,
+        fb(
+            &pmin,
+            floor_lo,
+            efd0 - 0.05,
+            vmin.clamp(floor_lo, efd0 - 0.05),
+        )?,
+    ];
+    x.description = format!(
+        "exciter ceiling fed from the terminals ({pmax}, {pkc}) and floor {pmin} freed \
+         (with the AVR gain)"
+    );
+    Ok(())
+}
+
+/// SEXS replaced by `SEXS_bus_fed` with its gains, its ceiling, commutation factor and floor
+/// freed. At the operating point (V_t ≈ 1) the ceiling V_RMAX − K_C·I_fd0 must hold E_fd0: the
+/// search starts K_C at 0.05 and spans the constant variant's ceilings plus the largest
+/// commutation drop at the field current `i0`; a candidate whose ceiling is below E_fd0 does
+/// not initialise.
+fn sexs_to_bus_fed(x: &mut Extension, exc: &str, efd0: f64, i0: f64) -> Result<(), CauseError> {
+    let get = |n: &str| value(&x.unit, &format!("{exc}.{n}"));
+    let (emax, emin) = (get("e_max")?, get("e_min")?);
+    let gains = [
+        ("ta_tb", get("ta_tb")?),
+        ("tb", get("tb")?),
+        ("k", get("k")?),
+        ("te", get("te")?),
+        ("v_ref_offset", get("v_ref_offset")?),
+    ];
+    let k_c = 0.05;
+    let (lo, hi) = (efd0 + 0.05, emax.max(efd0 + 3.0).max(2.0 * efd0) + 0.2 * i0);
+    let vr_min = emin.min(-2.0);
+    let mut values: Vec<(&str, f64)> = gains.to_vec();
+    values.extend([
+        ("vr_max", hi.min(emax + k_c * i0).max(lo + k_c * i0)),
+        ("vr_min", vr_min),
+        ("k_c", k_c),
+    ]);
+    let block = new_block("SEXS_bus_fed", &values)?;
+    x.unit.put(exc, block, &[]).map_err(CauseError::build)?;
+    x.extension_free = vec![
+        scanned(fb(&format!("{exc}.vr_max"), lo, hi, emax + k_c * i0)?, 24),
+        fb(&format!("{exc}.k_c"), 0.0, 0.2, k_c)?,
+        fb(&format!("{exc}.vr_min"), vr_min, efd0 - 0.05, vr_min)?,
+    ];
+    x.description = "exciter ceiling fed from the terminals, V_t·V_RMAX − K_C·X_adI_fd, and \
+                     floor V_t·V_RMIN freed (with the AVR gain)"
+        .into();
+    Ok(())
+}
+
 impl Cause for ExciterLimit {
-    fn info(&self) -> &'static CauseInfo {
-        &INFO
+    fn info(&self) -> CauseInfo<'_> {
+        INFO
     }
 
-    fn acts(&self) -> super::super::catalog::Acts {
-        super::super::catalog::Acts::Exciter
+    fn acts(&self) -> Acts {
+        Acts::Exciter
     }
 
     fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
@@ -96,136 +228,35 @@ impl Cause for ExciterLimit {
         variant: usize,
     ) -> Result<(), CauseError> {
         let Some(exc) = roles.exciter.as_deref() else {
-            return Err(CauseError::not_applicable("no exciter"));
+            return Err(NotApplicable::NoBlock {
+                role: Role::Exciter,
+                purpose: None,
+            }
+            .into());
         };
         let (list, why) = structures(&x.unit, exc);
         let Some(&structure) = list.get(variant) else {
-            return Err(CauseError::not_applicable(format!(
-                "exciter {} has no limits a re-fit can free{}",
-                model_of(&x.unit, exc),
-                if why.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({})", why.join("; "))
-                }
-            )));
+            return Err(NotApplicable::Lacks {
+                role: Role::Exciter,
+                model: model_of(&x.unit, exc),
+                lacks: "limits a re-fit can free".into(),
+                why: (!why.is_empty()).then(|| why.join("; ")),
+            }
+            .into());
         };
         if !ctx.drives_avr_by(LIMIT_DIP) {
             // A limit just above the operating point would only clamp E_fd to make up for a
             // mis-calibrated AVR gain.
-            return Err(CauseError::not_applicable(format!(
-                "no event dips |V| (or steps its set point) by {:.0} % or more, so the AVR is not \
-                 driven to its limits",
-                100.0 * LIMIT_DIP
-            )));
+            return Err(NotApplicable::NoDip { dip: LIMIT_DIP }.into());
         }
         let efd0 = ctx.efd0.ok_or_else(|| {
             CauseError::build("the field voltage at the operating point is unknown")
         })?;
-        let r = exciter_roles(&x.unit, exc);
-        let path = |role: &ParamRole, what: &str| role_path(&x.unit, exc, role, what);
         match structure {
-            Structure::Constant => {
-                let (pmax, pmin) = (path(&r.ceiling, "ceiling")?, path(&r.floor, "floor")?);
-                let (emax, emin) = (value(&x.unit, &pmax)?, value(&x.unit, &pmin)?);
-                let hi = emax.max(efd0 + 3.0).max(2.0 * efd0);
-                // The ceiling's range comes from the field voltage at the operating point.
-                x.extension_free = vec![
-                    scanned(fb(&pmax, efd0 + 0.05, hi, emax.min(hi))?, 24),
-                    fb(&pmin, emin.min(-2.0), efd0 - 0.05, emin.min(efd0 - 0.05))?,
-                ];
-                x.description =
-                    format!("exciter ceiling {pmax} and floor {pmin} freed (with the AVR gain)");
-            }
-            Structure::Regulator => {
-                // The regulator's output at the operating point is the model's (E_fd0 through
-                // its exciter stage): the ceiling is searched from a tenth of its value up, a
-                // candidate below the operating point does not initialise.
-                let (pmax, pmin) = (
-                    path(&r.regulator_ceiling, "regulator ceiling")?,
-                    path(&r.regulator_floor, "regulator floor")?,
-                );
-                let (vmax, vmin) = (value(&x.unit, &pmax)?, value(&x.unit, &pmin)?);
-                if !(vmax > 0.0) {
-                    return Err(CauseError::not_applicable(format!(
-                        "the regulator ceiling {pmax} = {vmax} is not positive"
-                    )));
-                }
-                x.extension_free = vec![
-                    scanned(fb(&pmax, 0.1 * vmax, 1.2 * vmax, vmax)?, 24),
-                    fb(&pmin, vmin.min(-vmax), vmin.max(-0.1 * vmax).min(0.0), vmin)?,
-                ];
-                x.description =
-                    format!("regulator ceiling {pmax} and floor {pmin} freed (with the AVR gain)");
-            }
-            Structure::SupplyInPlace => {
-                let i0 = ctx.xadifd0.filter(|i| *i > 0.0).ok_or_else(|| {
-                    CauseError::build("the field current at the operating point is unknown")
-                })?;
-                let (pmax, pkc, pmin) = (
-                    path(&r.supply_ceiling, "supply ceiling")?,
-                    path(&r.commutation, "commutation factor")?,
-                    path(&r.supply_floor, "supply floor")?,
-                );
-                let (vmax, kc, vmin) = (
-                    value(&x.unit, &pmax)?,
-                    value(&x.unit, &pkc)?,
-                    value(&x.unit, &pmin)?,
-                );
-                let (lo, hi) = (efd0 + 0.05, vmax.max(efd0 + 3.0).max(2.0 * efd0) + 0.2 * i0);
-                let floor_lo = vmin.min(-2.0);
-                x.extension_free = vec![
-                    scanned(fb(&pmax, lo, hi, vmax.clamp(lo, hi))?, 24),
-                    fb(&pkc, 0.0, kc.max(0.2), kc.max(0.0))?,
-                    fb(
-                        &pmin,
-                        floor_lo,
-                        efd0 - 0.05,
-                        vmin.clamp(floor_lo, efd0 - 0.05),
-                    )?,
-                ];
-                x.description = format!(
-                    "exciter ceiling fed from the terminals ({pmax}, {pkc}) and floor {pmin} freed \
-                     (with the AVR gain)"
-                );
-            }
-            Structure::SexsToBusFed => {
-                let i0 = ctx.xadifd0.filter(|i| *i > 0.0).ok_or_else(|| {
-                    CauseError::build("the field current at the operating point is unknown")
-                })?;
-                let get = |n: &str| value(&x.unit, &format!("{exc}.{n}"));
-                let (emax, emin) = (get("e_max")?, get("e_min")?);
-                let gains = [
-                    ("ta_tb", get("ta_tb")?),
-                    ("tb", get("tb")?),
-                    ("k", get("k")?),
-                    ("te", get("te")?),
-                    ("v_ref_offset", get("v_ref_offset")?),
-                ];
-                // At the operating point (V_t ≈ 1) the ceiling V_RMAX − K_C·I_fd0 must hold
-                // E_fd0: the search starts K_C at 0.05 and spans the constant variant's ceilings
-                // plus the largest commutation drop; a candidate whose ceiling is below E_fd0
-                // does not initialise.
-                let k_c = 0.05;
-                let (lo, hi) = (efd0 + 0.05, emax.max(efd0 + 3.0).max(2.0 * efd0) + 0.2 * i0);
-                let vr_min = emin.min(-2.0);
-                let mut values: Vec<(&str, f64)> = gains.to_vec();
-                values.extend([
-                    ("vr_max", hi.min(emax + k_c * i0).max(lo + k_c * i0)),
-                    ("vr_min", vr_min),
-                    ("k_c", k_c),
-                ]);
-                let block = new_block("SEXS_bus_fed", &values)?;
-                x.unit.put(exc, block, &[]).map_err(CauseError::build)?;
-                x.extension_free = vec![
-                    scanned(fb(&format!("{exc}.vr_max"), lo, hi, emax + k_c * i0)?, 24),
-                    fb(&format!("{exc}.k_c"), 0.0, 0.2, k_c)?,
-                    fb(&format!("{exc}.vr_min"), vr_min, efd0 - 0.05, vr_min)?,
-                ];
-                x.description = "exciter ceiling fed from the terminals, V_t·V_RMAX − \
-                                 K_C·X_adI_fd, and floor V_t·V_RMIN freed (with the AVR gain)"
-                    .into();
-            }
+            Structure::Constant => constant(x, exc, efd0)?,
+            Structure::Regulator => regulator(x, exc)?,
+            Structure::SupplyInPlace => supply_in_place(x, exc, efd0, field_current(ctx)?)?,
+            Structure::SexsToBusFed => sexs_to_bus_fed(x, exc, efd0, field_current(ctx)?)?,
         }
         // The AVR gain and time constant, X'_d and H: a calibration without the right limit
         // bends them to make up for it. T'_d0 stays as given: on the ceiling the field flux
@@ -246,14 +277,14 @@ impl Cause for ExciterLimit {
     }
 
     fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
-        super::q_window(ev)
+        signature::q_window(ev)
     }
 
-    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
-        Scenario {
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Option<Scenario> {
+        Some(Scenario {
             values: vec![("exciter.e_max", 2.9 + 0.3 * spread(1))],
             key: Some(("exciter.e_max", Tolerance::Rel(0.05))),
             kind: EventKind::FaultDip,
-        }
+        })
     }
 }

@@ -1,18 +1,23 @@
 //! `governor`: governor action missing or mis-modelled, re-fitted as a HYGOV (added when the
 //! unit has another governor) with a speed deadband and its gate-rate limit.
 
-use itaipu_dynamics::registry;
+use itaipu_dynamics::registry::{self, Role};
 use itaipu_dynamics::synthetic::EventKind;
 
-use super::super::catalog::{
-    add_block, around, declared, exciter_roles, model_of, new_block, rewire, scanned, value, Cause,
-    CauseError, CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH, GOVERNOR_DF_HZ,
+use super::super::cause::{
+    Cause, CauseError, CauseInfo, Extension, NotApplicable, Roles, Scenario,
 };
-use super::super::EventEvidence;
+use super::super::cause_kit::{
+    add_block, around, declared, exciter_roles, model_of, new_block, rewire, scanned, value,
+    DEEP_SEARCH,
+};
+use super::super::context::{Acts, Context, GOVERNOR_DF_HZ};
+use super::super::report::EventEvidence;
+use super::signature;
 
 pub struct Governor;
 
-static INFO: CauseInfo = CauseInfo {
+static INFO: CauseInfo<'static> = CauseInfo {
     id: "governor",
     title: "governor action missing or mis-modelled",
     signature:
@@ -23,22 +28,27 @@ static INFO: CauseInfo = CauseInfo {
 };
 
 impl Cause for Governor {
-    fn info(&self) -> &'static CauseInfo {
-        &INFO
+    fn info(&self) -> CauseInfo<'_> {
+        INFO
     }
 
-    fn acts(&self) -> super::super::catalog::Acts {
-        super::super::catalog::Acts::Mechanical
+    fn acts(&self) -> Acts {
+        Acts::Mechanical
     }
 
     fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
         let Some(g) = roles.governor.as_deref() else {
-            return Err(CauseError::not_applicable("no governor block"));
+            return Err(NotApplicable::NoBlock {
+                role: Role::Governor,
+                purpose: None,
+            }
+            .into());
         };
         if x.unit.block("deadband").is_some() {
-            return Err(CauseError::not_applicable(
-                "the unit already has a block named 'deadband'",
-            ));
+            return Err(NotApplicable::NameTaken {
+                name: "deadband".into(),
+            }
+            .into());
         }
         let model = model_of(&x.unit, g);
         let hygov = model.eq_ignore_ascii_case("HYGOV");
@@ -99,17 +109,17 @@ impl Cause for Governor {
     }
 
     fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
-        super::correlates_with(ev, "frequency", Some("P"))
+        signature::correlates_with(ev, "frequency", Some("P"))
     }
 
-    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
-        Scenario {
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Option<Scenario> {
+        Some(Scenario {
             values: vec![
                 ("deadband.db", 0.002 + 0.0005 * spread(1)),
                 ("governor.velm", 0.01),
             ],
             key: None,
             kind: EventKind::FrequencyExcursion,
-        }
+        })
     }
 }

@@ -3,16 +3,17 @@
 
 use itaipu_dynamics::synthetic::EventKind;
 
-use super::super::catalog::{
-    add_block, fb, new_block, scanned, Cause, CauseError, CauseInfo, Context, Extension, Roles,
-    Scenario,
+use super::super::cause::{
+    Cause, CauseError, CauseInfo, Extension, NotApplicable, Roles, Scenario, Tolerance,
 };
-use super::super::trial::Tolerance;
-use super::super::EventEvidence;
+use super::super::cause_kit::{add_block, fb, new_block, scanned};
+use super::super::context::{Acts, Context};
+use super::super::report::EventEvidence;
+use super::signature;
 
 pub struct MeasurementSkew;
 
-static INFO: CauseInfo = CauseInfo {
+static INFO: CauseInfo<'static> = CauseInfo {
     id: "measurement_skew",
     title: "power channels skewed against the voltage channel",
     signature:
@@ -25,26 +26,24 @@ static INFO: CauseInfo = CauseInfo {
 /// Smallest P/Q skew a diagnosis names, in sample intervals: the resolution a delay is scored
 /// to. Between samples the playback only knows the voltage by interpolation, and the unit's
 /// fastest responses (subtransient flux, the exciter) follow it within the sample interval, so a
-/// delay of a fraction of a sample trades against those. (With the linear fractional delay of
-/// before, practice records without any skew fitted 0.2-0.45 sample intervals, gaining by
-/// smoothing the playback's noise; the band-limited delay, `synthetic::delayed`, fits them at
-/// 0 with no gain, and this rule vetoed none of the 66 practice cases since.)
+/// delay of a fraction of a sample trades against those.
 pub const SKEW_RESOLUTION_SAMPLES: f64 = 0.5;
 
 impl Cause for MeasurementSkew {
-    fn info(&self) -> &'static CauseInfo {
-        &INFO
+    fn info(&self) -> CauseInfo<'_> {
+        INFO
     }
 
-    fn acts(&self) -> super::super::catalog::Acts {
-        super::super::catalog::Acts::PowerMeasurement
+    fn acts(&self) -> Acts {
+        Acts::PowerMeasurement
     }
 
     fn extend(&self, x: &mut Extension, _roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
         if x.unit.block("measurement").is_some() {
-            return Err(CauseError::not_applicable(
-                "the unit already has a measurement block",
-            ));
+            return Err(NotApplicable::NameTaken {
+                name: "measurement".into(),
+            }
+            .into());
         }
         add_block(
             &mut x.unit,
@@ -62,7 +61,7 @@ impl Cause for MeasurementSkew {
     }
 
     fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
-        super::correlates_with(ev, "|V|", None)
+        signature::correlates_with(ev, "|V|", None)
     }
 
     fn below_resolution(&self, fitted: &[(String, f64)], ctx: &Context) -> Option<String> {
@@ -80,11 +79,11 @@ impl Cause for MeasurementSkew {
         })
     }
 
-    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
-        Scenario {
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Option<Scenario> {
+        Some(Scenario {
             values: vec![("measurement.pq_delay_s", 0.012 + 0.006 * spread(1))],
             key: Some(("measurement.pq_delay_s", Tolerance::Abs(0.5 / 60.0))),
             kind: EventKind::FaultDip,
-        }
+        })
     }
 }

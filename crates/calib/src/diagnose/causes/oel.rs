@@ -1,19 +1,22 @@
 //! `oel`: an over-excitation limiter acting after the event, modelled by an inverse-time OEL on
 //! the field current at the exciter's summing point (with the field side).
 
+use itaipu_dynamics::registry::Role;
 use itaipu_dynamics::synthetic::EventKind;
 
-use super::super::catalog::{
-    add_block, declared, declared_range, fb, field_side, model_of, new_block, scanned, Cause,
-    CauseError, CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH, LIMIT_DIP,
-    OEL_IFD_RISE,
+use super::super::cause::{
+    Cause, CauseError, CauseInfo, Extension, NotApplicable, Roles, Scenario, Tolerance,
 };
-use super::super::trial::Tolerance;
-use super::super::EventEvidence;
+use super::super::cause_kit::{
+    add_block, declared, declared_range, fb, field_side, model_of, new_block, scanned, DEEP_SEARCH,
+};
+use super::super::context::{Acts, Context, LIMIT_DIP, OEL_IFD_RISE};
+use super::super::report::EventEvidence;
+use super::signature;
 
 pub struct Oel;
 
-static INFO: CauseInfo = CauseInfo {
+static INFO: CauseInfo<'static> = CauseInfo {
     id: "oel",
     title: "over-excitation limiter acting after the event",
     signature:
@@ -26,61 +29,64 @@ static INFO: CauseInfo = CauseInfo {
 };
 
 impl Cause for Oel {
-    fn info(&self) -> &'static CauseInfo {
-        &INFO
+    fn info(&self) -> CauseInfo<'_> {
+        INFO
     }
 
-    fn acts(&self) -> super::super::catalog::Acts {
-        super::super::catalog::Acts::Exciter
+    fn acts(&self) -> Acts {
+        Acts::Exciter
     }
 
     fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
         let Some(exc) = roles.exciter.as_deref() else {
-            return Err(CauseError::not_applicable(
-                "no exciter for an OEL to act on",
-            ));
+            return Err(NotApplicable::NoBlock {
+                role: Role::Exciter,
+                purpose: Some("for an OEL to act on"),
+            }
+            .into());
         };
         let has_voel = x
             .unit
             .block(exc)
             .is_some_and(|b| b.ports().iter().any(|p| p.name == "voel"));
         if !has_voel {
-            return Err(CauseError::not_applicable(format!(
-                "exciter {} has no OEL input",
-                model_of(&x.unit, exc)
-            )));
+            return Err(NotApplicable::Lacks {
+                role: Role::Exciter,
+                model: model_of(&x.unit, exc),
+                lacks: "OEL input".into(),
+                why: None,
+            }
+            .into());
         }
         if x.unit.block("oel").is_some() {
-            return Err(CauseError::not_applicable("the unit already has an OEL"));
+            return Err(NotApplicable::NameTaken { name: "oel".into() }.into());
         }
         if !ctx.drives_avr_by(LIMIT_DIP) && ctx.field_current_rise.is_none_or(|r| r < OEL_IFD_RISE)
         {
             // Without a dip or a sustained field forcing the field current is not driven into
             // overload; a limiter picking up just above the operating point would only trim a
             // mis-calibrated AVR gain.
-            return Err(CauseError::not_applicable(format!(
-                "no event dips |V| (or steps its set point) by {:.0} % or more or raises the field \
-                 current by {:.0} % or more, \
-                 so the field current is not forced into overload",
-                100.0 * LIMIT_DIP,
-                100.0 * OEL_IFD_RISE
-            )));
+            return Err(NotApplicable::NoFieldForcing {
+                dip: LIMIT_DIP,
+                rise: OEL_IFD_RISE,
+            }
+            .into());
         }
         let i0 = ctx.xadifd0.ok_or_else(|| {
             CauseError::build("the field current at the operating point is unknown")
         })?;
         if !(i0 > 0.0) {
-            return Err(CauseError::not_applicable(
-                "the field current at the operating point is not positive",
-            ));
+            return Err(NotApplicable::NotPositiveAtOperatingPoint {
+                quantity: "field current",
+            }
+            .into());
         }
         // The limiter's settings are read the usual way: it picks up at 105 % of the rated field
         // current and regulates back to 100 % (the block's declared defaults, left as they are:
         // the common setting of an inverse-time OEL). What a record identifies is the level the
         // limiter regulates the field current to, so the rated current is what is searched, not
-        // the pickup (with the pickup tied to the regulated level, as before, the fit put the
-        // pickup at the regulated level and read it 5 % low). The rated current's range is computed here, not declared:
-        // it is read against the calibrated unit's pre-event field current i0, and the re-fit
+        // the pickup (a pickup tied to the regulated level would be fitted at the regulated level,
+        // 5 % low). The rated current's range is computed here, not declared: it is read against the calibrated unit's pre-event field current i0, and the re-fit
         // from the datasheet values (below) may put the unit's own pre-event current well under
         // i0 (a calibration that mimicked the limiter raised X_d), so the range reaches down to
         // 0.6 × i0; a candidate whose own current starts above its pickup does not initialise.
@@ -112,7 +118,7 @@ impl Cause for Oel {
     }
 
     fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
-        super::q_window(ev)
+        signature::q_window(ev)
     }
 
     /// An inverse-time limiter whose I²t capacity A_max ends at the bottom of its declared
@@ -121,10 +127,8 @@ impl Cause for Oel {
     /// pickup: the residual asks for a limit without the thermal delay that makes an OEL act
     /// seconds after the event, which the cause does not explain (an instantaneous field-current
     /// limit, a compensator or a bent AVR does; the upper-end rule of the candidates, turned to
-    /// the end where this parameter gives the most effect). Measured on the 66 practice records
-    /// (stop 47): the five OELs named right ended at A_max 0.06-1.5; 13 of the 53 OEL re-fits, all
-    /// rivals of other causes and none significant, at the bottom; a reactive-current droop outside the catalog
-    /// (`examples/outside_catalog.rs`, X_c = 0.03 on a dip) was named `oel` strong there.
+    /// the end where this parameter gives the most effect): a reactive-current droop outside the
+    /// catalog, fitted as an OEL, ends there.
     fn unphysical(&self, fitted: &[(String, f64)], _ctx: &Context) -> Option<String> {
         let a = fitted.iter().find(|(p, _)| p == "oel.a_max")?.1;
         let (lo, hi) = declared_range("oel", "a_max")?;
@@ -137,8 +141,8 @@ impl Cause for Oel {
         })
     }
 
-    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
-        Scenario {
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Option<Scenario> {
+        Some(Scenario {
             // The truth reads its settings against the pre-event field current (the search's
             // start) and picks up at 104-106 % of it; the key is the regulated current.
             values: vec![
@@ -148,7 +152,7 @@ impl Cause for Oel {
             ],
             key: Some(("oel.ifd_rated", Tolerance::Rel(0.05))),
             kind: EventKind::FaultDip,
-        }
+        })
     }
 }
 
@@ -159,8 +163,8 @@ mod tests {
 
     /// The veto every candidate's scoring asks (`Cause::vetoed`): an OEL whose I²t capacity
     /// ends at the bottom of the block's declared range (0.02 pu²s, searched on a log scale up
-    /// to 30) is not named; the capacities of the OELs the practice records hide (fitted
-    /// 0.06-1.5) are, and so is one just off the bottom.
+    /// to 30) is not named; typical capacities (0.06-1.5 pu²s) are, and so is one just off the
+    /// bottom.
     #[test]
     fn an_oel_without_thermal_capacity_is_not_named() {
         let oel = cause("oel").unwrap();

@@ -1,18 +1,22 @@
 //! `pss_state`: the PSS in service other than modelled: taken out when the model has one, a
 //! typical STAB3 put in when it has none.
 
-use itaipu_dynamics::registry;
+use itaipu_dynamics::registry::{self, Role};
 use itaipu_dynamics::synthetic::EventKind;
 
-use super::super::catalog::{
-    add_block, around, declared, exciter_gain_and_time_constant, fb, model_of, value, Cause,
-    CauseError, CauseInfo, Context, Extension, Roles, Scenario, DEEP_SEARCH,
+use super::super::cause::{
+    Cause, CauseError, CauseInfo, Extension, NotApplicable, Roles, Scenario,
 };
-use super::super::EventEvidence;
+use super::super::cause_kit::{
+    add_block, around, declared, exciter_gain_and_time_constant, fb, model_of, value, DEEP_SEARCH,
+};
+use super::super::context::{Acts, Context};
+use super::super::report::EventEvidence;
+use super::signature;
 
 pub struct PssState;
 
-static INFO: CauseInfo = CauseInfo {
+static INFO: CauseInfo<'static> = CauseInfo {
     id: "pss_state",
     title: "PSS in service other than modelled",
     signature: "electromechanical swing in the P residual with the wrong damping after the event",
@@ -21,17 +25,21 @@ static INFO: CauseInfo = CauseInfo {
 };
 
 impl Cause for PssState {
-    fn info(&self) -> &'static CauseInfo {
-        &INFO
+    fn info(&self) -> CauseInfo<'_> {
+        INFO
     }
 
-    fn acts(&self) -> super::super::catalog::Acts {
-        super::super::catalog::Acts::Exciter
+    fn acts(&self) -> Acts {
+        Acts::Exciter
     }
 
     fn extend(&self, x: &mut Extension, roles: &Roles, _ctx: &Context) -> Result<(), CauseError> {
         let Some(exc) = roles.exciter.as_deref() else {
-            return Err(CauseError::not_applicable("no exciter for a PSS to act on"));
+            return Err(NotApplicable::NoBlock {
+                role: Role::Exciter,
+                purpose: Some("for a PSS to act on"),
+            }
+            .into());
         };
         if let Some(p) = &roles.pss {
             let model = model_of(&x.unit, p);
@@ -74,14 +82,14 @@ impl Cause for PssState {
     }
 
     fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
-        super::dominant_p_mode(ev)
+        signature::dominant_p_mode(ev)
     }
 
-    fn scenario(&self, _spread: &dyn Fn(u64) -> f64) -> Scenario {
-        Scenario {
+    fn scenario(&self, _spread: &dyn Fn(u64) -> f64) -> Option<Scenario> {
+        Some(Scenario {
             values: vec![],
             key: None,
             kind: EventKind::FaultDip,
-        }
+        })
     }
 }

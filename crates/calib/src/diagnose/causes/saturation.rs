@@ -1,17 +1,20 @@
 //! `saturation`: the machine's magnetic saturation other than modelled, re-fitted as the
 //! saturation curve's two points S(1.0), S(1.2) (with the field side).
 
+use itaipu_dynamics::registry::Role;
 use itaipu_dynamics::synthetic::EventKind;
 
-use super::super::catalog::{
-    declared, field_side, has_param, model_of, value, Cause, CauseError, CauseInfo, Context,
-    Extension, Roles, Scenario,
+use super::super::cause::{
+    Cause, CauseError, CauseInfo, Extension, NotApplicable, Roles, Scenario,
 };
-use super::super::EventEvidence;
+use super::super::cause_kit::{declared, field_side, has_param, model_of, value};
+use super::super::context::{Acts, Context};
+use super::super::report::EventEvidence;
+use super::signature;
 
 pub struct Saturation;
 
-static INFO: CauseInfo = CauseInfo {
+static INFO: CauseInfo<'static> = CauseInfo {
     id: "saturation",
     title: "magnetic saturation other than modelled",
     signature: "Q residual that grows with the flux (voltage) level and a Q bias after the event",
@@ -20,22 +23,25 @@ static INFO: CauseInfo = CauseInfo {
 };
 
 impl Cause for Saturation {
-    fn info(&self) -> &'static CauseInfo {
-        &INFO
+    fn info(&self) -> CauseInfo<'_> {
+        INFO
     }
 
-    fn acts(&self) -> super::super::catalog::Acts {
-        super::super::catalog::Acts::Machine
+    fn acts(&self) -> Acts {
+        Acts::Machine
     }
 
     fn extend(&self, x: &mut Extension, roles: &Roles, _ctx: &Context) -> Result<(), CauseError> {
         let m = &roles.machine;
         let (s10, s12) = (format!("{m}.s10"), format!("{m}.s12"));
         if !has_param(&x.unit, &s10) || !has_param(&x.unit, &s12) {
-            return Err(CauseError::not_applicable(format!(
-                "machine {} has no S(1.0), S(1.2)",
-                model_of(&x.unit, m)
-            )));
+            return Err(NotApplicable::Lacks {
+                role: Role::Machine,
+                model: model_of(&x.unit, m),
+                lacks: "S(1.0), S(1.2)".into(),
+                why: None,
+            }
+            .into());
         }
         let (a, b) = (value(&x.unit, &s10)?, value(&x.unit, &s12)?);
         x.extension_free = vec![declared(&x.unit, &s10, a)?, declared(&x.unit, &s12, b)?];
@@ -47,14 +53,13 @@ impl Cause for Saturation {
     }
 
     fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
-        super::q_window(ev)
+        signature::q_window(ev)
     }
 
     /// A fitted curve that is no magnetisation curve
     /// ([`itaipu_dynamics::plausibility::is_magnetisation_curve`]): GENSAE's exponential
-    /// S(1.0)·ψⁿ then has n ≤ 0, less saturation at higher flux. Such a curve can fit a record's
-    /// misfit (the bundled Itaipu record, calibrated: S(1.0) 0.40, S(1.2) 0.20, 4 % of χ²), but
-    /// no machine has it, so it does not name saturation.
+    /// S(1.0)·ψⁿ then has n ≤ 0, less saturation at higher flux. Such a curve can fit part of a
+    /// record's misfit, but no machine has it, so it does not name saturation.
     fn unphysical(&self, fitted: &[(String, f64)], _ctx: &Context) -> Option<String> {
         let find = |suffix: &str| {
             fitted
@@ -71,15 +76,15 @@ impl Cause for Saturation {
         })
     }
 
-    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
-        Scenario {
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Option<Scenario> {
+        Some(Scenario {
             values: vec![
                 ("machine.s10", 0.2 + 0.05 * spread(1)),
                 ("machine.s12", 0.6 + 0.1 * spread(2)),
             ],
             key: None,
             kind: EventKind::FaultDip,
-        }
+        })
     }
 }
 

@@ -4,15 +4,17 @@
 
 use itaipu_dynamics::synthetic::EventKind;
 
-use super::super::catalog::{
-    add_block, declared, new_block, Cause, CauseError, CauseInfo, Context, Extension, Roles,
-    Scenario,
+use super::super::cause::{
+    Cause, CauseError, CauseInfo, Extension, NotApplicable, Roles, Scenario,
 };
-use super::super::EventEvidence;
+use super::super::cause_kit::{add_block, declared, new_block};
+use super::super::context::{Acts, Context};
+use super::super::report::EventEvidence;
+use super::signature;
 
 pub struct TerminalLoad;
 
-static INFO: CauseInfo = CauseInfo {
+static INFO: CauseInfo<'static> = CauseInfo {
     id: "terminal_load",
     title: "unmodelled load between the machine and the PMU",
     signature:
@@ -22,19 +24,20 @@ static INFO: CauseInfo = CauseInfo {
 };
 
 impl Cause for TerminalLoad {
-    fn info(&self) -> &'static CauseInfo {
-        &INFO
+    fn info(&self) -> CauseInfo<'_> {
+        INFO
     }
 
-    fn acts(&self) -> super::super::catalog::Acts {
-        super::super::catalog::Acts::Terminal
+    fn acts(&self) -> Acts {
+        Acts::Terminal
     }
 
     fn extend(&self, x: &mut Extension, _roles: &Roles, _ctx: &Context) -> Result<(), CauseError> {
         if x.unit.block("load").is_some() {
-            return Err(CauseError::not_applicable(
-                "the unit already has a block named 'load'",
-            ));
+            return Err(NotApplicable::NameTaken {
+                name: "load".into(),
+            }
+            .into());
         }
         add_block(&mut x.unit, "load", new_block("terminal_load", &[])?)?;
         x.extension_free = vec![
@@ -45,17 +48,17 @@ impl Cause for TerminalLoad {
     }
 
     fn signature(&self, ev: &[EventEvidence], _ctx: &Context) -> Vec<String> {
-        super::correlates_with(ev, "|V|", None)
+        signature::correlates_with(ev, "|V|", None)
     }
 
-    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
-        Scenario {
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Option<Scenario> {
+        Some(Scenario {
             values: vec![
                 ("load.p_load", 0.05 + 0.02 * spread(1)),
                 ("load.q_load", 0.04 + 0.02 * spread(2)),
             ],
             key: None,
             kind: EventKind::FaultDip,
-        }
+        })
     }
 }

@@ -2,14 +2,16 @@
 //! calibrated rigid inertia into a two-mass shaft (turbine and generator masses joined by a
 //! spring of the mode's frequency).
 
+use itaipu_dynamics::registry::Role;
 use itaipu_dynamics::synthetic::EventKind;
 
-use super::super::catalog::{
-    add_block, declared, fb, new_block, rewire, scanned, value, Cause, CauseError, CauseInfo,
-    Context, Extension, Roles, Scenario,
+use super::super::cause::{
+    Cause, CauseError, CauseInfo, Extension, NotApplicable, Roles, Scenario, Tolerance,
 };
-use super::super::trial::Tolerance;
-use super::super::EventEvidence;
+use super::super::cause_kit::{add_block, declared, fb, new_block, rewire, scanned, value};
+use super::super::context::{Acts, Context};
+use super::super::report::EventEvidence;
+use super::signature;
 use crate::evidence::PEAK_WINDOW_HZ;
 
 pub struct TorsionalMode;
@@ -17,8 +19,8 @@ pub struct TorsionalMode;
 /// Upper edge of the electromechanical band [Hz] (`models.md` §12.1: hydro torsional modes lie
 /// well above the 0.2-2 Hz electromechanical band): the lowest torsional frequency searched. Below
 /// it a heavily damped "shaft" only filters the mechanical power the governor delivers, which is
-/// the governor's and the swing's business (practice p09, a governor deadband, was once named a
-/// 1.94 Hz mode with ζ = 0.3 from a search that started at 1 Hz).
+/// the governor's and the swing's business: a search that reaches into the band can dress a
+/// governor's nonlinearity (a deadband) as a heavily damped mode near 2 Hz.
 pub const ELECTROMECHANICAL_BAND_MAX_HZ: f64 = 2.0;
 
 /// Largest damping ratio of a torsional mode of a turbine-generator shaft: a bare shaft's mode
@@ -26,10 +28,8 @@ pub const ELECTROMECHANICAL_BAND_MAX_HZ: f64 = 2.0;
 /// turbine's water and the generator's damper windings add a few per cent at most, so 0.1 is an
 /// order of magnitude above the first and twice the second; at 0.1 the mode still rings
 /// (its amplitude falls by e^{−2πζ} ≈ 0.53 a cycle), above it the fitted "mode" is a filter on
-/// the mechanical power. Measured on the 66 practice records (stop 47): the six torsional
-/// modes named right were fitted at ζ ≤ 0.042; 19 of the 66 torsional re-fits, all rivals of
-/// other causes and none significant, at 0.12-0.5; a droop outside the catalog (`examples/outside_catalog.rs`, X_c = 0.05 on a
-/// step) was named a 2.1 Hz mode with ζ = 0.48 before this rule.
+/// the mechanical power, which other effects (a governor's nonlinearity, a reactive droop) can
+/// fit as well.
 pub const SHAFT_ZETA_MAX: f64 = 0.1;
 
 /// The band a torsional mode is searched in [Hz]: from the electromechanical band's upper edge to
@@ -40,7 +40,7 @@ fn torsional_band(ctx: &Context) -> (f64, f64) {
     (f_lo, (0.45 * ctx.rate_hz).clamp(f_lo, 25.0))
 }
 
-static INFO: CauseInfo = CauseInfo {
+static INFO: CauseInfo<'static> = CauseInfo {
     id: "torsional_mode",
     title: "torsional mode of the turbine-generator shaft",
     signature: "a lightly damped oscillation in the P residual above the electromechanical modes, \
@@ -52,12 +52,12 @@ static INFO: CauseInfo = CauseInfo {
 };
 
 impl Cause for TorsionalMode {
-    fn info(&self) -> &'static CauseInfo {
-        &INFO
+    fn info(&self) -> CauseInfo<'_> {
+        INFO
     }
 
-    fn acts(&self) -> super::super::catalog::Acts {
-        super::super::catalog::Acts::ActivePower
+    fn acts(&self) -> Acts {
+        Acts::ActivePower
     }
 
     /// The shaft's mode is searched up to the top of [`torsional_band`]; in playback it is
@@ -69,14 +69,17 @@ impl Cause for TorsionalMode {
 
     fn extend(&self, x: &mut Extension, roles: &Roles, ctx: &Context) -> Result<(), CauseError> {
         if roles.governor.is_none() {
-            return Err(CauseError::not_applicable(
-                "no governor block to feed the turbine mass",
-            ));
+            return Err(NotApplicable::NoBlock {
+                role: Role::Governor,
+                purpose: Some("to feed the turbine mass"),
+            }
+            .into());
         }
         if x.unit.block("shaft").is_some() {
-            return Err(CauseError::not_applicable(
-                "the unit already has a block named 'shaft'",
-            ));
+            return Err(NotApplicable::NameTaken {
+                name: "shaft".into(),
+            }
+            .into());
         }
         let h_path = format!("{}.h", roles.machine);
         let h = value(&x.unit, &h_path)?;
@@ -124,7 +127,7 @@ impl Cause for TorsionalMode {
     }
 
     fn signature(&self, ev: &[EventEvidence], ctx: &Context) -> Vec<String> {
-        let mut out = super::dominant_p_mode(ev);
+        let mut out = signature::dominant_p_mode(ev);
         if let Some(f) = ctx.mode_hint_hz {
             out.push(format!("search started at the residual's {f:.2} Hz mode"));
         }
@@ -176,8 +179,8 @@ impl Cause for TorsionalMode {
         })
     }
 
-    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
-        Scenario {
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Option<Scenario> {
+        Some(Scenario {
             values: vec![
                 ("shaft.f_torsion_hz", 5.0 + 2.0 * spread(1)),
                 ("shaft.zeta", 0.02 + 0.01 * spread(2)),
@@ -186,7 +189,7 @@ impl Cause for TorsionalMode {
             ],
             key: Some(("shaft.f_torsion_hz", Tolerance::Rel(0.05))),
             kind: EventKind::FaultDip,
-        }
+        })
     }
 }
 
@@ -229,7 +232,7 @@ mod tests {
     }
 
     /// A mode inside the band but damped above [`SHAFT_ZETA_MAX`] is no shaft mode: not named;
-    /// the lightly damped modes the practice records hide (ζ 0.0005-0.042 fitted) are.
+    /// lightly damped shaft modes (ζ 0.0005-0.05) are.
     #[test]
     fn a_heavily_damped_mode_is_no_shaft_mode() {
         let mode = cause("torsional_mode").unwrap();
