@@ -113,6 +113,7 @@ pub mod user_cause;
 mod verdict;
 mod windows;
 
+pub use noise::REFIT_RMS_NOTE;
 pub use reference::context;
 pub use refit::{calibrated_set, refit_bounds, RefitRequest};
 pub use windows::{event_evidence, windows};
@@ -530,6 +531,9 @@ pub struct NoiseModel {
     pub split: String,
     pub n_fit: usize,
     pub n_held: usize,
+    /// Per event (fitted, then held out) the floors and the residual of the unit as given
+    /// ([`crate::noise::assess`]): the numbers of the headline.
+    pub events: Vec<crate::noise::NoiseRow>,
 }
 
 /// Everything `diagnose` reports (written as JSON by the CLI).
@@ -547,6 +551,9 @@ pub struct Diagnosis {
     /// Evidence with the named extension (empty when none is named).
     pub evidence_after: Vec<EventEvidence>,
     pub noise: NoiseModel,
+    /// The residual of the unit as given against the noise, in one sentence: the same
+    /// computation as a fit's report on its calibrated unit ([`crate::noise::assess`]).
+    pub headline: crate::noise::Headline,
     /// Plausibility warnings on the inputs (set by [`crate::job::run_diagnose`]).
     pub warnings: Vec<itaipu_dynamics::plausibility::Finding>,
     /// Calibrated parameters freed again in every re-fit ([`DiagnoseOptions::refit`]).
@@ -675,7 +682,7 @@ fn diagnose_run(
     let t_noise = Instant::now();
     let all: Vec<&Event> = events.iter().chain(held_out).collect();
     let pb = Playback::for_events(opts.mode, &all)?;
-    let sigmas = noise::sigmas(unit, events, &pb)?;
+    let (sigmas, noise_rows, headline) = noise::assess(unit, events, held_out, &pb)?;
     profile.add(
         "diagnosis",
         "noise floor",
@@ -713,7 +720,7 @@ fn diagnose_run(
         nuisance,
         refit: reference,
         before,
-        evidence: evidence_before,
+        evidence: mut evidence_before,
         sp_null,
         surrogates,
     } = reference::reference(
@@ -726,6 +733,9 @@ fn diagnose_run(
         progress,
         &profile,
     )?;
+    // The evidence against the one noise floor of each event and channel (the unit as given's,
+    // as the noise table and the χ² weights), not the reference's own pre-event residual.
+    noise::against_noise(&mut evidence_before, &noise_rows);
     let unit = &reference.unit.clone();
     let mut baselines: BTreeMap<String, Refit> = BTreeMap::new();
     baselines.insert(bounds_key(&nuisance), reference);
@@ -824,7 +834,7 @@ fn diagnose_run(
         verdict,
         extended_unit,
         after,
-        evidence_after,
+        mut evidence_after,
     } = verdict::decide(
         &mut reports,
         refits,
@@ -835,6 +845,7 @@ fn diagnose_run(
         opts,
     );
 
+    noise::against_noise(&mut evidence_after, &noise_rows);
     profile.add(
         "diagnosis",
         "verdict: standard errors, evidence after",
@@ -863,7 +874,9 @@ fn diagnose_run(
             split: sp.description.clone(),
             n_fit: sp.fit.iter().map(|d| d.n_window()).sum(),
             n_held: sp.held.iter().map(|d| d.n_window()).sum(),
+            events: noise_rows,
         },
+        headline,
         warnings: vec![],
         refit: opts.refit.clone(),
         profile: profile.rows(),
