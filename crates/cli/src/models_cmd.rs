@@ -7,20 +7,13 @@ use crate::CliError;
 
 /// Lists every model, or the one named (`diagram`: the diagram primitives).
 pub fn cmd_models(name: Option<&str>) -> Result<(), CliError> {
-    if name.is_some_and(|n| n.eq_ignore_ascii_case("diagram")) {
-        print!("{}", itaipu_dynamics::diagram::describe_primitives());
-        return Ok(());
-    }
-    let models: Vec<_> = match name {
-        Some(n) => vec![registry::find(n).ok_or_else(|| {
-            CliError::new(
-                2,
-                format!(
-                    "unknown model '{n}' (known: {}, diagram)",
-                    registry::names()
-                ),
-            )
-        })?],
+    let models: Vec<_> = match name.map(registry::listing) {
+        Some(Ok(registry::Listing::DiagramPrimitives)) => {
+            print!("{}", itaipu_dynamics::diagram::describe_primitives());
+            return Ok(());
+        }
+        Some(Ok(registry::Listing::Model(m))) => vec![m],
+        Some(Err(msg)) => return Err(CliError::new(2, msg)),
         None => registry::MODELS.iter().collect(),
     };
     for m in models {
