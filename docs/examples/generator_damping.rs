@@ -5,12 +5,13 @@
 use itaipu_dynamics::synthetic::EventKind;
 
 use crate::diagnose::catalog::{
-    declared, value, Acts, Cause, CauseError, CauseInfo, Context, Extension, Roles, Scenario,
+    declared, value, Acts, Cause, CauseError, CauseInfo, Context, Extension, NotApplicable,
+    Roles, Scenario,
 };
 
 pub struct GeneratorDamping;
 
-static INFO: CauseInfo = CauseInfo {
+static INFO: CauseInfo<'static> = CauseInfo {
     id: "generator_damping",
     title: "mechanical damping other than modelled",
     signature: "electromechanical swing in the P residual decaying at the wrong rate",
@@ -19,8 +20,8 @@ static INFO: CauseInfo = CauseInfo {
 };
 
 impl Cause for GeneratorDamping {
-    fn info(&self) -> &'static CauseInfo {
-        &INFO
+    fn info(&self) -> CauseInfo<'_> {
+        INFO
     }
 
     /// The damping acts through the swing equation: a playback mode that imposes P cannot
@@ -31,17 +32,19 @@ impl Cause for GeneratorDamping {
 
     fn extend(&self, x: &mut Extension, roles: &Roles, _ctx: &Context) -> Result<(), CauseError> {
         let d = format!("{}.d", roles.machine);
-        let v = value(&x.unit, &d)
-            .map_err(|_| CauseError::not_applicable("the machine has no damping D"))?;
+        let v = value(&x.unit, &d).map_err(|_| NotApplicable::NoParam {
+            param: d.clone(),
+            in_tie: false,
+        })?;
         x.extension_free = vec![declared(&x.unit, &d, v)?];
         Ok(())
     }
 
-    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Scenario {
-        Scenario {
+    fn scenario(&self, spread: &dyn Fn(u64) -> f64) -> Option<Scenario> {
+        Some(Scenario {
             values: vec![("machine.d", 1.0 + 0.5 * spread(1))],
             key: None,
             kind: EventKind::FaultDip,
-        }
+        })
     }
 }

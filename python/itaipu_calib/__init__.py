@@ -25,8 +25,9 @@ Units and conventions
 Calibration
 -----------
 :func:`fit` calibrates a unit against one or more events, stage by stage (``gen``: the machine
-with E_fd and P_m held; then ``avr``, ``pss``, ``tg``), each by a particle swarm then L-BFGS,
-exactly as the ``itaipu-calib fit`` command line::
+with E_fd and P_m held; then ``avr``, ``pss``, ``tg``), each by a parallel particle swarm, then
+Levenberg-Marquardt (L-BFGS with ``local = "lbfgs"`` in the spec), exactly as the
+``itaipu-calib fit`` command line::
 
     r = ic.fit("data/itaipu/event.toml", "data/itaipu/unit.toml",
                calib="data/itaipu/calibration.toml", stages="gen,avr,pss", seed=1)
@@ -36,15 +37,24 @@ exactly as the ``itaipu-calib fit`` command line::
     r.unit.to_toml()            # the calibrated full unit
     start, cal = r.traces("avr")  # Traces before and after the stage (first event)
     r.report                    # the full report (report.json of the command line) as a dict
+    r.headline                  # "Residual of unit ...: at most X × the noise σ (...)"
+    r.write("out/fit", html=True)  # the command line's folder, report.html included
+
+A PMU recording imports straight into an Event ``fit`` takes (its report, the command line's
+``import.json``, is ``ev.import_report``; its warnings are ``ItaipuWarning``\ s)::
+
+    ev = ic.import_pmu("data/itaipu/pmu/itaipu.cfg", 1000, 60, v_base_kv=18)
+    r = ic.fit(ev, "data/itaipu/unit.dyr", calib="data/itaipu/calibration.toml")
 
 * ``calib`` is a file with a ``[calibration]`` table (stages, free parameters and bounds,
   objectives, optimiser settings); by default the unit file's own table, so a :class:`Unit` that
   was not read from a file (``FitResult.unit``) needs ``calib``.
 * ``stages`` is ``"all"`` (every stage the spec lists) or some of ``gen``, ``avr``, ``pss``,
   ``tg`` as a list or a comma-separated string; they always run in that order, each from the
-  previous result. With several stages a final joint L-BFGS pass over all their parameters on
-  the full unit is reported as stage ``joint`` (``polish=False`` skips it).
-* ``strategy``, ``seed``, ``particles``, ``pso_iterations`` and ``lbfgs_iterations`` override
+  previous result. With several stages a final joint pass over all their parameters on the
+  full unit (a swarm from the staged result, then the local method) is reported as stage
+  ``joint`` (``polish=False`` skips it).
+* ``strategy``, ``seed``, ``particles``, ``pso_iterations`` and ``local_iterations`` override
   the spec; ``threads`` sets the worker threads (default: all cores). The same seed gives the
   same numbers on any number of threads.
 * ``held_out`` events are not fitted; their fitness is reported per stage in ``report``.

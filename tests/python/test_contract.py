@@ -61,7 +61,8 @@ def test_files_objects_and_the_command_line_give_one_fit(cli_fit):
 def test_an_import_in_memory_and_from_its_files_give_one_fit(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ic.ItaipuWarning)
-        ev, report = ic.import_pmu(CFG, 1000.0, 60.0, v_base_kv=18.0, out=tmp_path / "ev")
+        ev = ic.import_pmu(CFG, 1000.0, 60.0, v_base_kv=18.0, out=tmp_path / "ev")
+        report = ev.import_report
         written = ic.load_event(tmp_path / "ev" / "event.toml")
         a = ic.fit(ev, UNIT, calib=CALIB, **QUICK)
         b = ic.fit(written, UNIT, calib=CALIB, **QUICK)

@@ -11,7 +11,7 @@ use crate::diagnose::catalog::{instance_with_role, Cause, Context, Extension, Ro
 use itaipu_dynamics::registry::Role;
 
 /// The extension of `cause` for `unit`, built as the catalog builds a registered cause's.
-fn extension(cause: &dyn Cause, unit: &itaipu_dynamics::unit::Unit) -> Extension {
+fn extension(cause: &'static dyn Cause, unit: &itaipu_dynamics::unit::Unit) -> Extension {
     let roles = Roles {
         machine: instance_with_role(unit, Role::Machine).expect("a machine"),
         exciter: instance_with_role(unit, Role::Exciter),
@@ -38,9 +38,9 @@ fn extension(cause: &dyn Cause, unit: &itaipu_dynamics::unit::Unit) -> Extension
 
 #[test]
 fn the_documented_cause_frees_its_key_parameter_within_its_declared_range() {
-    let cause = generator_damping::GeneratorDamping;
+    let cause: &'static dyn Cause = &generator_damping::GeneratorDamping;
     let unit = crate::diagnose::trial::base_unit();
-    let x = extension(&cause, &unit);
+    let x = extension(cause, &unit);
     let key = cause.info().key_params[0];
     assert_eq!(x.extension_free.len(), 1);
     let d = &x.extension_free[0];
@@ -55,7 +55,7 @@ fn the_documented_cause_frees_its_key_parameter_within_its_declared_range() {
     );
     assert_eq!(cause.acts(), crate::diagnose::catalog::Acts::Mechanical);
     // Its self-test scenario sets the key parameter to a value the range holds.
-    let sc = cause.scenario(&|_| 1.0);
+    let sc = cause.scenario(&|_| 1.0).expect("the documented cause has a self-test");
     let (p, v) = sc.values[0];
     assert_eq!(p, key);
     assert!(v > d.min && v < d.max);

@@ -16,8 +16,6 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
-
 use itaipu_dynamics::dyr::{read_dyr, resolve_bases, side_file, PartialBases};
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::plausibility::{self, Finding, Severity};
@@ -28,7 +26,6 @@ use itaipu_dynamics::unit_file::{read_unit, unit_to_toml};
 use crate::bounds::FreeBound;
 use crate::diagnose::{self, DiagnoseOptions, DiagnoseResult, Diagnosis};
 use crate::fit::{fit_with, FitControl, FitOptions, FitReport, Progress, StageOutput};
-use crate::noise::{noise_floor, NoiseFloor};
 use crate::output::write_synced;
 use crate::request::{DiagnoseRequest, FitRequest};
 use crate::spec::CalibSpec;
@@ -165,41 +162,46 @@ pub fn explain(e: SimError, event: &Event, unit: &Unit) -> Error {
 // Noise
 // -------------------------------------------------------------------------------------------
 
-/// The noise floor of one event's P and Q for a unit ([`crate::noise::noise_floor`]), as every
-/// report shows it.
-#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
-pub struct NoiseRow {
-    pub event: String,
-    pub held_out: bool,
-    pub sigma_p: f64,
-    pub sigma_q: f64,
-    /// Samples each estimate was taken over, and how (pre-event residual, differences,
-    /// quantisation floor).
-    pub p: NoiseFloor,
-    pub q: NoiseFloor,
-}
+pub use crate::noise::{Headline, NoiseRow};
 
-/// Per event (fitted, then held out) the noise floors of P and Q for `unit` (one playback of
-/// each event); an event the unit does not simulate on is left out.
-pub fn noise_rows(unit: &Unit, events: &[Event], held_out: &[Event]) -> Vec<NoiseRow> {
-    events
-        .iter()
-        .map(|e| (e, false))
-        .chain(held_out.iter().map(|e| (e, true)))
-        .filter_map(|(e, h)| {
-            let (_, tr) = crate::fit::fitness(unit, e, h).ok()?;
-            let p = noise_floor(e, tr.get("p_pu")?, &e.record.p_pu);
-            let q = noise_floor(e, tr.get("q_pu")?, &e.record.q_pu);
-            Some(NoiseRow {
-                event: e.name.clone(),
-                held_out: h,
-                sigma_p: p.sigma,
-                sigma_q: q.sigma,
-                p,
-                q,
-            })
-        })
-        .collect()
+/// What a fit's report compares the calibrated unit's residual with the noise on: the playback
+/// of the fit's last pass (the joint pass's when it runs, else the last stage's) and its
+/// compared channels; P and Q for a historical phasor pass.
+pub fn headline_playback(
+    spec: &CalibSpec,
+    opts: &FitOptions,
+    events: &[Event],
+    held_out: &[Event],
+) -> (
+    itaipu_dynamics::mode::PlaybackMode,
+    Vec<itaipu_dynamics::event::Channel>,
+) {
+    use itaipu_dynamics::event::Channel;
+    let fitted: Vec<&Event> = events.iter().collect();
+    let held: Vec<&Event> = held_out.iter().collect();
+    let resolved = spec.resolve_recorded(&fitted, &held);
+    let last = crate::fit::pass_labels(opts).pop().unwrap_or_default();
+    let cmp = if last == "joint" || last == "simultaneous" {
+        resolved.joint_compare()
+    } else {
+        resolved.stage(&last).and_then(|st| st.compare())
+    };
+    match cmp {
+        Some(c) => {
+            let mut ch: Vec<Channel> = c
+                .weights
+                .iter()
+                .filter(|(_, w)| *w > 0.0)
+                .map(|(c, _)| *c)
+                .collect();
+            ch.sort();
+            (c.mode, ch)
+        }
+        None => (
+            itaipu_dynamics::mode::PlaybackMode::Phasor,
+            vec![Channel::P, Channel::Q],
+        ),
+    }
 }
 
 /// Fills every stage's fit statistics from its fitness and the noise floors `noise`.
@@ -208,7 +210,7 @@ pub fn fill_statistics(stages: &mut [crate::fit::StageReport], noise: &[NoiseRow
         noise
             .iter()
             .find(|n| n.event == ev)
-            .map(|n| (n.sigma_p, n.sigma_q))
+            .and_then(|n| Some((n.sigma_p?, n.sigma_q?)))
     };
     // A stage of a playback mode compares other channels: its statistics are its own
     // (computed by the stage on those channels).
@@ -293,6 +295,8 @@ pub struct FitSummary {
     /// Plausibility warnings on the inputs, and starting values the spec's bounds clamp.
     pub warnings: Vec<Finding>,
     pub noise: Vec<NoiseRow>,
+    /// The calibrated unit's residual against the noise, in one sentence ([`crate::noise`]).
+    pub headline: Headline,
     /// Stages finished by an interrupted run and not run again ([`FitControl::resume`]): their
     /// names and their reports as that run wrote them.
     pub resumed_stages: Vec<String>,
@@ -320,6 +324,7 @@ impl FitSummary {
         }
         v["warnings"] = serde_json::to_value(&self.warnings).map_err(err)?;
         v["noise"] = serde_json::to_value(&self.noise).map_err(err)?;
+        v["headline"] = serde_json::to_value(&self.headline).map_err(err)?;
         if !self.event_notes.is_empty() {
             let notes: serde_json::Map<String, serde_json::Value> = self
                 .event_notes
@@ -334,6 +339,12 @@ impl FitSummary {
     /// The report as text (what `itaipu-calib fit` prints and `FitResult.report()` returns):
     /// the stages with their fit statistics and parameters, then the warnings.
     pub fn to_text(&self) -> String {
+        self.to_text_after(&[])
+    }
+
+    /// [`FitSummary::to_text`] for a front end that has shown the warnings `shown` already
+    /// (before the run): each warning is said once, the others are counted.
+    pub fn to_text_after(&self, shown: &[Finding]) -> String {
         let mut out = String::new();
         for (e, notes) in &self.event_notes {
             for n in notes {
@@ -341,11 +352,28 @@ impl FitSummary {
             }
         }
         out.push_str(&self.fit.to_text());
-        if !self.warnings.is_empty() {
-            out.push_str(&format!("\n{} warning(s):\n", self.warnings.len()));
-            for w in &self.warnings {
+        out.push_str(&format!("\nheadline: {}\n", self.headline.sentence));
+        let new: Vec<&Finding> = self
+            .warnings
+            .iter()
+            .filter(|w| !shown.contains(w))
+            .collect();
+        let before = self.warnings.len() - new.len();
+        if !new.is_empty() {
+            out.push_str(&format!(
+                "\n{} warning(s){}:\n",
+                new.len(),
+                if before > 0 {
+                    format!(" (and the {before} above)")
+                } else {
+                    String::new()
+                }
+            ));
+            for w in new {
                 out.push_str(&format!("  {w}\n"));
             }
+        } else if before > 0 {
+            out.push_str(&format!("\n{before} warning(s), above\n"));
         }
         out
     }
@@ -483,7 +511,9 @@ pub fn run_fit(
                 f
             }),
     );
-    let noise = noise_rows(&unit, &inputs.events, &inputs.held_out);
+    let (mode, channels) = headline_playback(&inputs.spec, opts, &inputs.events, &inputs.held_out);
+    let (noise, headline) =
+        crate::noise::assess(&unit, &inputs.events, &inputs.held_out, mode, &channels);
     let mut fit = result.report;
     fill_statistics(&mut fit.stages, &noise);
     // Stages an interrupted run finished: their statistics with the same noise floors.
@@ -498,7 +528,7 @@ pub fn run_fit(
                 noise
                     .iter()
                     .find(|n| n.event == ev)
-                    .map(|n| (n.sigma_p, n.sigma_q))
+                    .and_then(|n| Some((n.sigma_p?, n.sigma_q?)))
             });
             if let Ok(s) = serde_json::to_value(stats) {
                 v["statistics"] = s;
@@ -511,6 +541,7 @@ pub fn run_fit(
             fit,
             warnings,
             noise,
+            headline,
             resumed_stages: resumed.0,
             resumed_reports,
             event_notes: inputs

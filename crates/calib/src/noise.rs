@@ -14,9 +14,32 @@
 //! uniform noise, even where the signal happens not to cross a level (the Itaipu record's P
 //! before the fault, constant to the last digit for 57 samples, would otherwise report a noise
 //! of 1e-5 pu).
+//!
+//! **The headline.** [`assess`] plays a unit back once per event and gives every compared
+//! channel's floor and the unit's residual RMS over the event's fit window against it
+//! ([`NoiseRow`]), and the one sentence every front end shows ([`Headline`]): the largest
+//! RMS/σ over the events and channels, "at most X × the noise σ". The fit's report (for the
+//! calibrated unit), the diagnosis (for the unit it is given), the command line and Python all
+//! read it from here, so that one unit on one record gets one number.
 
-use itaipu_dynamics::event::Event;
+use itaipu_dynamics::event::{Channel, Event};
+use itaipu_dynamics::mode::PlaybackMode;
+use itaipu_dynamics::unit::Unit;
 use serde::{Deserialize, Serialize};
+
+/// What the reports call the noise σ ([`noise_floor`]), in one phrase.
+pub const NOISE_DEFINITION: &str = "the noise σ of a channel is the standard deviation of the \
+unit's residual before the event's onset (with fewer than 10 pre-event samples, the residual's \
+difference-based floor; never below a quantised channel's q/√12)";
+
+/// A residual is at the noise floor when its RMS is at most this multiple of the noise σ: a
+/// model that reproduces the record leaves the noise (ratio 1) plus the played-back input's
+/// noise propagated through it and the estimation error of σ from a few dozen pre-event
+/// samples (about 1/√(2·60) ≈ 10 % for a second at 60 samples/s), well inside 1.5.
+pub const AT_NOISE: f64 = 1.5;
+/// A residual above this multiple of the noise σ is far above it: nine times the noise
+/// variance is a misfit no noise estimate's error explains.
+pub const FAR_ABOVE_NOISE: f64 = 3.0;
 
 /// Pre-event samples needed for the pre-event standard deviation (below, the difference-based
 /// floor over the record): with 10 samples the standard deviation's relative standard error is
@@ -169,6 +192,294 @@ pub fn field_weights(
             (s2 > 0.0 && pq > 0.0).then(|| (c, pq / s2))
         })
         .collect()
+}
+
+/// One compared channel of one event: its noise floor and the unit's residual against it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChannelNoise {
+    /// The channel as the reports name it (`P`, `Q`, `|V|`, `Efd`, `Ifd`).
+    pub signal: String,
+    pub floor: NoiseFloor,
+    /// RMS of the residual `simulated − measured` over the event's fit window [pu].
+    pub rms: f64,
+    /// `rms / floor.sigma`.
+    pub ratio: f64,
+}
+
+/// The noise of one event for a unit ([`assess`]): every compared channel's floor and the
+/// residual against it. `sigma_p`, `sigma_q` (and `p`, `q`) repeat P's and Q's floors when
+/// they are compared (`null` otherwise).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NoiseRow {
+    pub event: String,
+    pub held_out: bool,
+    /// Samples in the event's fit window (what each RMS is taken over).
+    pub samples: usize,
+    pub sigma_p: Option<f64>,
+    pub sigma_q: Option<f64>,
+    pub p: Option<NoiseFloor>,
+    pub q: Option<NoiseFloor>,
+    pub channels: Vec<ChannelNoise>,
+    /// Why the unit could not be played back on the event (no floor then).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+impl NoiseRow {
+    /// The floor σ of `signal` (`P`, `Q`, `|V|`, `Efd`, `Ifd`), when compared.
+    pub fn sigma(&self, signal: &str) -> Option<f64> {
+        self.channels
+            .iter()
+            .find(|c| c.signal == signal)
+            .map(|c| c.floor.sigma)
+    }
+}
+
+/// The one sentence on how far a unit's residual lies above the noise ([`assess`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Headline {
+    /// The unit it is about.
+    pub unit: String,
+    /// The playback and its compared channels (`"phasor: P, Q"`).
+    pub playback: String,
+    /// The playback's mode (what a report's figures play the events back in).
+    pub mode: PlaybackMode,
+    /// The largest RMS/σ over the events (fitted and held out) and compared channels; `None`
+    /// when a noise floor or a residual could not be measured.
+    pub worst: Option<f64>,
+    /// Where it is: event and signal, the residual's RMS and the floor σ [pu].
+    pub event: String,
+    pub signal: String,
+    pub rms: f64,
+    pub sigma: f64,
+    /// [`AT_NOISE`] and [`FAR_ABOVE_NOISE`], as the sentence quotes them.
+    pub at_noise: f64,
+    pub far_above_noise: f64,
+    /// The sentence ([`Headline::text`]).
+    pub sentence: String,
+}
+
+impl Headline {
+    /// `worst` as the sentence prints it (two decimals).
+    pub fn worst_text(&self) -> Option<String> {
+        self.worst.map(|w| format!("{w:.2}"))
+    }
+
+    /// The sentence split around the printed `worst` (`(before, worst, after)`), for a page that
+    /// marks the number up; `None` when there is no number.
+    pub fn parts(&self) -> Option<(&str, String, &str)> {
+        let w = self.worst_text()?;
+        let k = self.sentence.find(&format!("at most {w} "))? + "at most ".len();
+        let end = k + w.len();
+        Some((&self.sentence[..k], w, &self.sentence[end..]))
+    }
+
+    fn text(
+        unit: &str,
+        worst: Option<f64>,
+        at: Option<(&str, &str, f64, f64)>,
+        why: &str,
+    ) -> String {
+        match (worst, at) {
+            (Some(w), Some((event, signal, rms, sigma))) => format!(
+                "Residual of {unit}: at most {w:.2} × the noise σ ({signal} on {event}: RMS \
+                 {} pu over the fit window, σ {} pu). At most {AT_NOISE} × is at the noise \
+                 floor; above {FAR_ABOVE_NOISE} × is far above it.",
+                num(rms),
+                num(sigma)
+            ),
+            _ => format!(
+                "Residual of {unit}: not compared with the noise ({why}); the report cannot say \
+                 whether it lies at the noise floor."
+            ),
+        }
+    }
+}
+
+/// A number for the sentence: 4 significant digits.
+fn num(v: f64) -> String {
+    if v != 0.0 && (v.abs() < 1e-2 || v.abs() >= 1e4) {
+        format!("{v:.3e}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
+/// The noise of `unit` on `events` (fitted) and `held_out`, in the playback `mode` on the
+/// compared `channels` ([`NoiseRow`] per event, fitted first), and the [`Headline`]. One
+/// playback per event (accurate integrator): the phasor playback of P and Q alone is
+/// [`crate::fit::fitness`]'s (the fit's J), any other the mode's channels
+/// ([`itaipu_dynamics::mode::simulate_mode`]). An event the unit does not play back on gets a
+/// row with its error and no floor.
+pub fn assess(
+    unit: &Unit,
+    events: &[Event],
+    held_out: &[Event],
+    mode: PlaybackMode,
+    channels: &[Channel],
+) -> (Vec<NoiseRow>, Headline) {
+    let rows: Vec<NoiseRow> = events
+        .iter()
+        .map(|e| (e, false))
+        .chain(held_out.iter().map(|e| (e, true)))
+        .map(|(e, h)| row(unit, e, h, mode, channels))
+        .collect();
+    let playback = format!(
+        "{mode}: {}",
+        channels
+            .iter()
+            .map(|c| crate::diagnose::playback::signal_name(*c))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let mut worst: Option<(f64, &str, &ChannelNoise)> = None;
+    let mut why = String::new();
+    for r in &rows {
+        if let Some(err) = &r.error {
+            why = format!("the unit does not play back on {}: {err}", r.event);
+            break;
+        }
+        for c in &r.channels {
+            if !(c.ratio.is_finite() && c.floor.sigma > 0.0) {
+                why = format!(
+                    "{} on {}: σ {} pu, RMS {} pu",
+                    c.signal, r.event, c.floor.sigma, c.rms
+                );
+                worst = None;
+                break;
+            }
+            if worst.is_none_or(|(w, _, _)| c.ratio > w) {
+                worst = Some((c.ratio, &r.event, c));
+            }
+        }
+        if !why.is_empty() {
+            break;
+        }
+    }
+    if rows.is_empty()
+        || rows
+            .iter()
+            .all(|r| r.channels.is_empty() && r.error.is_none())
+    {
+        why = "no compared channel".into();
+        worst = None;
+    }
+    let w = if why.is_empty() { worst } else { None };
+    let headline = Headline {
+        unit: unit.name.clone(),
+        playback,
+        mode,
+        worst: w.map(|x| x.0),
+        event: w.map(|x| x.1.to_string()).unwrap_or_default(),
+        signal: w.map(|x| x.2.signal.clone()).unwrap_or_default(),
+        rms: w.map_or(f64::NAN, |x| x.2.rms),
+        sigma: w.map_or(f64::NAN, |x| x.2.floor.sigma),
+        at_noise: AT_NOISE,
+        far_above_noise: FAR_ABOVE_NOISE,
+        sentence: Headline::text(
+            &format!("unit {}", unit.name),
+            w.map(|x| x.0),
+            w.map(|x| (x.1, x.2.signal.as_str(), x.2.rms, x.2.floor.sigma)),
+            &why,
+        ),
+    };
+    (rows, headline)
+}
+
+/// One event's [`NoiseRow`] ([`assess`]).
+fn row(
+    unit: &Unit,
+    e: &Event,
+    held_out: bool,
+    mode: PlaybackMode,
+    channels: &[Channel],
+) -> NoiseRow {
+    let samples = e
+        .record
+        .time_s
+        .iter()
+        .filter(|t| e.fit.contains(**t))
+        .count();
+    let mut out = NoiseRow {
+        event: e.name.clone(),
+        held_out,
+        samples,
+        sigma_p: None,
+        sigma_q: None,
+        p: None,
+        q: None,
+        channels: vec![],
+        error: None,
+    };
+    let pq_phasor = mode == PlaybackMode::Phasor && channels == [Channel::P, Channel::Q];
+    let sims: Vec<Vec<f64>> = if pq_phasor {
+        match crate::fit::fitness(unit, e, held_out) {
+            Ok((_, tr)) => match (tr.get("p_pu"), tr.get("q_pu")) {
+                (Some(p), Some(q)) => vec![p.to_vec(), q.to_vec()],
+                _ => {
+                    out.error = Some("no simulated P or Q".into());
+                    return out;
+                }
+            },
+            Err(err) => {
+                out.error = Some(err.to_string());
+                return out;
+            }
+        }
+    } else {
+        let prepared = itaipu_dynamics::simulate::PreparedEvent::new(e);
+        match itaipu_dynamics::mode::simulate_mode(
+            unit,
+            &prepared,
+            mode,
+            &crate::problem::accurate_integrator(),
+        ) {
+            Ok(o) => {
+                let mut v = vec![];
+                for c in channels {
+                    match o.channel(*c) {
+                        Some(x) => v.push(x.to_vec()),
+                        None => {
+                            out.error = Some(format!("channel {} is not simulated", c.name()));
+                            return out;
+                        }
+                    }
+                }
+                v
+            }
+            Err(err) => {
+                out.error = Some(err.to_string());
+                return out;
+            }
+        }
+    };
+    for (c, sim) in channels.iter().zip(&sims) {
+        let Some(meas) = e.series(*c) else {
+            out.error = Some(format!("channel {} is not recorded", c.name()));
+            return out;
+        };
+        let floor = noise_floor(e, sim, meas);
+        let (mut sse, mut n) = (0.0, 0usize);
+        for ((t, s), m) in e.record.time_s.iter().zip(sim).zip(meas) {
+            if e.fit.contains(*t) {
+                sse += (s - m).powi(2);
+                n += 1;
+            }
+        }
+        let rms = (sse / n.max(1) as f64).sqrt();
+        match c {
+            Channel::P => (out.sigma_p, out.p) = (Some(floor.sigma), Some(floor)),
+            Channel::Q => (out.sigma_q, out.q) = (Some(floor.sigma), Some(floor)),
+            _ => {}
+        }
+        out.channels.push(ChannelNoise {
+            signal: crate::diagnose::playback::signal_name(*c).to_string(),
+            floor,
+            rms,
+            ratio: rms / floor.sigma,
+        });
+    }
+    out
 }
 
 /// Where an event's pre-event samples end: its onset, or for a record with no disturbance the

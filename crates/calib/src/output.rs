@@ -7,9 +7,17 @@
 //! version, the seed) and the folder is renamed into place, replacing an earlier folder
 //! whole when the caller allows it. A failed or killed run leaves the target as it was. An
 //! interrupted fit renames its folder into place with `partial.json` instead of the manifest: a
-//! folder is complete if and only if it holds `manifest.json`. A temporary folder left by a
-//! process that no longer runs (killed outright) is removed, and named, by the next run that
-//! writes beside it ([`Staging::begin`]).
+//! folder is complete if and only if it holds `manifest.json`.
+//!
+//! **Work left by a killed run.** A temporary folder whose process no longer runs (killed
+//! outright, SIGKILL or a power cut) is looked at by the next run that writes beside it
+//! ([`Staging::begin`], [`stale`]): one that holds finished work ([`Stale::holds_work`]: a
+//! `partial.json` listing a finished stage, or a complete folder whose rename was cut short) is
+//! never removed by another command: it is kept and named, `fit --resume` goes on from it and
+//! removes it once its stages are in the finished folder, and only `fit --discard-interrupted`
+//! deletes it ([`discard_stale`]). One without finished work is removed and named. A target
+//! moved aside for its replacement (`.<name>.partial-<pid>.old`) when the process died before
+//! the replacement went in is put back (or the complete replacement put in).
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -177,9 +185,63 @@ fn process_alive(pid: u32) -> bool {
     pid == std::process::id() || proc_root.join(pid.to_string()).exists()
 }
 
+/// The finished stages `partial.json` in `dir` lists (an interrupted fit's), in order; empty
+/// without a readable `partial.json`.
+pub fn finished_stages(dir: &Path) -> Vec<String> {
+    std::fs::read_to_string(dir.join(PARTIAL))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| {
+            v["finished_stages"].as_array().map(|a| {
+                a.iter()
+                    .filter_map(|x| x.as_str().map(String::from))
+                    .collect()
+            })
+        })
+        .unwrap_or_default()
+}
+
+/// A temporary folder beside a target left by a process that no longer runs ([`stale`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stale {
+    pub path: PathBuf,
+    /// The finished stages its `partial.json` lists (an interrupted fit's work).
+    pub finished: Vec<String>,
+    /// It holds a `manifest.json` that verifies and no `partial.json`: a complete result whose
+    /// rename into place was cut short.
+    pub complete: bool,
+    /// A target moved aside for its replacement (`.old`).
+    pub moved_aside: bool,
+}
+
+impl Stale {
+    /// Whether it holds work another command must not delete: a finished stage, or a complete
+    /// result.
+    pub fn holds_work(&self) -> bool {
+        !self.finished.is_empty() || self.complete
+    }
+
+    /// How the front ends name it: the folder and what it holds.
+    pub fn describe(&self) -> String {
+        if self.complete {
+            format!(
+                "{} (a complete result of a run killed before it renamed the folder into place)",
+                self.path.display()
+            )
+        } else {
+            format!(
+                "{} (finished stage(s) {} of a fit killed outright)",
+                self.path.display(),
+                self.finished.join(", ")
+            )
+        }
+    }
+}
+
 /// The temporary folders beside `target` (`.<name>.partial-<pid>` and their `.old`) left by
-/// processes that no longer run: an interrupted or killed run of an earlier process.
-pub fn stale_partials(target: &Path) -> Vec<PathBuf> {
+/// processes that no longer run (an interrupted or killed run of an earlier process), sorted by
+/// path, with what each holds.
+pub fn stale(target: &Path) -> Vec<Stale> {
     let (Some(name), Some(parent)) = (target.file_name(), target.parent()) else {
         return vec![];
     };
@@ -192,18 +254,85 @@ pub fn stale_partials(target: &Path) -> Vec<PathBuf> {
     let Ok(entries) = std::fs::read_dir(parent) else {
         return vec![];
     };
-    let mut out: Vec<PathBuf> = entries
+    let mut out: Vec<Stale> = entries
         .filter_map(|e| e.ok())
         .filter_map(|e| {
             let n = e.file_name().to_string_lossy().into_owned();
             let pid = n.strip_prefix(&prefix)?;
-            let pid = pid.strip_suffix(".old").unwrap_or(pid);
+            let (pid, moved_aside) = match pid.strip_suffix(".old") {
+                Some(p) => (p, true),
+                None => (pid, false),
+            };
             let pid: u32 = pid.parse().ok()?;
-            (!process_alive(pid)).then(|| e.path())
+            if process_alive(pid) || !e.path().is_dir() {
+                return None;
+            }
+            let path = e.path();
+            Some(Stale {
+                finished: finished_stages(&path),
+                complete: !path.join(PARTIAL).exists() && verify(&path).is_ok(),
+                moved_aside,
+                path,
+            })
         })
         .collect();
-    out.sort();
+    out.sort_by(|a, b| a.path.cmp(&b.path));
     out
+}
+
+/// The paths of [`stale`].
+pub fn stale_partials(target: &Path) -> Vec<PathBuf> {
+    stale(target).into_iter().map(|s| s.path).collect()
+}
+
+/// Deletes every temporary folder of ended processes beside `target`, finished work and all
+/// (`fit --discard-interrupted`: the user's explicit consent). Returns what it deleted.
+pub fn discard_stale(target: &Path) -> Vec<Stale> {
+    stale(target)
+        .into_iter()
+        .filter(|s| std::fs::remove_dir_all(&s.path).is_ok())
+        .collect()
+}
+
+/// Puts back what a process that died inside [`Staging::commit`]'s rename left: `target`
+/// missing, its earlier folder moved aside (`.old`) and the replacement beside it. The complete
+/// replacement goes in (and the old folder, unless it holds finished work, goes); an incomplete
+/// one stays where it is and the old folder goes back. Returns what was done, one line each.
+fn recover_rename(target: &Path) -> Vec<String> {
+    let mut done = vec![];
+    for s in stale(target).into_iter().filter(|s| s.moved_aside) {
+        if target.exists() {
+            continue;
+        }
+        let replacement = s.path.with_file_name(
+            s.path
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .trim_end_matches(".old")
+                .to_string(),
+        );
+        let complete = !replacement.join(PARTIAL).exists() && verify(&replacement).is_ok();
+        if complete && std::fs::rename(&replacement, target).is_ok() {
+            done.push(format!(
+                "{}: the complete result of a run killed while renaming it into place, put in",
+                target.display()
+            ));
+            if s.finished.is_empty() && std::fs::remove_dir_all(&s.path).is_ok() {
+                done.push(format!(
+                    "{}: the folder it replaced, removed",
+                    s.path.display()
+                ));
+            }
+        } else if std::fs::rename(&s.path, target).is_ok() {
+            done.push(format!(
+                "{}: put back from {} (a run was killed while replacing it)",
+                target.display(),
+                s.path.display()
+            ));
+        }
+    }
+    done
 }
 
 /// An output folder being written: a temporary folder beside the target, renamed into place
@@ -213,15 +342,22 @@ pub struct Staging {
     tmp: PathBuf,
     done: bool,
     /// Temporary folders of ended processes removed by [`Staging::begin`] (for the front end to
-    /// say so).
+    /// say so): they held no finished work.
     pub removed_stale: Vec<PathBuf>,
+    /// Temporary folders of ended processes that hold finished work ([`Stale::holds_work`]),
+    /// kept (for the front end to name them).
+    pub kept_stale: Vec<Stale>,
+    /// What [`Staging::begin`] put back of a rename a killed process left half done.
+    pub recovered: Vec<String>,
 }
 
 impl Staging {
     /// Creates the temporary folder beside `target` (and `target`'s parent folders) and
     /// probes that a file can be written in it: an output error otherwise, before any
-    /// computation. Temporary folders beside it left by ended processes are removed first
-    /// ([`stale_partials`], listed in [`Staging::removed_stale`]).
+    /// computation. First a rename a killed process left half done is completed or undone,
+    /// then the temporary folders beside it left by ended processes are removed when they hold
+    /// no finished work ([`Staging::removed_stale`]) and kept otherwise
+    /// ([`Staging::kept_stale`]; see the module documentation).
     pub fn begin(target: &Path) -> Result<Self, Error> {
         let name = target
             .file_name()
@@ -233,8 +369,12 @@ impl Staging {
         };
         std::fs::create_dir_all(&parent)
             .map_err(|e| out_err(format!("cannot create {}: {e}", parent.display())))?;
-        let removed_stale: Vec<PathBuf> = stale_partials(target)
+        let recovered = recover_rename(target);
+        let (kept_stale, empty): (Vec<Stale>, Vec<Stale>) =
+            stale(target).into_iter().partition(Stale::holds_work);
+        let removed_stale: Vec<PathBuf> = empty
             .into_iter()
+            .map(|s| s.path)
             .filter(|d| std::fs::remove_dir_all(d).is_ok())
             .collect();
         let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
@@ -254,6 +394,8 @@ impl Staging {
             tmp,
             done: false,
             removed_stale,
+            kept_stale,
+            recovered,
         };
         let probe = st.tmp.join(".probe");
         std::fs::write(&probe, b"itaipu-calib")
@@ -281,10 +423,13 @@ impl Staging {
     }
 
     /// Writes the manifest (last: `command` is what made the folder, the command line or the
-    /// Python call) and renames the folder into place.
+    /// Python call) and renames the folder into place. A `partial.json` kept up to date in the
+    /// folder (a fit's) is not listed and is removed only after the manifest is written, so
+    /// that a process killed at any moment leaves a folder that is resumable or complete.
     pub fn commit(mut self, seed: Option<u64>, command: Vec<String>) -> Result<PathBuf, Error> {
-        let files = list_files(&self.tmp)
+        let mut files = list_files(&self.tmp)
             .map_err(|e| out_err(format!("cannot list {}: {e}", self.tmp.display())))?;
+        files.retain(|f| f.path != PARTIAL);
         let m = Manifest {
             tool: "itaipu-calib".into(),
             version: env!("CARGO_PKG_VERSION").into(),
@@ -294,6 +439,11 @@ impl Staging {
         };
         let text = serde_json::to_string_pretty(&m).map_err(|e| out_err(e.to_string()))?;
         write_synced(&self.tmp.join(MANIFEST), text.as_bytes())?;
+        let partial = self.tmp.join(PARTIAL);
+        if partial.exists() {
+            std::fs::remove_file(&partial)
+                .map_err(|e| out_err(format!("cannot remove {}: {e}", partial.display())))?;
+        }
         self.rename_into_place()?;
         self.done = true;
         Ok(self.target.clone())
@@ -351,6 +501,18 @@ impl Drop for Staging {
             let _ = std::fs::remove_dir_all(&self.tmp);
         }
     }
+}
+
+/// Writes a file whole or not at all: into a temporary file beside it, flushed, then renamed
+/// over it (a process killed meanwhile leaves the earlier file as it was). For the files a
+/// resume reads (`partial.json`).
+pub fn write_atomic(p: &Path, bytes: &[u8]) -> Result<(), Error> {
+    let tmp = p.with_file_name(format!(
+        ".{}.writing",
+        p.file_name().unwrap_or_default().to_string_lossy()
+    ));
+    write_synced(&tmp, bytes)?;
+    std::fs::rename(&tmp, p).map_err(|e| out_err(format!("cannot write {}: {e}", p.display())))
 }
 
 /// Writes a file and flushes it to disk (an output error naming the file on failure).

@@ -458,6 +458,21 @@ pub enum LocalMethod {
     Lbfgs,
 }
 
+impl LocalMethod {
+    /// The method's name as the front ends print it.
+    pub fn describe(self) -> &'static str {
+        match self {
+            LocalMethod::Lm => "Levenberg-Marquardt",
+            LocalMethod::Lbfgs => "L-BFGS",
+        }
+    }
+}
+
+/// How a stage's parameters are searched, in the words `fit --help`, the Python docstrings and
+/// the reports use: the swarm, then the default local method ([`LocalMethod::default`]).
+pub const SEARCH_METHOD: &str =
+    "a parallel particle swarm, then Levenberg-Marquardt (L-BFGS with local = \"lbfgs\")";
+
 /// Default prior spread: a datasheet or commissioning value trusted to about 20 % (one
 /// standard deviation of `ln x`); a 50 % error then costs about 4 in χ², what the data pay for
 /// a fraction of a percent of their misfit.
@@ -910,5 +925,19 @@ impl CalibSpec {
     /// The spec of stage `name`, if listed.
     pub fn stage(&self, name: &str) -> Option<&StageSpec> {
         self.stages.iter().find(|s| s.name == name)
+    }
+}
+
+#[cfg(test)]
+mod search_method_tests {
+    use super::*;
+
+    #[test]
+    fn the_search_method_names_the_default_local_method_first() {
+        let after_swarm = SEARCH_METHOD.split("then ").nth(1).unwrap_or_default();
+        assert!(
+            after_swarm.starts_with(LocalMethod::default().describe()),
+            "{SEARCH_METHOD}"
+        );
     }
 }

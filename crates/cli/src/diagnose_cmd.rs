@@ -10,7 +10,7 @@ use itaipu_calib::job;
 use itaipu_calib::options::{cli_help, Command::Diagnose};
 use itaipu_calib::request::{parse_refit, DiagnoseRequest};
 
-use crate::fit_cmd::Reporter;
+use crate::fit_cmd::{Detail, Reporter};
 use crate::report::diagnose::{plausible, top_window};
 use crate::report::diagnose_plots::draw_plots;
 use crate::report::{self, num, pct, InputFile, Provenance};
@@ -177,7 +177,7 @@ pub fn cmd_diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         format!("{header}; re-freed in every re-fit: {}", freed.join(", "))
     };
     println!("{}", wrap(&header, WIDTH, "diagnose ", "         "));
-    let reporter = Reporter::new();
+    let reporter = Reporter::new(Detail::Summary, None);
     let result =
         pool.install(|| job::run_diagnose(&unit, &events, &held_out, &opts, warnings, &reporter));
     reporter.finish();
@@ -364,8 +364,12 @@ fn print_report(r: &Diagnosis) {
         wrap(&r.verdict.statement, WIDTH, "         ", "         ")
     );
     println!();
+    println!(
+        "{}",
+        wrap(&r.headline.sentence, WIDTH, "headline ", "         ")
+    );
     let noise = format!(
-        "playback {}; {} (pre-event residual); split: {} ({} fitted, {} held-out samples)",
+        "playback {}; {} (pre-event residual of the unit as given); split: {} ({} fitted, {} held-out samples)",
         r.noise.playback,
         r.noise
             .sigmas

@@ -13,7 +13,7 @@ use itaipu_calib::options::{cli_help, option, Command::Fit, DefaultValue};
 use itaipu_calib::request::{FitRequest, Stage};
 use itaipu_calib::spec::Strategy;
 use itaipu_dynamics::event::Event;
-use itaipu_dynamics::mode::{simulate_mode_traces, PlaybackMode};
+use itaipu_dynamics::mode::simulate_mode_traces;
 use itaipu_dynamics::unit::Unit;
 use itaipu_dynamics::unit_file::unit_to_toml;
 
@@ -57,6 +57,11 @@ pub struct FitArgs {
     /// uninterrupted run. Give the same inputs and options as the interrupted run.
     #[arg(long, conflicts_with = "force")]
     resume: bool,
+    /// Delete the work an interrupted fit killed outright left beside --out (its hidden
+    /// `.NAME.partial-PID` folders and their finished stages) and run afresh. Without it a fit
+    /// refuses to start beside such work (`--resume` goes on from it).
+    #[arg(long, conflicts_with = "resume")]
+    discard_interrupted: bool,
     #[command(flatten)]
     search: SearchArgs,
     /// Do not draw the plots.
@@ -85,11 +90,27 @@ fn strategy_parser() -> impl TypedValueParser<Value = Strategy> {
         .map(|s| s.parse::<Strategy>().expect("a strategy name"))
 }
 
-/// Progress on a terminal: one bar per phase. Otherwise: plain lines every 10 iterations.
-/// Shared with `diagnose`.
+/// How much a [`Reporter`] says.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Detail {
+    /// `fit`: each phase (a bar on a terminal; one line when it starts otherwise) and each
+    /// message.
+    Phases,
+    /// `diagnose`, whose re-fits run side by side: on a terminal one bar counting the re-fits'
+    /// phases, otherwise the messages alone (a line per cause), never a line per phase.
+    Summary,
+}
+
+/// Progress, shared by `fit` and `diagnose`: on a terminal a progress bar per phase
+/// ([`Detail`]), otherwise a few summary lines. Once the run's interrupt flag is set it says
+/// nothing more (the stopping run's last candidates are not progress).
 pub(crate) struct Reporter {
     bar: Mutex<Option<ProgressBar>>,
     terminal: bool,
+    detail: Detail,
+    /// Phases started (the `Summary` bar's position).
+    started: AtomicUsize,
+    cancel: Option<Arc<AtomicBool>>,
 }
 
 /// The data behind `m`, even when a thread panicked while holding it: the progress display
@@ -99,51 +120,98 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// A best objective as the progress shows it: the failure penalty is no objective.
+fn best_text(best: f64) -> String {
+    if best >= itaipu_calib::problem::FAILURE_PENALTY || !best.is_finite() {
+        "none yet (every candidate failed)".into()
+    } else {
+        format!("{best:.5}")
+    }
+}
+
 impl Reporter {
-    pub(crate) fn new() -> Self {
+    pub(crate) fn new(detail: Detail, cancel: Option<Arc<AtomicBool>>) -> Self {
         Self {
             bar: Mutex::new(None),
             terminal: std::io::stderr().is_terminal(),
+            detail,
+            started: AtomicUsize::new(0),
+            cancel,
         }
     }
 
-    /// Finishes the current bar, if any.
+    /// Whether the run was interrupted: nothing more is said.
+    fn quiet(&self) -> bool {
+        self.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::SeqCst))
+    }
+
+    /// Finishes the current bar, if any (abandoned where it stands after an interrupt).
     pub(crate) fn finish(&self) {
         if let Some(b) = lock(&self.bar).take() {
-            b.finish();
+            if self.quiet() {
+                b.abandon();
+            } else {
+                b.finish();
+            }
         }
     }
 }
 
 impl Progress for Reporter {
     fn phase(&self, stage: &str, phase: &str, total: u64) {
-        let mut bar = lock(&self.bar);
-        if let Some(b) = bar.take() {
-            b.finish();
+        if self.quiet() {
+            return;
         }
-        if self.terminal {
-            let b = ProgressBar::new(total);
-            b.set_style(
-                ProgressStyle::with_template(
-                    "{prefix:>12} {bar:30} {pos}/{len} best {msg} [{elapsed}]",
-                )
-                .expect("template"),
-            );
-            b.set_prefix(format!("{stage} {phase}"));
-            *bar = Some(b);
-        } else {
-            eprintln!("[{stage}] {phase}: up to {total} iterations");
+        let n = self.started.fetch_add(1, Ordering::SeqCst) + 1;
+        let mut bar = lock(&self.bar);
+        match (self.detail, self.terminal) {
+            (Detail::Phases, true) => {
+                if let Some(b) = bar.take() {
+                    b.finish();
+                }
+                let b = ProgressBar::new(total);
+                b.set_style(
+                    ProgressStyle::with_template(
+                        "{prefix:>12} {bar:30} {pos}/{len} best {msg} [{elapsed}]",
+                    )
+                    .expect("template"),
+                );
+                b.set_prefix(format!("{stage} {phase}"));
+                *bar = Some(b);
+            }
+            (Detail::Phases, false) => eprintln!("[{stage}] {phase}: up to {total} iterations"),
+            (Detail::Summary, true) => {
+                let b = bar.get_or_insert_with(|| {
+                    let b = ProgressBar::new_spinner();
+                    b.set_style(
+                        ProgressStyle::with_template(
+                            "{spinner} re-fit phases {pos} [{elapsed}] {msg}",
+                        )
+                        .expect("template"),
+                    );
+                    b
+                });
+                b.set_position(n as u64);
+                b.set_message(format!("{stage}: {phase}"));
+            }
+            (Detail::Summary, false) => {}
         }
     }
     fn iteration(&self, i: u64, best: f64) {
+        if self.quiet() || self.detail == Detail::Summary {
+            return;
+        }
         if let Some(b) = lock(&self.bar).as_ref() {
             b.set_position(i);
-            b.set_message(format!("{best:.5}"));
-        } else if i.is_multiple_of(10) {
-            eprintln!("    iteration {i}: best objective {best:.5}");
+            b.set_message(best_text(best));
         }
     }
     fn message(&self, text: &str) {
+        if self.quiet() {
+            return;
+        }
         match lock(&self.bar).as_ref() {
             Some(b) => b.println(text),
             None => eprintln!("{text}"),
@@ -208,7 +276,8 @@ fn signal_name(which: usize) -> (&'static str, u8) {
     ("SIGINT", 130)
 }
 
-/// The unit the next stage starts from, kept in a partial folder for `--resume`.
+/// The unit the next stage starts from, kept in a partial folder for `--resume` by earlier
+/// versions (now in `partial.json`, written whole or not at all, with the stages it follows).
 const RESUME_UNIT: &str = "resume-unit.toml";
 
 /// What a partial folder records (`partial.json`).
@@ -225,13 +294,29 @@ struct PartialState {
     inputs: Vec<(String, String)>,
     /// The finished stages' reports, as in report.json.
     stage_reports: Vec<serde_json::Value>,
+    /// The unit the next stage starts from (unit-file TOML; absent before the first stage).
+    #[serde(default)]
+    resume_unit: Option<String>,
 }
 
-/// Finished stages so far: labels and reports.
+/// Finished stages so far: labels, reports and the unit the next stage starts from.
 #[derive(Default)]
 struct Finished {
     labels: Vec<String>,
     reports: Vec<serde_json::Value>,
+    resume_unit: Option<String>,
+}
+
+/// What `--resume` goes on from ([`read_partial`]).
+struct Resumed {
+    /// The folder whose finished stages are taken: `--out` itself, or the hidden temporary
+    /// folder of a fit killed outright beside it.
+    dir: PathBuf,
+    state: PartialState,
+    master: Unit,
+    /// Temporary folders of the same fit (same options and inputs) beside `--out`, killed
+    /// outright: their stages are in the finished folder once it is written, then they go.
+    superseded: Vec<PathBuf>,
 }
 
 fn input_hashes(paths: &[&Path]) -> Result<Vec<(String, String)>, CliError> {
@@ -290,6 +375,8 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     for w in &warnings {
         eprintln!("warning: {w}");
     }
+    // Said once: the report's text after the run counts these instead of repeating them.
+    let shown = warnings.clone();
     let pool = a.search.pool()?;
     let unit = &inputs.unit;
     let events = &inputs.events;
@@ -301,28 +388,75 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     let inputs_hashes = input_hashes(&input_paths)?;
     let options = format!("{opts:?}");
 
-    // --resume: the partial folder of an interrupted run with the same inputs and options.
-    let resumed: Option<(PathBuf, PartialState, Unit)> = if a.resume {
-        Some(read_partial(
-            a.out.as_deref(),
-            &options,
-            &inputs_hashes,
-            unit,
-        )?)
+    // --resume: the partial folder of an interrupted run with the same inputs and options,
+    // `--out` or the hidden folder a fit killed outright left beside it.
+    let resumed: Option<Resumed> = if a.resume {
+        match read_partial(a.out.as_deref(), &options, &inputs_hashes, unit)? {
+            ResumeFrom::Stages(r) => Some(r),
+            ResumeFrom::Completed(msg) => {
+                println!("{msg}");
+                return Ok(());
+            }
+        }
     } else {
         check_out(a.out.as_deref(), a.force)?;
         None
     };
+    if a.discard_interrupted {
+        if let Some(out) = &a.out {
+            for d in itaipu_calib::output::discard_stale(out) {
+                eprintln!("note: discarded {}", d.describe());
+            }
+        }
+    }
     // The output folder, started before the (long) fit: the writability check.
     let staging = prepare_out(
         a.out.as_deref(),
         &format!("fit-{name}"),
         a.force || a.resume,
     )?;
+    // (Without --out the folder is chosen only now.)
+    if a.discard_interrupted && a.out.is_none() {
+        for d in itaipu_calib::output::discard_stale(staging.target()) {
+            eprintln!("note: discarded {}", d.describe());
+        }
+    }
+    // Work a fit killed outright left beside the folder is never overwritten in silence: go on
+    // from it (--resume) or delete it (--discard-interrupted).
+    let stranded: Vec<&crate::output::Stale> = staging
+        .kept_stale
+        .iter()
+        .filter(|k| k.path.exists())
+        .filter(|k| {
+            resumed
+                .as_ref()
+                .is_none_or(|r| r.dir != k.path && !r.superseded.contains(&k.path))
+        })
+        .collect();
+    if !a.resume && !stranded.is_empty() {
+        return Err(CliError::new(
+            7,
+            format!(
+                "{} has the work of an interrupted fit beside it: {}; run the same command with --resume to go on from it, or with --discard-interrupted to delete it",
+                staging.target().display(),
+                stranded
+                    .iter()
+                    .map(|k| k.describe())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            ),
+        ));
+    }
     let out = staging.path().to_path_buf();
     let finished = Mutex::new(Finished::default());
     let mut resume = None;
-    if let Some((dir, st, master)) = &resumed {
+    if let Some(Resumed {
+        dir,
+        state: st,
+        master,
+        ..
+    }) = &resumed
+    {
         for label in &st.finished_stages {
             crate::output::copy_dir(&dir.join(label), &out.join(label)).map_err(|e| {
                 CliError::new(
@@ -331,20 +465,10 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
                 )
             })?;
         }
-        if !st.finished_stages.is_empty() {
-            std::fs::copy(dir.join(RESUME_UNIT), out.join(RESUME_UNIT)).map_err(|e| {
-                CliError::new(
-                    7,
-                    format!(
-                        "--resume: cannot copy {}: {e}",
-                        dir.join(RESUME_UNIT).display()
-                    ),
-                )
-            })?;
-        }
         let mut f = lock(&finished);
         f.labels = st.finished_stages.clone();
         f.reports = st.stage_reports.clone();
+        f.resume_unit = (!st.finished_stages.is_empty()).then(|| unit_to_toml(master));
         resume = Some(Resume {
             finished: st.finished_stages.clone(),
             master: master.clone(),
@@ -371,6 +495,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         options: options.clone(),
         inputs: inputs_hashes.clone(),
         stage_reports: f.reports.clone(),
+        resume_unit: f.resume_unit.clone(),
     }
     };
     write_partial(&out, &partial(&lock(&finished), "-"))?;
@@ -390,7 +515,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
         opts.seed,
         pool.current_num_threads()
     );
-    let reporter = Reporter::new();
+    let reporter = Reporter::new(Detail::Phases, Some(flag.clone()));
     let no_plot = a.no_plot;
     let on_stage = |rep: &StageReport, st: &StageOutput, master: &Unit| -> Result<(), FitError> {
         let to_fit = |e: itaipu_calib::Error| FitError::Output(e.to_string());
@@ -401,9 +526,8 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
             stage_plots(dir, st, rep).map_err(|e| itaipu_calib::Error::Output(e.msg))
         })
         .map_err(to_fit)?;
-        itaipu_calib::output::write_synced(&out.join(RESUME_UNIT), unit_to_toml(master).as_bytes())
-            .map_err(to_fit)?;
         let mut f = lock(&finished);
+        f.resume_unit = Some(unit_to_toml(master));
         f.labels.push(rep.stage.clone());
         f.reports
             .push(serde_json::to_value(rep).map_err(|e| FitError::Output(e.to_string()))?);
@@ -417,7 +541,12 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     };
     let resumed_reports = resumed
         .as_ref()
-        .map(|(_, st, _)| (st.finished_stages.clone(), st.stage_reports.clone()))
+        .map(|r| {
+            (
+                r.state.finished_stages.clone(),
+                r.state.stage_reports.clone(),
+            )
+        })
         .unwrap_or_default();
     let result = pool.install(|| {
         job::run_fit(
@@ -463,32 +592,32 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     };
     let report = run.report.to_json()?;
     job::write_fit_files(&out, &run, &spec_text)?;
-    // The figures play every event back as the fit's last pass did (the joint pass's mode for
-    // a fit with playback modes).
-    let figure_mode = inputs
-        .spec
-        .compares(&opts.stages, opts.polish && opts.stages.len() > 1)
-        .last()
-        .map_or(PlaybackMode::Phasor, |c| c.mode);
+    let mut files = vec![
+        InputFile::new("unit", &unit_path),
+        InputFile::new("calibration spec", &calib_path),
+    ];
+    files.extend(events.iter().flat_map(|e| InputFile::event(e, false)));
+    files.extend(held_out.iter().flat_map(|e| InputFile::event(e, true)));
     crate::output::write_synced(
         &out.join("report.html"),
-        fit_report_html(
-            &report,
-            unit,
-            &run.unit,
-            events,
-            held_out,
-            [&unit_path, &calib_path],
-            opts.seed,
-            !a.no_plot,
-            figure_mode,
-        )
-        .as_bytes(),
+        fit_report_html(&report, &run, events, held_out, files, !a.no_plot).as_bytes(),
     )?;
-    let _ = std::fs::remove_file(out.join(RESUME_UNIT));
-    let _ = std::fs::remove_file(out.join(crate::output::PARTIAL));
+    // partial.json stays until the manifest is written (`Staging::commit`): killed at any
+    // moment, the folder is resumable or complete.
     let target = crate::output::commit(staging, Some(opts.seed))?;
-    print!("{}", run.report.to_text());
+    // The hidden folders of this fit killed outright: their stages are in the folder now.
+    if let Some(r) = &resumed {
+        for d in r.superseded.iter().chain(std::iter::once(&r.dir)) {
+            if d != &target && d.exists() && std::fs::remove_dir_all(d).is_ok() {
+                eprintln!(
+                    "note: removed {}: its finished stages are in {}",
+                    d.display(),
+                    target.display()
+                );
+            }
+        }
+    }
+    print!("{}", run.report.to_text_after(&shown));
     println!("wrote  {}/report.json, report.html, calibrated.toml, datasheet.toml, calibration.toml, <stage>/{{unit.toml, traces.csv, traces_start.csv{}}}, manifest.json", target.display(), if a.no_plot { "" } else { ", plot.svg" });
     Ok(())
 }
@@ -496,100 +625,200 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
 /// Writes `partial.json` into the folder being written.
 fn write_partial(out: &Path, state: &PartialState) -> Result<(), CliError> {
     let text = serde_json::to_string_pretty(state).map_err(|e| CliError::new(7, e.to_string()))?;
-    crate::output::write_synced(&out.join(crate::output::PARTIAL), text.as_bytes())
+    Ok(itaipu_calib::output::write_atomic(
+        &out.join(crate::output::PARTIAL),
+        text.as_bytes(),
+    )?)
 }
 
-/// `--resume`: the partial folder `out` of an interrupted run, checked against this run's
-/// options and input hashes; the unit the next stage starts from.
+/// What `--resume` finds ([`read_partial`]).
+enum ResumeFrom {
+    /// Go on from these finished stages.
+    Stages(Resumed),
+    /// The interrupted fit had finished (it was killed renaming its folder into place): the
+    /// folder is now in place; the message says so.
+    Completed(String),
+}
+
+/// `--resume`: the partial folder of an interrupted run with this run's options and input
+/// hashes: `out` itself (renamed into place with `partial.json` at a signal) or, for a fit
+/// killed outright, the hidden temporary folder it left beside `out`
+/// ([`crate::output::stale`]); of several, the one with the most finished stages. Each
+/// candidate that differs is named with how. The unit the next stage starts from.
 fn read_partial(
     out: Option<&Path>,
     options: &str,
     inputs: &[(String, String)],
     unit: &Unit,
-) -> Result<(PathBuf, PartialState, Unit), CliError> {
+) -> Result<ResumeFrom, CliError> {
     let Some(dir) = out else {
         return Err(CliError::new(
             2,
-            "--resume needs --out: the folder an interrupted fit left",
+            "--resume needs --out: the folder an interrupted fit left (or was writing)",
         ));
     };
-    if dir.join(crate::output::MANIFEST).is_file() {
+    let stale = crate::output::stale(dir);
+    let complete_here = dir.join(crate::output::MANIFEST).is_file();
+    // A fit killed while renaming its finished folder into place: put it there.
+    if !complete_here {
+        if let Some(done) = stale.iter().find(|s| {
+            s.complete
+                && s.path.join("report.json").is_file()
+                && s.path.join("calibrated.toml").is_file()
+        }) {
+            if dir.exists() {
+                std::fs::remove_dir_all(dir).map_err(|e| {
+                    CliError::new(
+                        7,
+                        format!("--resume: cannot replace {}: {e}", dir.display()),
+                    )
+                })?;
+            }
+            std::fs::rename(&done.path, dir).map_err(|e| {
+                CliError::new(
+                    7,
+                    format!(
+                        "--resume: cannot rename {} into place: {e}",
+                        done.path.display()
+                    ),
+                )
+            })?;
+            return Ok(ResumeFrom::Completed(format!(
+                "resume {}: the interrupted fit had finished (killed while renaming its folder into place); renamed into place, nothing to run",
+                dir.display()
+            )));
+        }
+    }
+    let with_work: Vec<&crate::output::Stale> =
+        stale.iter().filter(|s| !s.finished.is_empty()).collect();
+    if complete_here {
+        if with_work.is_empty() {
+            return Err(CliError::new(
+                2,
+                format!(
+                    "--resume: {} is complete (it has manifest.json); nothing to resume",
+                    dir.display()
+                ),
+            ));
+        }
         return Err(CliError::new(
             2,
             format!(
-                "--resume: {} is complete (it has manifest.json); nothing to resume",
+                "--resume: {} is a complete output folder (manifest.json), and beside it is the work of an interrupted fit: {}; move {} aside, then run the same command again to go on from that work",
+                dir.display(),
+                with_work.iter().map(|s| s.describe()).collect::<Vec<_>>().join("; "),
                 dir.display()
             ),
         ));
     }
-    let pj = dir.join(crate::output::PARTIAL);
-    let text = std::fs::read_to_string(&pj).map_err(|e| {
-        CliError::new(
-            2,
-            format!(
-                "--resume: {}: {e} (not the folder of an interrupted fit)",
-                pj.display()
-            ),
-        )
-    })?;
-    let st: PartialState = serde_json::from_str(&text)
-        .map_err(|e| CliError::new(2, format!("--resume: {}: {e}", pj.display())))?;
-    if st.options != options {
+    let mut candidates: Vec<PathBuf> = vec![];
+    if dir.join(crate::output::PARTIAL).is_file() {
+        candidates.push(dir.to_path_buf());
+    }
+    candidates.extend(with_work.iter().map(|s| s.path.clone()));
+    if candidates.is_empty() {
         return Err(CliError::new(
             2,
             format!(
-                "--resume: the options differ from the interrupted run's (give the same stages, strategy, seed and search settings)\n  then: {}\n  now:  {options}",
+                "--resume: nothing to resume at {}: it holds no partial.json, and no interrupted fit left work beside it (no .{}.partial-PID folder with a finished stage)",
+                dir.display(),
+                dir.file_name().unwrap_or_default().to_string_lossy()
+            ),
+        ));
+    }
+    let mut matching: Vec<(PathBuf, PartialState)> = vec![];
+    let mut differing: Vec<String> = vec![];
+    for c in &candidates {
+        let pj = c.join(crate::output::PARTIAL);
+        let st: PartialState = match std::fs::read_to_string(&pj)
+            .map_err(|e| e.to_string())
+            .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))
+        {
+            Ok(st) => st,
+            Err(e) => {
+                differing.push(format!("{}: {e}", pj.display()));
+                continue;
+            }
+        };
+        if st.options != options {
+            differing.push(format!(
+                "{}: the options differ from the interrupted run's (give the same stages, strategy, seed and search settings)\n  then: {}\n  now:  {options}",
+                c.display(),
                 st.options
-            ),
-        ));
+            ));
+            continue;
+        }
+        if st.inputs != inputs {
+            let diff = st
+                .inputs
+                .iter()
+                .zip(inputs)
+                .find(|(x, y)| x != y)
+                .map(|(x, y)| format!("{} (then) / {} (now)", x.0, y.0))
+                .unwrap_or_else(|| "a different number of input files".into());
+            differing.push(format!(
+                "{}: the input files differ from the interrupted run's: {diff}",
+                c.display()
+            ));
+            continue;
+        }
+        matching.push((c.clone(), st));
     }
-    if st.inputs != inputs {
-        let diff = st
-            .inputs
-            .iter()
-            .zip(inputs)
-            .find(|(x, y)| x != y)
-            .map(|(x, y)| format!("{} (then) / {} (now)", x.0, y.0))
-            .unwrap_or_else(|| "a different number of input files".into());
+    // The most finished stages; of equals, `out` itself (listed first).
+    let Some(best) = (0..matching.len()).max_by(|&i, &j| {
+        matching[i]
+            .1
+            .finished_stages
+            .len()
+            .cmp(&matching[j].1.finished_stages.len())
+            .then(j.cmp(&i))
+    }) else {
         return Err(CliError::new(
             2,
-            format!("--resume: the input files differ from the interrupted run's: {diff}"),
+            format!("--resume: {}", differing.join("\n")),
         ));
-    }
+    };
+    let (src, st) = matching.swap_remove(best);
+    let superseded: Vec<PathBuf> = matching
+        .into_iter()
+        .map(|(d, _)| d)
+        .filter(|d| d != dir)
+        .collect();
     let master = if st.finished_stages.is_empty() {
         unit.clone()
     } else {
-        load_unit(&dir.join(RESUME_UNIT))?
+        match &st.resume_unit {
+            Some(text) => {
+                itaipu_dynamics::unit_file::parse_unit(text, &src.join(crate::output::PARTIAL))
+                    .map_err(|e| CliError::new(4, format!("--resume: {e}")))?
+            }
+            None => load_unit(&src.join(RESUME_UNIT))?,
+        }
     };
-    Ok((dir.to_path_buf(), st, master))
+    Ok(ResumeFrom::Stages(Resumed {
+        dir: src,
+        state: st,
+        master,
+        superseded,
+    }))
 }
 
-/// The fit's `report.html`: the unit as given and the calibrated unit simulated once more on
-/// every event for the figures (an event that does not simulate is left out of them, said on
-/// stderr; the fit itself simulated it).
-#[allow(clippy::too_many_arguments)]
-fn fit_report_html(
+/// The fit's `report.html` (the command line's, and Python's `FitResult.write(html=True)`):
+/// the unit as given and the calibrated unit simulated once more on every event for the
+/// figures, in the playback the headline compares in (the fit's last pass's); an event that
+/// does not simulate is left out of them, said on stderr (the fit itself simulated it).
+/// `inputs` are the files for the provenance.
+pub fn fit_report_html(
     report: &serde_json::Value,
-    start: &Unit,
-    calibrated: &Unit,
+    run: &job::FitRun,
     events: &[Event],
     held_out: &[Event],
-    files: [&Path; 2],
-    seed: u64,
+    inputs: Vec<InputFile>,
     plots: bool,
-    mode: PlaybackMode,
 ) -> String {
-    let mut inputs = vec![
-        InputFile::new("unit", files[0]),
-        InputFile::new("calibration spec", files[1]),
-    ];
-    for e in events {
-        inputs.extend(InputFile::event(e, false));
-    }
-    for e in held_out {
-        inputs.extend(InputFile::event(e, true));
-    }
-    let prov = Provenance::new(inputs, seed);
+    let prov = Provenance::new(inputs, run.options.seed);
+    let (start, calibrated) = (&run.datasheet, &run.unit);
+    let mode = run.report.headline.mode;
     let mut runs = vec![];
     if plots {
         for (e, h) in events

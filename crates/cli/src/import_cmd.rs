@@ -46,6 +46,11 @@ pub struct ImportArgs {
     /// Allow writing into an existing, non-empty --out folder.
     #[arg(long)]
     pub force: bool,
+    /// Refuse (exit 3) a recording whose data file holds fewer samples than its header
+    /// declares (a COMTRADE .dat cut short); without, it is imported with a warning that
+    /// import.json, event.toml and every later report repeat.
+    #[arg(long)]
+    pub refuse_truncated: bool,
 }
 
 /// Exit code of an import error: 2 for an option, 3 for the data.
@@ -77,6 +82,7 @@ pub fn cmd_import(a: &ImportArgs) -> Result<(), CliError> {
         current_into_machine: a.current_into_machine,
         rate_hz: a.rate,
         map,
+        refuse_truncated: a.refuse_truncated,
     };
     crate::check_out(a.out.as_deref(), a.force)?;
     let (event, report) = import(&a.file, &opts).map_err(import_error)?;

@@ -65,9 +65,7 @@ enum Cmd {
     /// P and Q with the measured ones. With no arguments: the bundled Itaipu event and unit.
     #[command(after_help = EXIT_CODES)]
     Simulate(simulate_cmd::SimulateArgs),
-    /// Calibrate a unit model against one or more events, stage by stage (generator, AVR, PSS,
-    /// governor), each by a particle swarm then a local method (Levenberg-Marquardt by default).
-    /// With no arguments: the bundled Itaipu record, unit and calibration spec (RaPId's problem).
+    #[command(about = fit_about(), long_about = fit_about())]
     Fit(fit_cmd::FitArgs),
     /// Diagnose what a (calibrated) unit still gets wrong on events: residual evidence, each
     /// cause of the catalog tried as a model extension and re-fitted, the gain judged by ΔBIC
@@ -106,6 +104,16 @@ enum Cmd {
 /// documentation's tests.
 pub fn command() -> clap::Command {
     Cli::command()
+}
+
+/// `fit`'s help: the search method in the library's words ([`itaipu_calib::spec::SEARCH_METHOD`]).
+fn fit_about() -> String {
+    format!(
+        "Calibrate a unit model against one or more events, stage by stage (generator, AVR, PSS, \
+         governor), each by {}. With no arguments: the bundled Itaipu record, unit and \
+         calibration spec (RaPId's problem).",
+        itaipu_calib::spec::SEARCH_METHOD
+    )
 }
 
 /// Parses `args` (including the program name) and runs the command; returns the exit code.

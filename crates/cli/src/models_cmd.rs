@@ -12,20 +12,13 @@ pub fn cmd_models(name: Option<&str>, table: bool) -> Result<(), CliError> {
         print!("{}", registry::library_table());
         return Ok(());
     }
-    if name.is_some_and(|n| n.eq_ignore_ascii_case("diagram")) {
-        print!("{}", itaipu_dynamics::diagram::describe_primitives());
-        return Ok(());
-    }
-    let models: Vec<_> = match name {
-        Some(n) => vec![registry::find(n).ok_or_else(|| {
-            CliError::new(
-                2,
-                format!(
-                    "unknown model '{n}' (known: {}, diagram)",
-                    registry::names()
-                ),
-            )
-        })?],
+    let models: Vec<_> = match name.map(registry::listing) {
+        Some(Ok(registry::Listing::DiagramPrimitives)) => {
+            print!("{}", itaipu_dynamics::diagram::describe_primitives());
+            return Ok(());
+        }
+        Some(Ok(registry::Listing::Model(m))) => vec![m],
+        Some(Err(msg)) => return Err(CliError::new(2, msg)),
         None => registry::all().collect(),
     };
     for m in models {

@@ -6,8 +6,8 @@
 use std::cell::RefCell;
 
 pub use itaipu_calib::output::{
-    check_out, copy_dir, list_files, looks_like_output, sha256_file, stale_partials, verify,
-    FileEntry, Manifest, Staging, MANIFEST, OUTPUT_MARKERS, PARTIAL,
+    check_out, copy_dir, list_files, looks_like_output, sha256_file, stale, stale_partials, verify,
+    FileEntry, Manifest, Staging, Stale, MANIFEST, OUTPUT_MARKERS, PARTIAL,
 };
 
 use crate::CliError;
@@ -32,21 +32,38 @@ pub fn write_synced(p: &std::path::Path, bytes: &[u8]) -> Result<(), CliError> {
     Ok(itaipu_calib::output::write_synced(p, bytes)?)
 }
 
-/// [`itaipu_calib::output::prepare_out`], saying which temporary folders of ended runs it
-/// removed.
+/// [`itaipu_calib::output::prepare_out`], saying what it did with the temporary folders of
+/// ended runs: removed (no finished work in them), kept (finished work: named, with how to go
+/// on), or a half-done rename put right.
 pub fn prepare_out(
     out: Option<&std::path::Path>,
     name: &str,
     force: bool,
 ) -> Result<Staging, CliError> {
     let st = itaipu_calib::output::prepare_out(out, name, force)?;
+    for r in &st.recovered {
+        eprintln!("note: {r}");
+    }
     for d in &st.removed_stale {
         eprintln!(
-            "note: removed {}, the temporary folder of an earlier run whose process has ended (killed before it could finish)",
+            "note: removed {}, the temporary folder of an earlier run whose process has ended (killed before it could finish; it held no finished work)",
             d.display()
         );
     }
+    for k in &st.kept_stale {
+        eprintln!("note: kept {}", stale_advice(k, st.target()));
+    }
     Ok(st)
+}
+
+/// What to do with a kept temporary folder of an ended run (`s`, beside `target`).
+pub fn stale_advice(s: &Stale, target: &std::path::Path) -> String {
+    format!(
+        "{}: `itaipu-calib fit --resume --out {}` (with the interrupted fit's other options) goes on from it; `fit --discard-interrupted --out {}` deletes it",
+        s.describe(),
+        target.display(),
+        target.display()
+    )
 }
 
 /// Writes the manifest with this run's command line and renames the folder into place.

@@ -214,12 +214,22 @@ pub fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
         s.events,
         wall.as_secs_f64() * 1e3
     );
-    println!(
-        "misfit fit window {:.2}-{:.2} s ({n_fit} samples): RMS P {rms_p:.4} pu, RMS Q {rms_q:.4} pu, J = sum(dP^2 + dQ^2) = {j:.4}",
-        event.fit.start_s, event.fit.end_s
-    );
-    if a.mode != PlaybackMode::Phasor {
-        let sums: Vec<String> = a
+    if a.mode == PlaybackMode::Phasor {
+        println!(
+            "misfit fit window {:.2}-{:.2} s ({n_fit} samples): RMS P {rms_p:.4} pu, RMS Q {rms_q:.4} pu, J = sum(dP^2 + dQ^2) = {j:.4}",
+            event.fit.start_s, event.fit.end_s
+        );
+    } else {
+        // The headline is what the mode compares (its default channels the record holds), not
+        // P and Q: a mode that imposes P or Q has no misfit in it to speak of.
+        let compared: Vec<Channel> = a
+            .mode
+            .default_channels()
+            .iter()
+            .copied()
+            .filter(|c| event.has(*c))
+            .collect();
+        let sums: Vec<(Channel, f64, usize)> = a
             .mode
             .outputs()
             .iter()
@@ -227,17 +237,40 @@ pub fn cmd_simulate(a: &SimulateArgs) -> Result<(), CliError> {
             .filter_map(|c| {
                 let (sim, meas) = trace_columns(*c)?;
                 let (s, m) = (traces.get(sim)?, traces.get(meas)?);
-                let sse: f64 = (0..s.len())
-                    .filter(|&k| event.fit.contains(r.time_s[k]))
-                    .map(|k| (s[k] - m[k]).powi(2))
-                    .sum();
-                Some(format!("{c} {sse:.5}"))
+                let (mut sse, mut n) = (0.0, 0usize);
+                for k in (0..s.len()).filter(|&k| event.fit.contains(r.time_s[k])) {
+                    sse += (s[k] - m[k]).powi(2);
+                    n += 1;
+                }
+                Some((*c, sse, n))
             })
             .collect();
+        let head: Vec<String> = sums
+            .iter()
+            .filter(|(c, _, _)| compared.contains(c))
+            .map(|(c, sse, n)| format!("RMS {c} {:.4} pu", (sse / (*n).max(1) as f64).sqrt()))
+            .collect();
+        let j: f64 = sums
+            .iter()
+            .filter(|(c, _, _)| compared.contains(c))
+            .map(|(_, sse, _)| sse)
+            .sum();
+        println!(
+            "misfit {} compares {}: fit window {:.2}-{:.2} s ({n_fit} samples): {}, J = sum over {} of sum(d^2) = {j:.4}",
+            a.mode,
+            compared.iter().map(|c| c.name()).collect::<Vec<_>>().join(", "),
+            event.fit.start_s,
+            event.fit.end_s,
+            head.join(", "),
+            compared.iter().map(|c| c.name()).collect::<Vec<_>>().join(", ")
+        );
         println!(
             "mode   {}: sum of squared differences per channel over the fit window: {}",
             a.mode,
-            sums.join(", ")
+            sums.iter()
+                .map(|(c, sse, _)| format!("{c} {sse:.5}"))
+                .collect::<Vec<_>>()
+                .join(", ")
         );
         if matches!(
             a.mode,

@@ -65,8 +65,12 @@ fn interrupted(out: &Path, signal: &str) -> (i32, String) {
     let pid = child.id().to_string();
     let mut log = String::new();
     let mut sent = false;
+    let mut after = vec![];
     for line in BufReader::new(child.stderr.take().unwrap()).lines() {
         let line = line.unwrap();
+        if sent {
+            after.push(line.clone());
+        }
         if !sent && line.starts_with("[avr]") {
             let ok = Command::new("kill")
                 .args([signal, &pid])
@@ -81,6 +85,14 @@ fn interrupted(out: &Path, signal: &str) -> (i32, String) {
     }
     let code = child.wait().unwrap().code().unwrap_or(-1);
     assert!(sent, "the avr stage never started:\n{log}");
+    // After the signal the log stops: no further phase or progress, no failure penalty shown
+    // as an objective; only the closing message.
+    assert!(
+        after.iter().all(|l| !l.starts_with('[')
+            && !l.contains("best objective")
+            && !l.contains("1000000000000000019884624838656")),
+        "{log}"
+    );
     (code, log)
 }
 

@@ -96,7 +96,7 @@ pub struct Finding {
     pub severity: Severity,
     /// Stable identifier: `time_gap`, `dropout`, `edge_dropout`, `angle_radians`, `frequency`,
     /// `time_scale`, `absorbing_p`, `above_rating`, `absurd_value`, `spike`, `parameter_range`,
-    /// `saturation`, `model_missing`.
+    /// `saturation`, `model_missing`, `import` (an event's [`Event::import_notes`]).
     pub kind: &'static str,
     /// The file the data are in (the CSV, or the unit file).
     pub file: PathBuf,
@@ -256,6 +256,22 @@ pub fn check_event(event: &Event, machine_mva: Option<f64>) -> Vec<Finding> {
         rec,
         out: vec![],
     };
+    // What the import found wrong with the recording (a data file shorter than its header
+    // declares), said again wherever the event is used: the record no longer shows it.
+    for note in &event.import_notes {
+        c.out.push(Finding {
+            severity: Severity::Warning,
+            kind: "import",
+            file: event.toml_path.clone().unwrap_or_else(|| c.file.clone()),
+            line: None,
+            time_s: None,
+            column: "import_notes".into(),
+            message: note.clone(),
+            fix: "import the whole recording again (the recorder's complete file); \
+                  `import --refuse-truncated` refuses such a record"
+                .into(),
+        });
+    }
     if n < 3 {
         return c.out;
     }

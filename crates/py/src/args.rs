@@ -175,3 +175,36 @@ pub(crate) fn renamed<T>(
         (None, v) => Ok(v),
     }
 }
+
+/// A whole-number argument (`seed`, `particles`, `pso_iterations`, ...): None when absent or
+/// None; a TypeError naming `name` for a value that is not an int (a bool is not a count), a
+/// ValueError naming it for a negative one or one beyond `T`'s range, so that `particles=-1`
+/// says which argument and why instead of a bare OverflowError.
+pub(crate) fn whole<T: TryFrom<i128>>(
+    py: Python<'_>,
+    arg: Option<&Bound<'_, PyAny>>,
+    name: &str,
+) -> PyResult<Option<T>> {
+    let Some(arg) = arg.filter(|a| !a.is_none()) else {
+        return Ok(None);
+    };
+    if arg.is_instance_of::<pyo3::types::PyBool>() || !arg.is_instance_of::<pyo3::types::PyInt>() {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be a whole number (int), not {}",
+            type_name(arg)
+        )));
+    }
+    let v: i128 = arg
+        .extract()
+        .map_err(|_| crate::errors::usage_error(py, name, &format!("{arg} is out of range")))?;
+    if v < 0 {
+        return Err(crate::errors::usage_error(
+            py,
+            name,
+            &format!("must be a whole number >= 0, got {v}"),
+        ));
+    }
+    T::try_from(v)
+        .map(Some)
+        .map_err(|_| crate::errors::usage_error(py, name, &format!("{v} is too large")))
+}

@@ -108,6 +108,14 @@ impl PyDiagnosis {
         json_to_py(py, &v)
     }
 
+    /// The one sentence on how far the residual of the unit as given lies above the noise (the
+    /// library's, as `report["headline"]` and the command line's `headline` line): for a fit's
+    /// calibrated unit the same words and number as the fit's `FitResult.headline`.
+    #[getter]
+    fn headline(&self) -> String {
+        self.run.report.headline.sentence.clone()
+    }
+
     /// The named cause id, or `none` / `unexplained`.
     #[getter]
     fn cause(&self) -> String {
@@ -345,16 +353,16 @@ pub(crate) fn diagnose(
     unit: Option<&Bound<'_, PyAny>>,
     held_out: Option<&Bound<'_, PyAny>>,
     causes: Option<&Bound<'_, PyAny>>,
-    seed: Option<u64>,
-    particles: Option<usize>,
-    pso_iterations: Option<usize>,
-    local_iterations: Option<u64>,
-    threads: Option<usize>,
+    seed: Option<&Bound<'_, PyAny>>,
+    particles: Option<&Bound<'_, PyAny>>,
+    pso_iterations: Option<&Bound<'_, PyAny>>,
+    local_iterations: Option<&Bound<'_, PyAny>>,
+    threads: Option<&Bound<'_, PyAny>>,
     refit: Option<&Bound<'_, PyAny>>,
     fit: Option<&Bound<'_, PyAny>>,
     user_causes: Option<&Bound<'_, PyAny>>,
     mode: Option<&str>,
-    lbfgs_iterations: Option<u64>,
+    lbfgs_iterations: Option<&Bound<'_, PyAny>>,
     look_alikes: Option<bool>,
 ) -> PyResult<PyDiagnosis> {
     let mode = mode
@@ -371,6 +379,22 @@ pub(crate) fn diagnose(
             })
         })
         .transpose()?;
+    use crate::args::whole;
+    let (seed, particles, pso_iterations, threads): (
+        Option<u64>,
+        Option<usize>,
+        Option<usize>,
+        Option<usize>,
+    ) = (
+        whole(py, seed, "seed")?,
+        whole(py, particles, "particles")?,
+        whole(py, pso_iterations, "pso_iterations")?,
+        whole(py, threads, "threads")?,
+    );
+    let (local_iterations, lbfgs_iterations): (Option<u64>, Option<u64>) = (
+        whole(py, local_iterations, "local_iterations")?,
+        whole(py, lbfgs_iterations, "lbfgs_iterations")?,
+    );
     let local_iterations = crate::args::renamed(
         py,
         "lbfgs_iterations",

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use pyo3::exceptions::{PyUserWarning, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -28,9 +28,9 @@ fn dyr_err(py: Python<'_>, e: DyrError) -> PyErr {
 /// TOML: mbase, nominal_hz, zr, zx, name), else `<stem>.bases.toml` beside the .dyr, with
 /// `mbase`, `nominal_hz`, `zr`, `zx` on top. A record of a model the engine lacks raises
 /// UnitModelError (kind 'unsupported'), naming the line and what the unit would lack, unless
-/// `skip_unsupported`: then the unit is built without it, with a `UserWarning` naming the
-/// line. Raises UnitModelError (kind 'syntax', 'record', 'unsupported', 'selection', 'bases',
-/// 'unit', 'io').
+/// `skip_unsupported`: then the unit is built without it, with an `ItaipuWarning` (a
+/// `UserWarning`) naming the line. Raises UnitModelError (kind 'syntax', 'record',
+/// 'unsupported', 'selection', 'bases', 'unit', 'io').
 #[pyfunction]
 #[pyo3(signature = (path, *, bus=None, id=None, bases=None, mbase=None, nominal_hz=None, zr=None, zx=None, skip_unsupported=false))]
 #[allow(clippy::too_many_arguments)]
@@ -68,14 +68,8 @@ pub fn read_dyr(
             dyr::read_dyr_with(&path, &b, &opts)
         })
         .map_err(|e| dyr_err(py, e))?;
-    for w in &d.warnings {
-        PyErr::warn(
-            py,
-            &py.get_type::<PyUserWarning>(),
-            &std::ffi::CString::new(w.to_string()).unwrap_or_default(),
-            1,
-        )?;
-    }
+    let texts: Vec<String> = d.warnings.iter().map(|w| w.to_string()).collect();
+    crate::errors::warn_texts(py, texts.iter().map(String::as_str))?;
     Ok(PyUnit {
         inner: Arc::new(d.unit),
         path: Some(path),
@@ -87,10 +81,10 @@ pub fn read_dyr(
 /// `events` (paths or Event objects, or a list) within 1e-6 pu of it, or, without events, with
 /// every parameter, option, wiring and block read back unchanged (the library's checked writer,
 /// the same call as `itaipu-calib dyr write`). Otherwise raises UnitModelError (kind 'lossy',
-/// quoting J of both and what is lost) unless `lossy=True`, which writes it with a UserWarning.
+/// quoting J of both and what is lost) unless `lossy=True`, which writes it with an ItaipuWarning.
 /// An existing file is kept (UnitModelError, kind 'exists') unless `force=True`. Plausibility
 /// findings on what is written (parameters far outside the typical ranges, saturation data
-/// that is no curve) are UserWarnings. Returns a dict: `faithful`, `lost` (messages), `events`
+/// that is no curve) are ItaipuWarnings. Returns a dict: `faithful`, `lost` (messages), `events`
 /// (per event: `event`, `j_unit`, `j_written`, `max_dp`, `max_dq`, `failure`), `warnings`.
 #[pyfunction]
 #[pyo3(signature = (unit, path, *, bus=1, id="1", events=None, lossy=false, force=false))]
@@ -141,14 +135,7 @@ pub fn write_dyr<'py>(
             r.summary()
         ));
     }
-    for w in &warnings {
-        PyErr::warn(
-            py,
-            &py.get_type::<PyUserWarning>(),
-            &std::ffi::CString::new(w.as_str()).unwrap_or_default(),
-            1,
-        )?;
-    }
+    crate::errors::warn_texts(py, warnings.iter().map(String::as_str))?;
     let d = PyDict::new(py);
     d.set_item("faithful", r.faithful())?;
     d.set_item(
@@ -171,19 +158,22 @@ pub fn write_dyr<'py>(
     Ok(d)
 }
 
-/// Imports a PMU recording (C37.118-style CSV, or a COMTRADE .cfg with its .dat) as an Event,
-/// P and Q computed from the voltage and current phasors (generator convention) on
-/// `system_mva`. `v_base_kv`: rated line-to-line kV (for channels in V/kV); `pu_base_mva`: the
-/// base of channels in pu; `rate`: resample to this rate (default: keep the PMU's stamps);
-/// `map`: {name: column} to read a column as a known name. With `out`, writes the event folder
-/// (event.toml, CSV, import.json). Returns `(event, report)`, the report a dict (gaps,
-/// dropouts, warnings, channels, rates). Raises EventError (kind 'data', 'event', 'io') or
-/// ValueError for a bad option.
+/// Imports a PMU recording (C37.118-style CSV, or a COMTRADE .cfg with its .dat) as an Event
+/// that `simulate`, `fit` and `diagnose` take as it is, P and Q computed from the voltage and
+/// current phasors (generator convention) on `system_mva`. `v_base_kv`: rated line-to-line kV
+/// (for channels in V/kV); `pu_base_mva`: the base of channels in pu; `rate`: resample to this
+/// rate (default: keep the PMU's stamps); `map`: {name: column} to read a column as a known
+/// name; `refuse_truncated`: raise EventError for a COMTRADE .dat shorter than its .cfg
+/// declares (otherwise imported with a warning). With `out`, writes the event folder
+/// (event.toml, CSV, import.json). The import's report (the command line's import.json: gaps,
+/// dropouts, warnings, channels, samples read and declared, rates) is `event.import_report`;
+/// each of its warnings is issued as an `ItaipuWarning`. Raises EventError (kind 'data',
+/// 'event', 'io') or ValueError for a bad option.
 #[pyfunction]
-#[pyo3(signature = (path, system_mva, nominal_hz, *, v_base_kv=None, pu_base_mva=None, line_voltage=false, current_into_machine=false, rate=None, map=None, name=None, out=None))]
+#[pyo3(signature = (path, system_mva, nominal_hz, *, v_base_kv=None, pu_base_mva=None, line_voltage=false, current_into_machine=false, rate=None, map=None, name=None, out=None, refuse_truncated=false))]
 #[allow(clippy::too_many_arguments)]
-pub fn import_pmu<'py>(
-    py: Python<'py>,
+pub fn import_pmu(
+    py: Python<'_>,
     path: PathBuf,
     system_mva: f64,
     nominal_hz: f64,
@@ -195,7 +185,8 @@ pub fn import_pmu<'py>(
     map: Option<std::collections::BTreeMap<String, String>>,
     name: Option<String>,
     out: Option<PathBuf>,
-) -> PyResult<(PyEvent, Bound<'py, PyAny>)> {
+    refuse_truncated: bool,
+) -> PyResult<PyEvent> {
     let opts = ImportOptions {
         name,
         system_mva,
@@ -206,6 +197,7 @@ pub fn import_pmu<'py>(
         current_into_machine,
         rate_hz: rate,
         map: map.unwrap_or_default().into_iter().collect(),
+        refuse_truncated,
     };
     let (event, report) = py
         .detach(|| pmu_import::import(&path, &opts))
@@ -217,15 +209,12 @@ pub fn import_pmu<'py>(
         pmu_import::write_event_folder(&event, &report, &dir)
             .map_err(|e| raise::<EventError>(py, e.to_string(), Some(e.kind())))?;
     }
+    crate::errors::warn_texts(py, report.warnings.iter().map(String::as_str))?;
     let json = serde_json::to_string(&report).expect("a report serialises");
-    let d = py.import("json")?.call_method1("loads", (json,))?;
-    let _: &Bound<'_, PyDict> = d.downcast()?;
-    Ok((
-        PyEvent {
-            inner: Arc::new(event),
-        },
-        d,
-    ))
+    Ok(PyEvent {
+        inner: Arc::new(event),
+        import_report: Some(Arc::new(json)),
+    })
 }
 
 /// Registers the functions of this file.

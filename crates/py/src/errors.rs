@@ -90,6 +90,21 @@ pub(crate) fn warn_all(
     Ok(())
 }
 
+/// Issues each of `texts` as an `ItaipuWarning` (the category every warning of the module
+/// has, so that `warnings.simplefilter` and `pytest.warns` see them all).
+pub(crate) fn warn_texts<'a>(
+    py: Python<'_>,
+    texts: impl IntoIterator<Item = &'a str>,
+) -> PyResult<()> {
+    let cat = py.get_type::<ItaipuWarning>();
+    for t in texts {
+        let msg =
+            std::ffi::CString::new(t.replace('\0', " ")).unwrap_or_else(|_| c"warning".to_owned());
+        PyErr::warn(py, &cat, &msg, 1)?;
+    }
+    Ok(())
+}
+
 /// A failure inside the GIL-free part of a call: the library's one error type, converted to a
 /// Python exception afterwards by its class ([`ErrorClass`]), here and only here.
 pub(crate) type Failure = itaipu_calib::Error;

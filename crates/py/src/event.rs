@@ -24,10 +24,39 @@ use crate::unit::PyUnit;
 #[pyclass(name = "Event", module = "itaipu_calib", frozen)]
 pub(crate) struct PyEvent {
     pub(crate) inner: Arc<Event>,
+    /// The import's report as JSON text (`import.json`), for an event made by `import_pmu`.
+    pub(crate) import_report: Option<Arc<String>>,
+}
+
+impl PyEvent {
+    /// An event read or built in memory (not imported).
+    pub(crate) fn new(e: Event) -> Self {
+        PyEvent {
+            inner: Arc::new(e),
+            import_report: None,
+        }
+    }
 }
 
 #[pymethods]
 impl PyEvent {
+    /// What `import_pmu` reported (the command line's `import.json`: format, samples read, kept
+    /// and declared, gaps, dropouts, warnings, channels, rates, onset) as a dict; None for an
+    /// event that was not imported.
+    #[getter]
+    fn import_report<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.import_report
+            .as_ref()
+            .map(|j| py.import("json")?.call_method1("loads", (j.as_str(),)))
+            .transpose()
+    }
+    /// What the import found wrong with the recording that the record no longer shows (a data
+    /// file shorter than its header declares), one line each: every command using the event
+    /// warns of them again (`import_notes` in the event file).
+    #[getter]
+    fn import_notes(&self) -> Vec<String> {
+        self.inner.import_notes.clone()
+    }
     /// Short identifier (`name` in the event file).
     #[getter]
     fn name(&self) -> &str {
@@ -75,7 +104,10 @@ impl PyEvent {
         let mut e = (*self.inner).clone();
         e.set_input_lowpass(hz)
             .map_err(|err| crate::errors::usage_error(py, "hz", &err.to_string()))?;
-        Ok(PyEvent { inner: Arc::new(e) })
+        Ok(PyEvent {
+            inner: Arc::new(e),
+            import_report: self.import_report.clone(),
+        })
     }
 
     /// Playback window `(start_s, end_s)`.
@@ -173,7 +205,7 @@ impl PyEvent {
 #[pyfunction]
 pub(crate) fn load_event(py: Python<'_>, path: PathBuf) -> PyResult<PyEvent> {
     py.detach(|| Event::from_toml_file(&path))
-        .map(|e| PyEvent { inner: Arc::new(e) })
+        .map(PyEvent::new)
         .map_err(|e| Failure::from(e).into_pyerr(py))
 }
 

@@ -48,6 +48,13 @@ pub(crate) struct PyFitResult {
     /// write the fit's folder).
     pub(crate) run: Arc<job::FitRun>,
     pub(crate) spec_text: String,
+    /// What the HTML report's figures play back and its provenance lists: the fitted and
+    /// held-out events, and the input files (role, path).
+    pub(crate) events: Arc<(
+        Vec<itaipu_dynamics::event::Event>,
+        Vec<itaipu_dynamics::event::Event>,
+    )>,
+    pub(crate) files: Vec<(String, PathBuf)>,
 }
 
 impl PyFitResult {
@@ -82,6 +89,14 @@ impl PyFitResult {
             .call1((d, &self.report_text))
     }
 
+    /// The one sentence on how far the calibrated unit's residual lies above the noise: "at
+    /// most X × the noise σ" (the library's, as `report["headline"]`, the command line's and
+    /// the HTML report's; a diagnosis of the calibrated unit says the same).
+    #[getter]
+    fn headline(&self) -> String {
+        self.run.report.headline.sentence.clone()
+    }
+
     /// The plausibility warnings on the inputs (each a line naming the file, the sample or
     /// parameter, and the fix), as in the report's `warnings`.
     #[getter]
@@ -91,14 +106,24 @@ impl PyFitResult {
 
     /// Writes the fit's files into the folder `out` as the command line's `fit --out` does
     /// (report.json, calibrated.toml, datasheet.toml, calibration.toml, a folder per stage with
-    /// its unit and traces, manifest.json last; no plots or HTML): through a temporary folder
-    /// renamed into place, so that `out` is complete or absent. An existing non-empty `out` is
-    /// refused unless `overwrite=True` (and then only a folder of ours, replaced whole).
-    /// Returns the folder. Raises OutputError.
-    #[pyo3(signature = (out, *, overwrite = false))]
-    fn write(&self, py: Python<'_>, out: PathBuf, overwrite: bool) -> PyResult<PathBuf> {
+    /// its unit and traces, manifest.json last; no stage plots): through a temporary folder
+    /// renamed into place, so that `out` is complete or absent. `html=True` writes the report a
+    /// reviewer signs too, `report.html`, the command line's page (provenance, headline and
+    /// verdict, stage and parameter tables, figures). An existing non-empty `out` is refused
+    /// unless `overwrite=True` (and then only a folder of ours, replaced whole). Returns the
+    /// folder. Raises OutputError.
+    #[pyo3(signature = (out, *, overwrite = false, html = false))]
+    fn write(
+        &self,
+        py: Python<'_>,
+        out: PathBuf,
+        overwrite: bool,
+        html: bool,
+    ) -> PyResult<PathBuf> {
         let run = self.run.clone();
         let spec_text = self.spec_text.clone();
+        let events = self.events.clone();
+        let files = self.files.clone();
         py.detach(move || -> Result<PathBuf, Failure> {
             Failure::catch("FitResult.write", || {
                 let staging = itaipu_calib::output::prepare_out(Some(&out), "fit", overwrite)?;
@@ -106,6 +131,27 @@ impl PyFitResult {
                     job::write_stage_files(staging.path(), st, |_| Ok(()))?;
                 }
                 job::write_fit_files(staging.path(), &run, &spec_text)?;
+                if html {
+                    use itaipu_calib_cli::report::InputFile;
+                    let mut inputs: Vec<InputFile> = files
+                        .iter()
+                        .map(|(role, p)| InputFile::new(role, p))
+                        .collect();
+                    inputs.extend(events.0.iter().flat_map(|e| InputFile::event(e, false)));
+                    inputs.extend(events.1.iter().flat_map(|e| InputFile::event(e, true)));
+                    let page = itaipu_calib_cli::fit_cmd::fit_report_html(
+                        &run.report.to_json()?,
+                        &run,
+                        &events.0,
+                        &events.1,
+                        inputs,
+                        true,
+                    );
+                    itaipu_calib::output::write_synced(
+                        &staging.path().join("report.html"),
+                        page.as_bytes(),
+                    )?;
+                }
                 staging.commit(
                     Some(run.options.seed),
                     vec![
@@ -258,7 +304,8 @@ impl PyFitResult {
     }
 }
 
-/// Calibrates `unit` against `events`, stage by stage (particle swarm, then the local method),
+/// Calibrates `unit` against `events`, stage by stage (a parallel particle swarm, then
+/// Levenberg-Marquardt, or L-BFGS with `local = "lbfgs"` in the spec),
 /// as the command line's `fit`: the same library job ([`job::run_fit`]), so the same numbers,
 /// warnings and report.
 ///
@@ -296,18 +343,34 @@ pub(crate) fn fit(
     calib: Option<PathBuf>,
     stages: Option<&Bound<'_, PyAny>>,
     strategy: Option<&str>,
-    seed: Option<u64>,
-    particles: Option<usize>,
-    pso_iterations: Option<usize>,
-    local_iterations: Option<u64>,
+    seed: Option<&Bound<'_, PyAny>>,
+    particles: Option<&Bound<'_, PyAny>>,
+    pso_iterations: Option<&Bound<'_, PyAny>>,
+    local_iterations: Option<&Bound<'_, PyAny>>,
     polish: bool,
     held_out: Option<&Bound<'_, PyAny>>,
-    threads: Option<usize>,
-    lbfgs_iterations: Option<u64>,
+    threads: Option<&Bound<'_, PyAny>>,
+    lbfgs_iterations: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PyFitResult> {
     if swapped_events_unit(py, events, unit)? {
         return Err(swap_error("fit"));
     }
+    use crate::args::whole;
+    let (seed, particles, pso_iterations, threads): (
+        Option<u64>,
+        Option<usize>,
+        Option<usize>,
+        Option<usize>,
+    ) = (
+        whole(py, seed, "seed")?,
+        whole(py, particles, "particles")?,
+        whole(py, pso_iterations, "pso_iterations")?,
+        whole(py, threads, "threads")?,
+    );
+    let (local_iterations, lbfgs_iterations): (Option<u64>, Option<u64>) = (
+        whole(py, local_iterations, "local_iterations")?,
+        whole(py, lbfgs_iterations, "lbfgs_iterations")?,
+    );
     let local_iterations = crate::args::renamed(
         py,
         "lbfgs_iterations",
@@ -366,6 +429,21 @@ pub(crate) fn fit(
     });
     let (inputs, opts, warnings) = prepared.map_err(|e| e.into_pyerr(py))?;
     crate::errors::warn_all(py, &warnings)?;
+    let warned = warnings.clone();
+    let kept_events = Arc::new((inputs.events.clone(), inputs.held_out.clone()));
+    let mut files: Vec<(String, PathBuf)> = vec![];
+    files.extend(
+        inputs
+            .unit_path
+            .iter()
+            .map(|p| ("unit".to_string(), p.clone())),
+    );
+    files.extend(
+        inputs
+            .spec_path
+            .iter()
+            .map(|p| ("calibration spec".to_string(), p.clone())),
+    );
     // Ctrl-C (KeyboardInterrupt) stops the fit at its next candidate evaluation; the passes
     // finished by then are kept on the exception (see `fit`'s documentation).
     let cancel = Arc::new(AtomicBool::new(false));
@@ -411,7 +489,19 @@ pub(crate) fn fit(
         }
     })?;
     let (run, spec_text) = result.map_err(|e| e.into_pyerr(py))?;
-    PyFitResult::new(run, spec_text)
+    // The warnings the run added (the calibrated unit's plausibility), each once.
+    let added: Vec<_> = run
+        .report
+        .warnings
+        .iter()
+        .filter(|w| !warned.contains(w))
+        .cloned()
+        .collect();
+    crate::errors::warn_all(py, &added)?;
+    let mut r = PyFitResult::new(run, spec_text)?;
+    r.events = kept_events;
+    r.files = files;
+    Ok(r)
 }
 
 impl PyFitResult {
@@ -433,6 +523,8 @@ impl PyFitResult {
             calibrated_set: run.calibrated_set.clone(),
             spec_text,
             run: Arc::new(run),
+            events: Arc::default(),
+            files: vec![],
         })
     }
 }

@@ -6,14 +6,40 @@ use pyo3::types::{PyDict, PyList};
 use itaipu_dynamics::block::Dir;
 use itaipu_dynamics::registry::MODELS;
 
-/// The model library (the same catalogue unit files and the command line use): a list of dicts
-/// with name, role ('machine', 'exciter', 'pss', 'governor' or 'block'), summary, parameters
-/// (dicts: name, alias (PSS/E), unit, doc, typical, range = (low, high)), ports (dicts: name,
-/// direction 'in'/'out', doc) and states.
+/// The model library (the same catalogue unit files and the command line's `models [NAME]`
+/// use): a list of dicts with name, role ('machine', 'exciter', 'pss', 'governor' or 'block'),
+/// summary, parameters (dicts: name, alias (PSS/E), unit, doc, typical, range = (low, high)),
+/// ports (dicts: name, direction 'in'/'out', doc) and states. `models(name)`: the dict of the
+/// model named (any case), or for 'diagram' the diagram primitives as text; an unknown name
+/// raises ValueError naming every model.
 #[pyfunction]
-pub(crate) fn models<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-    let out = PyList::empty(py);
-    for m in MODELS.iter() {
+#[pyo3(signature = (name = None))]
+pub(crate) fn models<'py>(py: Python<'py>, name: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
+    use itaipu_dynamics::registry::{listing, Listing};
+    match name.map(listing) {
+        None => {
+            let out = PyList::empty(py);
+            for m in MODELS.iter() {
+                out.append(model_dict(py, m)?)?;
+            }
+            Ok(out.into_any())
+        }
+        Some(Ok(Listing::Model(m))) => Ok(model_dict(py, m)?.into_any()),
+        Some(Ok(Listing::DiagramPrimitives)) => Ok(pyo3::types::PyString::new(
+            py,
+            &itaipu_dynamics::diagram::describe_primitives(),
+        )
+        .into_any()),
+        Some(Err(msg)) => Err(crate::errors::usage_error(py, "name", &msg)),
+    }
+}
+
+/// One model of the library as a dict ([`models`]).
+fn model_dict<'py>(
+    py: Python<'py>,
+    m: &itaipu_dynamics::registry::ModelInfo,
+) -> PyResult<Bound<'py, PyDict>> {
+    {
         let block = m.create();
         let params = PyList::empty(py);
         for s in block.params().specs() {
@@ -41,9 +67,8 @@ pub(crate) fn models<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         d.set_item("parameters", params)?;
         d.set_item("ports", ports)?;
         d.set_item("states", block.state_names().to_vec())?;
-        out.append(d)?;
+        Ok(d)
     }
-    Ok(out)
 }
 
 /// Robust noise standard deviation of a measured signal (the fit's estimate: from its second

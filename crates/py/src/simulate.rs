@@ -25,7 +25,9 @@ use itaipu_calib::request::SimulateRequest;
 /// mode: "phasor" (the measured |V| and angle imposed), "exciter_alone", "machine_from_efd" or
 /// "closed_loop" (records without an angle; docs/playback.md). Defaults: `options()` (the
 /// declaration both front ends read). The GIL is released while files are read and the model
-/// is integrated.
+/// is integrated. The plausibility layer runs on the event and the unit as for the command
+/// line's `simulate`: its warnings are issued as `ItaipuWarning`s, an implausible input raises
+/// EventError or UnitModelError.
 ///
 /// Raises EventError, UnitModelError, InitError, SimulationError (and ValueError for bad
 /// options, TypeError for bad argument types).
@@ -54,7 +56,11 @@ pub(crate) fn simulate(
     }
     let event = source::<PyEvent, _>(event, "event", |e| e.inner.clone())?;
     let unit = source::<PyUnit, _>(unit, "unit", |u| u.inner.clone())?;
-    let result = py.detach(move || -> Result<Traces, Failure> {
+    let unit_file = match &unit {
+        Source::Path(p) => Some(p.clone()),
+        Source::Loaded(_) => None,
+    };
+    let result = py.detach(move || -> Result<(Traces, Vec<_>), Failure> {
         let event = match event {
             Source::Loaded(e) => e,
             Source::Path(p) => Arc::new(Event::from_toml_file(&p)?),
@@ -63,11 +69,12 @@ pub(crate) fn simulate(
             Source::Loaded(u) => u,
             Source::Path(p) => Arc::new(read_unit_any(&p)?.unit),
         };
-        Ok(simulate_mode_traces(&unit, &event, mode, &opts)?)
+        let warnings = itaipu_calib::job::check_inputs(&[&event], &unit, unit_file.as_deref())?;
+        Ok((simulate_mode_traces(&unit, &event, mode, &opts)?, warnings))
     });
-    result
-        .map(|t| PyTraces { inner: t })
-        .map_err(|e| e.into_pyerr(py))
+    let (traces, warnings) = result.map_err(|e| e.into_pyerr(py))?;
+    crate::errors::warn_all(py, &warnings)?;
+    Ok(PyTraces { inner: traces })
 }
 
 /// Integrator options, checked by the library ([`SimulateRequest::options`]) as for the

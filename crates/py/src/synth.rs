@@ -82,12 +82,7 @@ pub(crate) fn synth(
             .map_err(Failure::from)
     })?;
     let Synthesized { event, truth, .. } = result.map_err(|f| f.into_pyerr(py))?;
-    let event = Bound::new(
-        py,
-        PyEvent {
-            inner: Arc::new(event),
-        },
-    )?;
+    let event = Bound::new(py, PyEvent::new(event))?;
     if return_truth {
         let truth = Bound::new(
             py,

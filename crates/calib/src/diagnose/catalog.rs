@@ -18,6 +18,9 @@ pub use super::cause::{
     Tolerance, NUISANCE,
 };
 pub use super::cause_kit::{exciter_roles, DEEP_SEARCH};
+/// The helpers a cause file uses, for the documentation's example cause compiled in the tests.
+#[cfg(test)]
+pub(crate) use super::cause_kit::{declared, value};
 pub use super::causes::CAUSES;
 pub use super::context::{
     resonance_stands_out, GOVERNOR_DF_HZ, LIMIT_DIP, OEL_IFD_RISE, RESONANCE_P,

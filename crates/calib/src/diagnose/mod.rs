@@ -150,6 +150,7 @@ pub mod user_cause;
 mod verdict;
 mod windows;
 
+pub use noise::REFIT_RMS_NOTE;
 pub use calibrated::{calibrated_set, merge_calibrated_set, refit_bounds, RefitRequest};
 pub use error::DiagnoseError;
 pub use not_applicable::NotApplicable;

@@ -3,12 +3,12 @@
 //! pure noise fitting gains.
 
 use crate::evidence;
-use crate::fit::fitness;
 use itaipu_dynamics::event::Event;
 use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
 
 use super::error::DiagnoseError;
+use super::report::EventEvidence;
 use super::playback::Playback;
 use super::windows::onset_s;
 
@@ -117,56 +117,73 @@ pub(super) fn surrogate_in_mode(
     Ok(s)
 }
 
-/// The noise floor σ_c of each compared channel of `pb` (in its order) for the unit as given
-/// on `events`: σ_P, σ_Q of [`sigma_pq`] for the phasor playback; in a mode, each compared
-/// channel's [`crate::noise::noise_floor`] of the mode's simulation, pooled likewise.
-pub(super) fn sigmas(
+/// The noise of the unit as given on `events` and `held_out` in the playback `pb`
+/// ([`crate::noise::assess`]: each event's floors and residual, and the headline every report
+/// shows), and the floor σ_c of each compared channel (in `pb`'s order) pooled over the fitted
+/// events by their number of samples: the χ² weights `1/σ_c²`.
+pub(super) fn assess(
     unit: &Unit,
     events: &[Event],
+    held_out: &[Event],
     pb: &Playback,
-) -> Result<Vec<f64>, DiagnoseError> {
-    if pb.is_pq_phasor() {
-        let (p, q) = sigma_pq(unit, events)?;
-        return Ok(vec![p, q]);
+) -> Result<
+    (
+        Vec<f64>,
+        Vec<crate::noise::NoiseRow>,
+        crate::noise::Headline,
+    ),
+    DiagnoseError,
+> {
+    let (rows, headline) = crate::noise::assess(unit, events, held_out, pb.mode, &pb.channels);
+    if let Some(r) = rows.iter().find(|r| r.error.is_some()) {
+        return Err(DiagnoseError::Simulation {
+            event: r.event.clone(),
+            msg: r.error.clone().unwrap_or_default(),
+            error: None,
+        });
     }
-    let mut floors: Vec<Vec<(f64, usize)>> = vec![vec![]; pb.channels.len()];
-    for e in events {
-        let out = pb.outputs(unit, e)?;
-        let n = e.record.time_s.len();
-        for (j, &c) in pb.channels.iter().enumerate() {
-            let (Some(sim), Some(meas)) = (out.channel(c), e.series(c)) else {
-                return Err(DiagnoseError::Setup(format!(
-                    "event '{}': channel {} is neither simulated nor recorded",
-                    e.name,
-                    c.name()
-                )));
-            };
-            floors[j].push((crate::noise::noise_floor(e, sim, meas).sigma, n));
-        }
-    }
-    Ok(floors.iter().map(|f| crate::noise::pooled(f)).collect())
+    let sigmas = (0..pb.channels.len())
+        .map(|j| {
+            let floors: Vec<(f64, usize)> = rows
+                .iter()
+                .zip(events)
+                .filter(|(r, _)| !r.held_out)
+                .map(|(r, e)| (r.channels[j].floor.sigma, e.record.time_s.len()))
+                .collect();
+            crate::noise::pooled(&floors)
+        })
+        .collect();
+    Ok((sigmas, rows, headline))
 }
 
-/// σ_P, σ_Q of the unit as given on `events`: each event's noise floor
-/// ([`crate::noise::noise_floor`]: the pre-event residual's standard deviation, the one
-/// definition every report shows), pooled over the events by their number of samples.
-pub(super) fn sigma_pq(unit: &Unit, events: &[Event]) -> Result<(f64, f64), DiagnoseError> {
-    let (mut fp, mut fq) = (vec![], vec![]);
-    for e in events {
-        let (_, tr) =
-            fitness(unit, e, false).map_err(|err| DiagnoseError::simulation(&e.name, &err))?;
-        let n = e.record.time_s.len();
-        for (sim, meas, out) in [
-            ("p_pu", &e.record.p_pu, &mut fp),
-            ("q_pu", &e.record.q_pu, &mut fq),
-        ] {
-            let s = tr.get(sim).ok_or_else(|| DiagnoseError::Simulation {
-                event: e.name.clone(),
-                msg: format!("no simulated {sim}"),
-                error: None,
-            })?;
-            out.push((crate::noise::noise_floor(e, s, meas).sigma, n));
+/// Each signal's RMS/noise of `evidence` against the noise floor of its event and channel in
+/// `rows` (the unit as given's, [`assess`]): one σ per event and channel for the noise table,
+/// the χ² weights, the evidence and the verdict.
+pub(super) fn against_noise(evidence: &mut [EventEvidence], rows: &[crate::noise::NoiseRow]) {
+    for ev in evidence {
+        let Some(row) = rows.iter().find(|r| r.event == ev.event) else {
+            continue;
+        };
+        for s in &mut ev.signals {
+            if let Some(sigma) = row.sigma(&s.signal) {
+                s.noise_floor_rms = sigma;
+                s.rms_over_noise = if sigma > 0.0 {
+                    s.rms / sigma
+                } else if s.rms > 0.0 {
+                    f64::INFINITY
+                } else {
+                    1.0
+                };
+            }
         }
     }
-    Ok((crate::noise::pooled(&fp), crate::noise::pooled(&fq)))
 }
+
+/// Why a candidate's RMS (its baseline's and its extension's) may lie above the reference's, as
+/// the reports say it under their candidate tables.
+pub const REFIT_RMS_NOTE: &str = "A candidate's RMS (its baseline's and its extension's) is over \
+the whole record, fitted and held-out blocks alike, while its re-fit sees only the fitted blocks \
+(every re-freed parameter free, with a short search): on a record whose misfit the model cannot \
+follow, the re-fit bends to the fitted blocks and predicts the held-out ones worse, so its RMS \
+can lie above the reference's (the unit as given, calibrated on the whole record). The held-out \
+χ² columns say by how much.";

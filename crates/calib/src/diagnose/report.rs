@@ -315,6 +315,9 @@ pub struct NoiseModel {
     pub split: String,
     pub n_fit: usize,
     pub n_held: usize,
+    /// Per event (fitted, then held out) the floors and the residual of the unit as given
+    /// ([`crate::noise::assess`]): the numbers of the headline.
+    pub events: Vec<crate::noise::NoiseRow>,
 }
 
 /// Everything `diagnose` reports (written as JSON by the CLI).
@@ -332,6 +335,9 @@ pub struct Diagnosis {
     /// Evidence with the named extension (empty when none is named).
     pub evidence_after: Vec<EventEvidence>,
     pub noise: NoiseModel,
+    /// The residual of the unit as given against the noise, in one sentence: the same
+    /// computation as a fit's report on its calibrated unit ([`crate::noise::assess`]).
+    pub headline: crate::noise::Headline,
     /// Plausibility warnings on the inputs (set by [`crate::job::run_diagnose`]).
     pub warnings: Vec<itaipu_dynamics::plausibility::Finding>,
     /// Calibrated parameters freed again in every re-fit ([`super::DiagnoseOptions::refit`]).

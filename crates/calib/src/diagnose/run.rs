@@ -73,6 +73,10 @@ struct Noise {
     sp: Split,
     /// The contiguous segments of the second held-out test (without held-out events).
     sp_segments: Option<Split>,
+    /// Per event the floors and the residual of the unit as given ([`crate::noise::assess`]).
+    rows: Vec<crate::noise::NoiseRow>,
+    /// The residual of the unit as given against the noise, in one sentence.
+    headline: crate::noise::Headline,
 }
 
 /// What the candidates' scoring produced: every report (the catalog's and the user's causes,
@@ -94,9 +98,12 @@ fn diagnose_run(
     let profile = Profile::default();
     let noise = noise(unit, events, held_out, opts, &profile)?;
     let scoring = (&noise.pb, noise.weights, noise.compare.as_ref());
-    let reference = reference::reference(
+    let mut reference = reference::reference(
         unit, events, held_out, &noise.sp, scoring, opts, progress, &profile,
     )?;
+    // The evidence against the one noise floor of each event and channel (the unit as given's,
+    // as the noise table and the χ² weights), not the reference's own pre-event residual.
+    super::noise::against_noise(&mut reference.evidence, &noise.rows);
     let ctx = reference::catalog_context(events, &reference.before, &reference.evidence, &noise.pb);
     let band_top = causes
         .iter()
@@ -128,6 +135,8 @@ fn diagnose_run(
         evidence,
         ..
     } = reference;
+    let mut evidence_after = decision.evidence_after;
+    super::noise::against_noise(&mut evidence_after, &noise.rows);
     let report = Diagnosis {
         unit: refit.unit.name.clone(),
         events: events.iter().map(|e| e.name.clone()).collect(),
@@ -135,8 +144,9 @@ fn diagnose_run(
         verdict: decision.verdict,
         candidates: reports,
         evidence,
-        evidence_after: decision.evidence_after,
+        evidence_after,
         noise: noise.model(),
+        headline: noise.headline.clone(),
         warnings: vec![],
         refit: opts.refit.clone(),
         profile: profile.rows(),
@@ -213,7 +223,7 @@ fn check_request<'o>(
 }
 
 /// The noise floor of each compared channel, from the pre-event residual of the unit as given
-/// ([`super::noise::sigmas`]), the χ² weights, and the fitted/held-out split.
+/// ([`super::noise::assess`]), the χ² weights, and the fitted/held-out split.
 fn noise(
     unit: &Unit,
     events: &[Event],
@@ -224,7 +234,7 @@ fn noise(
     let t_noise = Instant::now();
     let all: Vec<&Event> = events.iter().chain(held_out).collect();
     let pb = Playback::for_events(opts.mode, &all)?;
-    let sigmas = super::noise::sigmas(unit, events, &pb)?;
+    let (sigmas, noise_rows, headline) = super::noise::assess(unit, events, held_out, &pb)?;
     let t = t_noise.elapsed().as_secs_f64();
     profile.add("diagnosis", "noise floor", t, 0, 0);
     let sigma_of = |c: Channel| {
@@ -255,6 +265,8 @@ fn noise(
         compare,
         sp,
         sp_segments,
+        rows: noise_rows,
+        headline,
     })
 }
 
@@ -295,6 +307,7 @@ impl Noise {
             split: self.sp.description.clone(),
             n_fit: self.sp.fit.iter().map(|d| d.n_window()).sum(),
             n_held: self.sp.held.iter().map(|d| d.n_window()).sum(),
+            events: self.rows.clone(),
         }
     }
 }

@@ -225,8 +225,8 @@ fn refused_at_the_floor(w: &Worst, r: &CandidateReport, g: &Gains) -> Verdict {
             r.cause
         ),
         format!(
-            "Unexplained by the catalog. The residuals are near the noise level (largest: {} on {event}, RMS {:.2} × \
-             the pre-event residual σ), yet the extension of {} ({}) lowers χ² on the fitted samples by {:.1} % and on the \
+            "Unexplained by the catalog. The residuals are near the noise level (largest: {} on {event}, the reference's RMS \
+             over the whole record {:.2} × the noise σ), yet the extension of {} ({}) lowers χ² on the fitted samples by {:.1} % and on the \
              held-out samples by {:.1} % (the record's evidence 2 ln B = {:.1}), a gain the test names a cause on; it is \
              not named: {why}. An effect the catalog does not hold is at work where {} acts{place}. If you know the \
              unit's setting that makes it, write a cause file for it and diagnose again with --user-cause.",
@@ -250,8 +250,8 @@ fn at_the_floor(w: &Worst, best_try: &str) -> Verdict {
         VerdictCause::None,
         "residual at the noise floor".into(),
         format!(
-            "No cause named: the residuals are at the noise level (largest: {} on {event}, RMS {:.2} × the pre-event \
-             residual σ; Ljung-Box p = {:.2}) and no extension gains significantly.{best_try} The model needs no extension \
+            "No cause named: the residuals are at the noise level (largest: {} on {event}, the reference's RMS over \
+             the whole record {:.2} × the noise σ; Ljung-Box p = {:.2}) and no extension gains significantly.{best_try} The model needs no extension \
              for these data.",
             s.signal, over, s.whiteness.p_value
         ),
@@ -268,8 +268,8 @@ fn unexplained(w: &Worst, best_try: &str, field_hint: &str) -> Verdict {
             VerdictCause::Unexplained,
             format!("unexplained residual at {}", s.signal),
             format!(
-                "Unexplained residual at {} on {event}: RMS {:.2} × the pre-event residual σ, \
-                 Ljung-Box p = {:.2}. No catalog extension explains it significantly.{best_try}{field_hint}",
+                "Unexplained residual at {} on {event}: the reference's RMS over the whole record \
+                 {:.2} × the noise σ, Ljung-Box p = {:.2}. No catalog extension explains it significantly.{best_try}{field_hint}",
                 s.signal, over, s.whiteness.p_value
             ),
             None,
@@ -291,8 +291,8 @@ fn unexplained(w: &Worst, best_try: &str, field_hint: &str) -> Verdict {
         VerdictCause::Unexplained,
         format!("unexplained residual at {} ({}, {:.2}-{:.2} s)", s.signal, top.label, top.start_s, top.end_s),
         format!(
-            "Unexplained residual at {} in the {} window ({:.2}-{:.2} s, {:.0} % of its squared error) on {event}: RMS {:.2} × \
-             the pre-event residual σ, Ljung-Box p = {:.2}{mode}. No catalog extension explains it significantly.{best_try}{field_hint}",
+            "Unexplained residual at {} in the {} window ({:.2}-{:.2} s, {:.0} % of its squared error) on {event}: the reference's RMS \
+             over the whole record {:.2} × the noise σ, Ljung-Box p = {:.2}{mode}. No catalog extension explains it significantly.{best_try}{field_hint}",
             s.signal,
             top.label,
             top.start_s,

@@ -397,40 +397,45 @@ impl FitReport {
                 list(&s.not_determined)
             );
         }
-        let _ = writeln!(out);
-        let _ = writeln!(
-            out,
-            "fitness J = sum(dP^2 + dQ^2) per event (system base; * = held out)"
-        );
-        let mut header = vec!["stage".to_string()];
-        header.extend(
-            r.start_fitness
-                .iter()
-                .map(|f| format!("{}{}", f.event, if f.held_out { "*" } else { "" })),
-        );
-        let _ = writeln!(
-            out,
-            "  {}",
-            header
-                .iter()
-                .map(|h| format!("{h:>22}"))
-                .collect::<String>()
-        );
-        let row = |out: &mut String, name: &str, f: &[EventFitness]| {
+        // With playback modes the P+Q J mixes what each stage compares: only the per-mode
+        // table below, each mode's J in its own channels.
+        let moded = r.start_fitness.iter().any(|f| !f.modes.is_empty());
+        if !moded {
+            let _ = writeln!(out);
             let _ = writeln!(
                 out,
-                "  {:>22}{}",
-                name,
-                f.iter()
-                    .map(|x| format!("{:>22.4}", x.j_pq))
+                "fitness J = sum(dP^2 + dQ^2) per event (system base; * = held out)"
+            );
+            let mut header = vec!["stage".to_string()];
+            header.extend(
+                r.start_fitness
+                    .iter()
+                    .map(|f| format!("{}{}", f.event, if f.held_out { "*" } else { "" })),
+            );
+            let _ = writeln!(
+                out,
+                "  {}",
+                header
+                    .iter()
+                    .map(|h| format!("{h:>22}"))
                     .collect::<String>()
             );
-        };
-        row(&mut out, "start", &r.start_fitness);
-        for s in &r.stages {
-            row(&mut out, &s.stage, &s.fitness);
+            let row = |out: &mut String, name: &str, f: &[EventFitness]| {
+                let _ = writeln!(
+                    out,
+                    "  {:>22}{}",
+                    name,
+                    f.iter()
+                        .map(|x| format!("{:>22.4}", x.j_pq))
+                        .collect::<String>()
+                );
+            };
+            row(&mut out, "start", &r.start_fitness);
+            for s in &r.stages {
+                row(&mut out, &s.stage, &s.fitness);
+            }
         }
-        if r.start_fitness.iter().any(|f| !f.modes.is_empty()) {
+        if moded {
             let _ = writeln!(out);
             let _ = writeln!(
                 out,

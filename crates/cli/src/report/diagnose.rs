@@ -29,13 +29,10 @@ pub fn top_window(s: &SignalEvidence) -> Option<&WindowStats> {
         .max_by(|a, b| a.share_of_sse.total_cmp(&b.share_of_sse))
 }
 
-/// The largest RMS/noise ratio of the unit as given over every event and signal.
+/// The headline's worst RMS/σ of the unit as given (the library's one number, as a fit's
+/// report gives it for its calibrated unit; NaN when the noise could not be measured).
 pub fn worst_ratio(r: &Diagnosis) -> f64 {
-    r.evidence
-        .iter()
-        .flat_map(|e| &e.signals)
-        .map(|s| s.rms_over_noise)
-        .fold(f64::NAN, f64::max)
+    r.headline.worst.unwrap_or(f64::NAN)
 }
 
 /// The reference every RMS of the report is compared with: the unit as given, pooled over
@@ -173,8 +170,9 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
         v.cause == "unexplained" || v.cause == "inconclusive",
     );
     let mut body = format!("<p>{}</p>\n", e(&v.statement));
+    body.push_str(&super::headline_html(&r.headline, "/headline/worst"));
     body.push_str(&format!(
-        "<p>Residual of the unit as given: at most <span data-derived=\"worst-ratio\">{worst:.2}</span> × the noise RMS (green needs at most {:.1} and no cause named; above {:.1} it is red).</p>\n",
+        "<p class=\"muted\">Green needs at most {:.1} and no cause named; above {:.1} it is red.</p>\n",
         super::AT_NOISE,
         super::FAR_ABOVE_NOISE
     ));
@@ -299,7 +297,7 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
         &["compared signal", "σ [pu]", "reference RMS [pu]"],
         &rows,
     );
-    page.note("σ from the pre-event segment of the residuals; χ² = Σ_c Σ (Δc/σ_c)² over the compared signals (P and Q for a phasor record). The reference throughout this report is the unit as given: its residual RMS (pooled over the events) is the one every RMS below is compared with, and the evidence tables are computed from it.");
+    page.note(&format!("Noise: {} (of the unit as given, pooled over the fitted events by their samples; the same σ in the evidence tables); χ² = Σ_c Σ (Δc/σ_c)² over the compared signals (P and Q for a phasor record). The reference throughout this report is the unit as given with its set-point offsets re-fitted: its residual RMS over the whole record (pooled over the events) is the one every RMS below is compared with, and the evidence tables are computed from it.", itaipu_calib::noise::NOISE_DEFINITION));
 
     // Candidates.
     page.h2("candidates", "Candidates");
@@ -373,12 +371,13 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
         &rows,
     );
     page.note(&format!(
-        "Reference (unit as given): RMS {}.",
+        "Reference (unit as given): RMS {}. {}",
         n.sigmas
             .iter()
             .map(|(s, _)| format!("{s} {} pu", num(reference_rms(r, s))))
             .collect::<Vec<_>>()
-            .join(", ")
+            .join(", "),
+        itaipu_calib::diagnose::REFIT_RMS_NOTE
     ));
     for (i, c) in r
         .candidates

@@ -49,25 +49,33 @@ fn noise_of(report: &Value, event: &str) -> Option<(usize, f64, f64)> {
         .map(|(k, n)| (k, f(&n["sigma_p"]), f(&n["sigma_q"])))
 }
 
-/// The largest RMS/σ of the last stage's P and Q residuals over every event (NaN when a noise
-/// level is unknown or zero).
+/// The headline's worst RMS/σ (`report.json` `headline.worst`, the library's one number; NaN
+/// when the noise could not be measured).
 pub fn worst_ratio(report: &Value) -> f64 {
-    let Some(last) = report["stages"].as_array().and_then(|a| a.last()) else {
-        return f64::NAN;
-    };
-    let mut worst: f64 = 0.0;
-    for fit in last["fitness"].as_array().into_iter().flatten() {
-        let Some((_, sp, sq)) = noise_of(report, s(&fit["event"])) else {
-            return f64::NAN;
-        };
-        for (rms, sigma) in [(f(&fit["rms_p"]), sp), (f(&fit["rms_q"]), sq)] {
-            if !(sigma > 0.0) || !rms.is_finite() {
-                return f64::NAN;
-            }
-            worst = worst.max(rms / sigma);
-        }
+    f(&report["headline"]["worst"])
+}
+
+/// The headline sentence with its number marked up (JSON pointer `/headline/worst`).
+pub fn headline_html(report: &Value, pointer: &str) -> String {
+    let h: Option<itaipu_calib::noise::Headline> =
+        serde_json::from_value(report.pointer(pointer).cloned().unwrap_or(Value::Null)).ok();
+    match h {
+        Some(h) => super::headline_html(&h, &format!("{pointer}/worst")),
+        None => "<p>No headline in the report.</p>\n".into(),
     }
-    worst
+}
+
+/// What a phasor stage compares, from its objective and weights (`P, Q`, `Q`).
+fn objective_channels(st: &Value) -> String {
+    let (wp, wq) = (f(&st["weights"]["p"]), f(&st["weights"]["q"]));
+    match s(&st["objective"]) {
+        "p" => "P".into(),
+        "q" => "Q".into(),
+        _ if wp.is_finite() && wq.is_finite() && (wp != 1.0 || wq != 1.0) => {
+            format!("P (weight {wp}), Q (weight {wq})")
+        }
+        _ => "P, Q".into(),
+    }
 }
 
 /// Every flag the stages raise: parameters at a bound, not determined, pairs not separately
@@ -122,33 +130,56 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
     ));
     page.provenance(prov);
 
-    // Events and noise.
+    // Events and noise: every compared channel's σ (the library's one definition).
     page.h2("events", "Events");
+    let signals: Vec<String> = report["noise"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .flat_map(|n| n["channels"].as_array().into_iter().flatten())
+        .map(|c| s(&c["signal"]).to_string())
+        .fold(vec![], |mut v, x| {
+            if !v.contains(&x) {
+                v.push(x);
+            }
+            v
+        });
     let rows: Vec<Vec<Cell>> = report["noise"]
         .as_array()
         .into_iter()
         .flatten()
         .enumerate()
         .map(|(k, n)| {
-            vec![
+            let mut row = vec![
                 Cell::text(s(&n["event"])),
                 Cell::text(if n["held_out"].as_bool() == Some(true) {
                     "held out"
                 } else {
                     "fitted"
                 }),
-                Cell::Num(n["samples"].to_string()),
-                cell(report, &format!("/noise/{k}/sigma_p"), num),
-                cell(report, &format!("/noise/{k}/sigma_q"), num),
-            ]
+                Cell::Num(n["samples"].as_u64().map_or("-".into(), |x| x.to_string())),
+            ];
+            for sig in &signals {
+                let j = n["channels"]
+                    .as_array()
+                    .and_then(|a| a.iter().position(|c| s(&c["signal"]) == sig));
+                row.push(match j {
+                    Some(j) => cell(report, &format!("/noise/{k}/channels/{j}/floor/sigma"), num),
+                    None => Cell::text(n["error"].as_str().map_or("-", |_| "not played back")),
+                });
+            }
+            row
         })
         .collect();
-    page.table(
-        "event-table",
-        &["event", "role", "samples", "noise σP [pu]", "noise σQ [pu]"],
-        &rows,
-    );
-    page.note("Noise: the robust standard deviation of the measured P and Q from their second differences (the same estimate that weights the datasheet prior).");
+    let mut head: Vec<String> = vec!["event".into(), "role".into(), "samples (fit window)".into()];
+    head.extend(signals.iter().map(|sig| format!("noise σ {sig} [pu]")));
+    let head: Vec<&str> = head.iter().map(String::as_str).collect();
+    page.table("event-table", &head, &rows);
+    page.note(&format!(
+        "Noise: {} ({}).",
+        itaipu_calib::noise::NOISE_DEFINITION,
+        s(&report["headline"]["playback"])
+    ));
     // What the events declare beyond their samples (report.json event_notes): channels without
     // an angle, a non-uniform time base kept as recorded, set-point steps.
     if let Some(notes) = report["event_notes"].as_object() {
@@ -172,16 +203,12 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
     } else {
         Tone::judge(worst, !flagged.is_empty(), false)
     };
-    let mut body = String::new();
-    if worst.is_nan() {
-        body.push_str("<p>The noise level of an event could not be measured (zero or missing): the residual cannot be compared with the noise floor.</p>\n");
-    } else {
-        body.push_str(&format!(
-            "<p>Residual of the calibrated unit: at most <span data-derived=\"worst-ratio\">{worst:.2}</span> × the noise σ (RMS of ΔP, ΔQ over the fit window of each event, fitted and held out). Green needs at most {:.1} and no parameter flagged; above {:.1} it is red.</p>\n",
-            super::AT_NOISE,
-            super::FAR_ABOVE_NOISE
-        ));
-    }
+    let mut body = headline_html(report, "/headline");
+    body.push_str(&format!(
+        "<p class=\"muted\">Green needs at most {:.1} and no parameter flagged; above {:.1} it is red.</p>\n",
+        super::AT_NOISE,
+        super::FAR_ABOVE_NOISE
+    ));
     if flagged.is_empty() {
         body.push_str("<p>No parameter at a bound, undetermined or confounded with another.</p>\n");
     } else {
@@ -210,7 +237,7 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
         .collect();
     let mut head: Vec<String> = vec![
         "stage".into(),
-        "objective".into(),
+        "compares".into(),
         "before".into(),
         "after".into(),
         "prior term after".into(),
@@ -218,29 +245,63 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
         "failed".into(),
         "wall [s]".into(),
     ];
-    for ev in &fit_events {
-        head.push(format!(
-            "J {}{}",
-            s(&ev["event"]),
-            if ev["held_out"].as_bool() == Some(true) {
-                " (held out)"
-            } else {
-                ""
+    // A fit with playback modes: one J column per event and mode (each mode's J in its own
+    // channels), never numbers of different modes in one column. Otherwise the P+Q J.
+    let modes: Vec<String> = fit_events
+        .first()
+        .and_then(|ev| ev["modes"].as_array())
+        .into_iter()
+        .flatten()
+        .map(|m| s(&m["mode"]).to_string())
+        .collect();
+    // (column heading, pointer below a fitness row).
+    let mut columns: Vec<(String, String, usize)> = vec![];
+    for (k, ev) in fit_events.iter().enumerate() {
+        let held = if ev["held_out"].as_bool() == Some(true) {
+            " (held out)"
+        } else {
+            ""
+        };
+        if modes.is_empty() {
+            columns.push((format!("J {}{held}", s(&ev["event"])), "j_pq".into(), k));
+        } else {
+            for (m, mode) in modes.iter().enumerate() {
+                let channels: Vec<String> = ev["modes"][m]["channels"]
+                    .as_array()
+                    .into_iter()
+                    .flatten()
+                    .filter(|c| f(&c["weight"]) > 0.0)
+                    .map(|c| s(&c["channel"]).to_string())
+                    .collect();
+                columns.push((
+                    format!(
+                        "J {}{held} {mode} ({})",
+                        s(&ev["event"]),
+                        channels.join(", ")
+                    ),
+                    format!("modes/{m}/j"),
+                    k,
+                ));
             }
-        ));
+        }
     }
+    head.extend(columns.iter().map(|c| c.0.clone()));
     let mut rows = vec![];
     let mut start_row = vec![Cell::text("start (unit as given)")];
     start_row.extend((0..7).map(|_| Cell::text("")));
-    for k in 0..fit_events.len() {
-        start_row.push(cell(report, &format!("/start_fitness/{k}/j_pq"), fmt4));
+    for (_, field, k) in &columns {
+        start_row.push(cell(report, &format!("/start_fitness/{k}/{field}"), fmt4));
     }
     rows.push(start_row);
     for (i, st) in stages.iter().enumerate() {
         let p = |x: &str| format!("/stages/{i}/{x}");
+        let compares = match st["compare"].as_str() {
+            Some(c) => c.to_string(),
+            None => format!("phasor: {}", objective_channels(st)),
+        };
         let mut row = vec![
             Cell::text(s(&st["stage"])),
-            Cell::text(st["objective"].to_string().trim_matches('"')),
+            Cell::text(compares),
             cell(report, &p("objective_before"), num),
             cell(report, &p("objective_after"), num),
             cell(report, &p("prior_after"), num),
@@ -248,19 +309,24 @@ pub fn html(report: &Value, prov: &Provenance, traces: &[EventTraces], plots: bo
             Cell::Num(st["failed_candidates"].to_string()),
             cell(report, &p("wall_s"), |v| format!("{v:.1}")),
         ];
-        for (k, ev) in fit_events.iter().enumerate() {
+        for (_, field, k) in &columns {
+            let ev = fit_events[*k];
             // The stage's fitness row of the same event (same order as start_fitness).
             let j = st["fitness"]
                 .as_array()
                 .and_then(|a| a.iter().position(|x| x["event"] == ev["event"]))
-                .unwrap_or(k);
-            row.push(cell(report, &p(&format!("fitness/{j}/j_pq")), fmt4));
+                .unwrap_or(*k);
+            row.push(cell(report, &p(&format!("fitness/{j}/{field}")), fmt4));
         }
         rows.push(row);
     }
     let head_ref: Vec<&str> = head.iter().map(String::as_str).collect();
     page.table("stage-table", &head_ref, &rows);
-    page.note("J = Σ(ΔP² + ΔQ²) over the event's fit window (system base), the same number in every row and in report.json; a stage's objective is its weighted sum of squares plus the datasheet prior's term.");
+    page.note(if modes.is_empty() {
+        "J = Σ(ΔP² + ΔQ²) over the event's fit window (system base), the same number in every row and in report.json; a stage's objective is its weighted sum of squares plus the datasheet prior's term."
+    } else {
+        "J per playback mode = Σ over the channels that mode compares (weighted as in the fit) of Σ Δ² over the event's fit window (pu), each column one mode; a stage's objective (before, after) is its own mode's weighted sum of squares plus the datasheet prior's term."
+    });
 
     // Parameters per stage.
     page.h2("parameters", "Parameters");

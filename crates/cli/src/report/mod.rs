@@ -89,10 +89,24 @@ pub fn inline_svg(text: &str) -> String {
     svg
 }
 
-/// A residual is at the noise floor when its RMS is at most this multiple of the noise RMS.
-pub const AT_NOISE: f64 = 1.5;
-/// A residual above this multiple of the noise RMS is far above it: never shown green.
-pub const FAR_ABOVE_NOISE: f64 = 3.0;
+/// The residual-against-noise multiples both reports colour by (the library's one definition,
+/// which the headline sentence quotes).
+pub use itaipu_calib::noise::{AT_NOISE, FAR_ABOVE_NOISE};
+
+/// The library's headline sentence ([`itaipu_calib::noise::Headline`]) as a paragraph, its
+/// number carrying the JSON pointer `pointer` it is read from.
+pub fn headline_html(h: &itaipu_calib::noise::Headline, pointer: &str) -> String {
+    match (h.parts(), h.worst) {
+        (Some((before, w, after)), Some(v)) => format!(
+            "<p>{}<span data-derived=\"worst-ratio\" data-json=\"{}\" data-value=\"{}\">{w}</span>{}</p>\n",
+            escape(before),
+            escape(pointer),
+            serde_json::to_string(&v).unwrap_or_default(),
+            escape(after)
+        ),
+        _ => format!("<p>{}</p>\n", escape(&h.sentence)),
+    }
+}
 
 /// The colour of a verdict, decided in one place for both reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -163,11 +163,19 @@ pub fn side_file(dyr: &Path) -> PathBuf {
 
 /// The bases of `dyr`: the side file `side` (else [`side_file`] if it exists) with the values
 /// of `over` on top; without a side file, `over` alone (a missing value names the `.dyr`).
+/// A `.dyr` that cannot be read is that error ([`DyrError::Io`] naming it), not a missing
+/// base: the bases are looked for only beside a file that is there.
 pub fn resolve_bases(
     dyr: &Path,
     side: Option<&Path>,
     over: &PartialBases,
 ) -> Result<DyrBases, DyrError> {
+    if let Err(source) = std::fs::metadata(dyr) {
+        return Err(DyrError::Io {
+            path: dyr.to_path_buf(),
+            source,
+        });
+    }
     let default = side_file(dyr);
     let side = side
         .map(Path::to_path_buf)

@@ -515,6 +515,11 @@ pub struct Event {
     /// recorded. [`smoothing::default_cutoff`] unless the event file names it; set with
     /// [`Event::set_input_lowpass`], which checks it.
     pub input_lowpass_hz: Option<f64>,
+    /// What the import of the recording found wrong with it that the record itself no longer
+    /// shows (a data file shorter than its header declares): one line each, kept in the event
+    /// file (`import_notes`) and repeated as a warning by every command that reads the event
+    /// ([`crate::plausibility::check_event`]).
+    pub import_notes: Vec<String>,
 }
 
 impl Event {

@@ -11,7 +11,7 @@ use super::declare_check::resolve_channels;
 use super::window::{assemble, Declared, Window};
 use super::{Channel, Declaration, Event, EventError, SetpointStep, StepReference, TimeBase};
 
-const TOP_KEYS: [&str; 13] = [
+const TOP_KEYS: [&str; 14] = [
     "name",
     "description",
     "csv",
@@ -25,6 +25,7 @@ const TOP_KEYS: [&str; 13] = [
     "init",
     "fit",
     "step",
+    "import_notes",
 ];
 const STEP_KEYS: [&str; 3] = ["time_s", "size_pu", "reference"];
 const REQUIRED_KEYS: [&str; 4] = ["name", "csv", "system_mva", "nominal_hz"];
@@ -56,6 +57,8 @@ struct EventSpec {
     time_base: Option<String>,
     #[serde(default)]
     step: Vec<StepSpec>,
+    #[serde(default)]
+    import_notes: Vec<String>,
 }
 
 /// A `[[step]]` table as written.
@@ -282,6 +285,7 @@ impl Event {
                 steps: declaration.steps,
             },
         )?;
+        event.import_notes = spec.import_notes;
         // A number or "none" (as `onset_s`); absent, the default `assemble` chose.
         match spec.input_lowpass_hz {
             None => {}

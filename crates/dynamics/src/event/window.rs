@@ -198,6 +198,7 @@ pub(super) fn assemble(
         time_base: declared.time_base,
         steps: declared.steps,
         input_lowpass_hz,
+        import_notes: vec![],
     })
 }
 

@@ -258,6 +258,10 @@ pub fn import(cfg_path: &Path, opts: &ImportOptions) -> Result<(Event, ImportRep
         Fmt::Ascii => read_ascii(&data, &dat_path, &cfg)?,
         _ => read_binary(&data, &dat_path, &cfg)?,
     };
+    // The rate table's last sample number is the number of samples the .cfg declares (also
+    // with no rates: `0,endsamp`). A .dat cut short (a copy that stopped, a recorder that lost
+    // its end) holds fewer: said, never read in silence.
+    let declared = cfg.rates.last().map(|r| r.1 as usize).filter(|n| *n > 0);
     let use_rates =
         cfg.rates.iter().all(|r| r.0 > 0.0) && !(cfg.rates.len() == 1 && cfg.rates[0].0 == 0.0);
     let mut samples = vec![];
@@ -306,7 +310,24 @@ pub fn import(cfg_path: &Path, opts: &ImportOptions) -> Result<(Event, ImportRep
         Fmt::Float32 => "FLOAT32",
     };
     let start = Some(super::format_iso(cfg.start.0, cfg.start.1));
-    finish(
+    let read = samples.len();
+    let last_s = samples.last().map_or(0.0, |s| s.frac - cfg.start.1);
+    let note = declared.and_then(|d| super::truncation_note(&dat_path, cfg_path, read, d, last_s));
+    if let Some(n) = &note {
+        if opts.refuse_truncated {
+            let prefix = format!("{} ", dat_path.display());
+            return Err(ImportError::data(
+                &dat_path,
+                None,
+                format!(
+                    "{}; refused (refuse_truncated, --refuse-truncated)",
+                    n.strip_prefix(&prefix).unwrap_or(n)
+                ),
+            ));
+        }
+        warnings.push(n.clone());
+    }
+    let (mut event, mut report) = finish(
         cfg_path,
         format!("COMTRADE {} {fmt}", cfg.rev),
         start,
@@ -314,7 +335,10 @@ pub fn import(cfg_path: &Path, opts: &ImportOptions) -> Result<(Event, ImportRep
         samples,
         opts,
         warnings,
-    )
+    )?;
+    report.samples_declared = declared;
+    event.import_notes.extend(note);
+    Ok((event, report))
 }
 
 /// Time of sample number `n` (1-based) from the rate table, s after the first sample.

@@ -78,6 +78,9 @@ pub struct ImportOptions {
     pub rate_hz: Option<f64>,
     /// `(name, column)`: the column or channel `column` is read as `name`.
     pub map: Vec<(String, String)>,
+    /// Refuse a recording whose data file holds fewer samples than its header declares (a
+    /// COMTRADE `.dat` cut short): an error instead of a warning.
+    pub refuse_truncated: bool,
 }
 
 impl ImportOptions {
@@ -93,6 +96,7 @@ impl ImportOptions {
             current_into_machine: false,
             rate_hz: None,
             map: vec![],
+            refuse_truncated: false,
         }
     }
 }
@@ -178,6 +182,9 @@ pub struct ImportReport {
     /// Samples read, and kept (after dropouts).
     pub samples_read: usize,
     pub samples_kept: usize,
+    /// Samples the source's header declares (a COMTRADE `.cfg`'s rate table), when it does: more
+    /// than `samples_read` is a truncated data file ([`truncation_note`]).
+    pub samples_declared: Option<usize>,
     /// The PMU's rate (from the median interval), samples/s.
     pub source_rate_hz: f64,
     /// The event's rate when resampled.
@@ -502,12 +509,23 @@ pub(crate) fn finish(
             path: path.into(),
             source: Box::new(source),
         })?;
+    // The plausibility layer on the imported record (a record that ends in a measurement
+    // drop-out, say), as every command that reads the event will say it; the machine's rating
+    // is not known here, the operating point's |S| stands for it.
+    for f in crate::plausibility::check_event(&event, None) {
+        let at = f
+            .time_s
+            .map(|t| format!(" (t = {t} s)"))
+            .unwrap_or_default();
+        warnings.push(format!("{}{at}: {}; fix: {}", f.column, f.message, f.fix));
+    }
     let report = ImportReport {
         source: path.into(),
         format,
         start: start.map(|s| shift_iso(&s, t0)),
         samples_read,
         samples_kept,
+        samples_declared: None,
         source_rate_hz: 1.0 / dt,
         resampled_hz: opts.rate_hz,
         channels: a.describe(),
@@ -519,6 +537,27 @@ pub(crate) fn finish(
         init_s: [event.init.start_s, event.init.end_s],
     };
     Ok((event, report))
+}
+
+/// The note of a data file that holds `read` samples where its header declares `declared`
+/// (`None` when it holds them all): what the import warns of, writes into the event file
+/// ([`Event::import_notes`]) and, with [`ImportOptions::refuse_truncated`], refuses.
+pub fn truncation_note(
+    data: &Path,
+    header: &Path,
+    read: usize,
+    declared: usize,
+    last_s: f64,
+) -> Option<String> {
+    (read < declared).then(|| {
+        format!(
+            "{} holds {read} samples where {} declares {declared}: the data file is truncated \
+             (the record ends at {last_s:.4} s, {} samples short)",
+            data.display(),
+            header.display(),
+            declared - read
+        )
+    })
 }
 
 /// Resamples to a uniform grid from the first sample (see the module documentation).
@@ -678,8 +717,19 @@ pub fn write_event_folder(
     for line in wrap(&comment, 98) {
         text.push_str(&format!("# {line}\n"));
     }
+    text.push_str(&format!("onset_s = {onset}\n"));
+    if !event.import_notes.is_empty() {
+        text.push_str(
+            "# What the import found wrong with the recording, said again by every command that \
+             reads\n# this event (see import.json).\nimport_notes = [\n",
+        );
+        for n in &event.import_notes {
+            text.push_str(&format!("  {},\n", toml::Value::String(n.clone())));
+        }
+        text.push_str("]\n");
+    }
     text.push_str(&format!(
-        "onset_s = {onset}\n\n[init]\nstart_s = {}\nend_s = {}\n",
+        "\n[init]\nstart_s = {}\nend_s = {}\n",
         format_g17(event.init.start_s),
         format_g17(event.init.end_s),
     ));
