@@ -236,7 +236,7 @@ fn fit_report_matches_report_json_and_stands_alone() {
         assert!(html.contains(&format!("data-json=\"/stages/{}/fitness/0/j_pq\"", s.0)));
     }
     assert!(html.contains("data-json=\"/start_fitness/0/j_pq\""));
-    assert!(html.contains("data-json=\"/noise/0/sigma_p\""));
+    assert!(html.contains("data-json=\"/noise/0/channels/0/floor/sigma\""));
     // Measured against simulated P, Q, the played-back |V|, and the residuals with the noise band.
     assert_eq!(html.matches("<svg").count(), 1);
     for label in [

@@ -250,6 +250,31 @@ pub fn parse_dyr_with(
     opts: &DyrReadOptions,
 ) -> Result<DyrUnit, DyrError> {
     let records = parse_records(text, path)?;
+    // Every field of a record the engine reads is a number (PSS/E quotes only the model name and
+    // the machine id): a field that is not is named at its line before any unit is chosen, so
+    // that the file's own error is what the user reads, not a consequence of it.
+    for r in &records {
+        let Some(m) = dyr_model(&r.model) else {
+            continue;
+        };
+        let Some(k) = r.data.iter().position(|(t, _)| parse_number(t).is_none()) else {
+            continue;
+        };
+        let layout = m.dyr.as_ref().expect("a model with a record");
+        let names = layout.field_names(m.create().as_ref());
+        let field = match (k.checked_sub(layout.icons.len()), names.get(k)) {
+            (None, Some(name)) => format!("ICON {} ({name})", k + 1),
+            (Some(c), Some(name)) => format!("CON {} ({name})", c + 1),
+            (_, None) => format!("field {}", k + 1),
+        };
+        let (text, line) = &r.data[k];
+        return Err(DyrError::Record {
+            path: path.into(),
+            line: *line,
+            model: m.name.into(),
+            msg: format!("{field} = '{text}' is not a number"),
+        });
+    }
     let warn = |line: Option<usize>, msg: String| DyrWarning {
         path: Some(path.into()),
         line,
