@@ -12,24 +12,10 @@ import argparse
 import json
 import os
 import sys
-import time
 from concurrent.futures import ProcessPoolExecutor
 
 from .families import FAMILIES
-
-
-def _make_one(args):
-    cs, out = args
-    from .case import Case
-
-    t0 = time.time()
-    try:
-        c = Case(cs).build()
-    except Exception as e:  # one case's failure is reported, the others are still made
-        return cs["id"], time.time() - t0, float("nan"), f"FAILED: {e}"
-    c.write(out)
-    v = c.key["diagnostics"]["oracle"]["effect_visibility"]
-    return cs["id"], time.time() - t0, v["misfit_without_effect_over_noise"], v["misfit_with_effect_over_noise"]
+from .make import make_one
 
 
 def _report(r):
@@ -49,7 +35,7 @@ def cmd_make(a):
     # A fresh process per case: scipy's LSODA wrapper keeps a few kB per solve, and a record's
     # playback solves once per interval between its stamps.
     with ProcessPoolExecutor(max(1, a.jobs), max_tasks_per_child=1) as ex:
-        for r in ex.map(_make_one, jobs):
+        for r in ex.map(make_one, jobs):
             _report(r)
     cmd_index(a)
 
