@@ -25,6 +25,8 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 "$venv/bin/python" -m pip install --quiet --upgrade pip
 "$venv/bin/python" -m pip install --quiet pytest pytest-xdist pandas matplotlib mypy dask distributed
+# the data-family generator's own test (tests/python/test_families_generator.py)
+"$venv/bin/python" -m pip install --quiet -r tools/families/requirements.txt
 "$venv/bin/python" -m pip install --quiet --force-reinstall .
 "$venv/bin/python" -m pytest tests/python -q -n 2
 # (tests/python/test_pyapi.py also checks the type stub: mypy.stubtest against the installed

@@ -52,6 +52,49 @@ pub const FREE: &[(&str, &str, &str, &str)] = &[
     ("tg", "governor", "Tw", "t_w"),
 ];
 
+/// The calibratable parameters of the models a data family's unit may have in place of the
+/// practice family's exciter and PSS (`data/families/other_unit`: ESST1A, IEEEST), as `(model,
+/// stage, PSS/E name, our parameter)`: the exciter's gain, transient gain reduction and bridge lag
+/// (as SEXS's K, TA/TB, TB, TE), the stabiliser's gain and lead time constants (as STAB3's KX,
+/// TX1, TX2). A machine of another model (GENSAL) is freed by the machine rows of [`FREE`] (the
+/// same parameters).
+pub const FREE_OTHER_MODELS: &[(&str, &str, &str, &str)] = &[
+    ("ESST1A", "avr", "KA", "k_a"),
+    ("ESST1A", "avr", "TC", "t_c"),
+    ("ESST1A", "avr", "TB", "t_b"),
+    ("ESST1A", "avr", "TA", "t_a"),
+    ("IEEEST", "pss", "KS", "ks"),
+    ("IEEEST", "pss", "T1", "t1"),
+    ("IEEEST", "pss", "T3", "t3"),
+];
+
+/// The practice family's exciter, PSS and governor models: the sections of [`FREE`] and
+/// [`OTHER_NAMES`] other than the machine's are theirs. A `nominal.json` section of another
+/// model gives its PSS/E names as they are (the unit file reads every model's PSS/E aliases).
+const PRACTICE_MODELS: &[&str] = &["GENSAE", "SEXS", "STAB3", "HYGOV"];
+
+/// The parameters [`practice_spec`] frees in `unit`, as `(stage, path)`: the rows of [`FREE`]
+/// for the machine (any model that has them) and for the practice family's exciter, PSS and
+/// governor, the rows of [`FREE_OTHER_MODELS`] for the models they name.
+fn free_params(unit: &Unit) -> Vec<(&'static str, String)> {
+    let model = |section: &str| unit.block(section).map(|b| b.model()).unwrap_or("");
+    let mut out = vec![];
+    for stage in ["gen", "avr", "pss", "tg"] {
+        for (_, section, _, p) in FREE.iter().filter(|f| f.0 == stage) {
+            if *section == "machine" || PRACTICE_MODELS.contains(&model(section)) {
+                out.push((stage, format!("{section}.{p}")));
+            }
+        }
+        for (m, _, _, p) in FREE_OTHER_MODELS.iter().filter(|f| f.1 == stage) {
+            let section = if stage == "avr" { "exciter" } else { "pss" };
+            if model(section) == *m {
+                out.push((stage, format!("{section}.{p}")));
+            }
+        }
+    }
+    out
+}
+
 /// The nuisance set-point offsets freed with their stage (the floor in every key fits them).
 const NUISANCE: &[(&str, &str, f64)] = &[
     ("avr", "exciter.v_ref_offset", 0.01),
@@ -170,16 +213,23 @@ pub fn unit_toml_from_nominal(
             continue;
         }
         out.push_str(&format!("\n[{section}]\nmodel = \"{model}\"\n"));
+        let practice_model = PRACTICE_MODELS.contains(&model);
         for (k, v) in table {
             if IGNORED.contains(&k.as_str()) {
                 continue;
             }
-            let ours = our_name(section, k).ok_or_else(|| {
-                PracticeError::Format(format!(
-                    "{}: {section}.{k}: no such parameter of {model}",
-                    path.display()
-                ))
-            })?;
+            // Another model's PSS/E names go to the unit file as they are: it reads the model's
+            // PSS/E aliases and names the file and the key of one it does not know.
+            let ours = if practice_model {
+                our_name(section, k).ok_or_else(|| {
+                    PracticeError::Format(format!(
+                        "{}: {section}.{k}: no such parameter of {model}",
+                        path.display()
+                    ))
+                })?
+            } else {
+                k.as_str()
+            };
             out.push_str(&format!(
                 "{ours} = {}\n",
                 num(v, &format!("{section}.{k}"))?
@@ -230,8 +280,9 @@ impl PracticeCase {
 }
 
 /// The one calibration spec of the practice set, for `unit` (the nominal model) and the record
-/// of `event`: every parameter of [`FREE`] whose block the unit has, within [`RELATIVE_BOUNDS`]
-/// of its nominal value, stages gen, avr, pss, tg, default search settings; X''q tied to X''d.
+/// of `event`: every parameter of [`FREE`] whose block the unit has (for a unit with an ESST1A
+/// or IEEEST, those of [`FREE_OTHER_MODELS`] in their place), within [`RELATIVE_BOUNDS`] of its
+/// nominal value, stages gen, avr, pss, tg, default search settings; X''q tied to X''d.
 ///
 /// Every stage and the joint pass compare `channels = "recorded"` ([`Channels::Recorded`]):
 /// P and Q, and every field channel the record holds (E_fd, X_ad I_fd) weighted by its noise,
@@ -244,11 +295,11 @@ pub fn practice_spec(unit: &Unit) -> Result<CalibSpec, SpecError> {
     let (lo, hi) = RELATIVE_BOUNDS;
     let mut text = String::from("[calibration]\n");
     let compare = "channels = \"recorded\"\n";
+    let params = free_params(unit);
     for stage in ["gen", "avr", "pss", "tg"] {
         let mut free = vec![];
-        for (_, section, _, p) in FREE.iter().filter(|f| f.0 == stage) {
-            let path = format!("{section}.{p}");
-            if let Ok(r) = unit.param(&path) {
+        for (_, path) in params.iter().filter(|f| f.0 == stage) {
+            if let Ok(r) = unit.param(path) {
                 let x0 = unit.get(r);
                 free.push(format!(
                     "  {{ param = \"{path}\", min = {}, max = {} }},\n",
@@ -325,6 +376,9 @@ impl AnswerKey {
             .as_str()
             .unwrap_or("")
             .to_string();
+        // A family's key may name the cause itself (`unexplained` for an effect outside the
+        // catalog); the practice keys name the effect only.
+        let named_cause = a["hidden_effect"]["cause"].as_str().map(str::to_string);
         let cause = match effect.as_str() {
             "torsional" => "torsional_mode",
             "exciter_ceiling" => "exciter_limit",
@@ -337,6 +391,7 @@ impl AnswerKey {
             _ => "none",
         }
         .to_string();
+        let cause = named_cause.unwrap_or(cause);
         let oracle = &a["diagnostics"]["oracle"];
         let n = a["pmu"]["samples"].as_f64().unwrap_or(0.0);
         let j = |k: &str| {
@@ -443,7 +498,9 @@ pub fn true_unit(practice_root: &Path, case: &str) -> Result<Unit, PracticeError
     let path = practice_root.join("answers").join(format!("{case}.json"));
     let a = read_json(&path)?;
     let mut t = a["true_unit"].clone();
-    t["bases"] = serde_json::json!({"machine_mva": 737.0, "f_nominal_hz": a["true_unit"]["fn_hz"]});
+    // The practice keys' units are all 737 MVA; a family's key states its unit's base.
+    let mva = a["true_unit"]["machine_mva"].as_f64().unwrap_or(737.0);
+    t["bases"] = serde_json::json!({"machine_mva": mva, "f_nominal_hz": a["true_unit"]["fn_hz"]});
     let text = unit_toml_from_nominal(&t, &path, case)?;
     parse_unit(&text, &path).map_err(|e| PracticeError::Format(e.to_string()))
 }

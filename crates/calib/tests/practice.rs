@@ -174,6 +174,51 @@ fn the_engine_reproduces_the_independent_floor_with_the_true_parameters() {
     );
 }
 
+/// A data family of another unit (`data/families/other_unit`: GENSAL + ESST1A + IEEEST + HYGOV,
+/// 50 Hz, 300 MVA on a 100 MVA base, made by an implementation that is not this engine): the
+/// runner reads its nominal files by the models' own PSS/E names, the one spec frees that
+/// unit's 20 parameters (ESST1A's KA, TC, TB, TA and IEEEST's KS, T1, T3 where the practice unit
+/// has SEXS's and STAB3's), and the engine reproduces the key's floor from the key's own base.
+#[test]
+fn another_units_family_gets_its_own_twenty_parameters_and_floor() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/families/other_unit");
+    let c = PracticeCase::load(&root.join("cases/o01")).unwrap();
+    assert_eq!((c.unit.machine_mva, c.unit.nominal_hz), (300.0, 50.0));
+    let spec = practice_spec(&c.unit).unwrap();
+    let free: Vec<&str> = spec
+        .stages
+        .iter()
+        .flat_map(|s| s.free.iter())
+        .map(|f| f.param.as_str())
+        .filter(|p| !p.ends_with("_offset"))
+        .collect();
+    assert_eq!(free.len(), 20, "{free:?}");
+    for p in [
+        "machine.x_d",
+        "exciter.k_a",
+        "exciter.t_c",
+        "exciter.t_b",
+        "exciter.t_a",
+        "pss.ks",
+        "pss.t1",
+        "pss.t3",
+        "governor.t_w",
+    ] {
+        assert!(free.contains(&p), "{p} not in {free:?}");
+    }
+    let key = AnswerKey::read(&root, "o01").unwrap();
+    assert_eq!(key.cause, "none");
+    for (p, nominal, _) in &key.nominal_errors {
+        assert_eq!(c.unit.get(c.unit.param(p).unwrap()), *nominal, "{p}");
+    }
+    let j = truth_j(&root, &c).unwrap();
+    assert!(
+        (j / key.floor_j - 1.0).abs() < 0.02,
+        "J {j} against the key's floor {}",
+        key.floor_j
+    );
+}
+
 #[test]
 fn the_default_staged_fit_reaches_the_floor_with_every_uncertain_parameter_free() {
     let c = case("p01");
