@@ -45,13 +45,16 @@ def test_a_dyr_that_is_not_the_unit_is_refused_unless_lossy(tmp_path):
     assert (tmp_path / "u.dyr").is_file() and (tmp_path / "u.bases.toml").is_file()
 
 
-def test_unsupported_records_warn_and_bad_ones_raise(tmp_path):
+def test_unsupported_records_are_refused_unless_skipped_and_bad_ones_raise(tmp_path):
     f = tmp_path / "x.dyr"
     f.write_text((ITAIPU / "unit.dyr").read_text() + "1 'ESAC1A' 1 1 2 3 /\n")
-    with warnings.catch_warnings(record=True) as w:
-        warnings.simplefilter("always")
+    with pytest.raises(ic.UnitModelError) as e:
         ic.read_dyr(f, bases=ITAIPU / "unit.bases.toml")
-    assert any("line 5: model ESAC1A" in str(x.message) for x in w)
+    assert e.value.kind == "unsupported" and "line 5: model ESAC1A" in str(e.value)
+    with pytest.warns(ic.ItaipuWarning) as w:
+        u = ic.read_dyr(f, bases=ITAIPU / "unit.bases.toml", skip_unsupported=True)
+    assert any("line 5" in str(x.message) and "ESAC1A" in str(x.message) for x in w)
+    assert u is not None
     f.write_text("1 'GENCLS' 1 4.5\n")
     with pytest.raises(ic.UnitModelError) as e:
         ic.read_dyr(f, mbase=100.0, nominal_hz=60.0, zx=0.3)

@@ -59,7 +59,7 @@ def test_argument_errors_name_the_argument():
 def test_every_fit_warning_goes_through_warnings_and_the_report_is_the_library_s(tmp_path):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        r = ic.fit(ITAIPU / "event.toml", ITAIPU / "unit.toml", **QUICK)
+        r = ic.fit(ITAIPU / "event.toml", ITAIPU / "unit.toml", calib=ITAIPU / "calibration.toml", **QUICK)
     issued = [str(w.message) for w in caught if issubclass(w.category, ic.ItaipuWarning)]
     assert sorted(issued) == sorted(r.warnings) and len(issued) > 1, (issued, r.warnings)
     # The headline: the library's sentence, in the report and its text.

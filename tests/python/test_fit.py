@@ -153,7 +153,7 @@ def test_fit_threads_set_the_pool_not_the_numbers(gen_fit):
         assert r.parameters("gen") == gen_fit.parameters("gen")
     with pytest.raises(ValueError, match="threads must be at least 1"):
         ic.fit(EVENT, UNIT, calib=CALIB, stages="gen", threads=0)
-    with pytest.raises(OverflowError):
+    with pytest.raises(ValueError, match="threads"):
         ic.fit(EVENT, UNIT, calib=CALIB, stages="gen", threads=-1)
 
 
@@ -283,13 +283,14 @@ def test_unknown_free_parameter(tmp_path):
     assert info.value.kind == "spec"
 
 
-def test_missing_calibration_table():
-    # The bundled unit file has no [calibration] table; it is the default spec.
+def test_missing_calibration_table_takes_the_default_spec_by_roles():
+    # The bundled unit file has no [calibration] table: the fit derives the default spec from
+    # the models' roles (the machine's reactances and time constants in the generator stage).
     for unit in (UNIT, ic.load_unit(UNIT)):
-        with pytest.raises(ic.CalibrationError) as info:
-            ic.fit(EVENT, unit, stages="gen", **QUICK)
-        assert info.value.kind == "missing"
-        assert str(info.value).startswith(f"{UNIT}: no [calibration] table")
+        r = ic.fit(EVENT, unit, stages="gen", **QUICK)
+        params = r.parameters("gen")
+        assert {"machine.x_d", "machine.x_q", "machine.h"} <= set(params), sorted(params)
+        assert r.fitness[-1][1] <= r.fitness[0][1]
 
 
 def test_stage_not_in_spec(tmp_path):

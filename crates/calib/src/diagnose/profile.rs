@@ -36,9 +36,20 @@ impl Profile {
         }
     }
 
-    /// The rows, in the order they first appeared.
+    /// The rows in an order that does not depend on the threads: the diagnosis's own phases
+    /// as they ran (one after another), then each kind of re-fit in [`RefitKind`]'s order with
+    /// its phases by name (re-fits of one kind run side by side, so which phase first appeared
+    /// is the scheduler's choice).
     pub(super) fn rows(&self) -> Vec<ProfileRow> {
-        self.0.lock().unwrap_or_else(|e| e.into_inner()).clone()
+        let mut rows = self.0.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        let rank = |kind: &str| RefitKind::ALL.iter().position(|k| k.name() == kind);
+        rows.sort_by(|a, b| match (rank(&a.kind), rank(&b.kind)) {
+            (None, None) => std::cmp::Ordering::Equal,
+            (None, Some(_)) => std::cmp::Ordering::Less,
+            (Some(_), None) => std::cmp::Ordering::Greater,
+            (Some(x), Some(y)) => x.cmp(&y).then_with(|| a.phase.cmp(&b.phase)),
+        });
+        rows
     }
 }
 
@@ -57,6 +68,16 @@ pub(super) enum RefitKind {
 }
 
 impl RefitKind {
+    /// Every kind, in the profile's order.
+    const ALL: [RefitKind; 6] = [
+        Self::Reference,
+        Self::Baseline,
+        Self::Extension,
+        Self::BaselineAgain,
+        Self::Segments,
+        Self::Surrogate,
+    ];
+
     /// The profile's name of the kind.
     pub(super) fn name(self) -> &'static str {
         match self {
