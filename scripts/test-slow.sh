@@ -1,30 +1,26 @@
 #!/usr/bin/env bash
-# The slower checks, which CI runs after scripts/test.sh (about 45 minutes on 2 cores):
-# 1. the end-to-end fits and diagnoses of whole records (crates/calib/tests/slow.rs);
-# 2. the property test of random units, specs and budgets with 2,000 cases
+# The slower checks CI runs after scripts/test.sh (about an hour on 2 cores; each section prints
+# its wall time):
+# 1. the property test of random units, specs and budgets with 2,000 cases
 #    (crates/calib/tests/no_panic.rs; the test command runs 64);
-# 3. the practice sets (data/practice: 66 records made by an independent implementation, one
+# 2. the practice sets (data/practice: 66 records made by an independent implementation, one
 #    calibration spec for all, the answer keys read only to score), fitted and diagnosed as a
-#    user does, and the scores checked against the project's bars (`--check`);
-# 4. the documentation's examples with every command run end to end (crates/cli/tests/docs.rs,
-#    tests/python/test_docs.py; the test command runs the quick ones).
+#    user does, and the scores checked against the project's bars (`--check`).
+# scripts/test-extended.sh runs the end-to-end diagnoses of synthetic records and every command
+# of the documentation end to end (about 25 minutes more; not in CI's 90-minute budget).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-echo "== slow integration tests"
-cargo test --release --locked -p itaipu-calib --features slow-tests --test slow
+section() { echo "== $1 (after ${SECONDS} s)"; }
 
-echo "== property test, 2,000 cases"
+section "property test, 2,000 cases"
 ITAIPU_PROPTEST_CASES=2000 cargo test --release --locked -p itaipu-calib --test no_panic
 
-echo "== practice sets"
+section "practice sets"
 repo="$PWD"
 out="${ITAIPU_PRACTICE_OUT:-target/practice-run}"
 mkdir -p "$out"
 # The runner writes out/ in its working folder.
 (cd "$out" && cargo run --release --locked --manifest-path "$repo/Cargo.toml" -p itaipu-calib \
   --example practice -- "$repo/data/practice" --check)
-
-echo "== the documentation's examples, every command run end to end"
-cargo test --release --locked -p itaipu-calib-cli --features slow-tests --test it docs
-ITAIPU_SLOW_TESTS=1 "${ITAIPU_VENV:-target/venv}/bin/python" -m pytest tests/python/test_docs.py -q
+section "done"

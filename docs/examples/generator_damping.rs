@@ -5,8 +5,8 @@
 use itaipu_dynamics::synthetic::EventKind;
 
 use crate::diagnose::catalog::{
-    declared, value, Acts, Cause, CauseError, CauseInfo, Context, Extension, NotApplicable,
-    Roles, Scenario,
+    declared, value, Acts, Cause, CauseError, CauseInfo, Context, Extension, NotApplicable, Roles,
+    Scenario,
 };
 
 pub struct GeneratorDamping;

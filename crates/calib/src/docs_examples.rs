@@ -55,7 +55,9 @@ fn the_documented_cause_frees_its_key_parameter_within_its_declared_range() {
     );
     assert_eq!(cause.acts(), crate::diagnose::catalog::Acts::Mechanical);
     // Its self-test scenario sets the key parameter to a value the range holds.
-    let sc = cause.scenario(&|_| 1.0).expect("the documented cause has a self-test");
+    let sc = cause
+        .scenario(&|_| 1.0)
+        .expect("the documented cause has a self-test");
     let (p, v) = sc.values[0];
     assert_eq!(p, key);
     assert!(v > d.min && v < d.max);

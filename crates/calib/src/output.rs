@@ -309,8 +309,7 @@ fn recover_rename(target: &Path) -> Vec<String> {
                 .file_name()
                 .unwrap_or_default()
                 .to_string_lossy()
-                .trim_end_matches(".old")
-                .to_string(),
+                .trim_end_matches(".old"),
         );
         let complete = !replacement.join(PARTIAL).exists() && verify(&replacement).is_ok();
         if complete && std::fs::rename(&replacement, target).is_ok() {

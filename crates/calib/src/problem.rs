@@ -974,7 +974,7 @@ impl Problem {
             if let Some(cmp) = &self.compare {
                 // The rows of [`Problem::residuals_from_outputs`]: per window sample, each
                 // compared channel the event records, weighted by √w.
-                let chans: Vec<(f64, &[f64], &[Vec<f64>])> = cmp
+                let chans: Vec<WeightedChannel> = cmp
                     .weights
                     .iter()
                     .filter(|(c, _)| ev.measured(*c).is_some())
@@ -1304,3 +1304,6 @@ impl Problem {
         v
     }
 }
+
+/// A compared channel's weight, its measured series and its simulated outputs.
+type WeightedChannel<'a> = (f64, &'a [f64], &'a [Vec<f64>]);

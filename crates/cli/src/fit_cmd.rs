@@ -392,7 +392,7 @@ pub fn cmd_fit(a: &FitArgs) -> Result<(), CliError> {
     // `--out` or the hidden folder a fit killed outright left beside it.
     let resumed: Option<Resumed> = if a.resume {
         match read_partial(a.out.as_deref(), &options, &inputs_hashes, unit)? {
-            ResumeFrom::Stages(r) => Some(r),
+            ResumeFrom::Stages(r) => Some(*r),
             ResumeFrom::Completed(msg) => {
                 println!("{msg}");
                 return Ok(());
@@ -634,7 +634,7 @@ fn write_partial(out: &Path, state: &PartialState) -> Result<(), CliError> {
 /// What `--resume` finds ([`read_partial`]).
 enum ResumeFrom {
     /// Go on from these finished stages.
-    Stages(Resumed),
+    Stages(Box<Resumed>),
     /// The interrupted fit had finished (it was killed renaming its folder into place): the
     /// folder is now in place; the message says so.
     Completed(String),
@@ -795,12 +795,12 @@ fn read_partial(
             None => load_unit(&src.join(RESUME_UNIT))?,
         }
     };
-    Ok(ResumeFrom::Stages(Resumed {
+    Ok(ResumeFrom::Stages(Box::new(Resumed {
         dir: src,
         state: st,
         master,
         superseded,
-    }))
+    })))
 }
 
 /// The fit's `report.html` (the command line's, and Python's `FitResult.write(html=True)`):

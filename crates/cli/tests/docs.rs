@@ -140,7 +140,10 @@ fn diff_blocks_show_changes_the_named_files_hold() {
             }
             let want = l.get(1..).unwrap_or("").trim_end();
             let Some(k) = file_lines[at..].iter().position(|f| *f == want) else {
-                panic!("{}: {path} does not hold '{want}' where the diff shows it", b.at());
+                panic!(
+                    "{}: {path} does not hold '{want}' where the diff shows it",
+                    b.at()
+                );
             };
             at += k + 1;
         }

@@ -5,13 +5,13 @@
 
 #[allow(dead_code)]
 #[path = "../examples/table1.rs"]
-mod table1;
+mod example;
 
-use table1::{machine_text, run, Budget, CONTROLS};
+use example::{machine_text, run, Budget, CONTROLS};
 
 #[test]
 fn the_generator_stage_is_shared_and_no_stage_ends_above_its_start() {
-    let root = table1::repo();
+    let root = example::repo();
     let budget = Budget {
         particles: Some(4),
         pso_iterations: Some(2),

@@ -181,6 +181,24 @@ pub fn library_table() -> String {
     s
 }
 
+/// What `models NAME` shows: a model of the library, or the diagram primitives
+/// (`NAME = "diagram"`, any case).
+pub enum Listing {
+    Model(&'static ModelInfo),
+    DiagramPrimitives,
+}
+
+/// The listing of `models NAME` (the command line's and Python's `models(name)`), or the
+/// message naming every name it takes.
+pub fn listing(name: &str) -> Result<Listing, String> {
+    if name.eq_ignore_ascii_case("diagram") {
+        return Ok(Listing::DiagramPrimitives);
+    }
+    find(name)
+        .map(Listing::Model)
+        .ok_or_else(|| format!("unknown model '{name}' (known: {}, diagram)", names()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -210,22 +228,4 @@ mod tests {
             }
         }
     }
-}
-
-/// What `models NAME` shows: a model of the library, or the diagram primitives
-/// (`NAME = "diagram"`, any case).
-pub enum Listing {
-    Model(&'static ModelInfo),
-    DiagramPrimitives,
-}
-
-/// The listing of `models NAME` (the command line's and Python's `models(name)`), or the
-/// message naming every name it takes.
-pub fn listing(name: &str) -> Result<Listing, String> {
-    if name.eq_ignore_ascii_case("diagram") {
-        return Ok(Listing::DiagramPrimitives);
-    }
-    find(name)
-        .map(Listing::Model)
-        .ok_or_else(|| format!("unknown model '{name}' (known: {}, diagram)", names()))
 }

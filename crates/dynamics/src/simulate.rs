@@ -239,12 +239,15 @@ pub fn simulate_pq(
 /// unit that transforms them ([`Unit::transforms_pq`]: a measuring device's delay moves a
 /// sample by later ones) or an event with set-point steps shows every sample after the whole
 /// playback (a stop then saves no simulation).
+/// Simulated P and Q at the record's samples.
+pub type PqSeries = (Vec<f64>, Vec<f64>);
+
 pub fn simulate_pq_watched<W>(
     unit: &mut Unit,
     ev: &PreparedEvent,
     opts: &SimOptions,
     mut watch: W,
-) -> Result<Option<(Vec<f64>, Vec<f64>)>, SimError>
+) -> Result<Option<PqSeries>, SimError>
 where
     W: FnMut(usize, f64, f64) -> bool,
 {

@@ -66,8 +66,8 @@ fn a_spline_follows_a_band_limited_input_where_a_line_cannot() {
     assert!(e_spline < 1e-4, "spline {e_spline:e}");
     assert!(e_line > 5e-4, "line {e_line:e}");
     // On the raw part the spline input is the line.
-    for k in 0..9 {
-        let tk = t[k] + 0.5 / 30.0;
+    for t_k in &t[..9] {
+        let tk = t_k + 0.5 / 30.0;
         assert_eq!(spline.at_spline(tk, &mut c1), line.at(tk, &mut c2));
         assert_eq!(spline.at(tk, &mut c1), line.at(tk, &mut c2));
     }

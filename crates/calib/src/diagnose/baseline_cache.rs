@@ -156,8 +156,8 @@ mod tests {
     fn a_baseline_is_shared_only_by_the_same_re_fit() {
         let b = FreeBound::new("exciter.k", 30.0, 300.0).starting_at(120.0);
         let key = |bounds: &[FreeBound]| BaselineKey::new(Input::AsEvents, bounds);
-        let same = key(&[b.clone()]);
-        assert_eq!(same, key(&[b.clone()]));
+        let same = key(std::slice::from_ref(&b));
+        assert_eq!(same, key(std::slice::from_ref(&b)));
         let others = [
             FreeBound {
                 scan: 8,
@@ -184,7 +184,10 @@ mod tests {
             assert_ne!(same, key(std::slice::from_ref(o)), "{o:?}");
         }
         assert_ne!(same, key(&[b.clone(), b.clone()]));
-        assert_ne!(same, BaselineKey::new(Input::AsRecorded, &[b.clone()]));
+        assert_ne!(
+            same,
+            BaselineKey::new(Input::AsRecorded, std::slice::from_ref(&b))
+        );
         assert_ne!(same, same.on_segments());
         assert_ne!(same.on_surrogate(0), same.on_surrogate(1));
         assert_eq!(same.on_surrogate(1), key(&[b]).on_surrogate(1));

@@ -17,10 +17,10 @@ pub use super::cause::{
     CauseError, CauseInfo, Context, Extension, HideError, NotApplicable, Roles, Scenario,
     Tolerance, NUISANCE,
 };
-pub use super::cause_kit::{exciter_roles, DEEP_SEARCH};
 /// The helpers a cause file uses, for the documentation's example cause compiled in the tests.
 #[cfg(test)]
 pub(crate) use super::cause_kit::{declared, value};
+pub use super::cause_kit::{exciter_roles, DEEP_SEARCH};
 pub use super::causes::CAUSES;
 pub use super::context::{
     resonance_stands_out, GOVERNOR_DF_HZ, LIMIT_DIP, OEL_IFD_RISE, RESONANCE_P,

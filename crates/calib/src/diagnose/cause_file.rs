@@ -168,7 +168,7 @@ impl CauseFile<'_> {
         }
     }
 
-    pub(super) fn from_datasheet(&self) -> Result<bool, UserCauseError> {
+    pub(super) fn reads_from_datasheet(&self) -> Result<bool, UserCauseError> {
         match self.t.get("from_datasheet") {
             None => Ok(false),
             Some(toml::Value::Boolean(b)) => Ok(*b),
@@ -230,7 +230,7 @@ impl CauseFile<'_> {
     }
 
     /// The `[rewire]` table: `instance = { port = "signal" }`.
-    pub(super) fn rewire(&self) -> Result<Vec<(String, Vec<(String, String)>)>, UserCauseError> {
+    pub(super) fn rewire(&self) -> Result<Vec<Rewiring>, UserCauseError> {
         let rw = match self.t.get("rewire") {
             None => return Ok(vec![]),
             Some(toml::Value::Table(rw)) => rw,
@@ -435,3 +435,6 @@ pub(super) fn default_extension(blocks: &[(String, toml::Table, String)]) -> Str
         .collect();
     format!("user-defined: {} added", names.join(", "))
 }
+
+/// One instance's rewiring in a cause file: the instance and its `(port, signal)` pairs.
+pub(super) type Rewiring = (String, Vec<(String, String)>);

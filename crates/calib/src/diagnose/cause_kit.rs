@@ -104,8 +104,6 @@ pub(crate) fn rewire(
     unit.rewire(name, &rw).map_err(CauseError::build)
 }
 
-/// Set-point offsets that every re-fit frees as nuisance parameters (`models.md`: a playback
-
 /// Frees the positive parameter `path` of `u` within `[v/factor, v·factor]` around its value
 /// `v`, clipped to the model's declared range (a calibrated value may sit on the bound of the
 /// calibration that bent it, so the band is wide). `None` if it does not exist, is not > 0, or

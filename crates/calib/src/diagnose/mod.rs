@@ -150,9 +150,9 @@ pub mod user_cause;
 mod verdict;
 mod windows;
 
-pub use noise::REFIT_RMS_NOTE;
 pub use calibrated::{calibrated_set, merge_calibrated_set, refit_bounds, RefitRequest};
 pub use error::DiagnoseError;
+pub use noise::REFIT_RMS_NOTE;
 pub use not_applicable::NotApplicable;
 pub use options::{
     DiagnoseOptions, DEFAULT_LOCAL_ITERATIONS, DEFAULT_PARTICLES, DEFAULT_PSO_ITERATIONS,

@@ -8,8 +8,8 @@ use itaipu_dynamics::simulate::Traces;
 use itaipu_dynamics::unit::Unit;
 
 use super::error::DiagnoseError;
-use super::report::EventEvidence;
 use super::playback::Playback;
+use super::report::EventEvidence;
 use super::windows::onset_s;
 
 /// A surrogate record that cannot be made, as a setup error.

@@ -162,7 +162,7 @@ pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)], sim: &SimOpt
     for group in groups {
         let size: usize = group.iter().map(|(_, g)| g.len()).product();
         let base = problem.start();
-        let start_cost = problem.cost(&base, &sim);
+        let start_cost = problem.cost(&base, sim);
         let points: Vec<Vec<f64>> = (0..size)
             .map(|mut k| {
                 let mut xs = base.clone();
@@ -174,7 +174,7 @@ pub(super) fn scan(problem: &mut Problem, scans: &[(usize, usize)], sim: &SimOpt
             })
             .collect();
         // Only a point below the start is taken: the others stop once they cannot be.
-        let (c, i) = problem.best_of_below(&points, &sim, start_cost);
+        let (c, i) = problem.best_of_below(&points, sim, start_cost);
         if c < start_cost {
             for (jj, _) in &group {
                 problem.free[*jj].start = points[i][*jj];
@@ -494,6 +494,9 @@ impl RefitRun<'_> {
     }
 }
 
+/// The fitted residuals, the held-out residuals and the RMS of each compared channel.
+type Residuals = (Vec<f64>, Vec<f64>, Vec<f64>);
+
 /// The fitted and held-out residuals at `x` and the RMS of each compared channel, from one
 /// accurate simulation per fitted event (`blocks`: the held-out samples are windows on the same
 /// events) and one per held-out event otherwise.
@@ -503,7 +506,7 @@ fn residuals(
     blocks: bool,
     compare: Option<&Compare>,
     x: &[f64],
-) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), crate::problem::ProblemError> {
+) -> Result<Residuals, crate::problem::ProblemError> {
     let acc = accurate_integrator();
     match compare {
         None => {

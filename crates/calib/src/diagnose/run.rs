@@ -347,7 +347,7 @@ fn score_candidates<'a>(
 
 /// The look-alikes a full diagnosis tries: the bundled ones whose id is no catalog cause's nor
 /// the user's (a user's file of the same id is a candidate that can be named).
-fn look_alikes<'o>(opts: &'o DiagnoseOptions) -> Vec<&'o dyn Cause> {
+fn look_alikes(opts: &DiagnoseOptions) -> Vec<&dyn Cause> {
     if !opts.look_alikes || !opts.causes.is_empty() {
         return vec![];
     }

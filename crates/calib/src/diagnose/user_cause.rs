@@ -104,7 +104,7 @@ impl UserCause {
         let title = file.text("title", true)?;
         let signature = file.text("signature", false)?;
         let search_factor = file.search_factor()?;
-        let from_datasheet = file.from_datasheet()?;
+        let from_datasheet = file.reads_from_datasheet()?;
         let band_top_hz = file.band_top_hz()?;
         let (blocks, built) = file.blocks()?;
         let rewire = file.rewire()?;

@@ -283,7 +283,7 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
         .map(|(k, (s, sigma))| {
             vec![
                 Cell::text(s),
-                Cell::json(*sigma, &format!("/noise/sigmas/{k}/1"), num),
+                Cell::json(*sigma, format!("/noise/sigmas/{k}/1"), num),
                 Cell::Num(num(reference_rms(r, s))),
             ]
         })

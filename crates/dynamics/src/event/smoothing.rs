@@ -162,13 +162,16 @@ pub fn smoothed_input(
 /// edges, their margins and the stretches too short to filter, `false`).
 ///
 /// # Errors
+/// The smoothed |V| and angle, and which samples were kept raw (an edge).
+pub type MarkedInput = (Vec<f64>, Vec<f64>, Vec<bool>);
+
 /// As [`smoothed_input`].
 pub fn smoothed_input_marked(
     time_s: &[f64],
     v_mag: &[f64],
     v_ang: &[f64],
     cutoff_hz: f64,
-) -> Result<(Vec<f64>, Vec<f64>, Vec<bool>), FilterError> {
+) -> Result<MarkedInput, FilterError> {
     let fs = check(time_s, cutoff_hz)?;
     // An edge in either channel (a fault moves both) keeps both raw there.
     let raw: Vec<bool> = edge_samples(v_mag)
