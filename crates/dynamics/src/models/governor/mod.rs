@@ -6,5 +6,6 @@ crate::library! {
     hygov,
     tgov1,
     ieeeg1,
+    gast,
     constant_pm,
 }
