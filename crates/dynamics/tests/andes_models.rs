@@ -44,6 +44,7 @@ const CASES: &[Case] = &[
     Case { model: "ESST4B", case: "esst4b", unit: "unit_esst4b.toml", tol: [AGREE; 4], convention: "" },
     Case { model: "TGOV1", case: "tgov1", unit: "unit_tgov1.toml", tol: [AGREE; 4], convention: "" },
     Case { model: "IEEEG1", case: "ieeeg1", unit: "unit_ieeeg1.toml", tol: [AGREE; 4], convention: "" },
+    Case { model: "GAST", case: "gast", unit: "unit_gast.toml", tol: [AGREE; 4], convention: "" },
 ];
 
 fn data(rel: &str) -> PathBuf {
