@@ -45,6 +45,7 @@ const CASES: &[Case] = &[
     Case { model: "TGOV1", case: "tgov1", unit: "unit_tgov1.toml", tol: [AGREE; 4], convention: "" },
     Case { model: "IEEEG1", case: "ieeeg1", unit: "unit_ieeeg1.toml", tol: [AGREE; 4], convention: "" },
     Case { model: "GAST", case: "gast", unit: "unit_gast.toml", tol: [AGREE; 4], convention: "" },
+    Case { model: "TG2", case: "tg2", unit: "unit_tg2.toml", tol: [AGREE; 4], convention: "" },
 ];
 
 fn data(rel: &str) -> PathBuf {

@@ -7,5 +7,6 @@ crate::library! {
     tgov1,
     ieeeg1,
     gast,
+    tg2,
     constant_pm,
 }
