@@ -114,8 +114,8 @@ CASES = {
     # catches up, and pulls the valve back to AT; VMIN in the rise (P_m0 = 0.8).
     "gast": dict(section="governor", model="GAST", profile="dip_freq", params=dict(
         R=0.05, T1=0.4, T2=0.1, T3=3.0, AT=0.88, KT=2.0, VMAX=0.91, VMIN=0.75, Dt=0.1)),
-    # TG2: the lead-lag's output takes P_m onto PMAX in the frequency fall and PMIN in the rise
-    # (P_m0 = 0.8). Ours has no deadband. ANDES 2.0's TG2 with its deadband disabled (its
+    # TG2: the lead-lag's output takes P_m onto PMAX in the frequency fall, and to within 1.3e-3
+    # of PMIN in the rise (P_m0 = 0.8). Ours has no deadband. ANDES 2.0's TG2 with its deadband disabled (its
     # default) does not respond at all (the disabled deadband's "inside" flag stays 1 and zeroes
     # the speed signal), so its deadband is enabled with zero width: a pass-through.
     "tg2": dict(section="governor", model="TG2", profile="dip_freq", params=dict(
