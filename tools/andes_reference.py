@@ -65,6 +65,8 @@ DST = os.path.join(os.path.dirname(__file__), "..", "data", "andes")
 # The cases. `params` are by PSS/E name: ANDES's parameter names for these models, and aliases
 # our unit files accept. `andes_only`: parameters ANDES has and our model has not (given their
 # inactive value); `ours_only`: the reverse.
+# `andes_model`: the ANDES model to compare with, when not the one of the same name.
+# `efd_var`: the ANDES exciter variable compared with our E_fd, when not the machine's E_fd.
 
 # IEEET1: a DC exciter whose saturation is active at the operating point (A = 1.35 < E_fd0) and
 # whose regulator reaches VRMAX in the dip (PSS/E's example saturation points).
@@ -121,6 +123,16 @@ CASES = {
     "tg2": dict(section="governor", model="TG2", profile="dip_freq", params=dict(
         R=0.05, pmax=0.9, pmin=0.75, T1=2.0, T2=4.0),
         andes_only=dict(dbl=0.0, dbu=0.0, dbc=0.0), andes_config=["TG2.deadband=1"]),
+    # IEEEX1: against ANDES's EXDC2 (ANDES's IEEEX1 has PSS/E EXDC2's V_T-scaled limits; its
+    # ESDC1A leaves the regulator limits at 0, the replaced V_RMAX service unwired). ANDES's EXDC2 multiplies E_fd by
+    # the speed: our E_fd is compared with its exciter state before the multiplier (`vp`), and
+    # ANDES's machine sees omega·vp. The regulator reaches VRMAX in the dip; saturation active at
+    # the operating point (PSS/E's example points); the lead-lag and the transducer on.
+    "ieeex1": dict(section="exciter", model="IEEEX1", andes_model="EXDC2", efd_var="vp",
+                   profile="dip", params=dict(
+                       TR=0.02, KA=40.0, TA=0.04, TB=1.0, TC=0.5, VRMAX=2.0, VRMIN=-2.0, KE=1.0,
+                       TE=0.5, KF=0.05, TF1=1.0, Switch=0, E1=2.85, SE1=0.3, E2=3.8, SE2=0.6),
+                   ours_only=("KF", "Switch"), andes_only=dict(KF1=0.05)),
 }
 
 UNIT_HEAD = """name = "andes-{case}"
@@ -277,15 +289,19 @@ def run_case(case):
     ref = "syn" if c["section"] in ("exciter", "governor") else "avr"
     rec = dict(idx="DUT", u=1, name="DUT", **{ref: "GEN1"}, **andes_params)
     with tempfile.TemporaryDirectory() as work:
-        ss = run_andes({c["model"]: [rec]}, c["profile"], work,
+        name = c.get("andes_model", c["model"])
+        ss = run_andes({name: [rec]}, c["profile"], work,
                        config_option=c.get("andes_config"))
-        rows = decimate(outputs(ss, {}))
+        efd = c.get("efd_var")
+        rows = decimate(outputs(ss, {"Efd_ref": col(ss, getattr(ss.__dict__[name], efd))}
+                                if efd else {}))
     write_event(case, rows, c["model"], f'a {c["model"]} {c["section"]}')
     with open(os.path.join(DST, f"{case}_ref.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["time_s", "efd_pu", "pm_pu", "speed_pu"])
         for r in rows:
-            w.writerow([g(r["t_s"]), g(r["Efd_pu"]), g(r["Pm_pu"]), g(r["speed_pu"])])
+            w.writerow([g(r["t_s"]), g(r.get("Efd_ref", r["Efd_pu"])), g(r["Pm_pu"]),
+                        g(r["speed_pu"])])
     with open(os.path.join(DST, f"unit_{case}.toml"), "w") as f:
         f.write(unit_toml(case, c))
     print(case, len(rows), "rows")

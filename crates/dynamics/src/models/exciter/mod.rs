@@ -7,6 +7,7 @@ crate::library! {
     sexs,
     st5b,
     ieeet1,
+    ieeex1,
     esst1a,
     esst4b,
 }
