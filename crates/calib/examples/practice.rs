@@ -267,6 +267,7 @@ fn main() {
         let mut s = s;
         if let Some((Ok(d), _)) = &diag {
             s.grade = d.report.verdict.grade.map(|g| g.as_str().to_string());
+            s.probability = d.report.verdict.probability;
         }
         let key_txt = s
             .key
@@ -293,10 +294,10 @@ fn main() {
                     "miss" | "false alarm" => " x",
                     _ => "",
                 }
-                + match s.grade.as_deref() {
-                    Some("strong") => " (S)",
-                    Some(_) => " (M)",
-                    None => "",
+                + &match (s.grade.as_deref(), s.probability) {
+                    (Some("strong"), Some(p)) => format!(" (S {p:.2})"),
+                    (Some(_), Some(p)) => format!(" (M {p:.2})"),
+                    _ => String::new(),
                 },
             s.diagnose_s,
             key_txt
@@ -348,6 +349,37 @@ fn main() {
         count("false alarm"),
         scored.len()
     );
+    // The stated probabilities against what they claim: per bin, the named causes and the
+    // share of them that were the hidden one.
+    let named: Vec<_> = rows.iter().filter(|r| r.probability.is_some()).collect();
+    let below_half = named
+        .iter()
+        .filter(|r| r.probability.is_some_and(|p| p < 0.5))
+        .count();
+    println!("named with a probability below 0.5: {below_half}");
+    println!("stated probability | named | mean stated | right");
+    for (lo, hi) in [
+        (0.5f64, 0.8f64),
+        (0.8, 0.95),
+        (0.95, 0.99),
+        (0.99, 1.0 + 1e-12),
+    ] {
+        let bin: Vec<_> = named
+            .iter()
+            .filter(|r| r.probability.is_some_and(|p| p >= lo && p < hi))
+            .collect();
+        if bin.is_empty() {
+            continue;
+        }
+        let mean = bin.iter().filter_map(|r| r.probability).sum::<f64>() / bin.len() as f64;
+        let right = bin.iter().filter(|r| r.outcome() == "right").count();
+        println!(
+            "[{lo:.2}, {:.2}) | {} | {mean:.3} | {right}/{}",
+            hi.min(1.0),
+            bin.len(),
+            bin.len()
+        );
+    }
     std::fs::create_dir_all("out").ok();
     if let Ok(text) = serde_json::to_string_pretty(&rows) {
         std::fs::write("out/practice.json", text).ok();
@@ -371,6 +403,11 @@ fn main() {
         }
         if !no_diag && 10 * hits < 9 * effect {
             failed.push(format!("right cause on {hits} of {effect} (< 90 %)"));
+        }
+        if below_half > 0 {
+            failed.push(format!(
+                "{below_half} cause(s) named below a probability of 0.5"
+            ));
         }
         if strong_ok < strong {
             failed.push(format!(

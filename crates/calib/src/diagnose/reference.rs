@@ -118,7 +118,12 @@ pub(super) fn reference(
     let mut surrogates = vec![];
     for draw in 0..opts.null_draws.max(1) {
         let (surrogate_events, surrogate_held) = played.surrogates(draw, opts.seed)?;
-        sp_null.push(split(&surrogate_events, &surrogate_held, opts.block_s)?);
+        sp_null.push(split(
+            &surrogate_events,
+            &surrogate_held,
+            opts.block_s,
+            opts.fold,
+        )?);
         surrogates.push((surrogate_events, surrogate_held));
     }
     profile.add(

@@ -8,7 +8,9 @@ use super::look_alike;
 use super::options::DiagnoseOptions;
 use super::playback::{signal_channel, FIELD_CHANNELS};
 use super::ranking::bic_gap;
-use super::report::{fmt_num, CandidateReport, EventEvidence, Gains, Grade, Verdict, VerdictCause};
+use super::report::{
+    fmt_num, CandidateReport, Confidence, EventEvidence, Gains, Grade, Verdict, VerdictCause,
+};
 use super::split::SEGMENT_S;
 
 /// The event and P or Q signal with the largest residual RMS relative to its noise floor (the
@@ -57,6 +59,7 @@ fn unnamed(
         where_,
         grade: None,
         probability: None,
+        confidence: None,
         competing: vec![],
     }
 }
@@ -113,6 +116,7 @@ pub(super) fn undecided(
     ev: &[EventEvidence],
     compared: &[&str],
     reports: &[CandidateReport],
+    absorbed: &[String],
     opts: &DiagnoseOptions,
 ) -> Verdict {
     let best_try = best_try(reports, opts);
@@ -141,6 +145,9 @@ pub(super) fn undecided(
         .max_by(|(_, a), (_, b)| a.record_evidence.total_cmp(&b.record_evidence));
     match refused.filter(|_| worst.over <= opts.noise_factor) {
         Some((r, g)) => refused_at_the_floor(&worst, r, g),
+        None if worst.over <= opts.noise_factor && !absorbed.is_empty() => {
+            absorbed_at_the_floor(&worst, absorbed, &best_try)
+        }
         None if worst.over <= opts.noise_factor => at_the_floor(&worst, &best_try),
         None => unexplained(&worst, &best_try, field_hint(compared, s)),
     }
@@ -238,6 +245,28 @@ fn refused_at_the_floor(w: &Worst, r: &CandidateReport, g: &Gains) -> Verdict {
             100.0 * g.held_drop,
             g.record_evidence,
             r.cause
+        ),
+        w.where_(),
+    )
+}
+
+/// `unexplained` at the noise floor: no extension gains significantly, but the unit reaches the
+/// floor only with re-freed values far outside their typical ranges ([`super::absorbed`]): the
+/// calibration absorbed an effect the model lacks into them.
+fn absorbed_at_the_floor(w: &Worst, absorbed: &[String], best_try: &str) -> Verdict {
+    let (s, event, over) = (w.s, w.event, w.over);
+    unnamed(
+        VerdictCause::Unexplained,
+        "unexplained: absorbed by calibrated values far outside their ranges".into(),
+        format!(
+            "Unexplained by the catalog. The residuals are near the noise level (largest: {} on {event}, the reference's RMS \
+             over the whole record {:.2} × the noise σ), but only with calibrated values far outside the typical ranges \
+             of their models while their datasheet values are not: {}. An effect the model lacks is absorbed there, \
+             and no cause of the catalog explains it.{best_try} Check those values against the unit's test reports; \
+             if you know the effect, write a cause file for it and diagnose again with --user-cause.",
+            s.signal,
+            over,
+            absorbed.join(", ")
         ),
         w.where_(),
     )
@@ -529,7 +558,7 @@ pub(super) fn named(
     rep: &CandidateReport,
     g: &Gains,
     key: &[(String, f64, String)],
-    (probability, grade, rivals): (f64, Grade, usize),
+    (conf, grade, rivals): (&Confidence, Grade, usize),
 ) -> String {
     let params: Vec<String> = key
         .iter()
@@ -573,11 +602,18 @@ pub(super) fn named(
             back.join(", ")
         )
     };
+    let why = if conf.not_strong.is_empty() {
+        String::new()
+    } else {
+        format!("; not strong: {}", conf.not_strong.join("; "))
+    };
     format!(
-        "{statement} Confidence: {} (posterior probability {:.3} against its re-fitted baseline and the {} other significant candidate(s)).",
+        "{statement} Confidence: {} (posterior probability {:.3} against its re-fitted baseline, the {} other significant \
+         candidate(s) and an effect outside the catalog; the data's own evidence 2 ln B = {:.1}{why}).",
         grade.as_str(),
-        probability,
-        rivals
+        conf.probability,
+        rivals,
+        conf.data_evidence
     )
 }
 
