@@ -20,7 +20,8 @@
 //! `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back low-passed at `f` Hz between
 //! their edges instead of the default 4 Hz, `INPUT_LOWPASS_HZ=none` as recorded
 //! (`Event::set_input_lowpass`), `REFIT_OVER_SAMPLES=1` lets the diagnosis re-fits' searches
-//! step over the smoothed input's samples (`DiagnoseOptions::refit_over_samples`).
+//! step over the smoothed input's samples (`DiagnoseOptions::refit_over_samples`), `PQ_ONLY=1`
+//! calibrates on P and Q alone (no `channels`, no `[calibration.joint]`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -107,6 +108,13 @@ fn main() {
             continue;
         }
         let mut spec = practice_spec(&case.unit).unwrap_or_else(|e| panic!("{e}"));
+        // PQ_ONLY=1: every pass compares P and Q alone (the spec's `objective = "pq"`), as a
+        // user who leaves the recorded field out calibrates; the diagnosis must give the same
+        // verdict.
+        if std::env::var("PQ_ONLY").is_ok_and(|v| v == "1") {
+            spec.stages.iter_mut().for_each(|s| s.channels = None);
+            spec.joint = None;
+        }
         if let Some(seed) = std::env::var("FIT_SEED").ok().and_then(|s| s.parse().ok()) {
             spec.seed = seed;
         }
