@@ -20,7 +20,10 @@
 //! `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back low-passed at `f` Hz between
 //! their edges instead of the default 4 Hz, `INPUT_LOWPASS_HZ=none` as recorded
 //! (`Event::set_input_lowpass`), `REFIT_OVER_SAMPLES=1` lets the diagnosis re-fits' searches
-//! step over the smoothed input's samples (`DiagnoseOptions::refit_over_samples`).
+//! step over the smoothed input's samples (`DiagnoseOptions::refit_over_samples`), `PQ_ONLY=1`
+//! calibrates on P and Q alone (no `channels`, no `[calibration.joint]`), `JOINT=none` drops
+//! `[calibration.joint]` (the joint pass compares what its stages compared), `JOINT=pq` makes
+//! it compare P and Q alone. A pass that made a channel far worse is printed as a warning.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -107,6 +110,27 @@ fn main() {
             continue;
         }
         let mut spec = practice_spec(&case.unit).unwrap_or_else(|e| panic!("{e}"));
+        // PQ_ONLY=1: every pass compares P and Q alone (the spec's `objective = "pq"`), as a
+        // user who leaves the recorded field out calibrates; the diagnosis must give the same
+        // verdict.
+        if std::env::var("PQ_ONLY").is_ok_and(|v| v == "1") {
+            spec.stages.iter_mut().for_each(|s| s.channels = None);
+            spec.joint = None;
+        }
+        // JOINT=none drops the spec's [calibration.joint] (the joint pass then compares what
+        // its stages compared); JOINT=pq makes it compare P and Q alone.
+        match std::env::var("JOINT").as_deref() {
+            Ok("none") => spec.joint = None,
+            Ok("pq") => {
+                spec.joint = Some(itaipu_calib::spec::JointSpec {
+                    channels: Some(itaipu_calib::spec::Channels::Weights(
+                        [("p".to_string(), 1.0), ("q".to_string(), 1.0)].into(),
+                    )),
+                    ..Default::default()
+                })
+            }
+            _ => {}
+        }
         if let Some(seed) = std::env::var("FIT_SEED").ok().and_then(|s| s.parse().ok()) {
             spec.seed = seed;
         }
@@ -145,6 +169,9 @@ fn main() {
                 Ok(r) => {
                     if std::env::var("VERBOSE").is_ok() || std::env::var("PROFILE").is_ok() {
                         r.report.stages.iter().for_each(print_stage);
+                    }
+                    for w in r.report.stages.iter().flat_map(|s| &s.worsened) {
+                        println!("      warning: {}", w.sentence());
                     }
                     std::fs::create_dir_all("out/practice").ok();
                     std::fs::write(&cached, unit_to_toml(&r.unit)).ok();

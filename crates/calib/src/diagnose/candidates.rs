@@ -202,7 +202,7 @@ impl<'a> Candidates<'a> {
             recorded,
             input_echo: None,
             baselines: BTreeMap::from([(
-                BaselineKey::new(Input::AsEvents, &reference.nuisance),
+                BaselineKey::new(Input::AsEvents, &reference.bounds),
                 reference.refit.clone(),
             )]),
         }

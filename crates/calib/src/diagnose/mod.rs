@@ -161,7 +161,7 @@ pub use options::{
     DEFAULT_SEED,
 };
 pub use playback::Playback;
-pub use reference::context;
+pub use reference::{context, ReferenceChannel, ReferenceRefit};
 pub use report::{
     profile_summary, CandidateParam, CandidateReport, Confidence, DiagnoseResult, Diagnosis,
     Distortion, EventEvidence, Gains, Grade, NoiseModel, ProfileRow, Verdict, VerdictCause,

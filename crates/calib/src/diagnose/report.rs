@@ -389,6 +389,11 @@ pub struct Diagnosis {
     pub seed: u64,
     pub threads: usize,
     pub wall_s: f64,
+    /// What the reference re-fitted beyond the nuisance offsets, and why (absent: the offsets
+    /// alone): the calibrated set on every compared channel with a global search when the record
+    /// holds the field ([`super::ReferenceRefit`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference: Option<super::ReferenceRefit>,
 }
 
 /// One row of a diagnosis' profile: the re-fits of one kind (`reference`, `baselines`,

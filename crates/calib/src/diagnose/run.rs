@@ -140,6 +140,7 @@ fn diagnose_run(
         refit,
         before,
         evidence,
+        note,
         ..
     } = reference;
     let mut evidence_after = decision.evidence_after;
@@ -160,6 +161,7 @@ fn diagnose_run(
         seed: opts.seed,
         threads: rayon::current_num_threads(),
         wall_s: t_start.elapsed().as_secs_f64(),
+        reference: note,
     };
     Ok(DiagnoseResult {
         report,
