@@ -250,26 +250,23 @@ fn refused_at_the_floor(w: &Worst, r: &CandidateReport, g: &Gains) -> Verdict {
     )
 }
 
-/// `unexplained` at the noise floor: no extension gains significantly, but the unit reaches the
-/// floor only with re-freed values far outside their typical ranges ([`super::absorbed`]): the
-/// calibration absorbed an effect the model lacks into them.
+/// `none` at the noise floor with re-freed values far outside their typical ranges
+/// ([`super::absorbed`]): said, not an alarm. Such a value is either absorbing an effect the
+/// model lacks or only weakly determined by the record (a flat direction the search wandered
+/// along to its bound: on clean records of a unit other than the practice family's, X_d and X_q
+/// reached twice their datasheet so), and the record cannot tell the two apart when no
+/// extension gains; the engineer can, from the unit's test reports.
 fn absorbed_at_the_floor(w: &Worst, absorbed: &[String], best_try: &str) -> Verdict {
-    let (s, event, over) = (w.s, w.event, w.over);
-    unnamed(
-        VerdictCause::Unexplained,
-        "unexplained: absorbed by calibrated values far outside their ranges".into(),
-        format!(
-            "Unexplained by the catalog. The residuals are near the noise level (largest: {} on {event}, the reference's RMS \
-             over the whole record {:.2} × the noise σ), but only with calibrated values far outside the typical ranges \
-             of their models while their datasheet values are not: {}. An effect the model lacks is absorbed there, \
-             and no cause of the catalog explains it.{best_try} Check those values against the unit's test reports; \
-             if you know the effect, write a cause file for it and diagnose again with --user-cause.",
-            s.signal,
-            over,
-            absorbed.join(", ")
-        ),
-        w.where_(),
-    )
+    let mut v = at_the_floor(w, best_try);
+    v.statement = format!(
+        "{} But the calibrated values {} lie far outside the typical ranges of their models while \
+         their datasheet values do not: either the record determines them weakly or they absorb \
+         an effect the model lacks. Check them against the unit's test reports before relying on \
+         the model.",
+        v.statement,
+        absorbed.join(", ")
+    );
+    v
 }
 
 /// `none`: the residuals at the noise floor and no extension gaining significantly.
