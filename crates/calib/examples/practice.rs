@@ -23,7 +23,8 @@
 //! step over the smoothed input's samples (`DiagnoseOptions::refit_over_samples`), `PQ_ONLY=1`
 //! calibrates on P and Q alone (no `channels`, no `[calibration.joint]`), `JOINT=none` drops
 //! `[calibration.joint]` (the joint pass compares what its stages compared), `JOINT=pq` makes
-//! it compare P and Q alone. A pass that made a channel far worse is printed as a warning.
+//! it compare P and Q alone. A pass that made a channel far worse is printed as a warning,
+//! prefixed with its case, before the case's row.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -171,7 +172,7 @@ fn main() {
                         r.report.stages.iter().for_each(print_stage);
                     }
                     for w in r.report.stages.iter().flat_map(|s| &s.worsened) {
-                        println!("      warning: {}", w.sentence());
+                        println!("{name}   warning: {}", w.sentence());
                     }
                     std::fs::create_dir_all("out/practice").ok();
                     std::fs::write(&cached, unit_to_toml(&r.unit)).ok();

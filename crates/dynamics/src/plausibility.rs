@@ -699,6 +699,20 @@ fn short(v: f64) -> String {
     }
 }
 
+/// Whether `v` lies far outside the typical range `(lo, hi)`: more than the range's own width
+/// beyond either end (or is not a number). A range that is not one (infinite or empty) holds
+/// every value. The one rule behind the plausibility warnings and the diagnosis's note of
+/// re-freed values absorbed far from their datasheet: a width beyond the range is outside the
+/// spread of the library's sample data by as much as that spread itself, a unit-conversion or
+/// model-form error rather than an unusual design.
+pub fn far_outside_range(v: f64, (lo, hi): (f64, f64)) -> bool {
+    if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+        return false;
+    }
+    let w = hi - lo;
+    !(v >= lo - w && v <= hi + w)
+}
+
 /// Parameters of `unit` far outside the model library's typical ranges (more than a range's
 /// width beyond it): warnings naming the file and the parameter.
 /// Also saturation data that is no curve (`S(1.0) > 0`, `S(1.2) <= S(1.0)`).
@@ -718,11 +732,7 @@ pub fn check_unit(unit: &Unit, file: &Path) -> Vec<Finding> {
     }
     for (path, spec, v) in unit.params() {
         let (lo, hi) = spec.range;
-        if !(lo.is_finite() && hi.is_finite() && hi > lo) {
-            continue;
-        }
-        let w = hi - lo;
-        if !(v >= lo - w && v <= hi + w) {
+        if far_outside_range(v, spec.range) {
             out.push(Finding {
                 severity: Severity::Warning,
                 kind: "parameter_range",

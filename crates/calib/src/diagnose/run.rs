@@ -124,6 +124,7 @@ fn diagnose_run(
     } = score_candidates(&mut candidates, &causes, opts)?;
     let t_verdict = Instant::now();
     let absorbed = super::absorbed::absorbed(&reference.refit.unit, &opts.refit);
+    let field_refitted = reference.note.as_ref().is_some_and(|n| n.failed.is_none());
     let decision = verdict::decide(
         &mut reports,
         refits,
@@ -132,6 +133,7 @@ fn diagnose_run(
         scoring,
         &reference.evidence,
         &absorbed,
+        field_refitted,
         opts,
     );
     let t = t_verdict.elapsed().as_secs_f64();

@@ -111,12 +111,16 @@ fn shortfall(half: &str, drop: f64, floor: f64) -> String {
 /// refused by its physical checks ([`CandidateReport::passed_test`]) makes it `unexplained` at
 /// the noise floor too: the test that would have named a cause says an effect is there (its
 /// false-alarm rate is the naming's own, whatever refused the name), and the check says it is
-/// not that cause, so "the model needs no extension" would be false.
+/// not that cause, so "the model needs no extension" would be false. `field_refitted`: the
+/// diagnosis's reference re-fitted the calibrated set on every recorded channel, the field
+/// included ([`super::ReferenceRefit`]), so a field residual left is no trace of what the
+/// calibration compared.
 pub(super) fn undecided(
     ev: &[EventEvidence],
     compared: &[&str],
     reports: &[CandidateReport],
     absorbed: &[String],
+    field_refitted: bool,
     opts: &DiagnoseOptions,
 ) -> Verdict {
     let best_try = best_try(reports, opts);
@@ -149,7 +153,7 @@ pub(super) fn undecided(
             absorbed_at_the_floor(&worst, absorbed, &best_try)
         }
         None if worst.over <= opts.noise_factor => at_the_floor(&worst, &best_try),
-        None => unexplained(&worst, &best_try, field_hint(compared, s)),
+        None => unexplained(&worst, &best_try, field_hint(compared, s, field_refitted)),
     }
 }
 
@@ -197,20 +201,29 @@ fn best_try(reports: &[CandidateReport], opts: &DiagnoseOptions) -> String {
 }
 
 /// The advice when the largest residual is in the recorded field of a phasor playback (P and Q
-/// compared too): what a calibration on P and Q alone can leave, X_d and the exciter's gain
-/// bent until the simulated field runs off the recorded one. The condition is structural
+/// compared too). A calibration on P and Q alone can bend X_d and the exciter's gain until the
+/// simulated field runs off the recorded one; when the diagnosis's reference already re-fitted
+/// the calibrated set on every recorded channel (`field_refitted`), that cannot be why, and the
+/// advice says so instead of asking for a calibration it has done. The condition is structural
 /// (which compared signal holds the largest residual), no threshold: the verdict is already
 /// `unexplained`, the residual above the noise floor by `noise_factor`.
-fn field_hint(compared: &[&str], s: &SignalEvidence) -> &'static str {
-    if compared.contains(&"P")
+fn field_hint(compared: &[&str], s: &SignalEvidence, field_refitted: bool) -> &'static str {
+    let in_field = compared.contains(&"P")
         && compared.contains(&"Q")
-        && signal_channel(&s.signal).is_some_and(|c| FIELD_CHANNELS.contains(&c))
-    {
-        " If the calibration compared P and Q alone, it may have bent X_d and the exciter's gain \
-         until the simulated field ran off the recorded one: calibrate with channels = \"recorded\" \
-         (P, Q and the recorded field, each weighted by its noise) and diagnose again."
-    } else {
-        ""
+        && signal_channel(&s.signal).is_some_and(|c| FIELD_CHANNELS.contains(&c));
+    match (in_field, field_refitted) {
+        (false, _) => "",
+        (true, true) => {
+            " The diagnosis re-fitted the calibrated set on every recorded channel, the field \
+             included, and this residual remains: it is no trace of a calibration on P and Q \
+             alone but an effect on the field path that the model lacks."
+        }
+        (true, false) => {
+            " If the calibration compared P and Q alone, it may have bent X_d and the exciter's \
+             gain until the simulated field ran off the recorded one: calibrate with channels = \
+             \"recorded\" (P, Q and the recorded field, each weighted by its noise) and diagnose \
+             again."
+        }
     }
 }
 

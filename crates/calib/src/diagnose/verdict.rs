@@ -60,6 +60,7 @@ pub(super) fn decide(
     scoring: Scoring,
     evidence_before: &[EventEvidence],
     absorbed: &[String],
+    field_refitted: bool,
     opts: &DiagnoseOptions,
 ) -> Decision {
     let compared: Vec<&str> = scoring.0.channels.iter().map(|c| signal_name(*c)).collect();
@@ -102,6 +103,7 @@ pub(super) fn decide(
         &compared,
         reports,
         absorbed,
+        field_refitted,
         opts,
     ))
 }
@@ -269,7 +271,14 @@ mod tests {
             signals: vec![s],
             p_peak: None,
         }];
-        let v = undecided(&ev, &["P", "Q"], &[], &[], &DiagnoseOptions::default());
+        let v = undecided(
+            &ev,
+            &["P", "Q"],
+            &[],
+            &[],
+            false,
+            &DiagnoseOptions::default(),
+        );
         assert_eq!(v.cause, "unexplained");
         says(&v.statement, "Unexplained residual at Q on e");
         assert!(v.where_.is_none());
@@ -306,6 +315,7 @@ mod tests {
             &["P", "Q"],
             &[quiet.clone(), refused.clone()],
             &[],
+            false,
             &opts,
         );
         assert_eq!(v.cause, "unexplained", "{}", v.statement);
@@ -322,11 +332,18 @@ mod tests {
             passed_test: false,
             ..refused.clone()
         };
-        let v = undecided(&ev, &["P", "Q"], &[quiet.clone(), untested], &[], &opts);
+        let v = undecided(
+            &ev,
+            &["P", "Q"],
+            &[quiet.clone(), untested],
+            &[],
+            false,
+            &opts,
+        );
         assert_eq!(v.cause, "none", "{}", v.statement);
         // Above the floor the residual's verdict, with its window, is unchanged.
         ev[0].signals[0].rms_over_noise = 3.0;
-        let v = undecided(&ev, &["P", "Q"], &[refused, quiet], &[], &opts);
+        let v = undecided(&ev, &["P", "Q"], &[refused, quiet], &[], false, &opts);
         assert_eq!(v.cause, "unexplained");
         says(&v.statement, "Unexplained residual at P");
     }
@@ -340,11 +357,18 @@ mod tests {
         ev[0].signals[0].rms_over_noise = 1.1;
         let opts = DiagnoseOptions::default();
         let quiet = candidate("governor", 380.0, 2, -3.0, false);
-        let v = undecided(&ev, &["P", "Q"], std::slice::from_ref(&quiet), &[], &opts);
+        let v = undecided(
+            &ev,
+            &["P", "Q"],
+            std::slice::from_ref(&quiet),
+            &[],
+            false,
+            &opts,
+        );
         assert_eq!(v.cause, "none", "{}", v.statement);
         let absorbed =
             ["machine.x_d = 1.8300 pu (typical 0.8000-1.2000, datasheet 0.9200)".to_string()];
-        let v = undecided(&ev, &["P", "Q"], &[quiet], &absorbed, &opts);
+        let v = undecided(&ev, &["P", "Q"], &[quiet], &absorbed, false, &opts);
         assert_eq!(v.cause, "none", "{}", v.statement);
         says(&v.statement, "machine.x_d = 1.8300 pu");
         says(&v.statement, "absorb an effect the model lacks");
@@ -366,19 +390,40 @@ mod tests {
             }
             c
         };
-        let v = undecided(&ev, &["P", "Q"], &[with(0.016, 0.009, 26.4)], &[], &opts);
+        let v = undecided(
+            &ev,
+            &["P", "Q"],
+            &[with(0.016, 0.009, 26.4)],
+            &[],
+            false,
+            &opts,
+        );
         assert_eq!(v.cause, "none", "{}", v.statement);
         says(
             &v.statement,
             "not significant (the held-out χ² down 0.9 %, under 1.0 %)",
         );
-        let v = undecided(&ev, &["P", "Q"], &[with(-0.003, -0.004, 0.5)], &[], &opts);
+        let v = undecided(
+            &ev,
+            &["P", "Q"],
+            &[with(-0.003, -0.004, 0.5)],
+            &[],
+            false,
+            &opts,
+        );
         says(
             &v.statement,
             "not significant (the fitted χ² up 0.3 %; the held-out χ² up 0.4 %; 2 ln B 0.5, not \
              above 10)",
         );
-        let v = undecided(&ev, &["P", "Q"], &[with(-0.0002, 0.02, 5.0)], &[], &opts);
+        let v = undecided(
+            &ev,
+            &["P", "Q"],
+            &[with(-0.0002, 0.02, 5.0)],
+            &[],
+            false,
+            &opts,
+        );
         says(
             &v.statement,
             "not significant (the fitted χ² unchanged; 2 ln B 5.0, not above 10)",
@@ -387,7 +432,14 @@ mod tests {
             min_fit_drop: 0.02,
             ..DiagnoseOptions::default()
         };
-        let v = undecided(&ev, &["P", "Q"], &[with(0.016, 0.02, 37.0)], &[], &floor);
+        let v = undecided(
+            &ev,
+            &["P", "Q"],
+            &[with(0.016, 0.02, 37.0)],
+            &[],
+            false,
+            &floor,
+        );
         says(
             &v.statement,
             "not significant (the fitted χ² down 1.6 %, under 2.0 %)",
@@ -417,11 +469,31 @@ mod tests {
             }]
         };
         let opts = DiagnoseOptions::default();
-        let v = undecided(&ev("Ifd"), &["P", "Q", "Efd", "Ifd"], &[], &[], &opts);
+        let v = undecided(
+            &ev("Ifd"),
+            &["P", "Q", "Efd", "Ifd"],
+            &[],
+            &[],
+            false,
+            &opts,
+        );
         assert_eq!(v.cause, "unexplained");
         says(&v.statement, "channels = \"recorded\"");
-        let v = undecided(&ev("Efd"), &["|V|", "Q", "Efd"], &[], &[], &opts);
+        let v = undecided(&ev("Efd"), &["|V|", "Q", "Efd"], &[], &[], false, &opts);
         assert!(!v.statement.contains("recorded"), "{}", v.statement);
+        // The reference re-fitted the field already: no advice to calibrate on it, the residual
+        // is said to be the model's.
+        let v = undecided(&ev("Ifd"), &["P", "Q", "Efd", "Ifd"], &[], &[], true, &opts);
+        assert_eq!(v.cause, "unexplained");
+        assert!(
+            !v.statement.contains("channels = \"recorded\""),
+            "{}",
+            v.statement
+        );
+        says(
+            &v.statement,
+            "re-fitted the calibrated set on every recorded channel",
+        );
     }
 
     /// Asserts that a verdict's text holds `part`, printing the text when it does not.
@@ -522,6 +594,7 @@ mod tests {
             (&Playback::phasor(), (1.0, 1.0), None),
             &evidence(),
             &[],
+            false,
             &DiagnoseOptions::default(),
         )
     }
