@@ -320,6 +320,14 @@ fn diagnose_report_matches_diagnosis_json_and_stands_alone() {
     assert!(html.contains("data-json=\"/candidates/0/parameters/0/result\""));
     assert!(html.contains("data-json=\"/candidates/0/gains/delta_bic\""));
     assert!(html.contains("data-json=\"/noise/sigmas/0/1\""));
+    // The named cause's confidence: the odds its probability weighs, as the JSON holds them.
+    assert!(d["verdict"]["confidence"].is_object());
+    for part in ["odds_baseline", "odds_rivals", "odds_outside", "data_evidence"] {
+        assert!(
+            html.contains(&format!("data-json=\"/verdict/confidence/{part}\"")),
+            "{part} not shown"
+        );
+    }
     // No window of fewer than 5 samples and no mode with implausible damping among the
     // numbers shown.
     let doc = roxmltree::Document::parse_with_options(

@@ -3,7 +3,9 @@
 //! (windows of more than a few samples, modes with plausible damping) and the plots inlined
 //! (drawn by [`super::diagnose_plots`]).
 
-use itaipu_calib::diagnose::{CandidateReport, Diagnosis, EventEvidence};
+use itaipu_calib::diagnose::{
+    CandidateReport, Confidence, Diagnosis, EventEvidence, ReferenceRefit,
+};
 use itaipu_calib::evidence::{Mode, SignalEvidence, WindowStats};
 
 use super::{chi2, escape, num, pct, Cell, Page, Provenance, Tone};
@@ -178,7 +180,7 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
     ));
     if let (Some(g), Some(pr)) = (v.grade, v.probability) {
         body.push_str(&format!(
-            "<p>Confidence: <b>{}</b> (posterior probability <span data-json=\"/verdict/probability\" data-value=\"{}\">{pr:.3}</span> among the re-fitted baseline and the candidates; strong needs at least {})</p>\n",
+            "<p>Confidence: <b>{}</b> (posterior probability <span data-json=\"/verdict/probability\" data-value=\"{}\">{pr:.3}</span> against its re-fitted baseline, the other significant candidates and an effect outside the catalog; strong needs at least {})</p>\n",
             g.as_str(),
             serde_json::to_string(&pr).unwrap_or_default(),
             itaipu_calib::diagnose::STRONG_PROBABILITY
@@ -239,6 +241,9 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
         "<p class=\"muted\">No cause named: no extended unit was written.</p>\n"
     });
     page.verdict(tone, &format!("Verdict: {} — {}", v.cause, v.title), &body);
+    if let Some(c) = &v.confidence {
+        confidence_section(&mut page, c);
+    }
 
     // Parameters: the named cause's re-fit (with standard errors), the re-freed set.
     page.h2("parameters", "Parameters");
@@ -297,7 +302,11 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
         &["compared signal", "σ [pu]", "reference RMS [pu]"],
         &rows,
     );
-    page.note(&format!("Noise: {} (of the unit as given, pooled over the fitted events by their samples; the same σ in the evidence tables); χ² = Σ_c Σ (Δc/σ_c)² over the compared signals (P and Q for a phasor record). The reference throughout this report is the unit as given with its set-point offsets re-fitted: its residual RMS over the whole record (pooled over the events) is the one every RMS below is compared with, and the evidence tables are computed from it.", itaipu_calib::noise::NOISE_DEFINITION));
+    let whole_set = r.reference.as_ref().is_some_and(|n| n.failed.is_none());
+    page.note(&format!("Noise: {} (of the unit as given, pooled over the fitted events by their samples; the same σ in the evidence tables); χ² = Σ_c Σ (Δc/σ_c)² over the compared signals (P and Q for a phasor record). The reference throughout this report is the unit as given with its set-point offsets re-fitted{}: its residual RMS over the whole record (pooled over the events) is the one every RMS below is compared with, and the evidence tables are computed from it.", itaipu_calib::noise::NOISE_DEFINITION, if whole_set { ", and its calibrated set re-fitted on every compared channel (below)" } else { "" }));
+    if let Some(note) = &r.reference {
+        reference_section(&mut page, note);
+    }
 
     // Candidates.
     page.h2("candidates", "Candidates");
@@ -479,6 +488,99 @@ pub fn html(r: &Diagnosis, prov: &Provenance, plots: &[PlotFile], drawn: bool) -
 }
 
 /// The evidence tables of one event; `base` is the JSON array they come from.
+/// The named cause's confidence: what its posterior probability weighs (the odds of each
+/// alternative against it), the evidence behind it, and why the grade is not strong.
+fn confidence_section(page: &mut Page, c: &Confidence) {
+    let row = |what: &str, v: f64, field: &str, meaning: &str| {
+        vec![
+            Cell::text(what),
+            if v.is_finite() {
+                Cell::json(v, format!("/verdict/confidence/{field}"), num)
+            } else {
+                Cell::text("-")
+            },
+            Cell::text(meaning),
+        ]
+    };
+    let rows = vec![
+        row(
+            "odds of the re-fitted baseline",
+            c.odds_baseline,
+            "odds_baseline",
+            "no extension: e^(−2 ln B / 2) with the record's evidence",
+        ),
+        row(
+            "odds of the other significant candidates",
+            c.odds_rivals,
+            "odds_rivals",
+            "their fitted BIC less their held-out prediction, summed",
+        ),
+        row(
+            "odds of an effect outside the catalog",
+            c.odds_outside,
+            "odds_outside",
+            "a prior of its own, raised by the misfit the extension leaves, lowered by the data's own evidence",
+        ),
+        row(
+            "data's own evidence 2 ln B",
+            c.data_evidence,
+            "data_evidence",
+            "the extension's gain on the record, the priors' rows left out",
+        ),
+        row(
+            "misfit left",
+            c.misfit_left,
+            "misfit_left",
+            "fitted χ² the extension leaves beyond the noise and its block's model-form tolerance",
+        ),
+    ];
+    page.h2("confidence", "Confidence");
+    page.p("What the named cause's posterior probability weighs: 1 / (1 + the three odds below).");
+    page.table("confidence", &["", "value", "meaning"], &rows);
+    if !c.not_strong.is_empty() {
+        page.p(&format!("Not strong: {}.", c.not_strong.join("; ")));
+    }
+}
+
+/// The diagnosis's reference when it re-fitted the calibrated set on every compared channel
+/// (the record holds the field): its sentence and, per channel, the RMS before and after.
+fn reference_section(page: &mut Page, note: &ReferenceRefit) {
+    page.p(&note.sentence);
+    let rows: Vec<Vec<Cell>> = note
+        .channels
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            vec![
+                Cell::text(&c.signal),
+                Cell::json(c.sigma, format!("/reference/channels/{k}/sigma"), num),
+                Cell::json(
+                    c.rms_offsets,
+                    format!("/reference/channels/{k}/rms_offsets"),
+                    num,
+                ),
+                Cell::json(
+                    c.rms_reference,
+                    format!("/reference/channels/{k}/rms_reference"),
+                    num,
+                ),
+            ]
+        })
+        .collect();
+    if !rows.is_empty() {
+        page.table(
+            "reference",
+            &[
+                "channel",
+                "σ [pu]",
+                "RMS, offsets re-fitted [pu]",
+                "RMS, reference [pu]",
+            ],
+            &rows,
+        );
+    }
+}
+
 fn evidence_tables(page: &mut Page, k: usize, ev: &EventEvidence, base: &str) {
     page.h3(&format!("{} (event onset {:.2} s)", ev.event, ev.onset_s));
     let rows: Vec<Vec<Cell>> = ev
