@@ -322,7 +322,12 @@ fn diagnose_report_matches_diagnosis_json_and_stands_alone() {
     assert!(html.contains("data-json=\"/noise/sigmas/0/1\""));
     // The named cause's confidence: the odds its probability weighs, as the JSON holds them.
     assert!(d["verdict"]["confidence"].is_object());
-    for part in ["odds_baseline", "odds_rivals", "odds_outside", "data_evidence"] {
+    for part in [
+        "odds_baseline",
+        "odds_rivals",
+        "odds_outside",
+        "data_evidence",
+    ] {
         assert!(
             html.contains(&format!("data-json=\"/verdict/confidence/{part}\"")),
             "{part} not shown"
