@@ -65,6 +65,8 @@ DST = os.path.join(os.path.dirname(__file__), "..", "data", "andes")
 # The cases. `params` are by PSS/E name: ANDES's parameter names for these models, and aliases
 # our unit files accept. `andes_only`: parameters ANDES has and our model has not (given their
 # inactive value); `ours_only`: the reverse.
+# `andes_model`: the ANDES model to compare with, when not the one of the same name.
+# `efd_var`: the ANDES exciter variable compared with our E_fd, when not the machine's E_fd.
 
 # IEEET1: a DC exciter whose saturation is active at the operating point (A = 1.35 < E_fd0) and
 # whose regulator reaches VRMAX in the dip (PSS/E's example saturation points).
@@ -109,6 +111,24 @@ CASES = {
         K=20.0, T1=0.2, T2=0.1, T3=0.1, UO=0.05, UC=-0.05, PMAX=0.9, PMIN=0.75, T4=0.3,
         K1=0.3, K2=0.0, T5=5.0, K3=0.4, K4=0.0, T6=0.5, K5=0.3, K6=0.0, T7=0.05, K7=0.0,
         K8=0.0)),
+    # IEEEX1: against ANDES's EXDC2 (ANDES's IEEEX1 is PSS/E's EXDC2; its ESDC1A leaves the
+    # regulator limits at 0, the replaced V_RMAX service unwired). ANDES's EXDC2 multiplies E_fd by
+    # the speed: our E_fd is compared with its exciter state before the multiplier (`vp`), and
+    # ANDES's machine sees omega·vp. The regulator reaches VRMAX in the dip; saturation active at
+    # the operating point (PSS/E's example points); the lead-lag and the transducer on.
+    "ieeex1": dict(section="exciter", model="IEEEX1", andes_model="EXDC2", efd_var="vp",
+                   profile="dip", params=dict(
+                       TR=0.02, KA=40.0, TA=0.04, TB=1.0, TC=0.5, VRMAX=2.0, VRMIN=-2.0, KE=1.0,
+                       TE=0.5, KF=0.05, TF1=1.0, Switch=0, E1=2.85, SE1=0.3, E2=3.8, SE2=0.6),
+                   ours_only=("KF", "Switch"), andes_only=dict(KF1=0.05)),
+    # EXDC2: against ANDES's IEEEX1 (limits V·VRMAX, ANDES's name KF1 for KF). In the dip the
+    # ceiling 0.6 x 3.5 falls below V_R0 = (KE + SE)·E_fd0, so V_R rides the moving limit down
+    # and up; the lead-lag and the transducer on.
+    "exdc2": dict(section="exciter", model="EXDC2", andes_model="IEEEX1", profile="dip",
+                  params=dict(TR=0.02, KA=40.0, TA=0.04, TB=1.0, TC=0.5, VRMAX=3.5, VRMIN=-3.5,
+                              KE=1.0, TE=0.5, KF=0.05, TF1=1.0, Switch=0, E1=2.85, SE1=0.3,
+                              E2=3.8, SE2=0.6), ours_only=("KF", "Switch"),
+                  andes_only=dict(KF1=0.05)),
 }
 
 UNIT_HEAD = """name = "andes-{case}"
@@ -264,14 +284,18 @@ def run_case(case):
     ref = "syn" if c["section"] in ("exciter", "governor") else "avr"
     rec = dict(idx="DUT", u=1, name="DUT", **{ref: "GEN1"}, **andes_params)
     with tempfile.TemporaryDirectory() as work:
-        ss = run_andes({c["model"]: [rec]}, c["profile"], work)
-        rows = decimate(outputs(ss, {}))
+        name = c.get("andes_model", c["model"])
+        ss = run_andes({name: [rec]}, c["profile"], work)
+        efd = c.get("efd_var")
+        rows = decimate(outputs(ss, {"Efd_ref": col(ss, getattr(ss.__dict__[name], efd))}
+                                if efd else {}))
     write_event(case, rows, c["model"], f'a {c["model"]} {c["section"]}')
     with open(os.path.join(DST, f"{case}_ref.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["time_s", "efd_pu", "pm_pu", "speed_pu"])
         for r in rows:
-            w.writerow([g(r["t_s"]), g(r["Efd_pu"]), g(r["Pm_pu"]), g(r["speed_pu"])])
+            w.writerow([g(r["t_s"]), g(r.get("Efd_ref", r["Efd_pu"])), g(r["Pm_pu"]),
+                        g(r["speed_pu"])])
     with open(os.path.join(DST, f"unit_{case}.toml"), "w") as f:
         f.write(unit_toml(case, c))
     print(case, len(rows), "rows")

@@ -44,6 +44,8 @@ const CASES: &[Case] = &[
     Case { model: "ESST4B", case: "esst4b", unit: "unit_esst4b.toml", tol: [AGREE; 4], convention: "" },
     Case { model: "TGOV1", case: "tgov1", unit: "unit_tgov1.toml", tol: [AGREE; 4], convention: "" },
     Case { model: "IEEEG1", case: "ieeeg1", unit: "unit_ieeeg1.toml", tol: [AGREE; 4], convention: "" },
+    Case { model: "IEEEX1", case: "ieeex1", unit: "unit_ieeex1.toml", tol: [AGREE; 4], convention: "" },
+    Case { model: "EXDC2", case: "exdc2", unit: "unit_exdc2.toml", tol: [AGREE; 4], convention: "" },
 ];
 
 fn data(rel: &str) -> PathBuf {

@@ -7,6 +7,8 @@ crate::library! {
     sexs,
     st5b,
     ieeet1,
+    ieeex1,
+    exdc2,
     esst1a,
     esst4b,
 }
