@@ -111,8 +111,20 @@ CASES = {
         K=20.0, T1=0.2, T2=0.1, T3=0.1, UO=0.05, UC=-0.05, PMAX=0.9, PMIN=0.75, T4=0.3,
         K1=0.3, K2=0.0, T5=5.0, K3=0.4, K4=0.0, T6=0.5, K5=0.3, K6=0.0, T7=0.05, K7=0.0,
         K8=0.0)),
-    # IEEEX1: against ANDES's EXDC2 (ANDES's IEEEX1 is PSS/E's EXDC2; its ESDC1A leaves the
-    # regulator limits at 0, the replaced V_RMAX service unwired). ANDES's EXDC2 multiplies E_fd by
+    # GAST: the fuel valve reaches VMAX in the frequency fall; the exhaust temperature load limit
+    # (AT below the droop's demand) then takes over through the low-value gate as the lag T3
+    # catches up, and pulls the valve back to AT; VMIN in the rise (P_m0 = 0.8).
+    "gast": dict(section="governor", model="GAST", profile="dip_freq", params=dict(
+        R=0.05, T1=0.4, T2=0.1, T3=3.0, AT=0.88, KT=2.0, VMAX=0.91, VMIN=0.75, Dt=0.1)),
+    # TG2: the lead-lag's output takes P_m onto PMAX in the frequency fall, and to within 1.3e-3
+    # of PMIN in the rise (P_m0 = 0.8). Ours has no deadband. ANDES 2.0's TG2 with its deadband disabled (its
+    # default) does not respond at all (the disabled deadband's "inside" flag stays 1 and zeroes
+    # the speed signal), so its deadband is enabled with zero width: a pass-through.
+    "tg2": dict(section="governor", model="TG2", profile="dip_freq", params=dict(
+        R=0.05, pmax=0.9, pmin=0.75, T1=2.0, T2=4.0),
+        andes_only=dict(dbl=0.0, dbu=0.0, dbc=0.0), andes_config=["TG2.deadband=1"]),
+    # IEEEX1: against ANDES's EXDC2 (ANDES's IEEEX1 has PSS/E EXDC2's V_T-scaled limits; its
+    # ESDC1A leaves the regulator limits at 0, the replaced V_RMAX service unwired). ANDES's EXDC2 multiplies E_fd by
     # the speed: our E_fd is compared with its exciter state before the multiplier (`vp`), and
     # ANDES's machine sees omega·vp. The regulator reaches VRMAX in the dip; saturation active at
     # the operating point (PSS/E's example points); the lead-lag and the transducer on.
@@ -202,7 +214,7 @@ def excursion(t):
     return 0.0
 
 
-def run_andes(devices, profile, work, gov_model="HYGOV", exc_model=None):
+def run_andes(devices, profile, work, gov_model="HYGOV", exc_model=None, config_option=None):
     """Runs the case with `devices` ({model: [records]}) replacing the shared case's, returns
     ANDES's system after the time-domain simulation."""
     import andes
@@ -210,9 +222,9 @@ def run_andes(devices, profile, work, gov_model="HYGOV", exc_model=None):
     d = copy.deepcopy(json.load(open(os.path.join(REF, "smib_playback.json"))))
     d.pop("IEEEST", None)
     for m in devices:
-        if m in ("TGOV1", "IEEEG1"):
+        if m in ("TGOV1", "IEEEG1", "GAST", "TG2"):
             d.pop("HYGOV", None)
-        if m not in ("TGOV1", "IEEEG1", "HYGOV"):
+        if m not in ("TGOV1", "IEEEG1", "GAST", "TG2", "HYGOV"):
             d.pop("SEXS", None)
     d.update(devices)
     ts = prescribed(profile, work)
@@ -221,7 +233,8 @@ def run_andes(devices, profile, work, gov_model="HYGOV", exc_model=None):
                             dests="Vts,fts")]
     case_file = os.path.join(work, "case.json")
     json.dump(d, open(case_file, "w"))
-    ss = andes.load(case_file, no_output=True, default_config=True)
+    ss = andes.load(case_file, no_output=True, default_config=True,
+                    config_option=config_option)
     ss.TDS.config.tf = 20.0
     ss.TDS.config.tstep = 0.001
     ss.TDS.config.fixt = 1
@@ -285,7 +298,8 @@ def run_case(case):
     rec = dict(idx="DUT", u=1, name="DUT", **{ref: "GEN1"}, **andes_params)
     with tempfile.TemporaryDirectory() as work:
         name = c.get("andes_model", c["model"])
-        ss = run_andes({name: [rec]}, c["profile"], work)
+        ss = run_andes({name: [rec]}, c["profile"], work,
+                       config_option=c.get("andes_config"))
         efd = c.get("efd_var")
         rows = decimate(outputs(ss, {"Efd_ref": col(ss, getattr(ss.__dict__[name], efd))}
                                 if efd else {}))

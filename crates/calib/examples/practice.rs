@@ -20,7 +20,10 @@
 //! `INPUT_LOWPASS_HZ=f` plays each record's |V| and angle back low-passed at `f` Hz between
 //! their edges instead of the default 4 Hz, `INPUT_LOWPASS_HZ=none` as recorded
 //! (`Event::set_input_lowpass`), `REFIT_OVER_SAMPLES=1` lets the diagnosis re-fits' searches
-//! step over the smoothed input's samples (`DiagnoseOptions::refit_over_samples`).
+//! step over the smoothed input's samples (`DiagnoseOptions::refit_over_samples`), `PQ_ONLY=1`
+//! calibrates on P and Q alone (no `channels`, no `[calibration.joint]`), `JOINT=none` drops
+//! `[calibration.joint]` (the joint pass compares what its stages compared), `JOINT=pq` makes
+//! it compare P and Q alone. A pass that made a channel far worse is printed as a warning.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -107,6 +110,27 @@ fn main() {
             continue;
         }
         let mut spec = practice_spec(&case.unit).unwrap_or_else(|e| panic!("{e}"));
+        // PQ_ONLY=1: every pass compares P and Q alone (the spec's `objective = "pq"`), as a
+        // user who leaves the recorded field out calibrates; the diagnosis must give the same
+        // verdict.
+        if std::env::var("PQ_ONLY").is_ok_and(|v| v == "1") {
+            spec.stages.iter_mut().for_each(|s| s.channels = None);
+            spec.joint = None;
+        }
+        // JOINT=none drops the spec's [calibration.joint] (the joint pass then compares what
+        // its stages compared); JOINT=pq makes it compare P and Q alone.
+        match std::env::var("JOINT").as_deref() {
+            Ok("none") => spec.joint = None,
+            Ok("pq") => {
+                spec.joint = Some(itaipu_calib::spec::JointSpec {
+                    channels: Some(itaipu_calib::spec::Channels::Weights(
+                        [("p".to_string(), 1.0), ("q".to_string(), 1.0)].into(),
+                    )),
+                    ..Default::default()
+                })
+            }
+            _ => {}
+        }
         if let Some(seed) = std::env::var("FIT_SEED").ok().and_then(|s| s.parse().ok()) {
             spec.seed = seed;
         }
@@ -145,6 +169,9 @@ fn main() {
                 Ok(r) => {
                     if std::env::var("VERBOSE").is_ok() || std::env::var("PROFILE").is_ok() {
                         r.report.stages.iter().for_each(print_stage);
+                    }
+                    for w in r.report.stages.iter().flat_map(|s| &s.worsened) {
+                        println!("      warning: {}", w.sentence());
                     }
                     std::fs::create_dir_all("out/practice").ok();
                     std::fs::write(&cached, unit_to_toml(&r.unit)).ok();
@@ -267,6 +294,7 @@ fn main() {
         let mut s = s;
         if let Some((Ok(d), _)) = &diag {
             s.grade = d.report.verdict.grade.map(|g| g.as_str().to_string());
+            s.probability = d.report.verdict.probability;
         }
         let key_txt = s
             .key
@@ -293,10 +321,10 @@ fn main() {
                     "miss" | "false alarm" => " x",
                     _ => "",
                 }
-                + match s.grade.as_deref() {
-                    Some("strong") => " (S)",
-                    Some(_) => " (M)",
-                    None => "",
+                + &match (s.grade.as_deref(), s.probability) {
+                    (Some("strong"), Some(p)) => format!(" (S {p:.2})"),
+                    (Some(_), Some(p)) => format!(" (M {p:.2})"),
+                    _ => String::new(),
                 },
             s.diagnose_s,
             key_txt
@@ -348,6 +376,37 @@ fn main() {
         count("false alarm"),
         scored.len()
     );
+    // The stated probabilities against what they claim: per bin, the named causes and the
+    // share of them that were the hidden one.
+    let named: Vec<_> = rows.iter().filter(|r| r.probability.is_some()).collect();
+    let below_half = named
+        .iter()
+        .filter(|r| r.probability.is_some_and(|p| p < 0.5))
+        .count();
+    println!("named with a probability below 0.5: {below_half}");
+    println!("stated probability | named | mean stated | right");
+    for (lo, hi) in [
+        (0.5f64, 0.8f64),
+        (0.8, 0.95),
+        (0.95, 0.99),
+        (0.99, 1.0 + 1e-12),
+    ] {
+        let bin: Vec<_> = named
+            .iter()
+            .filter(|r| r.probability.is_some_and(|p| p >= lo && p < hi))
+            .collect();
+        if bin.is_empty() {
+            continue;
+        }
+        let mean = bin.iter().filter_map(|r| r.probability).sum::<f64>() / bin.len() as f64;
+        let right = bin.iter().filter(|r| r.outcome() == "right").count();
+        println!(
+            "[{lo:.2}, {:.2}) | {} | {mean:.3} | {right}/{}",
+            hi.min(1.0),
+            bin.len(),
+            bin.len()
+        );
+    }
     std::fs::create_dir_all("out").ok();
     if let Ok(text) = serde_json::to_string_pretty(&rows) {
         std::fs::write("out/practice.json", text).ok();
@@ -371,6 +430,11 @@ fn main() {
         }
         if !no_diag && 10 * hits < 9 * effect {
             failed.push(format!("right cause on {hits} of {effect} (< 90 %)"));
+        }
+        if below_half > 0 {
+            failed.push(format!(
+                "{below_half} cause(s) named below a probability of 0.5"
+            ));
         }
         if strong_ok < strong {
             failed.push(format!(

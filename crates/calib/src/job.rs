@@ -182,7 +182,7 @@ pub fn headline_playback(
     let resolved = spec.resolve_recorded(&fitted, &held);
     let last = crate::fit::pass_labels(opts).pop().unwrap_or_default();
     let cmp = if last == "joint" || last == "simultaneous" {
-        resolved.joint_compare()
+        resolved.joint_compare_of(&opts.stages)
     } else {
         resolved.stage(&last).and_then(|st| st.compare())
     };
@@ -465,9 +465,37 @@ pub fn field_warnings(
                  the calibration may bend X_d and the exciter's gain until the simulated field \
                  runs off the recorded one"
             ),
-            fix: "channels = \"recorded\" in the stage (and in [calibration.joint]) compares \
-                  them too, each weighted by its noise"
+            fix: "channels = \"recorded\" in the stage compares them too, each weighted by its \
+                  noise (a joint pass without channels of its own then compares them as well)"
                 .into(),
+        })
+        .collect()
+}
+
+/// Every channel a pass of `fit` made far worse than an earlier pass left it
+/// ([`crate::fit::worsening`]), as a warning on the spec's pass.
+pub fn worsening_warnings(fit: &FitReport, spec_path: Option<&Path>) -> Vec<Finding> {
+    fit.stages
+        .iter()
+        .flat_map(|s| &s.worsened)
+        .map(|w| Finding {
+            severity: Severity::Warning,
+            kind: "pass_worsened_channel",
+            file: spec_path.map_or_else(|| PathBuf::from("calibration spec"), Path::to_path_buf),
+            line: None,
+            time_s: None,
+            column: if w.pass == "joint" || w.pass == "simultaneous" {
+                "calibration.joint".to_string()
+            } else {
+                format!("calibration.stage (stage {})", w.pass)
+            },
+            message: w.sentence(),
+            fix: format!(
+                "compare {} in that pass too (a joint pass without channels of its own compares \
+                 what its stages compared), or check the stages' bounds: a channel one pass \
+                 fits and the next gives up is a trade-off the model cannot make at the noise",
+                w.channel
+            ),
         })
         .collect()
 }
@@ -516,6 +544,8 @@ pub fn run_fit(
         crate::noise::assess(&unit, &inputs.events, &inputs.held_out, mode, &channels);
     let mut fit = result.report;
     fill_statistics(&mut fit.stages, &noise);
+    // A pass that made a channel an earlier pass compared far worse, among the warnings.
+    warnings.extend(worsening_warnings(&fit, inputs.spec_path.as_deref()));
     // Stages an interrupted run finished: their statistics with the same noise floors.
     let resumed_reports: Vec<serde_json::Value> = resumed
         .1

@@ -568,6 +568,8 @@ pub struct CaseScore {
     pub nominal_errors: Vec<(String, f64, f64, f64)>,
     /// The named cause's grade (`strong`, `moderate`), when one is named.
     pub grade: Option<String>,
+    /// The named cause's stated posterior probability, when one is named.
+    pub probability: Option<f64>,
 }
 
 impl CaseScore {
@@ -647,6 +649,7 @@ pub fn score(
         diagnose_s,
         nominal_errors,
         grade: None,
+        probability: None,
     }
 }
 

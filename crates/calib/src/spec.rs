@@ -37,6 +37,7 @@
 //! free = [ … ]
 //!
 //! [calibration.joint]            # optional: how the joint pass plays the record back
+//!                                # (default: what the stages compared, CalibSpec::joint_compare_of)
 //! mode = "closed_loop"
 //! channels = { v = 1.0, q = 1.0, efd = 1.0 }   # a phasor pass: also "recorded" (P, Q and the
 //!                                # recorded field weighted by their noise: Channels::Recorded)
@@ -439,8 +440,8 @@ pub struct CalibSpec {
     /// The local method after each swarm (`lm` or `lbfgs`).
     #[serde(default)]
     pub local: LocalMethod,
-    /// How the joint pass plays the record back (`[calibration.joint]`; default: as the
-    /// historical joint pass, phasor, P and Q).
+    /// How the joint pass plays the record back (`[calibration.joint]`; default: the phasor
+    /// playback comparing what the stages compared, [`CalibSpec::joint_compare_of`]).
     #[serde(default)]
     pub joint: Option<JointSpec>,
 }
@@ -721,13 +722,64 @@ impl CalibSpec {
         out
     }
 
-    /// What the joint (and simultaneous) pass compares: `None` without `[calibration.joint]` or
-    /// with a phasor joint without `channels` (P and Q, the historical joint pass).
+    /// What the joint (and simultaneous) pass compares when every stage of the spec runs
+    /// ([`CalibSpec::joint_compare_of`]).
     pub fn joint_compare(&self) -> Option<Compare> {
-        self.joint.as_ref().and_then(|j| {
-            let weights = j.channels.as_ref().and_then(Channels::weights);
-            (j.mode != PlaybackMode::Phasor || weights.is_some())
-                .then(|| Compare::new(j.mode, weights))
+        let all: Vec<String> = self.stages.iter().map(|s| s.name.clone()).collect();
+        self.joint_compare_of(&all)
+    }
+
+    /// What the joint (and simultaneous) pass of a fit of `stages` compares; `None`: P and Q at
+    /// weight 1 (the historical joint pass).
+    ///
+    /// `[calibration.joint]` decides when it says what to compare (`channels`, or a mode other
+    /// than the phasor playback, whose default channels it then compares). Otherwise the joint
+    /// pass compares what its stages compared: the union of the stages' channels that the phasor
+    /// playback simulates ([`PlaybackMode::outputs`]: |V|, which it imposes, is left out), a
+    /// stage without `channels` counting as P and Q at weight 1. A joint pass on P and Q alone
+    /// after stages that fitted the field would undo their field fit (the exciter's gain and
+    /// X_d bend back to wherever P and Q alone put them), which no report would show.
+    ///
+    /// A channel that stages weigh differently takes the **largest** weight any of them gave
+    /// it. A weight says how much a channel is trusted against the others, which is a property
+    /// of its noise, the same in every pass (`channels = "recorded"` gives every stage the same
+    /// weights); a smaller weight in another stage is that stage's emphasis on its own channels,
+    /// and the stage that weighed the channel most is the one whose parameters it determines
+    /// (the AVR stage's E_fd): the joint pass must not let those drift on a channel that counts
+    /// less there than where they were fitted.
+    pub fn joint_compare_of(&self, stages: &[String]) -> Option<Compare> {
+        if let Some(j) = &self.joint {
+            match (&j.channels, j.mode) {
+                // Unresolved (before `resolve_recorded`): P and Q, nothing required of an event.
+                (Some(Channels::Recorded), _) => return None,
+                (Some(Channels::Weights(w)), m) => return Some(Compare::new(m, Some(w))),
+                (None, m) if m != PlaybackMode::Phasor => return Some(Compare::new(m, None)),
+                (None, _) => {}
+            }
+        }
+        let mut union: Vec<(Channel, f64)> = vec![];
+        let mut add = |c: Channel, w: f64| {
+            if !PlaybackMode::Phasor.outputs().contains(&c) || !(w > 0.0) {
+                return;
+            }
+            match union.iter_mut().find(|(x, _)| *x == c) {
+                Some((_, v)) => *v = v.max(w),
+                None => union.push((c, w)),
+            }
+        };
+        for st in stages.iter().filter_map(|s| self.stage(s)) {
+            match st.compare() {
+                Some(c) => c.weights.into_iter().for_each(|(c, w)| add(c, w)),
+                None => {
+                    add(Channel::P, 1.0);
+                    add(Channel::Q, 1.0);
+                }
+            }
+        }
+        union.sort_by_key(|(c, _)| *c);
+        (union != [(Channel::P, 1.0), (Channel::Q, 1.0)] && !union.is_empty()).then_some(Compare {
+            mode: PlaybackMode::Phasor,
+            weights: union,
         })
     }
 
@@ -761,7 +813,7 @@ impl CalibSpec {
             }
         }
         if joint {
-            if let Some(c) = self.joint_compare() {
+            if let Some(c) = self.joint_compare_of(stages) {
                 any_mode = true;
                 push(c);
             }

@@ -9,6 +9,7 @@ mod bounded_swarm;
 mod bounds;
 mod comments;
 mod diagnose;
+mod field_channels;
 mod fuzz_spec;
 mod gradient;
 mod input_smoothing;

@@ -382,6 +382,12 @@ fn print_report(r: &Diagnosis) {
         r.noise.n_held
     );
     println!("{}", wrap(&noise, WIDTH, "noise    ", "         "));
+    if let Some(reference) = &r.reference {
+        println!(
+            "{}",
+            wrap(&reference.sentence, WIDTH, "reference ", "         ")
+        );
+    }
     println!();
     println!(
         "candidates (* = significant, ranked by the extended model's BIC; the others by ΔBIC; ! = passed the test, refused by a rule in its note; ~ = a look-alike outside the catalog, never named)"

@@ -18,7 +18,7 @@ use super::profile::{Label, RefitKind};
 use super::reference::Reference;
 use super::refit::{refit, Refit, RefitEnv, RefitRecord};
 use super::report::{CandidateReport, EventEvidence};
-use super::split::{split, Split, SEGMENT_S};
+use super::split::{split, Fold, Split, SEGMENT_S};
 
 /// What the scoring of every candidate shares: the reference unit and its context and evidence,
 /// the fitted/held-out split and its surrogate, the noise weights, the options, and the
@@ -69,7 +69,7 @@ impl RecordedInput {
         band_top: Option<f64>,
         (reference, pb): (&Unit, &Playback),
         segments: bool,
-        block_s: f64,
+        (block_s, fold): (f64, Fold),
     ) -> Result<Option<Self>, DiagnoseError> {
         let Some(cutoff_hz) = events
             .iter()
@@ -90,13 +90,13 @@ impl RecordedInput {
                 .collect()
         };
         let (ev, ho) = (raw(events), raw(held_out));
-        let sp = split(&ev, &ho, block_s)?;
+        let sp = split(&ev, &ho, block_s, fold)?;
         let mut sp_null = Vec::with_capacity(surrogates.len());
         for (e, h) in surrogates {
-            sp_null.push(split(&raw(e), &raw(h), block_s)?);
+            sp_null.push(split(&raw(e), &raw(h), block_s, fold)?);
         }
         let sp_segments = if segments {
-            Some(split(&ev, &ho, SEGMENT_S)?)
+            Some(split(&ev, &ho, SEGMENT_S, fold)?)
         } else {
             None
         };
@@ -202,7 +202,7 @@ impl<'a> Candidates<'a> {
             recorded,
             input_echo: None,
             baselines: BTreeMap::from([(
-                BaselineKey::new(Input::AsEvents, &reference.nuisance),
+                BaselineKey::new(Input::AsEvents, &reference.bounds),
                 reference.refit.clone(),
             )]),
         }

@@ -118,6 +118,7 @@
 //!   its statement;
 //! - `run`: [`diagnose`], the steps in order; `trial` the synthetic self-test.
 
+mod absorbed;
 mod baseline_cache;
 mod calibrated;
 mod candidates;
@@ -129,6 +130,7 @@ pub mod causes;
 mod context;
 mod error;
 mod extension_fit;
+mod fold_check;
 mod gain;
 mod held_out;
 pub mod look_alike;
@@ -155,15 +157,15 @@ pub use error::DiagnoseError;
 pub use noise::REFIT_RMS_NOTE;
 pub use not_applicable::NotApplicable;
 pub use options::{
-    DiagnoseOptions, DEFAULT_LOCAL_ITERATIONS, DEFAULT_PARTICLES, DEFAULT_PSO_ITERATIONS,
+    DiagnoseOptions, Fold, DEFAULT_LOCAL_ITERATIONS, DEFAULT_PARTICLES, DEFAULT_PSO_ITERATIONS,
     DEFAULT_SEED,
 };
 pub use playback::Playback;
-pub use reference::context;
+pub use reference::{context, ReferenceChannel, ReferenceRefit};
 pub use report::{
-    profile_summary, CandidateParam, CandidateReport, DiagnoseResult, Diagnosis, Distortion,
-    EventEvidence, Gains, Grade, NoiseModel, ProfileRow, Verdict, VerdictCause, NO_CAUSE_VERDICTS,
-    SHAFT_BAND_HZ, STRONG_PROBABILITY,
+    profile_summary, CandidateParam, CandidateReport, Confidence, DiagnoseResult, Diagnosis,
+    Distortion, EventEvidence, Gains, Grade, NoiseModel, ProfileRow, Verdict, VerdictCause,
+    NAME_PROBABILITY, NO_CAUSE_VERDICTS, SHAFT_BAND_HZ, STRONG_PROBABILITY,
 };
 pub use run::diagnose;
 pub use windows::{event_evidence, windows};

@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use crate::bounds::FreeBound;
 
+pub use super::split::Fold;
 use super::user_cause::UserCause;
 
 /// Seed of the re-fits' swarms.
@@ -79,6 +80,14 @@ pub struct DiagnoseOptions {
     /// explains better is then `unexplained` (or `inconclusive`), not the nearest catalog
     /// cause.
     pub look_alikes: bool,
+    /// Which alternate blocks the re-fits fit ([`Fold`]): the even ones by default; the
+    /// diagnosis sets the swapped fold itself to check a named cause ([`Self::other_fold`]).
+    pub fold: Fold,
+    /// Check a named cause on the other fold with another seed: the cause alone diagnosed again
+    /// with the fitted and held-out blocks swapped and the seed after this one. A cause whose
+    /// gain does not hold there is `inconclusive`, with both folds' numbers: a verdict that
+    /// follows the split or the seed is no verdict. Default on.
+    pub other_fold: bool,
     /// When set (by a signal handler, say), every later candidate evaluation of the re-fits
     /// fails at once and the diagnosis returns [`super::DiagnoseError::Interrupted`] with the
     /// causes it finished.
@@ -114,6 +123,8 @@ impl Default for DiagnoseOptions {
             refit_over_samples: false,
             null_draws: 1,
             look_alikes: true,
+            fold: Fold::Even,
+            other_fold: true,
             cancel: None,
         }
     }

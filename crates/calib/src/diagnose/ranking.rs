@@ -4,7 +4,9 @@
 
 use super::gain::{bic_met, held_floor_met};
 use super::options::DiagnoseOptions;
-use super::report::{CandidateReport, Gains, Grade, STRONG_PROBABILITY};
+use super::report::{
+    fmt_num, CandidateParam, CandidateReport, Confidence, Gains, STRONG_PROBABILITY,
+};
 
 /// Sorts `reports` as the diagnosis lists them ([`super::Diagnosis::candidates`]): the
 /// significant candidates first, by their extended model's BIC on the common fitted samples,
@@ -66,43 +68,219 @@ pub(super) fn held_out_gap(best: &CandidateReport, other: &CandidateReport) -> f
     (a.chi2_held_ext - b.chi2_held_ext) / a.vif.max(b.vif).max(1.0)
 }
 
-/// The named candidate's approximate posterior probability (equal prior odds) among its
-/// re-fitted baseline (`ΔBIC` below it) and the other significant candidates' extensions
-/// ([`bic_gap`] above it): `1 / (1 + e^{−ΔBIC/2} + Σ e^{−gap/2})`, Schwarz's approximation of
-/// the marginal likelihood. A candidate that failed its own test is no rival explanation: its
-/// extension gained nothing over its baseline, and its extended model's χ² differs from the
-/// named one's by what the two baselines' searches found (each re-fits other interacting
-/// parameters), not by the cause. The figure is an approximation a reviewer weighs, not an
-/// exact Bayes factor.
-pub(super) fn posterior(named: &CandidateReport, reports: &[CandidateReport]) -> f64 {
-    let Some(g) = &named.gains else {
-        return 0.0;
-    };
-    let mut odds_against = (-g.delta_bic / 2.0).exp();
-    for r in reports
-        .iter()
-        .filter(|r| r.cause != named.cause && r.significant)
-    {
-        let gap = bic_gap(named, r);
-        if gap.is_finite() {
-            odds_against += (-gap / 2.0).exp();
-        }
-    }
-    1.0 / (1.0 + odds_against)
+/// Prior odds of "an effect outside the catalog" against the named cause, before the record is
+/// read. The catalog holds the effects that plant experience finds most often in unit model
+/// validation, never all of them: the prior says that, of the effects a catalog extension can
+/// mimic, about one in five is another effect's (limiters and controllers the catalog lacks, a
+/// plant-level controller, a transducer error). An assumption stated so a reviewer can change
+/// it; the record then moves the odds by [`misfit_left`] and [`data_evidence`].
+pub(super) const OUTSIDE_PRIOR_ODDS: f64 = 0.25;
+
+/// The share of the misfit above the noise a right catalog block may leave: its model-form
+/// difference from the plant's device. A catalog block represents its device's dominant
+/// dynamics (a limiter's pickup and pull-back, a ceiling, a delay), and what its form misses is
+/// a second-order part of the effect: a tenth of the misfit. More left over is the mark of an
+/// effect the block only partly mimics.
+pub(super) const FORM_TOLERANCE: f64 = 0.1;
+
+/// Parameters an effect outside the catalog needs beyond the named extension's to explain the
+/// same residual: at least a gain and a time constant of its own (Schwarz's penalty
+/// `k ln(N/VIF)` on each). The data's evidence beyond the threshold counts against the outside
+/// hypothesis up to this penalty: a record fitted to the noise by the named block leaves an
+/// unknown effect only its extra parameters' Occam factor to lose.
+pub(super) const OUTSIDE_PARAMS: f64 = 2.0;
+
+/// The evidence, on the `2 ln B` scale, of a name by the cause's signature
+/// ([`CandidateReport::by_evidence`]: a spectral peak at p < 1e-6 standing out of its
+/// neighbourhood): the largest Bayes factor a p-value of 1e-6 can carry,
+/// `1/(−e·p·ln p)` (Sellke, Bayarri and Berger's bound), is about 2.7e4, `2 ln B` ≈ 20.
+pub(super) const SIGNATURE_EVIDENCE: f64 = 20.0;
+
+/// The data's own evidence for an extension over its baseline, `2 ln B` as
+/// [`super::gain::record_evidence`] computes it, with the priors' rows left out of both halves'
+/// χ² drops: what the extension gains on the record. The priors' part of a gain is calibrated
+/// values returning to their datasheet (un-bending): evidence that something acts where the
+/// re-freed parameters act, not evidence for one cause.
+pub(super) fn data_evidence(g: &Gains) -> f64 {
+    let un_bent = g.chi2_prior_base - g.chi2_prior_ext;
+    let v = g.vif.max(1.0);
+    let n = (g.n_fit.max(1) as f64 / v).max(1.0);
+    let d_fit = g.chi2_fit_base - g.chi2_fit_ext - g.null_gain_fit - un_bent;
+    let d_held = g.chi2_held_base - g.chi2_held_ext - g.null_gain_held - un_bent;
+    d_fit / v - g.k as f64 * n.ln() + d_held.max(0.0) / v
 }
 
-/// A named cause's grade: `strong` with a posterior probability of at least
-/// [`STRONG_PROBABILITY`], a ΔBIC against its baseline above the threshold and a held-out drop
-/// of at least `min_held_drop` on the interleaved blocks (the gain predicted, not only fitted);
-/// `moderate` otherwise (named by the segments' second test or by its signature, or a rival
-/// close behind).
-pub(super) fn grade(probability: f64, g: &Gains, opts: &DiagnoseOptions) -> Grade {
-    if probability >= STRONG_PROBABILITY
-        && held_floor_met(g.held_drop, opts)
-        && bic_met(g.delta_bic, opts)
-    {
-        Grade::Strong
+/// The fitted χ² the extension leaves beyond what a right block may leave, in independent
+/// samples (deflated by the variance inflation): above the noise floor
+/// (`noise_factor² · N`, the RMS the verdicts call "at the noise level") by more than
+/// [`FORM_TOLERANCE`] of the baseline's misfit above that floor. Zero when the extension brings
+/// the residual to the floor or leaves only its model-form share. Both χ² without the echo of a
+/// record played as recorded ([`comparable_chi2`]).
+pub(super) fn misfit_left(g: &Gains, noise_factor: f64) -> f64 {
+    let floor = noise_factor * noise_factor * g.n_fit.max(1) as f64;
+    let base = g.chi2_fit_base - g.input_echo;
+    let ext = comparable_chi2(g);
+    let allowed = floor + FORM_TOLERANCE * (base - floor).max(0.0);
+    (ext - allowed).max(0.0) / g.vif.max(1.0)
+}
+
+/// The named candidate's confidence in an open world (see [`Confidence`]): its posterior
+/// probability among its re-fitted baseline, the other significant candidates' extended models
+/// and an effect outside the catalog, `1 / (1 + o_base + Σ o_rival + o_outside)`, each `o` the
+/// alternative's odds against it by Schwarz's approximation of the marginal likelihood:
+///
+/// - baseline: `e^{−2lnB/2}`, the record's evidence that the significance test read (the
+///   naming rule and the probability are one computation);
+/// - rival: `e^{−G/2}`, `G` its extended model's VIF-deflated BIC above the named one's on the
+///   fitted samples ([`bic_gap`]) less how much better it predicts the held-out samples
+///   ([`held_out_gap`]). A candidate that failed its own test is no rival: its extension gained
+///   nothing over its baseline;
+/// - outside: [`OUTSIDE_PRIOR_ODDS`] `· e^{(L − S)/2}`, `L` the misfit the extension leaves
+///   ([`misfit_left`]: what an effect it only mimics leaves and a right block does not), `S` the
+///   data's own evidence above the threshold ([`data_evidence`]), between zero and the outside
+///   effect's extra parameters' penalty ([`OUTSIDE_PARAMS`]). A gain made of un-bending alone
+///   (`S` = 0) leaves the prior odds: something acts there, and an effect outside the catalog
+///   would un-bend the same values; only the data can say it is this cause.
+///
+/// A name by the cause's signature counts at least [`SIGNATURE_EVIDENCE`] against its
+/// baseline and as the data's own.
+///
+/// The grade's other conditions are the caller's ([`strong_or_why_not`]). The figure is an
+/// approximation a reviewer weighs, not an exact Bayes factor.
+pub(super) fn confidence(
+    named: &CandidateReport,
+    reports: &[CandidateReport],
+    opts: &DiagnoseOptions,
+) -> Confidence {
+    let Some(g) = &named.gains else {
+        return Confidence {
+            probability: 0.0,
+            odds_baseline: f64::INFINITY,
+            odds_rivals: 0.0,
+            odds_outside: 0.0,
+            data_evidence: f64::NAN,
+            misfit_left: f64::NAN,
+            not_strong: vec!["no gains".into()],
+        };
+    };
+    let odds_rivals: f64 = reports
+        .iter()
+        .filter(|r| r.cause != named.cause && r.significant)
+        .map(|r| bic_gap(named, r) - held_out_gap(named, r))
+        .filter(|gap| gap.is_finite())
+        .map(|gap| (-gap / 2.0).exp())
+        .sum();
+    // A name by the cause's signature rests on a test of the record's own (a spectral peak
+    // at p < 1e-6): its evidence is at least that test's, on the data alone.
+    let (record, data) = if named.by_evidence {
+        (
+            g.record_evidence.max(SIGNATURE_EVIDENCE),
+            data_evidence(g).max(SIGNATURE_EVIDENCE),
+        )
     } else {
-        Grade::Moderate
+        (g.record_evidence, data_evidence(g))
+    };
+    let odds_baseline = (-record / 2.0).exp();
+    let left = misfit_left(g, opts.noise_factor);
+    let n = (g.n_fit.max(1) as f64 / g.vif.max(1.0)).max(1.0);
+    let specific = (data - opts.bic_threshold).clamp(0.0, OUTSIDE_PARAMS * n.ln());
+    let odds_outside = OUTSIDE_PRIOR_ODDS * ((left - specific) / 2.0).exp();
+    let probability = 1.0 / (1.0 + odds_baseline + odds_rivals + odds_outside);
+    Confidence {
+        probability: if probability.is_finite() {
+            probability
+        } else {
+            0.0
+        },
+        odds_baseline,
+        odds_rivals,
+        odds_outside,
+        data_evidence: data,
+        misfit_left: left,
+        not_strong: vec![],
     }
+}
+
+/// Whether the alternative that most undermines a confidence is an effect outside the catalog
+/// (rather than the baseline or a rival).
+pub(super) fn outside_dominates(c: &Confidence) -> bool {
+    c.odds_outside >= c.odds_baseline && c.odds_outside >= c.odds_rivals
+}
+
+/// The reasons a named cause `rep` (its gains `g`, its confidence `c`) is not `strong`, empty
+/// when it is: a probability under [`STRONG_PROBABILITY`]; the gain not confirmed on the
+/// held-out blocks or not above the threshold on the fitted ones; named by its signature
+/// alone; its acting parameters not identified (a parameter acts when its standard error is
+/// finite; identified when the estimate is at least twice its standard error from zero, the
+/// two-sided 95 % test, and not resting on a bound); the misfit it was named for not gone; its
+/// evidence made of un-bending (the data's own evidence under the threshold).
+pub(super) fn strong_or_why_not(
+    rep: &CandidateReport,
+    g: &Gains,
+    c: &Confidence,
+    opts: &DiagnoseOptions,
+) -> Vec<String> {
+    let mut why = vec![];
+    if c.probability < STRONG_PROBABILITY {
+        why.push(format!(
+            "posterior probability {:.3} under {STRONG_PROBABILITY}",
+            c.probability
+        ));
+    }
+    if rep.by_evidence {
+        why.push("named by its signature in the evidence, not by the test".into());
+    }
+    if !held_floor_met(g.held_drop, opts) {
+        why.push(format!(
+            "the held-out χ² down {:.1} %, under {:.1} %",
+            100.0 * g.held_drop,
+            100.0 * opts.min_held_drop
+        ));
+    }
+    if !bic_met(g.delta_bic, opts) {
+        why.push(format!(
+            "ΔBIC on the fitted samples {:.1}, not above {}",
+            g.delta_bic, opts.bic_threshold
+        ));
+    }
+    let acting: Vec<&CandidateParam> = rep
+        .parameters
+        .iter()
+        .filter(|p| p.extension && p.std_error.is_some_and(f64::is_finite))
+        .collect();
+    if acting.is_empty() && !rep.parameters.iter().all(|p| !p.extension) {
+        why.push("no parameter of its extension identified (no finite standard error)".into());
+    }
+    for p in acting {
+        let se = p.std_error.unwrap_or(f64::INFINITY);
+        if p.at_bound {
+            why.push(format!(
+                "{} rests on a bound of its range ({})",
+                p.param,
+                fmt_num(p.result)
+            ));
+        } else if p.result.abs() < 2.0 * se {
+            why.push(format!(
+                "{} not identified ({} ± {})",
+                p.param,
+                fmt_num(p.result),
+                fmt_num(se)
+            ));
+        }
+    }
+    if c.misfit_left > 0.0 {
+        why.push(format!(
+            "the misfit it was named for not gone (fitted χ² {:.0} -> {:.0}, {:.1} times the noise variance left)",
+            g.chi2_fit_base,
+            g.chi2_fit_ext,
+            g.chi2_fit_ext / g.n_fit.max(1) as f64
+        ));
+    }
+    if !bic_met(c.data_evidence, opts) {
+        why.push(format!(
+            "the data's own evidence 2 ln B = {:.1} (the rest of its gain is calibrated values returning to their datasheet)",
+            c.data_evidence
+        ));
+    }
+    why
 }

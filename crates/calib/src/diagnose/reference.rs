@@ -19,6 +19,7 @@ use super::report::EventEvidence;
 use super::split::{split, Split};
 use super::windows::regime;
 use crate::bounds::FreeBound;
+use serde::Serialize;
 
 /// The dominant oscillatory mode above 1 Hz in the P residuals (matrix pencil), if any.
 pub(super) fn mode_hint(ev: &[EventEvidence], rate_hz: f64) -> Option<f64> {
@@ -61,12 +62,40 @@ pub(super) fn context_from(traces: &Traces, event: &Event) -> Context {
     }
 }
 
+/// What the reference re-fitted beyond the nuisance offsets, and why ([`reference`]): in the
+/// diagnosis's report (`reference`), one sentence and the numbers behind it.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReferenceRefit {
+    /// The sentence the report shows.
+    pub sentence: String,
+    /// The calibrated parameters re-fitted with the global search.
+    pub freed: Vec<String>,
+    /// Per compared channel: its noise σ and its RMS over the fitted events [pu] with the
+    /// offsets alone re-fitted and after the global re-fit.
+    pub channels: Vec<ReferenceChannel>,
+    /// Why the global re-fit could not be used (the reference then re-fits the offsets alone).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failed: Option<String>,
+}
+
+/// One compared channel of a [`ReferenceRefit`].
+#[derive(Debug, Clone, Serialize)]
+pub struct ReferenceChannel {
+    pub signal: String,
+    pub sigma: f64,
+    pub rms_offsets: f64,
+    pub rms_reference: f64,
+}
+
 /// The reference of a diagnosis and what is read from it.
 pub(super) struct Reference {
-    /// The nuisance parameters re-fitted ([`nuisance`]).
-    pub nuisance: Vec<FreeBound>,
+    /// The parameters the reference re-fitted: the nuisance offsets ([`nuisance`]), and the
+    /// calibrated set where [`refits_calibrated_set`] says.
+    pub bounds: Vec<FreeBound>,
     /// The re-fit: the reference unit.
     pub refit: Refit,
+    /// What the reference re-fitted beyond the offsets (`None`: the offsets alone).
+    pub note: Option<ReferenceRefit>,
     /// Per event: the reference's traces.
     pub before: Vec<(String, Traces)>,
     /// Per event: the reference's evidence.
@@ -78,7 +107,29 @@ pub(super) struct Reference {
     pub surrogates: Vec<(Vec<Event>, Vec<Event>)>,
 }
 
-/// The unit with its set-point offsets (nuisance) re-fitted on the split `sp`, its traces and
+/// Whether the reference re-fits the calibrated set ([`DiagnoseOptions::refit`]) with the
+/// global search besides the offsets: when the playback compares a field channel
+/// ([`playback::FIELD_CHANNELS`], in the phasor playback: every event records it) and there is
+/// a calibrated set to re-free. The calibration may have left that channel out (a spec with
+/// `objective = "pq"`), so the unit was never fitted to it and its calibrated values can sit
+/// in a valley P and Q allow and the field does not: every baseline, re-freeing the set by
+/// local steps only, would stay there, leave the field far off and make a clean unit look
+/// `unexplained`, or name whichever cause happens to free the exciter's gain. One global re-fit
+/// on every compared channel puts the reference, and so every candidate's start, where the
+/// record's own channels put it, whatever the calibration compared; after a calibration that
+/// did compare the field it starts in that valley and stays there, so the verdict does not
+/// depend on what the spec said.
+pub(super) fn refits_calibrated_set(pb: &Playback, opts: &DiagnoseOptions) -> bool {
+    pb.mode == itaipu_dynamics::mode::PlaybackMode::Phasor
+        && pb
+            .channels
+            .iter()
+            .any(|c| playback::FIELD_CHANNELS.contains(c))
+        && !opts.refit.is_empty()
+}
+
+/// The unit with its set-point offsets (nuisance) re-fitted on the split `sp` (and the
+/// calibrated set with the global search where [`refits_calibrated_set`] says), its traces and
 /// evidence on `events`, and the surrogate records.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn reference(
@@ -100,7 +151,7 @@ pub(super) fn reference(
         progress,
         profile: Some(profile),
     };
-    let reference = refit(
+    let offsets = refit(
         &env,
         unit,
         &nuisance,
@@ -112,13 +163,23 @@ pub(super) fn reference(
         msg: msg.to_string(),
         error: None,
     })?;
+    let (bounds, reference, note) = if refits_calibrated_set(pb, opts) {
+        with_calibrated_set(&env, pb, nuisance, offsets)
+    } else {
+        (nuisance, offsets, None)
+    };
     let t_evidence = std::time::Instant::now();
     let played = Played::new(&reference.unit, events, held_out, pb)?;
     let mut sp_null = vec![];
     let mut surrogates = vec![];
     for draw in 0..opts.null_draws.max(1) {
         let (surrogate_events, surrogate_held) = played.surrogates(draw, opts.seed)?;
-        sp_null.push(split(&surrogate_events, &surrogate_held, opts.block_s)?);
+        sp_null.push(split(
+            &surrogate_events,
+            &surrogate_held,
+            opts.block_s,
+            opts.fold,
+        )?);
         surrogates.push((surrogate_events, surrogate_held));
     }
     profile.add(
@@ -132,13 +193,125 @@ pub(super) fn reference(
         before, evidence, ..
     } = played;
     Ok(Reference {
-        nuisance,
+        bounds,
         refit: reference,
+        note,
         before,
         evidence,
         sp_null,
         surrogates,
     })
+}
+
+/// The reference re-fitted over the offsets and the calibrated set together
+/// ([`refits_calibrated_set`]) with the global search (swarm and local method, the diagnosis's
+/// own settings; no parameter polish-only), from where the offsets' re-fit `offsets` ended, on
+/// every compared channel: its bounds, its re-fit and the note. When that re-fit fails, the
+/// offsets' re-fit, with the note saying why.
+fn with_calibrated_set(
+    env: &RefitEnv,
+    pb: &Playback,
+    nuisance: Vec<FreeBound>,
+    offsets: Refit,
+) -> (Vec<FreeBound>, Refit, Option<ReferenceRefit>) {
+    let opts = env.opts;
+    let start = &offsets.unit;
+    let calibrated: Vec<FreeBound> = opts
+        .refit
+        .iter()
+        .filter(|b| !nuisance.iter().any(|n| n.param == b.param))
+        .map(|b| FreeBound {
+            polish_only: false,
+            scan: 0,
+            ..b.starting_in(start)
+        })
+        .collect();
+    let bounds: Vec<FreeBound> = nuisance
+        .iter()
+        .map(|b| b.starting_in(start))
+        .chain(calibrated.iter().cloned())
+        .collect();
+    let label = Label::new(
+        RefitKind::Reference,
+        "calibrated set on every compared channel",
+    );
+    let global = refit(env, start, &bounds, &[], &label);
+    let sigmas: Vec<f64> = match env.compare {
+        Some(c) => c.weights.iter().map(|(_, w)| 1.0 / w.sqrt()).collect(),
+        None => vec![1.0 / env.weights.0.sqrt(), 1.0 / env.weights.1.sqrt()],
+    };
+    let channels = |after: &Refit| -> Vec<ReferenceChannel> {
+        pb.channels
+            .iter()
+            .enumerate()
+            .map(|(j, c)| ReferenceChannel {
+                signal: playback::signal_name(*c).to_string(),
+                sigma: sigmas.get(j).copied().unwrap_or(f64::NAN),
+                rms_offsets: offsets.rms.get(j).copied().unwrap_or(f64::NAN),
+                rms_reference: after.rms.get(j).copied().unwrap_or(f64::NAN),
+            })
+            .collect()
+    };
+    let names = pb
+        .channels
+        .iter()
+        .map(|c| playback::signal_name(*c))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let freed: Vec<String> = calibrated.iter().map(|b| b.param.clone()).collect();
+    match global {
+        Ok(r) => {
+            let chans = channels(&r);
+            let moved = chans
+                .iter()
+                .map(|c| {
+                    format!(
+                        "{} {} -> {} x σ",
+                        c.signal,
+                        ratio(c.rms_offsets, c.sigma),
+                        ratio(c.rms_reference, c.sigma)
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join(", ");
+            let note = ReferenceRefit {
+                sentence: format!(
+                    "the reference re-fitted the calibrated set ({} parameters) with the \
+                     nuisance offsets on {names} with a global search (swarm and local \
+                     method), because the record holds the field and a calibration may have \
+                     left it out: every candidate is judged against it (RMS {moved})",
+                    freed.len()
+                ),
+                freed,
+                channels: chans,
+                failed: None,
+            };
+            (bounds, r, Some(note))
+        }
+        Err(e) => {
+            let chans = channels(&offsets);
+            let note = ReferenceRefit {
+                sentence: format!(
+                    "the reference's re-fit of the calibrated set on {names} failed ({e}); \
+                     the candidates are judged against the offsets' re-fit alone"
+                ),
+                freed,
+                channels: chans,
+                failed: Some(e.to_string()),
+            };
+            (nuisance, offsets, Some(note))
+        }
+    }
+}
+
+/// `rms / sigma` to one decimal (`-` when unknown).
+fn ratio(rms: f64, sigma: f64) -> String {
+    let r = rms / sigma;
+    if r.is_finite() {
+        format!("{r:.1}")
+    } else {
+        "-".into()
+    }
 }
 
 /// The reference unit played back on the events and the held-out events: what its evidence

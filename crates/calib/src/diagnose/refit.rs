@@ -648,7 +648,9 @@ mod tests {
         let mut calibrated = unit.clone();
         let r = calibrated.param("exciter.k").unwrap();
         calibrated.set(r, 0.8 * unit.get(r));
-        let sp = super::super::split::split(std::slice::from_ref(&ev), &[], 0.5).unwrap();
+        let sp =
+            super::super::split::split(std::slice::from_ref(&ev), &[], 0.5, Default::default())
+                .unwrap();
         let opts = DiagnoseOptions::default();
         let env = RefitEnv {
             sp: &sp,

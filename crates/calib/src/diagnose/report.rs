@@ -57,6 +57,11 @@ pub struct Gains {
     pub input_echo: f64,
     pub chi2_held_base: f64,
     pub chi2_held_ext: f64,
+    /// The priors' rows in the baseline's and the extension's χ² (each of its fitted and
+    /// held-out χ² holds them once): what the calibrated values' distance from their datasheet
+    /// costs. A gain made of these rows alone is un-bending, not the data's evidence.
+    pub chi2_prior_base: f64,
+    pub chi2_prior_ext: f64,
     /// χ² drop of the residuals (the priors' rows left out) that the same re-fit achieves on
     /// the surrogate events, where the reference model is exact and only noise can be fitted
     /// (fitted and held-out samples).
@@ -178,6 +183,8 @@ pub struct Verdict {
     /// re-fitted baseline and the other significant candidates' extensions, equal prior odds),
     /// from their VIF-deflated BIC: `1 / Σ_m exp(−(BIC_m − BIC_named)/2)`.
     pub probability: Option<f64>,
+    /// The named cause's confidence: the probability's parts and the grade's reasons.
+    pub confidence: Option<Confidence>,
     /// `inconclusive`: the significant candidates that explain the residual about equally
     /// (the best first), each with its VIF-deflated BIC above the best's.
     pub competing: Vec<(String, f64)>,
@@ -276,10 +283,13 @@ impl Verdict {
 
 /// How much a named cause can be trusted.
 ///
-/// - `Strong`: the extension beats its re-fitted baseline and every other candidate with a
-///   posterior probability of at least [`STRONG_PROBABILITY`] and its gain holds on the
-///   held-out blocks (not only on the segments' second test, not only by its signature).
-/// - `Moderate`: named, with less than that (a reviewer should check the evidence quoted).
+/// - `Strong`: a posterior probability of at least [`STRONG_PROBABILITY`] in the open world
+///   ([`Confidence`]), its gain holding on the held-out blocks and on the other fold, and the
+///   evidence specific to it: its acting parameters identified, the misfit it was named for
+///   gone with it, the data's own evidence (not only calibrated values returning to their
+///   datasheet) above the threshold. [`Confidence::not_strong`] says which of these failed.
+/// - `Moderate`: named (posterior at least [`NAME_PROBABILITY`]), with less than that (a
+///   reviewer should check the evidence quoted).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Grade {
@@ -301,6 +311,38 @@ impl Grade {
 /// single alternative, Kass & Raftery's "strong" to "very strong" boundary of 2 ln B = 10 for
 /// the sum of several).
 pub const STRONG_PROBABILITY: f64 = 0.99;
+
+/// The posterior probability below which no cause is named: one half, the point where the
+/// cause is less likely than the alternatives together (its baseline, its rivals, an effect
+/// outside the catalog). Below it a name would more often be wrong than right.
+pub const NAME_PROBABILITY: f64 = 0.5;
+
+/// The named cause's confidence in an open world: its posterior probability against the
+/// alternatives, each alternative's odds against it, what they are computed from, and why it
+/// is not `strong` (empty when it is). One computation names the cause (a probability of at
+/// least [`NAME_PROBABILITY`]) and states its probability
+/// ([`super::ranking::confidence`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Confidence {
+    pub probability: f64,
+    /// Odds of its re-fitted baseline (no extension) against it, `e^{−2lnB/2}` with the
+    /// record's evidence `2 ln B` ([`Gains::record_evidence`]).
+    pub odds_baseline: f64,
+    /// Odds of the other significant candidates' extended models together, from their BIC on
+    /// the fitted samples and their prediction of the held-out samples.
+    pub odds_rivals: f64,
+    /// Odds of an effect outside the catalog that this extension only mimics.
+    pub odds_outside: f64,
+    /// The data's own evidence for the extension, `2 ln B` with the priors' rows left out: what
+    /// the extension gains on the record, not by returning calibrated values to their
+    /// datasheet.
+    pub data_evidence: f64,
+    /// The fitted χ² the extension leaves beyond what a right catalog block may leave (the
+    /// noise floor and its model-form tolerance), in independent samples (VIF-deflated).
+    pub misfit_left: f64,
+    /// Why the grade is not `strong` (empty when it is).
+    pub not_strong: Vec<String>,
+}
 
 /// Noise and split.
 #[derive(Debug, Clone, Serialize)]
@@ -347,6 +389,11 @@ pub struct Diagnosis {
     pub seed: u64,
     pub threads: usize,
     pub wall_s: f64,
+    /// What the reference re-fitted beyond the nuisance offsets, and why (absent: the offsets
+    /// alone): the calibrated set on every compared channel with a global search when the record
+    /// holds the field ([`super::ReferenceRefit`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference: Option<super::ReferenceRefit>,
 }
 
 /// One row of a diagnosis' profile: the re-fits of one kind (`reference`, `baselines`,

@@ -16,6 +16,7 @@ use super::candidates::{Candidates, RecordedInput};
 use super::catalog::CAUSES;
 use super::cause::Cause;
 use super::error::DiagnoseError;
+use super::fold_check;
 use super::look_alike;
 use super::options::DiagnoseOptions;
 use super::playback::{signal_name, Playback};
@@ -36,7 +37,11 @@ pub fn diagnose(
     opts: &DiagnoseOptions,
     progress: &dyn Progress,
 ) -> Result<DiagnoseResult, DiagnoseError> {
-    let result = diagnose_run(unit, events, held_out, opts, progress);
+    let result = diagnose_run(unit, events, held_out, opts, progress).and_then(|r| {
+        fold_check::check(r, held_out, opts, progress, |o| {
+            diagnose_run(unit, events, held_out, o, progress)
+        })
+    });
     // A re-fit cut short reads as a failed candidate: never hand out a verdict built on one.
     match result {
         Ok(r) => {
@@ -118,6 +123,7 @@ fn diagnose_run(
         refits,
     } = score_candidates(&mut candidates, &causes, opts)?;
     let t_verdict = Instant::now();
+    let absorbed = super::absorbed::absorbed(&reference.refit.unit, &opts.refit);
     let decision = verdict::decide(
         &mut reports,
         refits,
@@ -125,6 +131,7 @@ fn diagnose_run(
         recorded.as_ref().map(|r| r.events.as_slice()),
         scoring,
         &reference.evidence,
+        &absorbed,
         opts,
     );
     let t = t_verdict.elapsed().as_secs_f64();
@@ -133,6 +140,7 @@ fn diagnose_run(
         refit,
         before,
         evidence,
+        note,
         ..
     } = reference;
     let mut evidence_after = decision.evidence_after;
@@ -153,6 +161,7 @@ fn diagnose_run(
         seed: opts.seed,
         threads: rayon::current_num_threads(),
         wall_s: t_start.elapsed().as_secs_f64(),
+        reference: note,
     };
     Ok(DiagnoseResult {
         report,
@@ -179,7 +188,7 @@ fn recorded_input(
         band_top,
         (&reference.refit.unit, &noise.pb),
         noise.sp_segments.is_some(),
-        opts.block_s,
+        (opts.block_s, opts.fold),
     )
 }
 
@@ -250,9 +259,9 @@ fn noise(
         (1.0, 1.0)
     };
     let compare = pb.compare(&sigmas);
-    let sp = split(events, held_out, opts.block_s)?;
+    let sp = split(events, held_out, opts.block_s, opts.fold)?;
     let sp_segments = if sp.blocks {
-        Some(split(events, held_out, SEGMENT_S)?)
+        Some(split(events, held_out, SEGMENT_S, opts.fold)?)
     } else {
         None
     };

@@ -8,7 +8,9 @@ use super::look_alike;
 use super::options::DiagnoseOptions;
 use super::playback::{signal_channel, FIELD_CHANNELS};
 use super::ranking::bic_gap;
-use super::report::{fmt_num, CandidateReport, EventEvidence, Gains, Grade, Verdict, VerdictCause};
+use super::report::{
+    fmt_num, CandidateReport, Confidence, EventEvidence, Gains, Grade, Verdict, VerdictCause,
+};
 use super::split::SEGMENT_S;
 
 /// The event and P or Q signal with the largest residual RMS relative to its noise floor (the
@@ -57,6 +59,7 @@ fn unnamed(
         where_,
         grade: None,
         probability: None,
+        confidence: None,
         competing: vec![],
     }
 }
@@ -113,6 +116,7 @@ pub(super) fn undecided(
     ev: &[EventEvidence],
     compared: &[&str],
     reports: &[CandidateReport],
+    absorbed: &[String],
     opts: &DiagnoseOptions,
 ) -> Verdict {
     let best_try = best_try(reports, opts);
@@ -141,6 +145,9 @@ pub(super) fn undecided(
         .max_by(|(_, a), (_, b)| a.record_evidence.total_cmp(&b.record_evidence));
     match refused.filter(|_| worst.over <= opts.noise_factor) {
         Some((r, g)) => refused_at_the_floor(&worst, r, g),
+        None if worst.over <= opts.noise_factor && !absorbed.is_empty() => {
+            absorbed_at_the_floor(&worst, absorbed, &best_try)
+        }
         None if worst.over <= opts.noise_factor => at_the_floor(&worst, &best_try),
         None => unexplained(&worst, &best_try, field_hint(compared, s)),
     }
@@ -241,6 +248,25 @@ fn refused_at_the_floor(w: &Worst, r: &CandidateReport, g: &Gains) -> Verdict {
         ),
         w.where_(),
     )
+}
+
+/// `none` at the noise floor with re-freed values far outside their typical ranges
+/// ([`super::absorbed`]): said, not an alarm. Such a value is either absorbing an effect the
+/// model lacks or only weakly determined by the record (a flat direction the search wandered
+/// along to its bound: on clean records of a unit other than the practice family's, X_d and X_q
+/// reached twice their datasheet so), and the record cannot tell the two apart when no
+/// extension gains; the engineer can, from the unit's test reports.
+fn absorbed_at_the_floor(w: &Worst, absorbed: &[String], best_try: &str) -> Verdict {
+    let mut v = at_the_floor(w, best_try);
+    v.statement = format!(
+        "{} But the calibrated values {} lie far outside the typical ranges of their models while \
+         their datasheet values do not: either the record determines them weakly or they absorb \
+         an effect the model lacks. Check them against the unit's test reports before relying on \
+         the model.",
+        v.statement,
+        absorbed.join(", ")
+    );
+    v
 }
 
 /// `none`: the residuals at the noise floor and no extension gaining significantly.
@@ -529,7 +555,7 @@ pub(super) fn named(
     rep: &CandidateReport,
     g: &Gains,
     key: &[(String, f64, String)],
-    (probability, grade, rivals): (f64, Grade, usize),
+    (conf, grade, rivals): (&Confidence, Grade, usize),
 ) -> String {
     let params: Vec<String> = key
         .iter()
@@ -573,11 +599,18 @@ pub(super) fn named(
             back.join(", ")
         )
     };
+    let why = if conf.not_strong.is_empty() {
+        String::new()
+    } else {
+        format!("; not strong: {}", conf.not_strong.join("; "))
+    };
     format!(
-        "{statement} Confidence: {} (posterior probability {:.3} against its re-fitted baseline and the {} other significant candidate(s)).",
+        "{statement} Confidence: {} (posterior probability {:.3} against its re-fitted baseline, the {} other significant \
+         candidate(s) and an effect outside the catalog; the data's own evidence 2 ln B = {:.1}{why}).",
         grade.as_str(),
-        probability,
-        rivals
+        conf.probability,
+        rivals,
+        conf.data_evidence
     )
 }
 

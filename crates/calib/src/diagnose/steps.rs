@@ -344,6 +344,8 @@ impl Candidate<'_> {
             input_echo,
             chi2_held_base: base.chi2_held,
             chi2_held_ext: r.chi2_held,
+            chi2_prior_base: base.chi2_prior,
+            chi2_prior_ext: r.chi2_prior,
             null_gain_fit: null_fit,
             null_gain_held: null_held,
             null_gains_fit: null.fits.clone(),

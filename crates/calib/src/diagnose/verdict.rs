@@ -13,9 +13,14 @@ use itaipu_dynamics::unit::Unit;
 use super::catalog;
 use super::options::DiagnoseOptions;
 use super::playback::{signal_name, Scoring};
-use super::ranking::{bic_gap, grade, held_out_gap, posterior, rank};
+use super::ranking::{
+    bic_gap, confidence, held_out_gap, outside_dominates, rank, strong_or_why_not,
+};
 use super::refit::{std_errors, RefitRecord};
-use super::report::{CandidateReport, EventEvidence, Gains, Grade, Verdict, VerdictCause};
+use super::report::{
+    fmt_num, CandidateReport, Confidence, EventEvidence, Gains, Grade, Verdict, VerdictCause,
+    NAME_PROBABILITY,
+};
 use super::statements::{
     contradicted, inconclusive, key_parameters, named, outside_catalog, undecided,
 };
@@ -54,6 +59,7 @@ pub(super) fn decide(
     recorded: Option<&[Event]>,
     scoring: Scoring,
     evidence_before: &[EventEvidence],
+    absorbed: &[String],
     opts: &DiagnoseOptions,
 ) -> Decision {
     let compared: Vec<&str> = scoring.0.channels.iter().map(|c| signal_name(*c)).collect();
@@ -72,16 +78,32 @@ pub(super) fn decide(
             let refit = refits.remove(&rep.cause)?;
             Some((rep, g, refit))
         });
-    match best {
-        Some((rep, g, refit)) => {
-            let events = match recorded {
-                Some(raw) if rep.input_as_recorded => raw,
-                _ => events,
-            };
-            name(rep, g, refit, reports, events, scoring, opts)
+    if let Some((rep, g, refit)) = best {
+        let events = match recorded {
+            Some(raw) if rep.input_as_recorded => raw,
+            _ => events,
+        };
+        let id = rep.cause.clone();
+        match name(rep, g, refit, reports, events, scoring, opts) {
+            Ok(d) => return d,
+            // Refused for its probability: it passed the test and stays on record as refused,
+            // so that the residual is `unexplained` (an effect is there), never `none`.
+            Err(why) => {
+                if let Some(c) = reports.iter_mut().find(|c| c.cause == id) {
+                    c.significant = false;
+                    c.passed_test = true;
+                    c.note = why;
+                }
+            }
         }
-        None => Decision::unnamed(undecided(evidence_before, &compared, reports, opts)),
     }
+    Decision::unnamed(undecided(
+        evidence_before,
+        &compared,
+        reports,
+        absorbed,
+        opts,
+    ))
 }
 
 /// The verdict when the best significant candidate (the first of the ranked `reports`) is not
@@ -124,8 +146,11 @@ fn rivals(
 }
 
 /// The named cause `rep` (its gains `g`, its re-fit): the standard errors of its re-fitted
-/// parameters (every sample of `events`, with the priors), its traces and evidence after, its
-/// posterior probability and grade, its statement.
+/// parameters (every sample of `events`, with the priors), its confidence in the open world
+/// ([`confidence`]) and grade ([`strong_or_why_not`]), its traces and evidence after, its
+/// statement. `Err` with the candidate's refusal when its posterior probability is under
+/// [`NAME_PROBABILITY`]: the alternatives together are likelier, and a wrong name is worse
+/// than none.
 fn name(
     mut rep: CandidateReport,
     g: Gains,
@@ -134,7 +159,7 @@ fn name(
     events: &[Event],
     (pb, weights, compare): Scoring,
     opts: &DiagnoseOptions,
-) -> Decision {
+) -> Result<Decision, String> {
     if let Some(se) = std_errors(&r.unit, &bounds, &ties, &r.values, events, weights, compare) {
         for (p, e) in rep.parameters.iter_mut().zip(se) {
             p.std_error = Some(e);
@@ -143,6 +168,16 @@ fn name(
             c.parameters = rep.parameters.clone();
         }
     }
+    let mut conf = confidence(&rep, reports, opts);
+    if conf.probability < NAME_PROBABILITY {
+        return Err(unnamed_for(&conf));
+    }
+    conf.not_strong = strong_or_why_not(&rep, &g, &conf, opts);
+    let grade = if conf.not_strong.is_empty() {
+        Grade::Strong
+    } else {
+        Grade::Moderate
+    };
     let (mut after, mut evidence_after) = (vec![], vec![]);
     for e in events {
         if let Ok((tr, ev, _)) = pb.evidence(&r.unit, e) {
@@ -150,21 +185,12 @@ fn name(
             after.push((e.name.clone(), tr));
         }
     }
-    let probability = posterior(&rep, reports);
-    // Strong: odds of 99:1 or better, and the held-out blocks confirm the gain by the same test
-    // that made it significant (not only the segments' second test, not only the cause's
-    // signature in the evidence).
-    let grade = if rep.by_evidence {
-        Grade::Moderate
-    } else {
-        grade(probability, &g, opts)
-    };
     let rivals = reports
         .iter()
         .filter(|c| c.significant && c.cause != rep.cause)
         .count();
     let key = key_parameters(&rep);
-    let statement = named(&rep, &g, &key, (probability, grade, rivals));
+    let statement = named(&rep, &g, &key, (&conf, grade, rivals));
     let verdict = Verdict {
         cause: named_cause(&rep.cause),
         title: rep.title.clone(),
@@ -173,15 +199,42 @@ fn name(
         gains: Some(g),
         where_: None,
         grade: Some(grade),
-        probability: Some(probability),
+        probability: Some(conf.probability),
+        confidence: Some(conf),
         competing: vec![],
     };
-    Decision {
+    Ok(Decision {
         verdict,
         extended_unit: Some(r.unit),
         after,
         evidence_after,
-    }
+    })
+}
+
+/// Why a candidate is not named for its posterior probability `c` (under
+/// [`NAME_PROBABILITY`]): the alternative that weighs most against it.
+fn unnamed_for(c: &Confidence) -> String {
+    let what = if outside_dominates(c) && c.misfit_left > 0.0 {
+        format!(
+            "it mimics part of another effect: its extension leaves {:.0} independent χ² of the misfit \
+             beyond the noise and its form's tolerance",
+            c.misfit_left
+        )
+    } else if outside_dominates(c) {
+        "an effect outside the catalog acting where it acts is as likely".to_string()
+    } else if c.odds_rivals >= c.odds_baseline {
+        "other significant candidates explain the record about as well".to_string()
+    } else {
+        "its baseline without the extension explains the record about as well".to_string()
+    };
+    format!(
+        "not named: its posterior probability {:.3} is under {NAME_PROBABILITY} (odds against it: baseline {}, rivals {}, \
+         an effect outside the catalog {}); {what}",
+        c.probability,
+        fmt_num(c.odds_baseline),
+        fmt_num(c.odds_rivals),
+        fmt_num(c.odds_outside)
+    )
 }
 
 /// The verdict's cause for the named candidate `id`: the catalog's when it has one of that id,
@@ -198,7 +251,8 @@ mod tests {
     use super::*;
     use crate::diagnose::gain::explains_too_little;
     use crate::diagnose::playback::Playback;
-    use crate::diagnose::report::CandidateParam;
+    use crate::diagnose::ranking::{OUTSIDE_PRIOR_ODDS, SIGNATURE_EVIDENCE};
+    use crate::diagnose::report::{CandidateParam, STRONG_PROBABILITY};
     use crate::evidence::{analyse, EvidenceOptions};
 
     /// A residual far above the noise whose evidence has no window (the windows are the
@@ -215,7 +269,7 @@ mod tests {
             signals: vec![s],
             p_peak: None,
         }];
-        let v = undecided(&ev, &["P", "Q"], &[], &DiagnoseOptions::default());
+        let v = undecided(&ev, &["P", "Q"], &[], &[], &DiagnoseOptions::default());
         assert_eq!(v.cause, "unexplained");
         says(&v.statement, "Unexplained residual at Q on e");
         assert!(v.where_.is_none());
@@ -247,7 +301,13 @@ mod tests {
         refused.passed_test = true;
         refused.note = format!("not named: {why}");
         let quiet = candidate("governor", 380.0, 2, -3.0, false);
-        let v = undecided(&ev, &["P", "Q"], &[quiet.clone(), refused.clone()], &opts);
+        let v = undecided(
+            &ev,
+            &["P", "Q"],
+            &[quiet.clone(), refused.clone()],
+            &[],
+            &opts,
+        );
         assert_eq!(v.cause, "unexplained", "{}", v.statement);
         says(&v.statement, why);
         says(&v.statement, "extension of saturation");
@@ -262,13 +322,32 @@ mod tests {
             passed_test: false,
             ..refused.clone()
         };
-        let v = undecided(&ev, &["P", "Q"], &[quiet.clone(), untested], &opts);
+        let v = undecided(&ev, &["P", "Q"], &[quiet.clone(), untested], &[], &opts);
         assert_eq!(v.cause, "none", "{}", v.statement);
         // Above the floor the residual's verdict, with its window, is unchanged.
         ev[0].signals[0].rms_over_noise = 3.0;
-        let v = undecided(&ev, &["P", "Q"], &[refused, quiet], &opts);
+        let v = undecided(&ev, &["P", "Q"], &[refused, quiet], &[], &opts);
         assert_eq!(v.cause, "unexplained");
         says(&v.statement, "Unexplained residual at P");
+    }
+
+    /// At the noise floor with no significant gain the verdict is `none`; re-freed values far
+    /// outside their typical ranges are named in it (weakly determined or absorbing: the
+    /// record cannot tell when no extension gains), not raised as an alarm.
+    #[test]
+    fn values_pressed_far_outside_their_ranges_are_no_clean_bill() {
+        let mut ev = evidence();
+        ev[0].signals[0].rms_over_noise = 1.1;
+        let opts = DiagnoseOptions::default();
+        let quiet = candidate("governor", 380.0, 2, -3.0, false);
+        let v = undecided(&ev, &["P", "Q"], std::slice::from_ref(&quiet), &[], &opts);
+        assert_eq!(v.cause, "none", "{}", v.statement);
+        let absorbed =
+            ["machine.x_d = 1.8300 pu (typical 0.8000-1.2000, datasheet 0.9200)".to_string()];
+        let v = undecided(&ev, &["P", "Q"], &[quiet], &absorbed, &opts);
+        assert_eq!(v.cause, "none", "{}", v.statement);
+        says(&v.statement, "machine.x_d = 1.8300 pu");
+        says(&v.statement, "absorb an effect the model lacks");
     }
 
     /// A `none` verdict says which significance tests its best candidate fell short of, and by
@@ -287,19 +366,19 @@ mod tests {
             }
             c
         };
-        let v = undecided(&ev, &["P", "Q"], &[with(0.016, 0.009, 26.4)], &opts);
+        let v = undecided(&ev, &["P", "Q"], &[with(0.016, 0.009, 26.4)], &[], &opts);
         assert_eq!(v.cause, "none", "{}", v.statement);
         says(
             &v.statement,
             "not significant (the held-out χ² down 0.9 %, under 1.0 %)",
         );
-        let v = undecided(&ev, &["P", "Q"], &[with(-0.003, -0.004, 0.5)], &opts);
+        let v = undecided(&ev, &["P", "Q"], &[with(-0.003, -0.004, 0.5)], &[], &opts);
         says(
             &v.statement,
             "not significant (the fitted χ² up 0.3 %; the held-out χ² up 0.4 %; 2 ln B 0.5, not \
              above 10)",
         );
-        let v = undecided(&ev, &["P", "Q"], &[with(-0.0002, 0.02, 5.0)], &opts);
+        let v = undecided(&ev, &["P", "Q"], &[with(-0.0002, 0.02, 5.0)], &[], &opts);
         says(
             &v.statement,
             "not significant (the fitted χ² unchanged; 2 ln B 5.0, not above 10)",
@@ -308,7 +387,7 @@ mod tests {
             min_fit_drop: 0.02,
             ..DiagnoseOptions::default()
         };
-        let v = undecided(&ev, &["P", "Q"], &[with(0.016, 0.02, 37.0)], &floor);
+        let v = undecided(&ev, &["P", "Q"], &[with(0.016, 0.02, 37.0)], &[], &floor);
         says(
             &v.statement,
             "not significant (the fitted χ² down 1.6 %, under 2.0 %)",
@@ -338,10 +417,10 @@ mod tests {
             }]
         };
         let opts = DiagnoseOptions::default();
-        let v = undecided(&ev("Ifd"), &["P", "Q", "Efd", "Ifd"], &[], &opts);
+        let v = undecided(&ev("Ifd"), &["P", "Q", "Efd", "Ifd"], &[], &[], &opts);
         assert_eq!(v.cause, "unexplained");
         says(&v.statement, "channels = \"recorded\"");
-        let v = undecided(&ev("Efd"), &["|V|", "Q", "Efd"], &[], &opts);
+        let v = undecided(&ev("Efd"), &["|V|", "Q", "Efd"], &[], &[], &opts);
         assert!(!v.statement.contains("recorded"), "{}", v.statement);
     }
 
@@ -388,6 +467,8 @@ mod tests {
                 input_echo: 0.0,
                 chi2_held_base: 500.0,
                 chi2_held_ext: 400.0,
+                chi2_prior_base: 0.0,
+                chi2_prior_ext: 0.0,
                 null_gain_fit: 0.0,
                 null_gain_held: 0.0,
                 null_gains_fit: vec![],
@@ -440,6 +521,7 @@ mod tests {
             None,
             (&Playback::phasor(), (1.0, 1.0), None),
             &evidence(),
+            &[],
             &DiagnoseOptions::default(),
         )
     }
@@ -620,39 +702,159 @@ mod tests {
         assert_ne!(d.verdict.cause, "inconclusive");
     }
 
-    /// The posterior: one clear winner has odds above 99:1 and is graded strong; a close rival
-    /// or a weak gain over the baseline lowers it to moderate; the held-out drop is required.
+    /// The open-world confidence: one clear winner whose extension leaves the residual at the
+    /// noise has odds above 99:1 against its baseline, its rivals and an effect outside the
+    /// catalog together; a close rival lowers it; a rival that failed its own test is none.
     #[test]
-    fn the_posterior_and_the_grade_follow_the_bic_margins() {
+    fn the_confidence_weighs_the_baseline_the_rivals_and_the_outside() {
         let opts = DiagnoseOptions::default();
-        let best = candidate("saturation", 300.0, 3, 40.0, true);
+        let mut best = candidate("saturation", 300.0, 3, 40.0, true);
+        best.parameters[0].std_error = Some(0.1);
         let far = candidate("governor", 360.0, 3, 12.0, true);
-        let p = posterior(&best, &[best.clone(), far.clone()]);
-        // exp(−20) against the baseline, exp(−15) against the rival (gap 60/2 = 30).
-        let expected = 1.0 / (1.0 + (-20.0f64).exp() + (-15.0f64).exp());
-        assert!((p - expected).abs() < 1e-12, "{p}");
-        assert_eq!(grade(p, best.gains.as_ref().unwrap(), &opts), Grade::Strong);
-        // A rival 4 χ² behind (deflated gap 2): odds e^-1, probability ≈ 0.73.
+        let c = confidence(&best, &[best.clone(), far.clone()], &opts);
+        // Record evidence 90; the rival 60/2 behind on the fitted samples and level held out;
+        // the data's evidence 100/2 − ln 500 + 100/2 (no prior rows), beyond the threshold by
+        // more than two parameters' penalty 2 ln 500: the outside odds 0.25 e^{−ln 500}.
+        let n = 500f64;
+        assert!((c.data_evidence - (100.0 - n.ln())).abs() < 1e-9, "{c:?}");
+        assert_eq!(c.misfit_left, 0.0);
+        assert!((c.odds_outside - 0.25 / n).abs() < 1e-12, "{c:?}");
+        let expected = 1.0 / (1.0 + (-45.0f64).exp() + (-15.0f64).exp() + 0.25 / n);
+        assert!((c.probability - expected).abs() < 1e-12, "{c:?}");
+        let g = best.gains.clone().unwrap();
+        assert!(strong_or_why_not(&best, &g, &c, &opts).is_empty());
+        // A rival 4 χ² behind (deflated gap 2): odds e^-1, probability ≈ 0.73, moderate.
         let near = candidate("governor", 304.0, 3, 12.0, true);
-        let p2 = posterior(&best, &[best.clone(), near.clone()]);
-        assert!((p2 - 1.0 / (1.0 + (-20.0f64).exp() + (-1.0f64).exp())).abs() < 1e-12);
-        assert_eq!(
-            grade(p2, best.gains.as_ref().unwrap(), &opts),
-            Grade::Moderate
-        );
+        let c2 = confidence(&best, &[best.clone(), near.clone()], &opts);
+        assert!((c2.odds_rivals - (-1.0f64).exp()).abs() < 1e-12);
+        let why = strong_or_why_not(&best, &g, &c2, &opts);
+        assert!(why[0].starts_with("posterior probability 0.73"), "{why:?}");
         // The same rival without a significant gain over its own baseline is no rival.
         let failed = CandidateReport {
             significant: false,
-            ..near
+            ..near.clone()
         };
-        let p3 = posterior(&best, &[best.clone(), failed]);
-        assert!((p3 - 1.0 / (1.0 + (-20.0f64).exp())).abs() < 1e-12);
-        // Clear odds but a held-out drop below the threshold: moderate.
-        let mut g = best.gains.clone().unwrap();
-        g.held_drop = 0.0;
-        assert_eq!(grade(p, &g, &opts), Grade::Moderate);
+        assert_eq!(
+            confidence(&best, &[best.clone(), failed], &opts).odds_rivals,
+            0.0
+        );
+        // A rival that predicts the held-out samples 8 χ² better (4 deflated) closes the gap.
+        let mut predicts = near;
+        predicts.gains.as_mut().unwrap().chi2_held_ext = 392.0;
+        let c3 = confidence(&best, &[best.clone(), predicts], &opts);
+        assert!((c3.odds_rivals - (1.0f64).exp()).abs() < 1e-9, "{c3:?}");
+        // Clear odds but a held-out drop below the threshold: not strong, and said so.
+        let mut g2 = g.clone();
+        g2.held_drop = 0.0;
+        let why = strong_or_why_not(&best, &g2, &c, &opts);
+        assert_eq!(why.len(), 1, "{why:?}");
+        assert!(why[0].contains("held-out χ² down 0.0 %"), "{why:?}");
         // A rival with more parameters pays ln(N/VIF) each.
         let bigger = candidate("oel", 300.0, 5, 40.0, true);
         assert!((bic_gap(&best, &bigger) - 2.0 * (500.0f64).ln()).abs() < 1e-12);
+    }
+
+    /// A gain made of calibrated values returning to their datasheet (the priors' rows) is no
+    /// evidence that it is this cause rather than an effect outside the catalog acting in the
+    /// same place: the outside keeps its prior odds (a probability of 0.8 at most) and the
+    /// grade says the data's own evidence is missing; the same gain on the data takes the
+    /// outside odds down by two parameters' penalty, and a record-evidence name by its
+    /// signature counts at least the signature's test.
+    #[test]
+    fn a_gain_of_un_bending_alone_is_no_strong_name() {
+        let opts = DiagnoseOptions::default();
+        let mut bent = candidate("saturation", 300.0, 3, 40.0, true);
+        bent.parameters[0].std_error = Some(0.1);
+        if let Some(g) = bent.gains.as_mut() {
+            (g.chi2_prior_base, g.chi2_prior_ext) = (120.0, 20.0);
+        }
+        let c = confidence(&bent, std::slice::from_ref(&bent), &opts);
+        assert!(c.data_evidence < 0.0, "{c:?}");
+        assert!((c.odds_outside - OUTSIDE_PRIOR_ODDS).abs() < 1e-12, "{c:?}");
+        assert!(
+            c.probability < 0.81 && c.probability > NAME_PROBABILITY,
+            "{c:?}"
+        );
+        let why = strong_or_why_not(&bent, bent.gains.as_ref().unwrap(), &c, &opts);
+        assert!(
+            why.iter()
+                .any(|w| w.contains("returning to their datasheet")),
+            "{why:?}"
+        );
+        let clean = candidate("saturation", 300.0, 3, 40.0, true);
+        let c = confidence(&clean, std::slice::from_ref(&clean), &opts);
+        assert!(c.probability > STRONG_PROBABILITY, "{c:?}");
+        // Named by its signature with no gain in the re-fit: the signature's evidence.
+        let mut ringing = candidate("torsional_mode", 300.0, 3, -13.7, true);
+        ringing.by_evidence = true;
+        if let Some(g) = ringing.gains.as_mut() {
+            (g.chi2_fit_base, g.chi2_held_ext, g.record_evidence) = (300.0, 500.0, 8.1);
+        }
+        let c = confidence(&ringing, std::slice::from_ref(&ringing), &opts);
+        assert!((c.odds_baseline - (-SIGNATURE_EVIDENCE / 2.0).exp()).abs() < 1e-12);
+        assert!(c.probability > 0.95, "{c:?}");
+    }
+
+    /// An extension that takes half of a misfit far above the noise leaves what a right block
+    /// does not: the outside odds are overwhelming and it is not named; one that leaves only its
+    /// form's tolerance (a tenth) keeps its name, graded moderate for what it leaves.
+    #[test]
+    fn a_block_that_leaves_most_of_its_misfit_is_not_named() {
+        let opts = DiagnoseOptions::default();
+        let with = |base: f64, ext: f64| {
+            let mut c = candidate("oel", ext, 3, 40.0, true);
+            if let Some(g) = c.gains.as_mut() {
+                g.chi2_fit_base = base;
+                g.chi2_held_base = base;
+                g.chi2_held_ext = ext;
+                g.record_evidence = 5000.0;
+            }
+            c
+        };
+        // N = 1000, floor 2250: 10000 -> 5000 leaves 5000 − (2250 + 775) = 1975, 988 deflated.
+        let half = with(10_000.0, 5_000.0);
+        let c = confidence(&half, std::slice::from_ref(&half), &opts);
+        assert!((c.misfit_left - 987.5).abs() < 1e-9, "{c:?}");
+        assert!(c.probability < 1e-6, "{c:?}");
+        assert!(unnamed_for(&c).contains("mimics part of another effect"));
+        // 10000 -> 3000: within the tolerance (3025), named.
+        let most = with(10_000.0, 3_000.0);
+        let c = confidence(&most, std::slice::from_ref(&most), &opts);
+        assert_eq!(c.misfit_left, 0.0);
+        assert!(c.probability > STRONG_PROBABILITY, "{c:?}");
+    }
+
+    /// The grade needs the acting parameters identified: an estimate within two standard errors
+    /// of zero, or resting on a bound, is named moderate with the reason; a parameter with an
+    /// infinite standard error does not act and is not held against it.
+    #[test]
+    fn a_strong_grade_needs_identified_parameters() {
+        let opts = DiagnoseOptions::default();
+        let mut rep = candidate("terminal_load", 300.0, 2, 40.0, true);
+        let g = rep.gains.clone().unwrap();
+        let c = confidence(&rep, std::slice::from_ref(&rep), &opts);
+        rep.parameters[0].std_error = Some(0.1);
+        assert!(strong_or_why_not(&rep, &g, &c, &opts).is_empty());
+        rep.parameters[0].std_error = Some(22.5);
+        let why = strong_or_why_not(&rep, &g, &c, &opts);
+        assert!(
+            why.iter()
+                .any(|w| w.contains("p0 not identified (1.0000 ± 22.5000)")),
+            "{why:?}"
+        );
+        rep.parameters[0].std_error = Some(0.1);
+        rep.parameters[0].at_bound = true;
+        let why = strong_or_why_not(&rep, &g, &c, &opts);
+        assert!(
+            why.iter().any(|w| w.contains("rests on a bound")),
+            "{why:?}"
+        );
+        rep.parameters[0].std_error = Some(f64::INFINITY);
+        let why = strong_or_why_not(&rep, &g, &c, &opts);
+        assert!(
+            why.iter()
+                .any(|w| w.contains("no parameter of its extension identified")),
+            "{why:?}"
+        );
     }
 }

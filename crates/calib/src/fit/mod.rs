@@ -11,6 +11,7 @@ mod passes;
 mod report;
 mod search;
 mod stage;
+pub mod worsening;
 
 pub use passes::{fit, fit_with};
 pub use report::{
@@ -20,6 +21,7 @@ pub use report::{
 pub(crate) use search::{jacobian, search};
 pub use stage::check_spec;
 use stage::*;
+pub use worsening::ChannelWorsening;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -74,7 +76,8 @@ pub struct FitOptions {
     pub lbfgs_step_max_s: f64,
     /// After several stages, search every freed parameter together on the full unit (swarm
     /// from the staged result, then the local method from the swarm's best and from the
-    /// datasheet values; objective P+Q), reported as the stage `joint`.
+    /// datasheet values; comparing what the stages compared unless `[calibration.joint]` says,
+    /// [`CalibSpec::joint_compare_of`]), reported as the stage `joint`.
     pub polish: bool,
     /// The local method after each swarm.
     pub local: LocalMethod,
@@ -425,7 +428,7 @@ pub fn check_events(
         checks.push((field, cmp));
     }
     if joint {
-        if let Some(c) = spec.joint_compare() {
+        if let Some(c) = spec.joint_compare_of(stages) {
             checks.push((format!("calibration.joint (mode {}, channels)", c.mode), c));
         }
     }

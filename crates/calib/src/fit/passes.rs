@@ -126,6 +126,7 @@ pub fn fit_with(
         finished: labels[..skip].to_vec(),
         reports: vec![],
         outputs: vec![],
+        watch: super::worsening::Watch::new(events),
     };
 
     if opts.strategy == Strategy::SimultaneousFirst && passes.next()? {
@@ -144,7 +145,7 @@ pub fn fit_with(
             master.set(f.r, *v);
         }
         apply_ties(&mut master, &all)?;
-        passes.hand_out(rep, out, &master)?;
+        passes.hand_out(rep, out, &master, &all)?;
     }
 
     for s in &opts.stages {
@@ -165,7 +166,7 @@ pub fn fit_with(
             master.set(r, *v);
         }
         apply_ties(&mut master, st)?;
-        passes.hand_out(rep, out, &master)?;
+        passes.hand_out(rep, out, &master, st)?;
     }
 
     if opts.polish && opts.stages.len() > 1 && passes.next()? {
@@ -201,7 +202,7 @@ pub fn fit_with(
             master.set(f.r, *v);
         }
         apply_ties(&mut master, &joint)?;
-        passes.hand_out(rep, out, &master)?;
+        passes.hand_out(rep, out, &master, &joint)?;
     }
     let Passes {
         reports, outputs, ..
@@ -241,6 +242,8 @@ struct Passes<'a> {
     finished: Vec<String>,
     reports: Vec<StageReport>,
     outputs: Vec<StageOutput>,
+    /// What the passes so far compared, for the channels a pass makes far worse.
+    watch: super::worsening::Watch,
 }
 
 impl Passes<'_> {
@@ -294,14 +297,24 @@ impl Passes<'_> {
         res
     }
 
-    /// After a pass: hands it out ([`FitControl::on_stage`], with the full unit `master` it
-    /// leaves) and keeps its report and outputs.
+    /// After a pass (with stage spec `spec`): the channels earlier passes compared that it made
+    /// far worse go into its report and onto the terminal ([`super::worsening`]); then it is
+    /// handed out ([`FitControl::on_stage`], with the full unit `master` it leaves) and its
+    /// report and outputs kept.
     fn hand_out(
         &mut self,
-        rep: StageReport,
+        mut rep: StageReport,
         out: StageOutput,
         master: &Unit,
+        spec: &StageSpec,
     ) -> Result<(), FitError> {
+        let before = self.reports.last().map(|r| r.fitness.as_slice());
+        rep.worsened = self
+            .watch
+            .after_pass(&rep.stage, spec, before, &rep.fitness);
+        for w in &rep.worsened {
+            self.progress.message(&format!("warning: {}", w.sentence()));
+        }
         if let Some(f) = self.control.on_stage {
             f(&rep, &out, master)?;
         }

@@ -255,6 +255,10 @@ pub struct StageReport {
     /// [`Determination::NotDetermined`] parameters.
     pub not_determined: Vec<String>,
     pub condition_number: f64,
+    /// Channels an earlier pass compared that this pass made far worse
+    /// ([`super::worsening`]); empty in reports written before it was measured.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub worsened: Vec<super::ChannelWorsening>,
 }
 
 /// The whole fit.
@@ -396,6 +400,9 @@ impl FitReport {
                 100.0 * NOT_DETERMINED_LIMIT,
                 list(&s.not_determined)
             );
+            for w in &s.worsened {
+                let _ = writeln!(out, "  warning: {}", w.sentence());
+            }
         }
         // With playback modes the P+Q J mixes what each stage compares: only the per-mode
         // table below, each mode's J in its own channels.

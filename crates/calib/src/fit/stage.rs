@@ -15,7 +15,7 @@ use crate::identify;
 use crate::problem::{
     accurate_integrator, objective_weights, sum_of_squares, EventData, FreeParam, Problem,
 };
-use crate::spec::{CalibSpec, Compare, Objective, StageSpec, Strategy, Weights};
+use crate::spec::{CalibSpec, Channels, Compare, Objective, StageSpec, Strategy, Weights};
 
 use super::*;
 
@@ -59,8 +59,9 @@ pub(super) fn build_block(
 }
 
 /// A stage spec combining the free parameters of `stages` (for the simultaneous and joint
-/// passes), objective P+Q, or as `[calibration.joint]` says (its mode, channels, window and
-/// extra free parameters).
+/// passes), comparing what [`CalibSpec::joint_compare_of`] says (`[calibration.joint]`'s
+/// channels, else what the stages compared; P+Q when that is P and Q), with the joint table's
+/// window and extra free parameters.
 pub(super) fn combined_stage(name: &str, spec: &CalibSpec, stages: &[String]) -> StageSpec {
     let mut all = StageSpec {
         name: name.into(),
@@ -75,9 +76,16 @@ pub(super) fn combined_stage(name: &str, spec: &CalibSpec, stages: &[String]) ->
         mode: Default::default(),
         channels: None,
     };
+    if let Some(c) = spec.joint_compare_of(stages) {
+        all.mode = c.mode;
+        all.channels = Some(Channels::Weights(
+            c.weights
+                .iter()
+                .map(|(ch, w)| (ch.name().to_string(), *w))
+                .collect(),
+        ));
+    }
     if let Some(j) = &spec.joint {
-        all.mode = j.mode;
-        all.channels = j.channels.clone();
         all.window = j.window;
     }
     for s in stages {
@@ -389,6 +397,7 @@ pub(super) fn run_stage(
         weak,
         not_determined,
         condition_number: cond,
+        worsened: vec![],
     };
     Ok((
         report,

@@ -1,8 +1,8 @@
 //! IEEEX1: IEEE type 1 DC-commutator exciter with a transient-gain-reduction lead-lag, as PSS/E's
 //! `IEEEX1` (the 1979 IEEE type DC1, IEEE 421.5-2016 DC1C without its E_fd limits), cross-checked
-//! against ANDES 2.0 `ESDC1A` (`tests/andes_models.rs`). Its DC2A sibling, PSS/E's `EXDC2`
-//! (`exdc2.rs`), is the same block with regulator limits proportional to the terminal voltage
-//! (`Ieeex1::exdc2`): the equations live here once.
+//! against ANDES 2.0 `EXDC2` before its speed multiplier (`tests/andes_models.rs`). Its DC2A
+//! sibling, PSS/E's `EXDC2` (`exdc2.rs`), is the same block with regulator limits proportional
+//! to the terminal voltage ([`Ieeex1::variant`]): the equations live here once.
 //!
 //! States: transducer `v_m`, lead-lag `x_ll`, regulator output `v_r` (non-windup), exciter output
 //! `e_fd`, rate feedback washout `x_f`.
@@ -27,7 +27,7 @@
 //! and leaves when the rate reverses ([`NonWindup`]; EXDC2's limits move with V_T,
 //! [`NonWindup::derivative_moving`]). E_fd itself is not limited (DC1C's optional E_fd ≥ 0
 //! clamp, `exclim`, is not part of PSS/E's IEEEX1/EXDC2): its ceiling is where V_R = V_RMAX
-//! holds it. ANDES's `ESDC1A`/`IEEEX1` use the same non-windup lag (`LagAntiWindup`).
+//! holds it. ANDES's `EXDC2` and `IEEEX1` use the same non-windup lag (`LagAntiWindup`).
 //!
 //! **Initialisation** (exact, from E_fd0): `S_E0 = S_E(E_fd0)`, `V_R0 = (K_E + S_E0) E_fd0`,
 //! `x_f = E_fd0` (`V_F = 0`), `x_ll = V_R0/K_A`, `V_m0 = E_comp0`, `V_ref = E_comp0 + V_R0/K_A −
@@ -40,9 +40,9 @@
 //! no automatic meaning here (refused: `VRMAX > VRMIN` is required).
 //!
 //! **Departures.** `SWITCH` (PSS/E CON 11) is read and written back but not used (PSS/E does not
-//! use it either). ANDES's `ESDC1A` compares `V_ref` with the unfiltered terminal voltage (its
-//! T_R lag is computed but not used) and its `EXDC2` multiplies E_fd by the speed; its `IEEEX1`
-//! is this file's EXDC2 (limits `V_T·V_RMAX`), without stabiliser input.
+//! use it either). ANDES's `EXDC2` multiplies E_fd by the speed (PSS/E's IEEEX1 does not); its
+//! `IEEEX1` is PSS/E's EXDC2 (limits `V_T·V_RMAX`, no stabiliser input); its `ESDC1A` leaves its
+//! regulator limits at 0.
 
 use crate::block::{guard, Block, InitPoint, Io, ModelError, Port, PortInit};
 use crate::dyr::DyrRecord;
@@ -60,7 +60,7 @@ pub const MODEL: ModelInfo = ModelInfo {
     name: "IEEEX1",
     role: Role::Exciter,
     summary: "IEEE type 1 (DC1) DC exciter with lead-lag, rate feedback and quadratic saturation",
-    reference: "IEEE 1979 type DC1 as PSS/E IEEEX1, ANDES ESDC1A; non-windup V_R limits",
+    reference: "IEEE 1979 type DC1 as PSS/E IEEEX1, ANDES EXDC2 (no speed factor); non-windup V_R limits",
     make: || Box::new(Ieeex1::default()),
     dyr: Some(DyrRecord::cons(DYR_CONS)),
 };

@@ -6,5 +6,7 @@ crate::library! {
     hygov,
     tgov1,
     ieeeg1,
+    gast,
+    tg2,
     constant_pm,
 }

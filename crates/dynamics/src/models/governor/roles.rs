@@ -7,12 +7,12 @@
 //!
 //! | role | meaning |
 //! |---|---|
-//! | `droop` | permanent droop R [pu speed / pu power]: HYGOV `R`, TGOV1 `R` |
+//! | `droop` | permanent droop R [pu speed / pu power]: HYGOV `R`, TGOV1 `R`, GAST `R`, TG2 `R` |
 //! | `speed_gain` | the same expressed as a gain K = 1/R: IEEEG1 `K` |
 //! | `transient_droop`, `reset_time_constant` | a dashpot (temporary droop r, reset T_r): HYGOV |
-//! | `governor_lead_lag` | a lead-lag on the speed signal: IEEEG1 `(1 + sT2)/(1 + sT1)` |
-//! | `servo_time_constant` | the gate or valve servo: HYGOV `T_g`, TGOV1 `T1`, IEEEG1 `T3` |
-//! | `turbine_time_constant` | the prime mover's main lag: HYGOV `T_w`, IEEEG1 `T4` (steam chest) |
+//! | `governor_lead_lag` | a lead-lag on the speed signal: IEEEG1 `(1 + sT2)/(1 + sT1)`, TG2 `(1 + sT1)/(1 + sT2)` |
+//! | `servo_time_constant` | the gate or valve servo: HYGOV `T_g`, TGOV1 `T1`, IEEEG1 `T3`, GAST `T1` (fuel valve) |
+//! | `turbine_time_constant` | the prime mover's main lag: HYGOV `T_w`, IEEEG1 `T4` (steam chest), GAST `T2` |
 //! | `reheat_time_constant` | the reheater's lag: TGOV1 `T3`, IEEEG1 `T5` |
 //! | `reheat_lead` | the lead of a reheater lead-lag (the high-pressure fraction times T_RH): TGOV1 `T2` |
 //! | `output_max`, `output_min` | the gate, valve or power limits |
