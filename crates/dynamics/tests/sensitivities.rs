@@ -1099,8 +1099,9 @@ q_nl = 0.1
     assert!(missing.is_empty(), "primitives not exercised: {missing:?}");
 }
 
-/// IEEEX1's regulator reaches its V_RMAX (typical data, the lead-lag on): the sensitivities
-/// against the converged derivative, as
+/// IEEEX1's regulator reaches its V_RMAX and EXDC2's its V_T·V_RMAX, which moves with the
+/// terminal voltage (typical data, the lead-lag on): the sensitivities against the converged
+/// derivative, as
 /// [`sensitivities_through_a_ceiling_match_the_converged_derivative`].
 #[test]
 fn dc_exciter_sensitivities_through_their_regulator_limits_match_the_converged_derivative() {

@@ -7,12 +7,31 @@
 //! T_A dV_R/dt = K_A y_ll − V_R     non-windup in [V_T·V_RMIN, V_T·V_RMAX]   (V_T: port v_supply [pu])
 //! ```
 //!
-//! The limits move with V_T: while V_R is held on a limit it follows `V_T·V_RMAX` exactly
-//! ([`NonWindup::derivative_moving`](crate::models::limiter::NonWindup::derivative_moving)).
-//! Same `.dyr` record (CON order) and parameters as IEEEX1; typical values are IEEE 421.5-2005
-//! Annex H's DC2A sample data. Cross-checked against ANDES 2.0 `IEEEX1`, whose limits are
-//! `V·V_RMAX` (`tests/andes_models.rs`). The initialisation refuses a `V_R0 = (K_E +
-//! SE(E_fd0))·E_fd0` outside `[V_T0·VRMIN, V_T0·VRMAX]`, naming V_T0.
+//! **Limits.** PSS/E's EXDC2 and IEEE 421.5 (DC2A/DC2C) draw `V_T·V_RMAX`, `V_T·V_RMIN` on the
+//! regulator lag as a non-windup limit that moves with the terminal voltage: while V_R is held
+//! on a limit it *is* the limit, `V_R = V_T(t)·V_RMAX`, and it leaves when its rate
+//! `(K_A y_ll − V_R)/T_A` points back inside (IEEE 421.5-2016 Annex E's non-windup lag read with
+//! a moving bound; [`NonWindup::derivative_moving`](crate::models::limiter::NonWindup::derivative_moving),
+//! the switch located by an event). A ceiling that falls below a free V_R takes V_R down with
+//! it while V_R still pushes outwards (no windup above the moving limit). A step-by-step
+//! implementation that only resets a state found beyond its limit releases a pinned V_R when
+//! the ceiling rises and lets it climb behind it with T_A: the two differ for a few T_A after a
+//! rising ceiling (T_A is 0.01-0.06 s in the IEEE sample data).
+//!
+//! **Initialisation** as IEEEX1's; refused when `V_R0 = (K_E + S_E(E_fd0))·E_fd0` lies outside
+//! `[V_T0·VRMIN, V_T0·VRMAX]`, naming V_T0.
+//!
+//! **Departures.** As IEEEX1 (SWITCH read and written back, not used). Same `.dyr` record
+//! (CON order) and parameters as IEEEX1; typical values are IEEE 421.5-2005 Annex H's DC2A
+//! sample data.
+//!
+//! **ANDES.** ANDES 2.0's `IEEEX1` is PSS/E's EXDC2 layout and declares the limits `V·V_RMAX`,
+//! `V·V_RMIN`, but its anti-windup limiter keeps the constant `V_RMAX`, `V_RMIN` it was built
+//! with (`LagAntiWindup` binds its bounds before `IEEEX1` replaces them): in a dip its V_R rises
+//! to the unscaled `V_RMAX`, 0.2 pu of E_fd above ours after a 0.1 s dip to 0.6 pu. The ANDES
+//! case (`tests/andes_models.rs`, `exdc2`) therefore keeps V_R inside `V_T·[V_RMIN, V_RMAX]`;
+//! the scaled limits are tested on their own (`tests/exciters.rs`: the regulator pinned at
+//! `V_T·V_RMAX` in a dip and at `V_T·V_RMIN` in an overvoltage).
 
 use crate::dyr::DyrRecord;
 use crate::models::exciter::ieeex1::{Ieeex1, DYR_CONS};
@@ -24,7 +43,7 @@ pub const MODEL: ModelInfo = ModelInfo {
     name: "EXDC2",
     role: Role::Exciter,
     summary: "IEEE type DC2 DC exciter: IEEEX1 with regulator limits proportional to V_T",
-    reference: "IEEE 1979 type DC2 as PSS/E EXDC2, ANDES IEEEX1; non-windup V_R limits times V_T",
+    reference: "IEEE 1979 type DC2 as PSS/E EXDC2; non-windup V_R limits times V_T (ANDES IEEEX1 inside them)",
     make: || Box::new(exdc2()),
     dyr: Some(DyrRecord::cons(DYR_CONS)),
 };
