@@ -1,4 +1,4 @@
-//! The exciter library beyond SEXS (ST5B, IEEET1, ESST1A) inside full units:
+//! The exciter library beyond SEXS (ST5B, IEEET1, ESST1A, IEEEX1, EXDC2) inside full units:
 //!
 //! * exact steady state: at several operating points (lagging, leading, light load, off-nominal
 //!   frequency, a 50 Hz unit), with zero time constants and with E_fd0 a hair inside each limit,
@@ -6,6 +6,7 @@
 //!   initial value over a 10 s playback of the constant operating point;
 //! * an operating point the exciter cannot hold is an initialisation error naming the limit;
 //! * PSS/E's automatic IEEET1 parameters (KE = 0, VRMAX = 0) give the documented V_R0;
+//! * EXDC2's regulator is held at its limits times the terminal voltage;
 //! * `.dyr` read → write → read keeps every parameter for each new record;
 //! * every exciter declares its roles, each naming one of its parameters or saying why none.
 
