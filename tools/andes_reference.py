@@ -133,6 +133,17 @@ CASES = {
                        TR=0.02, KA=40.0, TA=0.04, TB=1.0, TC=0.5, VRMAX=2.0, VRMIN=-2.0, KE=1.0,
                        TE=0.5, KF=0.05, TF1=1.0, Switch=0, E1=2.85, SE1=0.3, E2=3.8, SE2=0.6),
                    ours_only=("KF", "Switch"), andes_only=dict(KF1=0.05)),
+    # EXDC2: against ANDES's IEEEX1 (PSS/E's EXDC2 layout, ANDES's name KF1 for KF). ANDES 2.0
+    # declares its limits V·VRMAX, V·VRMIN but its anti-windup limiter keeps the constant
+    # VRMAX, VRMIN it was built with (LagAntiWindup binds its bounds before IEEEX1 replaces
+    # them), so the case keeps V_R inside V_T·[VRMIN, VRMAX] throughout (K_A = 10: V_R stays
+    # under 0.6 x 9 in the dip); our V_T-scaled limits have their own test
+    # (tests/exciters.rs). Lead-lag and transducer on.
+    "exdc2": dict(section="exciter", model="EXDC2", andes_model="IEEEX1", profile="dip",
+                  params=dict(TR=0.02, KA=10.0, TA=0.04, TB=1.0, TC=0.5, VRMAX=9.0, VRMIN=-9.0,
+                              KE=1.0, TE=0.5, KF=0.05, TF1=1.0, Switch=0, E1=2.85, SE1=0.3,
+                              E2=3.8, SE2=0.6), ours_only=("KF", "Switch"),
+                  andes_only=dict(KF1=0.05)),
 }
 
 UNIT_HEAD = """name = "andes-{case}"

@@ -47,6 +47,7 @@ const CASES: &[Case] = &[
     Case { model: "GAST", case: "gast", unit: "unit_gast.toml", tol: [AGREE; 4], convention: "" },
     Case { model: "TG2", case: "tg2", unit: "unit_tg2.toml", tol: [AGREE; 4], convention: "" },
     Case { model: "IEEEX1", case: "ieeex1", unit: "unit_ieeex1.toml", tol: [2e-3, AGREE, AGREE, AGREE], convention: "ANDES's EXDC2 with E_fd before its speed multiplier (vp); E_fd differs after the dip as IEEET1's (1.4e-3 at 1.173 s), nowhere else above 1e-3" },
+    Case { model: "EXDC2", case: "exdc2", unit: "unit_exdc2.toml", tol: [AGREE; 4], convention: "" },
 ];
 
 fn data(rel: &str) -> PathBuf {

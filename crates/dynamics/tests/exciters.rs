@@ -1,4 +1,4 @@
-//! The exciter library beyond SEXS (ST5B, IEEET1, ESST1A) inside full units:
+//! The exciter library beyond SEXS (ST5B, IEEET1, ESST1A, IEEEX1, EXDC2) inside full units:
 //!
 //! * exact steady state: at several operating points (lagging, leading, light load, off-nominal
 //!   frequency, a 50 Hz unit), with zero time constants and with E_fd0 a hair inside each limit,
@@ -6,6 +6,7 @@
 //!   initial value over a 10 s playback of the constant operating point;
 //! * an operating point the exciter cannot hold is an initialisation error naming the limit;
 //! * PSS/E's automatic IEEET1 parameters (KE = 0, VRMAX = 0) give the documented V_R0;
+//! * EXDC2's regulator is held at its limits times the terminal voltage;
 //! * `.dyr` read → write → read keeps every parameter for each new record;
 //! * every exciter declares its roles, each naming one of its parameters or saying why none.
 
@@ -322,6 +323,37 @@ fn variants(machine: &str, exciter: &str, f_n: f64, op: &InitPoint) -> Vec<Varia
                 variant("V_R0 a hair under VRMAX", &[("vr_max", vr0 * (1.0 + 1e-6))]),
             ]
         }
+        "IEEEX1" | "EXDC2" => {
+            let p = registry::find(exciter).unwrap().create();
+            let get = |n: &str| p.params().get(p.params().index_of(n).unwrap());
+            // K_E = 1 so that V_R0 = (K_E + S_E(E_fd0)) E_fd0 is not 0 (IEEEX1's typical K_E = 0).
+            let vr0 = efd0 + sat_times_e(get("e1"), get("se1"), get("e2"), get("se2"), efd0);
+            // EXDC2's ceiling is V_T0·V_RMAX: a hair above V_R0 at this V_T0 (IEEEX1 with the
+            // same V_RMAX refuses the points where V_T0 > 1).
+            let scale = if exciter == "EXDC2" { vt0 } else { 1.0 };
+            vec![
+                variant("typical", &[]),
+                variant(
+                    "zero time constants (T_R, T_A, T_B = 0)",
+                    &[("t_r", 0.0), ("t_a", 0.0), ("t_b", 0.0)],
+                ),
+                variant("lead-lag on", &[("t_c", 0.5), ("t_b", 1.0)]),
+                variant("KE = 0 (computed)", &[("k_e", 0.0)]),
+                variant(
+                    "saturated at E_fd0 (E_1 = 0.6 E_fd0)",
+                    &[
+                        ("e1", 0.6 * efd0),
+                        ("se1", 0.05),
+                        ("e2", 1.5 * efd0),
+                        ("se2", 0.4),
+                    ],
+                ),
+                variant(
+                    "V_R0 a hair under the ceiling",
+                    &[("k_e", 1.0), ("vr_max", vr0 / scale * (1.0 + 1e-6))],
+                ),
+            ]
+        }
         _ => unreachable!(),
     }
 }
@@ -344,7 +376,7 @@ fn sat_times_e(e1: f64, se1: f64, e2: f64, se2: f64, e: f64) -> f64 {
 #[test]
 fn new_exciters_start_in_exact_steady_state() {
     let mut checked = 0;
-    for exciter in ["ST5B", "IEEET1", "ESST1A"] {
+    for exciter in ["ST5B", "IEEET1", "ESST1A", "IEEEX1", "EXDC2"] {
         for (machine, f_n) in [("GENSAL", 50.0), ("GENSAE", 60.0), ("GENROU", 50.0)] {
             for (at, p) in operating_points(f_n) {
                 for v in variants(machine, exciter, f_n, &p) {
@@ -358,8 +390,12 @@ fn new_exciters_start_in_exact_steady_state() {
             }
         }
     }
-    // ST5B: 6 variants (7 where V_t < 1: light load, +0.02 %); IEEET1: 6; ESST1A: 8.
-    assert_eq!(checked, 3 * (6 * 6 + 2) + 3 * 6 * 6 + 3 * 6 * 8);
+    // ST5B: 6 variants (7 where V_t < 1: light load, +0.02 %); IEEET1: 6; ESST1A: 8; IEEEX1,
+    // EXDC2: 6.
+    assert_eq!(
+        checked,
+        3 * (6 * 6 + 2) + 3 * 6 * 6 + 3 * 6 * 8 + 2 * 3 * 6 * 6
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -514,11 +550,87 @@ fn ieeet1_vrmax_zero_takes_the_regulator_output_that_holds_e2() {
 }
 
 // ---------------------------------------------------------------------------------------------
+// EXDC2: regulator limits proportional to the terminal voltage
+
+/// Plays into GENSAL + `model` (IEEEX1 or EXDC2, DC2A sample data with V_RMAX = 6, V_RMIN = −4
+/// and no rate feedback, which would hold V_R off its floor in the overvoltage) a dip to 0.5 pu (1-2 s) then an overvoltage of 1.15 pu (2-4 s) and returns the regulator
+/// state's (V_R0, max V_R in the dip, min V_R in the overvoltage), each window starting 0.3 s
+/// after its edge: the stored state of a V_R pinned while its limit moves (the 1 ms edges)
+/// tracks the limit with T_A = 0.01 s, within e^-30 of it after 30 T_A (the output is the
+/// limit itself throughout).
+fn dc_regulator_extremes(model: &str) -> (f64, f64, f64) {
+    let p = operating_points(50.0)[0].1;
+    let mut u = Unit::new("exc-test", 30.0, 50.0);
+    u.add("machine", registry::find("GENSAL").unwrap().create(), &[])
+        .unwrap();
+    let mut e = registry::find("EXDC2").unwrap().create();
+    let data: Vec<f64> = (0..e.params().specs().len())
+        .map(|i| e.params().get(i))
+        .collect();
+    if model != "EXDC2" {
+        e = registry::find(model).unwrap().create();
+        for (i, v) in data.into_iter().enumerate() {
+            e.params_mut().set(i, v);
+        }
+    }
+    for (k, v) in [("vr_max", 6.0), ("vr_min", -4.0), ("k_f", 0.0)] {
+        let i = e.params().index_of(k).unwrap();
+        e.params_mut().set(i, v);
+    }
+    u.add("exciter", e, &[]).unwrap();
+    u.finish().unwrap();
+    let mut x = u.initialise(&p).unwrap();
+    let k_vr = u
+        .state_names()
+        .iter()
+        .position(|n| n == "exciter.v_r")
+        .unwrap();
+    let vr0 = x[k_vr];
+    let input = PlaybackInput::linear(
+        vec![0.0, 1.0, 1.001, 2.0, 2.001, 4.0],
+        vec![p.v_mag, p.v_mag, 0.5, 0.5, 1.15, 1.15],
+        vec![p.v_ang; 6],
+    );
+    let knots: Vec<f64> = (0..=4000).map(|k| k as f64 * 1e-3).collect();
+    let (mut hi, mut lo) = (f64::MIN, f64::MAX);
+    let mut sys = Playback::new(&mut u, &input);
+    solve(&tight(), &mut sys, &mut x, &knots, |_, t, x, _| {
+        if (1.3..2.0).contains(&t) {
+            hi = hi.max(x[k_vr]);
+        }
+        if t >= 2.3 {
+            lo = lo.min(x[k_vr]);
+        }
+    })
+    .unwrap();
+    (vr0, hi, lo)
+}
+
+#[test]
+fn exdc2_s_regulator_is_held_at_its_limits_times_the_terminal_voltage() {
+    let (vr0, hi, lo) = dc_regulator_extremes("EXDC2");
+    // V_R starts inside 0.5·V_RMAX = 3, so the dip drives it up onto the scaled ceiling.
+    assert!(vr0 < 2.9, "V_R0 = {vr0}");
+    assert!((hi - 0.5 * 6.0).abs() < 1e-9, "V_R in the dip: {hi}");
+    assert!(
+        (lo - 1.15 * -4.0).abs() < 1e-9,
+        "V_R in the overvoltage: {lo}"
+    );
+    // The same data as IEEEX1 (constant limits, as ANDES 2.0's IEEEX1 in effect) reaches the
+    // unscaled limits.
+    let (_, hi, lo) = dc_regulator_extremes("IEEEX1");
+    assert!(
+        (hi - 6.0).abs() < 1e-9 && (lo + 4.0).abs() < 1e-9,
+        "IEEEX1: {hi}, {lo}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
 // .dyr
 
 #[test]
 fn dyr_read_write_read_keeps_every_parameter_of_the_new_exciters() {
-    for exciter in ["ST5B", "IEEET1", "ESST1A"] {
+    for exciter in ["ST5B", "IEEET1", "ESST1A", "IEEEX1", "EXDC2"] {
         let mut u = Unit::new("rt", 30.0, 50.0);
         for (k, (role, model)) in [("machine", "GENSAL"), ("exciter", exciter)]
             .iter()

@@ -1099,12 +1099,13 @@ q_nl = 0.1
     assert!(missing.is_empty(), "primitives not exercised: {missing:?}");
 }
 
-/// IEEEX1's regulator reaches its V_RMAX (typical data, the lead-lag on): the sensitivities
-/// against the converged derivative, as
+/// IEEEX1's regulator reaches its V_RMAX and EXDC2's its V_T·V_RMAX, which moves with the
+/// terminal voltage (typical data, the lead-lag on): the sensitivities against the converged
+/// derivative, as
 /// [`sensitivities_through_a_ceiling_match_the_converged_derivative`].
 #[test]
 fn dc_exciter_sensitivities_through_their_regulator_limits_match_the_converged_derivative() {
-    for model in ["IEEEX1"] {
+    for model in ["IEEEX1", "EXDC2"] {
         let mut u = unit(&[("machine", "GENROU"), ("exciter", model)]);
         for (p, v) in [("exciter.t_c", 0.5), ("exciter.t_b", 1.0)] {
             let r = u.param(p).unwrap();

@@ -8,6 +8,7 @@ crate::library! {
     st5b,
     ieeet1,
     ieeex1,
+    exdc2,
     esst1a,
     esst4b,
 }
