@@ -16,7 +16,7 @@ use std::path::Path;
 
 use exciter_support::{Series, Source};
 
-use itaipu_dynamics::block::InitPoint;
+use itaipu_dynamics::block::{Block, InitPoint};
 use itaipu_dynamics::dyr::{parse_dyr, write_dyr, DyrBases};
 use itaipu_dynamics::integrate::{solve, Dopri5Options, Method, OdeSystem};
 use itaipu_dynamics::models::exciter::roles::{ExciterRoles, ParamRole};
@@ -484,17 +484,26 @@ fn an_operating_point_outside_the_exciter_limits_is_an_init_error_not_a_clip() {
 // ---------------------------------------------------------------------------------------------
 // IEEET1: PSS/E's automatic parameters
 
-/// Plays a 0.5 pu dip (1-2 s) into GENSAL + IEEET1 and returns (V_R at t = 0, max V_R, min V_R).
+/// Plays a 0.5 pu dip (1-2 s) and a 1.15 pu overvoltage into GENSAL + IEEET1 with `set` and
+/// returns (V_R at t = 0, max V_R, min V_R) over the whole run ([`regulator_extremes`]).
 fn ieeet1_dip(set: &[(&str, f64)]) -> (f64, f64, f64) {
-    let p = operating_points(50.0)[0].1;
-    let mut u = Unit::new("exc-test", 30.0, 50.0);
-    u.add("machine", registry::find("GENSAL").unwrap().create(), &[])
-        .unwrap();
     let mut e = registry::find("IEEET1").unwrap().create();
     for (k, v) in set {
         let i = e.params().index_of(k).unwrap();
         e.params_mut().set(i, *v);
     }
+    regulator_extremes(e, 0.0)
+}
+
+/// Plays into GENSAL + the exciter `e` (at the first 50 Hz operating point) a dip to 0.5 pu
+/// (1-2 s) then an overvoltage of 1.15 pu (2-4 s), 1 ms edges, and returns (V_R at t = 0, max
+/// V_R in the dip from `settle_s` after its edge, min V_R from `settle_s` after the
+/// overvoltage's edge; with `settle_s` = 0 the extremes over the whole run).
+fn regulator_extremes(e: Box<dyn Block>, settle_s: f64) -> (f64, f64, f64) {
+    let p = operating_points(50.0)[0].1;
+    let mut u = Unit::new("exc-test", 30.0, 50.0);
+    u.add("machine", registry::find("GENSAL").unwrap().create(), &[])
+        .unwrap();
     u.add("exciter", e, &[]).unwrap();
     u.finish().unwrap();
     let mut x = u.initialise(&p).unwrap();
@@ -511,10 +520,15 @@ fn ieeet1_dip(set: &[(&str, f64)]) -> (f64, f64, f64) {
     );
     let knots: Vec<f64> = (0..=4000).map(|k| k as f64 * 1e-3).collect();
     let (mut hi, mut lo) = (f64::MIN, f64::MAX);
+    let whole = settle_s == 0.0;
     let mut sys = Playback::new(&mut u, &input);
-    solve(&tight(), &mut sys, &mut x, &knots, |_, _, x, _| {
-        hi = hi.max(x[k_vr]);
-        lo = lo.min(x[k_vr]);
+    solve(&tight(), &mut sys, &mut x, &knots, |_, t, x, _| {
+        if whole || (1.0 + settle_s..2.0).contains(&t) {
+            hi = hi.max(x[k_vr]);
+        }
+        if whole || t >= 2.0 + settle_s {
+            lo = lo.min(x[k_vr]);
+        }
     })
     .unwrap();
     (vr0, hi, lo)
@@ -552,17 +566,12 @@ fn ieeet1_vrmax_zero_takes_the_regulator_output_that_holds_e2() {
 // ---------------------------------------------------------------------------------------------
 // EXDC2: regulator limits proportional to the terminal voltage
 
-/// Plays into GENSAL + `model` (IEEEX1 or EXDC2, DC2A sample data with V_RMAX = 6, V_RMIN = −4
-/// and no rate feedback, which would hold V_R off its floor in the overvoltage) a dip to 0.5 pu (1-2 s) then an overvoltage of 1.15 pu (2-4 s) and returns the regulator
-/// state's (V_R0, max V_R in the dip, min V_R in the overvoltage), each window starting 0.3 s
-/// after its edge: the stored state of a V_R pinned while its limit moves (the 1 ms edges)
+/// [`regulator_extremes`] of GENSAL + `model` (IEEEX1 or EXDC2, DC2A sample data with
+/// V_RMAX = 6, V_RMIN = −4 and no rate feedback, which would hold V_R off its floor in the
+/// overvoltage), each window starting 0.3 s after its edge: the stored state of a V_R pinned while its limit moves (the 1 ms edges)
 /// tracks the limit with T_A = 0.01 s, within e^-30 of it after 30 T_A (the output is the
 /// limit itself throughout).
 fn dc_regulator_extremes(model: &str) -> (f64, f64, f64) {
-    let p = operating_points(50.0)[0].1;
-    let mut u = Unit::new("exc-test", 30.0, 50.0);
-    u.add("machine", registry::find("GENSAL").unwrap().create(), &[])
-        .unwrap();
     let mut e = registry::find("EXDC2").unwrap().create();
     let data: Vec<f64> = (0..e.params().specs().len())
         .map(|i| e.params().get(i))
@@ -577,33 +586,7 @@ fn dc_regulator_extremes(model: &str) -> (f64, f64, f64) {
         let i = e.params().index_of(k).unwrap();
         e.params_mut().set(i, v);
     }
-    u.add("exciter", e, &[]).unwrap();
-    u.finish().unwrap();
-    let mut x = u.initialise(&p).unwrap();
-    let k_vr = u
-        .state_names()
-        .iter()
-        .position(|n| n == "exciter.v_r")
-        .unwrap();
-    let vr0 = x[k_vr];
-    let input = PlaybackInput::linear(
-        vec![0.0, 1.0, 1.001, 2.0, 2.001, 4.0],
-        vec![p.v_mag, p.v_mag, 0.5, 0.5, 1.15, 1.15],
-        vec![p.v_ang; 6],
-    );
-    let knots: Vec<f64> = (0..=4000).map(|k| k as f64 * 1e-3).collect();
-    let (mut hi, mut lo) = (f64::MIN, f64::MAX);
-    let mut sys = Playback::new(&mut u, &input);
-    solve(&tight(), &mut sys, &mut x, &knots, |_, t, x, _| {
-        if (1.3..2.0).contains(&t) {
-            hi = hi.max(x[k_vr]);
-        }
-        if t >= 2.3 {
-            lo = lo.min(x[k_vr]);
-        }
-    })
-    .unwrap();
-    (vr0, hi, lo)
+    regulator_extremes(e, 0.3)
 }
 
 #[test]
